@@ -1,0 +1,89 @@
+"""The ``robointel`` command (typer + rich).
+
+Core commands live here (``info``, ``demo``); each phase adds its commands from a module in
+``robointel.commands`` exposing ``register(app)``, and its demo stage as ``demo_stage``.
+"""
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from robointel.errors import RobointelError
+
+app = typer.Typer(add_completion=False, no_args_is_help=True,
+                  help="robointel: teach, learn and plan for an industrial arm (simulated in MuJoCo).")
+console = Console()
+
+# modules in robointel.commands, in demo order; each may define register(app) and demo_stage
+COMMAND_MODULES = ("core", "planning", "guidance", "learning", "grasp", "teach")
+
+
+def _load_commands() -> list:
+    mods = []
+    for name in COMMAND_MODULES:
+        try:
+            mod = importlib.import_module(f"robointel.commands.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name == f"robointel.commands.{name}":
+                continue
+            raise
+        if hasattr(mod, "register"):
+            mod.register(app)
+        mods.append(mod)
+    return mods
+
+
+@app.command()
+def info(robot: str = typer.Argument("lrmate200id7l", help="built-in name, 'ur5', 'panda' or a URDF path")) -> None:
+    """Print the robot's joints, limits and collision-sphere model."""
+    import numpy as np
+
+    from robointel.robot import Robot
+
+    try:
+        r = Robot.load(robot)
+    except RobointelError as exc:
+        console.print(f"[red]error:[/red] {exc}")
+        raise typer.Exit(2)
+    t = Table(title=f"{r.name}: {r.nq} joints, flange frame {r.flange_frame!r}")
+    for c in ("joint", "lower [deg]", "upper [deg]", "max speed [deg/s]", "effort [N m]", "viscous", "Coulomb [N m]"):
+        t.add_column(c, justify="right")
+    for i, n in enumerate(r.joint_names):
+        t.add_row(n, f"{np.degrees(r.lower[i]):.1f}", f"{np.degrees(r.upper[i]):.1f}",
+                  f"{np.degrees(r.velocity_limit[i]):.0f}", f"{r.effort_limit[i]:.1f}",
+                  f"{r.viscous[i]:.2f}", f"{r.coulomb[i]:.2f}")
+    console.print(t)
+    mass = sum(float(i.mass) for i in r.model.inertias)
+    console.print(f"total link mass {mass:.2f} kg")
+    s = Table(title=f"collision model: {len(r.spheres)} spheres, {len(r.spheres.self_pairs)} self-collision pairs")
+    for c in ("#", "link", "centre (link frame) [m]", "radius [m]"):
+        s.add_column(c)
+    for i, (l, c, rad) in enumerate(zip(r.spheres.links, r.spheres.centers, r.spheres.radii)):
+        s.add_row(str(i), l, np.array2string(c, precision=3), f"{rad:.3f}")
+    console.print(s)
+
+
+@app.command()
+def demo(out: Path = typer.Option(Path("robointel-report"), help="report folder"),
+         quick: bool = typer.Option(False, help="smaller problems (for tests)")) -> None:
+    """Run the main job on the built-in simulated workcell and write an HTML report."""
+    from robointel.report.demo import run_demo
+
+    mods = _load_commands()
+    stages = [m.demo_stage for m in mods if hasattr(m, "demo_stage")]
+    try:
+        index = run_demo(stages, out, quick=quick, console=console)
+    except RobointelError as exc:
+        console.print(f"[red]error:[/red] {exc}")
+        raise typer.Exit(2)
+    console.print(f"report: [bold]{index}[/bold]")
+
+
+_load_commands()
+
+if __name__ == "__main__":  # pragma: no cover
+    app()

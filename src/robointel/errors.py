@@ -1,0 +1,67 @@
+"""One exception hierarchy for robointel.
+
+Every error raised at a public boundary is a :class:`RobointelError`. Messages say what was wrong
+and what to do; the offending value is kept on the exception (``.value``) where there is one.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+
+class RobointelError(Exception):
+    """Base class of every robointel error."""
+
+    def __init__(self, message: str, *, value: Any = None) -> None:
+        super().__init__(message)
+        self.value = value
+
+
+class InvalidInput(RobointelError, ValueError):
+    """An argument has the wrong shape, type, units or contains NaN/inf."""
+
+
+class ShapeError(InvalidInput):
+    """An array has the wrong shape."""
+
+
+class NotFinite(InvalidInput):
+    """An array contains NaN or inf."""
+
+
+class LimitViolation(InvalidInput):
+    """A configuration, velocity or parameter is outside its allowed range."""
+
+
+class UnknownRobot(RobointelError, KeyError):
+    """A robot name is neither built in nor a path to a URDF file."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0])
+
+
+class DescriptionError(RobointelError):
+    """A robot description (URDF) could not be read or is inconsistent."""
+
+
+class IKFailure(RobointelError):
+    """Inverse kinematics found no solution (unreachable pose, or outside joint limits)."""
+
+
+class InfeasibleProblem(RobointelError):
+    """An optimisation problem has no feasible point (e.g. contradictory limits)."""
+
+
+class SolverFailure(RobointelError):
+    """A numerical solver failed; the result, where there is one, is kept on ``.value``."""
+
+
+class CollisionAtStart(InfeasibleProblem):
+    """A start configuration or waypoint is in collision; the message names link and obstacle."""
+
+
+class DataMissing(RobointelError, FileNotFoundError):
+    """A reference data file is missing."""
+
+
+class SafetyStop(RobointelError):
+    """A controller refused a command (bad sensor data, stalled stream) and held the robot."""

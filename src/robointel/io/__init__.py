@@ -1,0 +1,1 @@
+"""Files: reference data, demonstrations, grasp databases, scenes, trajectories."""

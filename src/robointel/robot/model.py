@@ -1,0 +1,405 @@
+"""The robot core (Ch. 2): one serial-arm model on Pinocchio.
+
+:class:`Robot` loads a URDF (a built-in name or a path), and gives forward kinematics of any frame,
+world-aligned Jacobians of any point on any link, inverse kinematics (closed form for the LR Mate's
+spherical wrist, damped least squares for any arm), rigid-body dynamics (2.5) with viscous and
+Coulomb friction, and the sphere collision model of Fig. 4.2.
+
+Conventions: SI units; the model's world frame is the URDF root link (for the built-in LR Mate,
+``base_link`` on the mounting plane; the FANUC world frame ``base`` is 0.330 m above it). Joint
+vectors are ordered as ``Robot.joint_names``.
+"""
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from robointel._validate import as_array, check_limits
+from robointel.errors import DescriptionError, IKFailure, InvalidInput, UnknownRobot
+
+DESCRIPTIONS = Path(__file__).resolve().parent / "descriptions"
+BUILTIN = {
+    "lrmate200id7l": DESCRIPTIONS / "lrmate200id7l.urdf",
+    "scara2": DESCRIPTIONS / "scara2.urdf",
+}
+
+
+def builtin_names() -> list[str]:
+    """Names accepted by :meth:`Robot.load` besides URDF paths."""
+    return sorted(BUILTIN)
+
+
+def _example_robot_data_dir() -> Path | None:
+    try:
+        import example_robot_data  # noqa: F401
+    except Exception:  # pragma: no cover - optional
+        pass
+    import sys
+
+    for base in [Path(sys.prefix)] + [Path(p) for p in sys.path]:
+        d = base / "cmeel.prefix" / "share" / "example-robot-data" / "robots"
+        if d.is_dir():
+            return d
+    return None
+
+
+def example_robot_urdf(name: str) -> Path:
+    """Path of a URDF shipped by ``example-robot-data``: ``"ur5"`` or ``"panda"``."""
+    d = _example_robot_data_dir()
+    rel = {"ur5": "ur_description/urdf/ur5_robot.urdf",
+           "panda": "panda_description/urdf/panda.urdf"}
+    if d is None or name not in rel or not (d / rel[name]).exists():
+        raise UnknownRobot(f"example-robot-data robot {name!r} not found; install example-robot-data", value=name)
+    return d / rel[name]
+
+
+class Robot:
+    """A fixed-base serial robot on Pinocchio.
+
+    Args:
+        urdf: the URDF text.
+        name: a short name.
+        urdf_path: where the text came from (used to resolve ``package://`` meshes).
+        flange_frame: the frame :meth:`fk` reports (default: ``"flange"`` if present, else the
+            last frame of the chain).
+        tool: optional 4x4 tool transform (TCP in the flange frame).
+    """
+
+    def __init__(self, urdf: str, *, name: str = "robot", urdf_path: Path | None = None,
+                 flange_frame: str | None = None, tool: np.ndarray | None = None) -> None:
+        try:
+            model = pin.buildModelFromXML(urdf)
+        except Exception as exc:
+            raise DescriptionError(f"could not build a model from the URDF of {name!r}: {exc}", value=name) from None
+        if model.nq != model.nv:
+            raise DescriptionError(
+                f"{name!r} has joints with nq != nv (continuous or free joints); robointel supports "
+                "revolute and prismatic joints only", value=name)
+        if model.nq == 0:
+            raise DescriptionError(f"{name!r} has no movable joints", value=name)
+        self.name = name
+        self.urdf = urdf
+        self.urdf_path = urdf_path
+        self.model = model
+        self.data = model.createData()
+        self.nq = int(model.nq)
+        self.joint_names: list[str] = [model.names[i] for i in range(1, model.njoints)]
+        self.lower = np.array(model.lowerPositionLimit, dtype=float)
+        self.upper = np.array(model.upperPositionLimit, dtype=float)
+        self.velocity_limit = np.array(model.velocityLimit, dtype=float)
+        self.effort_limit = np.array(model.effortLimit, dtype=float)
+        self.viscous = np.array(model.damping, dtype=float)
+        self.coulomb = np.array(model.friction, dtype=float)
+        self.acceleration_limit = 3.0 * self.velocity_limit  # reachable in ~0.33 s; override per task
+        self.frame_names: list[str] = [f.name for f in model.frames]
+        if flange_frame is None:
+            flange_frame = "flange" if model.existFrame("flange") else model.frames[model.nframes - 1].name
+        self._flange_id = self._frame_id(flange_frame)
+        self.flange_frame = flange_frame
+        self._tool = np.eye(4)
+        if tool is not None:
+            self.tool = tool
+        self._root = ET.fromstring(urdf)
+        self._link_names = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
+        # joint index each body hangs on, and the body placement in that joint's frame
+        self._link_joint = {f.name: int(f.parentJoint) for f in model.frames if f.type == pin.FrameType.BODY}
+        self._link_in_joint = {f.name: f.placement.homogeneous.copy()
+                               for f in model.frames if f.type == pin.FrameType.BODY}
+        # supports[m, k]: does joint k+1 move joint j?  (tree-safe ancestry mask)
+        self._ancestor = np.zeros((model.njoints, self.nq), dtype=bool)
+        for j in range(1, model.njoints):
+            for a in model.supports[j]:
+                if a > 0:
+                    self._ancestor[j, model.joints[a].idx_v] = True
+        from robointel.robot.collision import SphereModel  # local import: collision uses Robot
+
+        self.spheres: SphereModel = SphereModel.from_robot(self)
+        self._ik = None
+        if name == "lrmate200id7l":
+            from robointel.robot.ik import LRMateIK
+
+            self._ik = LRMateIK(self)
+
+    # ------------------------------------------------------------------ loading
+    @classmethod
+    def load(cls, name_or_path: str | Path, *, flange_frame: str | None = None,
+             tool: np.ndarray | None = None) -> "Robot":
+        """Load a built-in robot (``"lrmate200id7l"``, ``"scara2"``), an ``example-robot-data``
+        arm (``"ur5"``, ``"panda"``) or a URDF file.
+
+        Raises:
+            UnknownRobot: the name is not built in and no such file exists.
+            DescriptionError: the file is not a readable URDF.
+        """
+        key = str(name_or_path)
+        if key in BUILTIN:
+            path, name = BUILTIN[key], key
+        elif key in ("ur5", "panda"):
+            path, name = example_robot_urdf(key), key
+            if flange_frame is None:
+                flange_frame = {"ur5": "tool0", "panda": "panda_hand"}[key]
+        else:
+            path = Path(key).expanduser()
+            if not path.exists():
+                raise UnknownRobot(
+                    f"unknown robot {key!r}: not a built-in name ({', '.join(builtin_names() + ['ur5', 'panda'])}) "
+                    "and no URDF file at that path", value=key)
+            name = path.stem
+        try:
+            text = path.read_text()
+            ET.fromstring(text)
+        except (OSError, UnicodeDecodeError, ET.ParseError) as exc:
+            raise DescriptionError(f"cannot read URDF {path}: {exc}; check that it is a valid URDF XML file",
+                                   value=str(path)) from None
+        return cls(text, name=name, urdf_path=path, flange_frame=flange_frame, tool=tool)
+
+    # ------------------------------------------------------------------ helpers
+    def _frame_id(self, frame: str) -> int:
+        if not self.model.existFrame(frame):
+            raise InvalidInput(f"robot {self.name!r} has no frame {frame!r}; frames: {self.frame_names}", value=frame)
+        return int(self.model.getFrameId(frame))
+
+    def check_q(self, q, name: str = "q", *, limits: bool = False) -> np.ndarray:
+        """Validate a configuration: shape (nq,), finite, and (``limits=True``) within limits."""
+        q = as_array(q, name, (self.nq,))
+        if limits:
+            check_limits(q, self.lower, self.upper, self.joint_names, name)
+        return q
+
+    @property
+    def link_names(self) -> list[str]:
+        """Names of the links (URDF bodies)."""
+        return list(self._link_names)
+
+    def link_joint(self, link: str) -> int:
+        """Pinocchio joint index a link hangs on (0: the fixed base)."""
+        if link not in self._link_joint:
+            raise InvalidInput(f"robot {self.name!r} has no link {link!r}; links: {self._link_names}", value=link)
+        return self._link_joint[link]
+
+    @property
+    def tool(self) -> np.ndarray:
+        """4x4 tool transform: the TCP in the flange frame (identity: TCP = flange)."""
+        return self._tool
+
+    @tool.setter
+    def tool(self, T) -> None:
+        T = as_array(T, "tool", (4, 4))
+        R = T[:3, :3]
+        if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+            raise InvalidInput("tool must be a rigid transform (proper rotation in its upper-left 3x3)", value=T)
+        self._tool = T.copy()
+
+    def random_configuration(self, rng: np.random.Generator | int | None = None, n: int | None = None) -> np.ndarray:
+        """Uniform random configuration(s) within the joint limits: (nq,) or (n, nq)."""
+        rng = np.random.default_rng(rng)
+        size = (self.nq,) if n is None else (n, self.nq)
+        return rng.uniform(self.lower, self.upper, size=size)
+
+    # ------------------------------------------------------------------ kinematics
+    def frame_pose(self, q, frame: str | None = None) -> np.ndarray:
+        """4x4 pose of ``frame`` (default: the flange, without the tool) in the world frame."""
+        q = self.check_q(q)
+        fid = self._flange_id if frame is None else self._frame_id(frame)
+        pin.framesForwardKinematics(self.model, self.data, q)
+        return self.data.oMf[fid].homogeneous
+
+    def fk(self, q) -> np.ndarray:
+        """4x4 pose of the TCP (flange composed with :attr:`tool`) in the world frame."""
+        return self.frame_pose(q) @ self._tool
+
+    def link_poses(self, q) -> dict[str, np.ndarray]:
+        """4x4 world pose of every link."""
+        q = self.check_q(q)
+        pin.framesForwardKinematics(self.model, self.data, q)
+        return {n: self.data.oMf[self.model.getFrameId(n)].homogeneous for n in self._link_names}
+
+    def jacobian(self, q) -> np.ndarray:
+        """6xn world-aligned Jacobian [v; w] of the TCP: linear velocity of the TCP point."""
+        q = self.check_q(q)
+        p_local = (self.model.frames[self._flange_id].placement.homogeneous @ self._tool)[:3, 3]
+        j = self.model.frames[self._flange_id].parentJoint
+        return self._point_jacobians(q, np.array([j]), p_local[None])[1][0]
+
+    def point_jacobian(self, q, link: str, point) -> np.ndarray:
+        """6xn world-aligned Jacobian of a point fixed on ``link`` (``point`` in the link frame).
+
+        Rows 0-2 map qd to the point's linear velocity (J_rep of Ch. 4 when the point is the
+        closest point), rows 3-5 to the link's angular velocity.
+        """
+        q = self.check_q(q)
+        point = as_array(point, "point", (3,))
+        j = self.link_joint(link)
+        p = (self._link_in_joint[link] @ np.append(point, 1.0))[:3]
+        return self._point_jacobians(q, np.array([j]), p[None])[1][0]
+
+    def points_kinematics(self, q, joints: np.ndarray, points: np.ndarray, *,
+                          angular: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """World positions (m, 3) and world-aligned Jacobians of m points fixed on joints.
+
+        ``joints[i]`` is the Pinocchio joint index point i hangs on and ``points[i]`` its position
+        in that joint's frame. One Pinocchio pass for all points. Returns linear Jacobians
+        (m, 3, n), or with ``angular=True`` full (m, 6, n) Jacobians [v; w].
+        """
+        P, J = self._point_jacobians(q, joints, points)
+        return (P, J) if angular else (P, J[:, :3])
+
+    def _point_jacobians(self, q: np.ndarray, joints: np.ndarray, points: np.ndarray):
+        d = self.data
+        pin.computeJointJacobians(self.model, d, q)
+        Jw = d.J  # 6 x nv, WORLD frame: [v at world origin; w]
+        oM = [d.oMi[i] for i in range(self.model.njoints)]
+        Rs = np.array([m.rotation for m in oM])[joints]
+        ts = np.array([m.translation for m in oM])[joints]
+        P = np.einsum("mij,mj->mi", Rs, points) + ts
+        W = Jw[3:].T  # (n, 3)
+        lin = Jw[:3].T[None] + np.cross(W[None], P[:, None, :])  # v + w x p, (m, n, 3)
+        mask = self._ancestor[joints][:, :, None]
+        J = np.empty((len(joints), 6, self.nq))
+        J[:, :3] = np.transpose(lin * mask, (0, 2, 1))
+        J[:, 3:] = np.transpose(W[None] * mask, (0, 2, 1))
+        return P, J
+
+    # ------------------------------------------------------------------ inverse kinematics
+    @property
+    def has_closed_form_ik(self) -> bool:
+        return self._ik is not None
+
+    def ik(self, T, *, q_ref=None, all_turns: bool = False) -> list[np.ndarray]:
+        """All joint solutions reaching the TCP pose ``T`` (4x4), within joint limits.
+
+        Closed form for the LR Mate (up to 8 solutions; ``all_turns=True`` adds the 2*pi turns of
+        J4 and J6 that stay within limits); a damped least-squares search for other arms. With
+        ``q_ref``, solutions are sorted by distance to it.
+
+        Raises:
+            IKFailure: no solution within joint limits.
+        """
+        T = as_array(T, "T", (4, 4))
+        Tf = T @ np.linalg.inv(self._tool)
+        if self._ik is not None:
+            sols = self._ik.solve(Tf, all_turns=all_turns)
+        else:
+            q0 = self.check_q(q_ref) if q_ref is not None else None
+            sols = [self.ik_numeric(T, q0=q0)]
+        if not sols:
+            raise IKFailure(f"no IK solution within joint limits for the pose with position "
+                            f"{np.round(T[:3, 3], 4).tolist()} m; move it into the workspace", value=T)
+        if q_ref is not None:
+            q_ref = self.check_q(q_ref, "q_ref")
+            sols.sort(key=lambda s: float(np.linalg.norm(s - q_ref)))
+        return sols
+
+    def ik_numeric(self, T, *, q0=None, tol: float = 1e-10, max_iter: int = 300, damping: float = 1e-6,
+                   restarts: int = 20, rng: int | None = 0) -> np.ndarray:
+        """Damped least-squares IK for any arm: q such that fk(q) = T, within joint limits.
+
+        Iterates dq = J^T (J J^T + lambda I)^-1 e on the SE(3) log error (local frame), clipped to
+        the limits, with random restarts.
+
+        Raises:
+            IKFailure: no restart converged to ``tol`` on the 6-D error.
+        """
+        T = as_array(T, "T", (4, 4))
+        target = pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
+        gen = np.random.default_rng(rng)
+        starts = [self.check_q(q0)] if q0 is not None else []
+        starts += [0.5 * (self.lower + self.upper)] + list(self.random_configuration(gen, restarts))
+        best, best_err = None, np.inf
+        tool = pin.SE3(self._tool[:3, :3].copy(), self._tool[:3, 3].copy())
+        for q in starts:
+            q = np.clip(q, self.lower, self.upper)
+            for _ in range(max_iter):
+                pin.framesForwardKinematics(self.model, self.data, q)
+                cur = self.data.oMf[self._flange_id] * tool
+                err = pin.log6(cur.actInv(target)).vector
+                nerr = float(np.linalg.norm(err))
+                if nerr < tol:
+                    break
+                J = pin.computeFrameJacobian(self.model, self.data, q, self._flange_id, pin.LOCAL)
+                J = tool.toActionMatrixInverse() @ J
+                Jl = pin.Jlog6(cur.actInv(target))
+                J = -Jl @ J
+                dq = -J.T @ np.linalg.solve(J @ J.T + damping * np.eye(6), err)
+                q = np.clip(q + dq, self.lower, self.upper)
+            if nerr < best_err:
+                best, best_err = q.copy(), nerr
+            if best_err < tol:
+                return best
+        raise IKFailure(f"numeric IK did not converge (best 6-D error {best_err:.3g} > {tol:g}); the pose may be "
+                        "unreachable or outside joint limits", value=best)
+
+    # ------------------------------------------------------------------ dynamics (2.5)
+    def mass_matrix(self, q) -> np.ndarray:
+        """M(q), n x n."""
+        q = self.check_q(q)
+        M = pin.crba(self.model, self.data, q)
+        return np.triu(M) + np.triu(M, 1).T
+
+    def nonlinear_effects(self, q, qd) -> np.ndarray:
+        """C(q, qd) qd + G(q)."""
+        return pin.nonLinearEffects(self.model, self.data, self.check_q(q), self.check_q(qd, "qd"))
+
+    def coriolis(self, q, qd) -> np.ndarray:
+        """C(q, qd) qd (Coriolis and centrifugal torques)."""
+        return self.nonlinear_effects(q, qd) - self.gravity(q)
+
+    def gravity(self, q) -> np.ndarray:
+        """G(q)."""
+        return pin.computeGeneralizedGravity(self.model, self.data, self.check_q(q))
+
+    def friction(self, qd, *, smooth: float = 1e-3) -> np.ndarray:
+        """Joint friction torques F_v qd + F_c sign(qd) (tanh-smoothed over ``smooth`` rad/s)."""
+        qd = self.check_q(qd, "qd")
+        return self.viscous * qd + self.coulomb * np.tanh(qd / smooth)
+
+    def inverse_dynamics(self, q, qd, qdd, *, friction: bool = False) -> np.ndarray:
+        """tau = M qdd + C qd + G (+ friction) by RNEA."""
+        tau = pin.rnea(self.model, self.data, self.check_q(q), self.check_q(qd, "qd"), self.check_q(qdd, "qdd"))
+        return tau + self.friction(qd) if friction else tau
+
+    def forward_dynamics(self, q, qd, tau, *, friction: bool = False) -> np.ndarray:
+        """qdd = M^-1 (tau - C qd - G (- friction)) by ABA."""
+        q, qd, tau = self.check_q(q), self.check_q(qd, "qd"), self.check_q(tau, "tau")
+        if friction:
+            tau = tau - self.friction(qd)
+        return pin.aba(self.model, self.data, q, qd, tau)
+
+    # ------------------------------------------------------------------ URDF geometry
+    def collision_primitives(self) -> dict[str, list[dict]]:
+        """Collision geometry of each link from the URDF: dicts with ``type`` (box, cylinder,
+        sphere, capsule, mesh), ``size`` and ``origin`` (4x4 in the link frame)."""
+        out: dict[str, list[dict]] = {}
+        for link in self._root.iter("link"):
+            prims = []
+            for col in link.findall("collision"):
+                origin = col.find("origin")
+                xyz = np.fromstring(origin.get("xyz", "0 0 0"), sep=" ") if origin is not None else np.zeros(3)
+                rpy = np.fromstring(origin.get("rpy", "0 0 0"), sep=" ") if origin is not None else np.zeros(3)
+                T = np.eye(4)
+                T[:3, :3] = pin.rpy.rpyToMatrix(*rpy)
+                T[:3, 3] = xyz
+                g = col.find("geometry")
+                if g is None or len(g) == 0:
+                    continue
+                shape = g[0]
+                if shape.tag == "box":
+                    size = np.fromstring(shape.get("size"), sep=" ")
+                elif shape.tag in ("cylinder", "capsule"):
+                    size = np.array([float(shape.get("radius")), float(shape.get("length"))])
+                elif shape.tag == "sphere":
+                    size = np.array([float(shape.get("radius"))])
+                elif shape.tag == "mesh":
+                    size = np.fromstring(shape.get("scale", "1 1 1"), sep=" ")
+                else:
+                    continue
+                prims.append({"type": shape.tag, "size": size, "origin": T, "filename": shape.get("filename")})
+            out[link.get("name")] = prims
+        return out
+
+    def __repr__(self) -> str:
+        return f"Robot({self.name!r}, nq={self.nq}, flange={self.flange_frame!r})"
