@@ -1,0 +1,1 @@
+"""Obstacle shapes, distances with gradients, rotations."""

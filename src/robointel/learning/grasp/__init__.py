@@ -1,0 +1,1 @@
+"""Grasp transfer by non-rigid registration (Ch. 6)."""

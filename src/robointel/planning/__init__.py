@@ -1,0 +1,1 @@
+"""Part III (Ch. 7): CFS, trajectory planning, SQP baseline, temporal optimization, FRMP."""

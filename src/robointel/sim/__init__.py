@@ -1,0 +1,1 @@
+"""MuJoCo worlds built from the robot description: scenes, sensors, controllers."""
