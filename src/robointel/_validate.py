@@ -21,7 +21,8 @@ def as_array(x, name: str, shape: Sequence[int | None] | None = None, *, dtype=f
         raise ShapeError(f"{name} must be numeric array-like, got {type(x).__name__}: {exc}", value=x) from None
     if shape is not None:
         if a.ndim != len(shape) or any(s is not None and s != d for s, d in zip(shape, a.shape)):
-            want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
+            dims = ["N" if s is None else str(s) for s in shape]
+            want = "(" + ", ".join(dims) + ("," if len(dims) == 1 else "") + ")"
             raise ShapeError(f"{name} must have shape {want}, got {a.shape}", value=x)
     if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
         bad = np.argwhere(~np.isfinite(a))[:3].tolist()

@@ -19,7 +19,8 @@ import numpy as np
 import pinocchio as pin
 
 from robointel._validate import as_array, check_limits
-from robointel.errors import DescriptionError, IKFailure, InvalidInput, UnknownRobot
+from robointel.errors import DescriptionError, IKFailure, InvalidInput, NotFinite, ShapeError, UnknownRobot
+from robointel.robot._kernels import points_jacobians
 
 DESCRIPTIONS = Path(__file__).resolve().parent / "descriptions"
 BUILTIN = {
@@ -101,6 +102,7 @@ class Robot:
         self._flange_id = self._frame_id(flange_frame)
         self.flange_frame = flange_frame
         self._tool = np.eye(4)
+        self._tool_is_identity = True
         if tool is not None:
             self.tool = tool
         self._root = ET.fromstring(urdf)
@@ -115,6 +117,10 @@ class Robot:
             for a in model.supports[j]:
                 if a > 0:
                     self._ancestor[j, model.joints[a].idx_v] = True
+        # live references into Pinocchio's data (they follow every kinematics call)
+        self._oMi = [self.data.oMi[i] for i in range(model.njoints)]
+        self._Jw = self.data.J
+        self._T = np.empty((model.njoints, 4, 4))
         from robointel.robot.collision import SphereModel  # local import: collision uses Robot
 
         self.spheres: SphereModel = SphereModel.from_robot(self)
@@ -165,7 +171,11 @@ class Robot:
 
     def check_q(self, q, name: str = "q", *, limits: bool = False) -> np.ndarray:
         """Validate a configuration: shape (nq,), finite, and (``limits=True``) within limits."""
-        q = as_array(q, name, (self.nq,))
+        if type(q) is np.ndarray and q.dtype == np.float64 and q.shape == (self.nq,):
+            if not np.isfinite(q @ q):  # any NaN/inf (or absurd magnitude) makes this non-finite
+                raise NotFinite(f"{name} contains NaN or inf: {q}; pass finite values", value=q)
+        else:
+            q = as_array(q, name, (self.nq,))
         if limits:
             check_limits(q, self.lower, self.upper, self.joint_names, name)
         return q
@@ -193,6 +203,7 @@ class Robot:
         if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
             raise InvalidInput("tool must be a rigid transform (proper rotation in its upper-left 3x3)", value=T)
         self._tool = T.copy()
+        self._tool_is_identity = bool(np.array_equal(T, np.eye(4)))
 
     def random_configuration(self, rng: np.random.Generator | int | None = None, n: int | None = None) -> np.ndarray:
         """Uniform random configuration(s) within the joint limits: (nq,) or (n, nq)."""
@@ -251,17 +262,13 @@ class Robot:
     def _point_jacobians(self, q: np.ndarray, joints: np.ndarray, points: np.ndarray):
         d = self.data
         pin.computeJointJacobians(self.model, d, q)
-        Jw = d.J  # 6 x nv, WORLD frame: [v at world origin; w]
-        oM = [d.oMi[i] for i in range(self.model.njoints)]
-        Rs = np.array([m.rotation for m in oM])[joints]
-        ts = np.array([m.translation for m in oM])[joints]
-        P = np.einsum("mij,mj->mi", Rs, points) + ts
-        W = Jw[3:].T  # (n, 3)
-        lin = Jw[:3].T[None] + np.cross(W[None], P[:, None, :])  # v + w x p, (m, n, 3)
-        mask = self._ancestor[joints][:, :, None]
-        J = np.empty((len(joints), 6, self.nq))
-        J[:, :3] = np.transpose(lin * mask, (0, 2, 1))
-        J[:, 3:] = np.transpose(W[None] * mask, (0, 2, 1))
+        for i, x in enumerate(self._oMi):
+            self._T[i] = x.np
+        m = len(joints)
+        P = np.empty((m, 3))
+        J = np.empty((m, 6, self.nq))
+        points_jacobians(self._T, self._Jw, np.asarray(joints, np.int64), np.asarray(points, float),
+                         self._ancestor, P, J)
         return P, J
 
     # ------------------------------------------------------------------ inverse kinematics
@@ -279,8 +286,9 @@ class Robot:
         Raises:
             IKFailure: no solution within joint limits.
         """
-        T = as_array(T, "T", (4, 4))
-        Tf = T @ np.linalg.inv(self._tool)
+        if not (type(T) is np.ndarray and T.shape == (4, 4) and T.dtype == np.float64 and np.isfinite(T.sum())):
+            T = as_array(T, "T", (4, 4))
+        Tf = T if self._tool_is_identity else T @ np.linalg.inv(self._tool)
         if self._ik is not None:
             sols = self._ik.solve(Tf, all_turns=all_turns)
         else:
