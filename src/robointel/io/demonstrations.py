@@ -1,0 +1,129 @@
+"""HDF5 demonstration files (one documented schema).
+
+Schema (version 1)::
+
+    /                       attrs: schema = "robointel.demonstrations", version = 1
+    /demonstrations/<name>  one group per demonstration, attrs:
+        device        str    the recording device ("hdd", "robot", ...)
+        action_names  str    JSON list of action names (labels index into it)
+        units         str    JSON {"t": "s", "pose": "m ...", "wrench": "N, N m"}
+        meta          str    JSON dict of extra scalars (e.g. ground-truth phase times)
+        order         int    insertion order (0, 1, ...)
+      t       (N,)      float64  time, s, strictly increasing
+      pose    (N, 4, 4) float64  tool pose in the world frame (rotation, translation in m)
+      wrench  (N, 6)    float64  [fx, fy, fz, tx, ty, tz] in the sensor frame, N and N m
+      labels  (N,)      int64    optional action index per sample (-1 unlabelled)
+
+Appending opens the file in ``"a"`` mode and creates one new group: the other groups are never
+rewritten (their datasets keep their storage).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Iterable
+
+import h5py
+import numpy as np
+
+from robointel.errors import DataMissing, InvalidInput
+from robointel.learning.demonstration import UNITS, Demonstration
+
+SCHEMA = "robointel.demonstrations"
+VERSION = 1
+
+
+class DemonstrationFile:
+    """An HDF5 file of demonstrations: ``append``, ``names``, ``load``, ``load_all``.
+
+    Args:
+        path: the ``.h5`` file; created on first append.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+
+    def _check(self, f: h5py.File) -> None:
+        if f.attrs.get("schema") != SCHEMA:
+            raise InvalidInput(f"{self.path} is not a robointel demonstration file (schema attr "
+                               f"{f.attrs.get('schema')!r}, want {SCHEMA!r})", value=str(self.path))
+
+    def append(self, demo: Demonstration, *, name: str | None = None) -> str:
+        """Add one demonstration as a new group; returns its name.
+
+        Raises:
+            InvalidInput: a demonstration with that name is already stored.
+        """
+        with h5py.File(self.path, "a") as f:
+            if "schema" not in f.attrs:
+                f.attrs["schema"] = SCHEMA
+                f.attrs["version"] = VERSION
+            self._check(f)
+            root = f.require_group("demonstrations")
+            name = name or demo.name or f"demo_{len(root):04d}"
+            if name in root:
+                raise InvalidInput(f"demonstration {name!r} already in {self.path}; choose another name", value=name)
+            g = root.create_group(name)
+            g.create_dataset("t", data=demo.t)
+            g.create_dataset("pose", data=demo.pose)
+            g.create_dataset("wrench", data=demo.wrench)
+            if demo.labels is not None:
+                g.create_dataset("labels", data=demo.labels.astype(np.int64))
+            g.attrs["device"] = demo.device
+            g.attrs["action_names"] = json.dumps(list(demo.action_names))
+            g.attrs["units"] = json.dumps(UNITS)
+            g.attrs["meta"] = json.dumps(demo.meta, default=float)
+            g.attrs["order"] = len(root) - 1
+        return name
+
+    def extend(self, demos: Iterable[Demonstration]) -> list[str]:
+        """Append several demonstrations; returns their names."""
+        return [self.append(d) for d in demos]
+
+    def names(self) -> list[str]:
+        """Stored demonstration names in insertion order."""
+        if not self.path.exists():
+            return []
+        with h5py.File(self.path, "r") as f:
+            self._check(f)
+            root = f.get("demonstrations", {})
+            return sorted(root, key=lambda n: int(root[n].attrs.get("order", 0)))
+
+    def __len__(self) -> int:
+        return len(self.names())
+
+    def load(self, name: str) -> Demonstration:
+        """Read one demonstration.
+
+        Raises:
+            DataMissing: no file or no such demonstration.
+        """
+        if not self.path.exists():
+            raise DataMissing(f"demonstration file {self.path} does not exist", value=str(self.path))
+        with h5py.File(self.path, "r") as f:
+            self._check(f)
+            root = f.get("demonstrations")
+            if root is None or name not in root:
+                raise DataMissing(f"no demonstration {name!r} in {self.path}", value=name)
+            g = root[name]
+            labels = g["labels"][()] if "labels" in g else None
+            return Demonstration.create(g["t"][()], g["pose"][()], g["wrench"][()], labels,
+                                        action_names=tuple(json.loads(g.attrs["action_names"])),
+                                        device=str(g.attrs["device"]), name=name,
+                                        meta=json.loads(g.attrs.get("meta", "{}")))
+
+    def load_all(self) -> list[Demonstration]:
+        """All demonstrations in insertion order."""
+        return [self.load(n) for n in self.names()]
+
+
+def save_demonstrations(path: str | Path, demos: Iterable[Demonstration]) -> DemonstrationFile:
+    """Append ``demos`` to the file at ``path`` (created if missing)."""
+    f = DemonstrationFile(path)
+    f.extend(demos)
+    return f
+
+
+def load_demonstrations(path: str | Path) -> list[Demonstration]:
+    """Read every demonstration of the file at ``path``."""
+    return DemonstrationFile(path).load_all()
