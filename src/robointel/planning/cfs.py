@@ -1,0 +1,312 @@
+"""The Convex Feasible Set algorithm (Algorithm 2, Sec. 7.2).
+
+Problem:  ``min_z J(z) = 1/2 z'Hz + f'z``  (H positive definite)
+subject to ``phi_i(z) >= 0`` (nonlinear, i = 1..m) and ``l <= A z <= u`` (linear).
+
+At a reference ``z_r`` the infeasible set of each ``phi_i`` is replaced by a convex feasible set
+``F_i(z_r)`` contained in ``Gamma_i = {phi_i >= 0}``; the QP ``min J(z) s.t. z in F(z_r)`` is solved
+and its solution becomes the next reference, until ``||z(k+1) - z(k)|| <= eps``. The three cases:
+
+* ``"convex"``: Gamma_i itself is convex (phi_i concave): F_i = Gamma_i.
+* ``"complement_convex"`` (7.5): the complement of Gamma_i is convex (phi_i convex):
+  F_i = {z : phi_i(z_r) + grad phi_i(z_r)(z - z_r) >= 0}, a half space inside Gamma_i.
+* ``"general"`` (7.6): neither; with a lower bound ``H*_i`` on the Hessian of phi_i,
+  F_i = {z : phi_i(z_r) + grad phi_i(z_r)(z - z_r) + 1/2 (z - z_r)' H*_i (z - z_r) >= 0}.
+
+Sets that are convex but not polyhedral (the first and third case) are handled inside the QP by
+outer tangent cuts (a few rounds) followed by an exact pull-back along the segment from ``z_r``
+(which lies in F) to the QP solution, so every iterate lies in F(z_r) and hence in the feasible
+set: the iterates are feasible and the cost never increases once the reference is feasible.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+from robointel._validate import as_array
+from robointel.errors import InfeasibleProblem, InvalidInput
+from robointel.planning.qp import INF, SparseQP
+
+KINDS = ("convex", "complement_convex", "general")
+
+
+@dataclass
+class NonlinearConstraint:
+    """``phi(z) >= 0`` with its Jacobian, and which CFS case it is.
+
+    Attributes:
+        fun: ``z (n,) -> phi (m,)``.
+        jac: ``z (n,) -> dphi/dz (m, n)``.
+        kind: ``"convex"``, ``"complement_convex"`` or ``"general"`` (see module docstring).
+        hess_lb: for ``"general"``: lower bound of each phi_i's Hessian, a scalar mu <= 0
+            (H* = mu I for all i), an (m,) array of such scalars, or an (n, n) matrix H* (<= 0).
+        name: used in messages.
+    """
+
+    fun: Callable[[np.ndarray], np.ndarray]
+    jac: Callable[[np.ndarray], np.ndarray]
+    kind: str = "complement_convex"
+    hess_lb: float | np.ndarray | None = None
+    name: str = "phi"
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise InvalidInput(f"constraint {self.name!r}: kind must be one of {KINDS}, got {self.kind!r}",
+                               value=self.kind)
+        if self.kind == "general" and self.hess_lb is None:
+            raise InvalidInput(f"constraint {self.name!r}: kind 'general' needs hess_lb (the Hessian lower "
+                               "bound H* of (7.6))")
+
+
+@dataclass
+class CFSResult:
+    """Outcome of :func:`cfs`.
+
+    Attributes:
+        z: the solution (the best feasible iterate when the iteration cap was hit).
+        iterations: CFS iterations run (QPs solved, not counting cut rounds).
+        costs: J at each iterate, ``costs[0]`` at the initial guess.
+        status: ``"converged"``, ``"max_iter"`` (cap hit: ``z`` is the best feasible iterate) or
+            ``"qp_failed"`` (a QP failed after some progress; ``z`` is the best feasible iterate).
+        feasible: whether ``z`` satisfies every constraint within ``tol``.
+        max_violation: largest constraint violation at ``z`` (0 when feasible).
+        seconds: wall time.
+        iterates: every iterate (only with ``keep_iterates=True``).
+        qp_iterations: OSQP iterations summed over all QPs.
+    """
+
+    z: np.ndarray
+    iterations: int
+    costs: list[float]
+    status: str
+    feasible: bool
+    max_violation: float
+    seconds: float
+    iterates: list[np.ndarray] = field(default_factory=list)
+    qp_iterations: int = 0
+
+    @property
+    def converged(self) -> bool:
+        return self.status == "converged"
+
+
+def _hlb_matrix(c: NonlinearConstraint, i: int, n: int) -> np.ndarray:
+    h = np.asarray(c.hess_lb, float)
+    if h.ndim == 0:
+        return min(float(h), 0.0) * np.eye(n)
+    if h.ndim == 1:
+        return min(float(h[i]), 0.0) * np.eye(n)
+    return h
+
+
+class _ConvexSet:
+    """F(z_r) of one nonlinear constraint block: linear rows plus the exact test g >= 0."""
+
+    def __init__(self, c: NonlinearConstraint, z_r: np.ndarray, tol: float) -> None:
+        self.c = c
+        self.z_r = z_r
+        n = z_r.size
+        self.phi = np.atleast_1d(np.asarray(c.fun(z_r), float))
+        self.G = np.atleast_2d(np.asarray(c.jac(z_r), float)).reshape(self.phi.size, n)
+        self.ref_feasible = bool(np.all(self.phi >= -tol))
+        self.H = None
+        if c.kind == "general":
+            self.H = np.array([_hlb_matrix(c, i, n) for i in range(self.phi.size)])
+
+    def rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """Linearisation ``G z >= G z_r - phi(z_r)`` (exact F for case 2, outer for 1 and 3)."""
+        return self.G, self.G @ self.z_r - self.phi
+
+    @property
+    def curved(self) -> bool:
+        return self.c.kind != "complement_convex" and self.ref_feasible
+
+    def g(self, z: np.ndarray) -> np.ndarray:
+        """The function whose superlevel set {g >= 0} is F_i (concave in z)."""
+        if self.c.kind == "convex":
+            return np.atleast_1d(np.asarray(self.c.fun(z), float))
+        d = z - self.z_r
+        return self.phi + self.G @ d + 0.5 * np.einsum("i,kij,j->k", d, self.H, d)
+
+    def g_jac(self, z: np.ndarray) -> np.ndarray:
+        if self.c.kind == "convex":
+            return np.atleast_2d(np.asarray(self.c.jac(z), float)).reshape(self.phi.size, z.size)
+        d = z - self.z_r
+        return self.G + np.einsum("kij,j->ki", self.H, d)
+
+    def max_step(self, d: np.ndarray, tol: float) -> float:
+        """Largest alpha in [0, 1] with g(z_r + alpha d) >= 0 (F is convex and contains z_r)."""
+        if self.c.kind == "general":
+            a = 0.5 * np.einsum("i,kij,j->k", d, self.H, d)  # <= 0
+            b = self.G @ d
+            c0 = self.phi
+            alpha = 1.0
+            g1 = a + b + c0
+            for k in np.flatnonzero(g1 < 0):
+                if a[k] < -1e-300:
+                    disc = b[k] ** 2 - 4 * a[k] * c0[k]
+                    root = (-b[k] - np.sqrt(max(disc, 0.0))) / (2 * a[k])
+                else:
+                    root = -c0[k] / b[k] if b[k] < 0 else 1.0
+                alpha = min(alpha, max(0.0, root))
+            return alpha
+        if np.all(self.g(self.z_r + d) >= 0):
+            return 1.0
+        lo, hi = 0.0, 1.0
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            if np.all(self.g(self.z_r + mid * d) >= 0):
+                lo = mid
+            else:
+                hi = mid
+            if hi - lo < tol:
+                break
+        return lo
+
+
+def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None, u=None,
+        z0=None, eps: float = 1e-6, max_iter: int = 100, tol: float = 1e-9, max_cuts: int = 5,
+        keep_iterates: bool = False, qp: SparseQP | None = None) -> CFSResult:
+    """Solve ``min 1/2 z'Hz + f'z  s.t. phi_i(z) >= 0, l <= Az <= u`` by CFS (Algorithm 2).
+
+    Args:
+        H: (n, n) positive definite cost Hessian (dense or sparse).
+        f: (n,) linear cost term.
+        constraints: nonlinear constraints, each tagged with its CFS case.
+        A, l, u: linear constraints (m, n), (m,), (m,); ``None`` for none.
+        z0: (n,) initial guess (should be feasible for the nonlinear constraints; if it is not,
+            the first iterations use plain linearisations until an iterate is feasible).
+        eps: stop when ``||z(k+1) - z(k)|| <= eps``.
+        max_iter: iteration cap; when hit, the best feasible iterate is returned with
+            ``status="max_iter"``.
+        tol: feasibility tolerance on phi.
+        max_cuts: tangent-cut rounds per iteration for the curved sets (cases 1 and 3).
+        keep_iterates: keep every iterate on the result (for inspection and tests).
+        qp: a :class:`SparseQP` to reuse (warm start across calls).
+
+    Returns:
+        :class:`CFSResult`.
+
+    Raises:
+        InvalidInput: bad shapes, NaN.
+        InfeasibleProblem: the first QP is infeasible (contradictory linear constraints).
+    """
+    t0 = time.perf_counter()
+    Hs = sp.csc_matrix(H)
+    n = Hs.shape[0]
+    if Hs.shape != (n, n):
+        raise InvalidInput(f"H must be square, got {Hs.shape}", value=Hs.shape)
+    if not np.all(np.isfinite(Hs.data)):
+        raise InvalidInput("H contains NaN or inf", value=H)
+    f = as_array(f, "f", (n,))
+    z = as_array(z0 if z0 is not None else np.zeros(n), "z0", (n,)).copy()
+    if A is None:
+        A_lin, l_lin, u_lin = sp.csc_matrix((0, n)), np.zeros(0), np.zeros(0)
+    else:
+        A_lin = sp.csc_matrix(A)
+        if A_lin.shape[1] != n:
+            raise InvalidInput(f"A must have {n} columns, got {A_lin.shape}", value=A_lin.shape)
+        m = A_lin.shape[0]
+        l_lin = np.full(m, -np.inf) if l is None else np.asarray(l, float).reshape(m)
+        u_lin = np.full(m, np.inf) if u is None else np.asarray(u, float).reshape(m)
+        if np.any(np.isnan(l_lin)) or np.any(np.isnan(u_lin)):
+            raise InvalidInput("linear bounds contain NaN", value=(l, u))
+        if np.any(l_lin > u_lin):
+            i = int(np.flatnonzero(l_lin > u_lin)[0])
+            raise InfeasibleProblem(f"linear constraint {i}: lower bound {l_lin[i]} > upper bound {u_lin[i]}",
+                                    value=i)
+    qp = qp or SparseQP()
+
+    def cost(x):
+        return float(0.5 * x @ (Hs @ x) + f @ x)
+
+    def violation(x):
+        v = 0.0
+        if A_lin.shape[0]:
+            Ax = A_lin @ x
+            v = max(v, float(np.max(np.maximum(l_lin - Ax, Ax - u_lin), initial=0.0)))
+        for c in constraints:
+            v = max(v, float(np.max(-np.asarray(c.fun(x), float), initial=0.0)))
+        return v
+
+    # linear-constraint violations of an OSQP solution are ~1e-6; judge them on that scale
+    lin_tol = 1e-5
+
+    def feasible(x):
+        ok = True
+        if A_lin.shape[0]:
+            Ax = A_lin @ x
+            ok = bool(np.all(Ax >= l_lin - lin_tol * (1 + np.abs(l_lin))) and
+                      np.all(Ax <= u_lin + lin_tol * (1 + np.abs(u_lin))))
+        return ok and all(np.all(np.asarray(c.fun(x), float) >= -tol) for c in constraints)
+
+    costs = [cost(z)]
+    iterates = [z.copy()] if keep_iterates else []
+    best, best_cost = (z.copy(), costs[0]) if feasible(z) else (None, np.inf)
+    status, it, qp_iters = "max_iter", 0, 0
+    Hup = sp.triu(Hs, format="csc")
+    for it in range(1, max_iter + 1):
+        sets = [_ConvexSet(c, z, tol) for c in constraints]
+        G_rows, h_rows = [], []
+        for s in sets:
+            G, h = s.rows()
+            G_rows.append(G)
+            h_rows.append(h)
+        cuts_G, cuts_h = [], []
+        z_new = None
+        for _round in range(max_cuts + 1):
+            Ablk = sp.vstack([A_lin] + [sp.csc_matrix(G) for G in G_rows + cuts_G], format="csc")
+            lo = np.concatenate([l_lin] + h_rows + cuts_h)
+            up = np.concatenate([u_lin] + [np.full(len(h), INF) for h in h_rows + cuts_h])
+            sol = qp.solve(Hup, f, Ablk, lo, up, x0=z)
+            qp_iters += sol.iterations
+            if not sol.solved:
+                break
+            z_new = sol.x
+            added = False
+            for s in sets:
+                if not s.curved:
+                    continue
+                gv = s.g(z_new)
+                bad = gv < -tol
+                if np.any(bad):
+                    Gc = s.g_jac(z_new)[bad]
+                    cuts_G.append(Gc)
+                    cuts_h.append(Gc @ z_new - gv[bad])
+                    added = True
+            if not added:
+                break
+        if z_new is None:
+            if best is None and it == 1:
+                raise InfeasibleProblem(f"the convex subproblem at the initial guess is infeasible (OSQP: "
+                                        f"{sol.status}); check that the limits are consistent and z0 feasible",
+                                        value=sol.status)
+            status = "qp_failed"
+            break
+        # pull back into the curved convex sets along the segment from the reference
+        d = z_new - z
+        alpha = 1.0
+        for s in sets:
+            if s.curved:
+                alpha = min(alpha, s.max_step(d, 1e-12))
+        z_new = z + alpha * d
+        step = float(np.linalg.norm(z_new - z))
+        z = z_new
+        costs.append(cost(z))
+        if keep_iterates:
+            iterates.append(z.copy())
+        if feasible(z) and costs[-1] <= best_cost:
+            best, best_cost = z.copy(), costs[-1]
+        if step <= eps:
+            status = "converged"
+            break
+    if status != "converged" and best is not None:
+        z = best
+    viol = violation(z)
+    return CFSResult(z=z, iterations=it, costs=costs, status=status, feasible=feasible(z),
+                     max_violation=viol, seconds=time.perf_counter() - t0, iterates=iterates,
+                     qp_iterations=qp_iters)

@@ -1,0 +1,110 @@
+"""A sparse convex QP kept alive between CFS iterations (OSQP 1.x, warm-started, updated in place).
+
+Every CFS iteration solves the QP (7.4) ``min 1/2 z'Pz + q'z  s.t.  l <= A z <= u``. Between
+iterations only the numbers change (the linearised constraints move with the reference), so the
+OSQP workspace is built once (factorisation pattern, scaling) and then updated with
+``update(q=, l=, u=, Ax=)`` and warm-started from the previous primal/dual pair. When the sparsity
+pattern of ``A`` changes, the problem is rebuilt.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import osqp
+import scipy.sparse as sp
+
+from robointel.errors import SolverFailure
+
+INF = 1e20
+
+#: OSQP settings used by the planners: polished (exact active set) solutions, quiet, warm-started.
+DEFAULT_SETTINGS = dict(verbose=False, eps_abs=1e-6, eps_rel=1e-6, polishing=True, warm_starting=True,
+                        max_iter=20000, adaptive_rho=True, check_termination=10)
+
+
+@dataclass
+class QPSolution:
+    """One QP solve: primal ``x`` (n,), dual ``y`` (m,), OSQP status string and iteration count."""
+
+    x: np.ndarray
+    y: np.ndarray
+    status: str
+    iterations: int
+    solved: bool
+
+
+class SparseQP:
+    """``min 1/2 z'Pz + q'z  s.t.  l <= A z <= u`` with OSQP, rebuilt only when a pattern changes.
+
+    Args:
+        settings: OSQP settings overriding :data:`DEFAULT_SETTINGS`.
+    """
+
+    def __init__(self, **settings) -> None:
+        self.settings = dict(DEFAULT_SETTINGS, **settings)
+        self._solver: osqp.OSQP | None = None
+        self._P_key = None
+        self._A_key = None
+        self._last: QPSolution | None = None
+        self.setups = 0
+
+    @staticmethod
+    def _key(M: sp.csc_matrix):
+        return (M.shape, M.indptr.tobytes(), M.indices.tobytes())
+
+    def solve(self, P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, l: np.ndarray, u: np.ndarray,
+              *, x0: np.ndarray | None = None) -> QPSolution:
+        """Solve; ``P`` and ``A`` are sparse (P symmetric, only its upper triangle is used).
+
+        ``x0`` warm-starts the primal (the previous solution is used otherwise).
+        """
+        P = sp.triu(sp.csc_matrix(P), format="csc")
+        A = sp.csc_matrix(A)
+        P.sort_indices()
+        A.sort_indices()
+        l = np.maximum(np.asarray(l, float), -INF)
+        u = np.minimum(np.asarray(u, float), INF)
+        kP, kA = self._key(P), self._key(A)
+        if self._solver is None or kP != self._P_key or kA != self._A_key:
+            self._solver = osqp.OSQP()
+            self._solver.setup(P, np.asarray(q, float), A, l, u, **self.settings)
+            self._P_key, self._A_key = kP, kA
+            self.setups += 1
+            self._last = None
+        else:
+            self._solver.update(q=np.asarray(q, float), l=l, u=u, Px=P.data, Ax=A.data)
+        return self._run(x0)
+
+    def update(self, *, q=None, l=None, u=None, Ax=None, x0=None) -> QPSolution:
+        """Change numbers of the current problem in place (same pattern) and solve."""
+        if self._solver is None:
+            raise SolverFailure("SparseQP.update called before solve()")
+        kw = {}
+        if q is not None:
+            kw["q"] = np.asarray(q, float)
+        if l is not None:
+            kw["l"] = np.maximum(np.asarray(l, float), -INF)
+        if u is not None:
+            kw["u"] = np.minimum(np.asarray(u, float), INF)
+        if Ax is not None:
+            kw["Ax"] = np.asarray(Ax, float)
+        self._solver.update(**kw)
+        return self._run(x0)
+
+    def _run(self, x0) -> QPSolution:
+        if x0 is not None:
+            y = self._last.y if self._last is not None and self._last.y.shape[0] == self._solver.m else None
+            if y is not None:
+                self._solver.warm_start(x=np.asarray(x0, float), y=y)
+            else:
+                self._solver.warm_start(x=np.asarray(x0, float))
+        res = self._solver.solve(raise_error=False)
+        status = str(res.info.status)
+        solved = status in ("solved", "solved inaccurate") and res.x is not None and np.all(np.isfinite(res.x))
+        sol = QPSolution(np.array(res.x, float) if res.x is not None else np.full(self._solver.n, np.nan),
+                         np.array(res.y, float) if res.y is not None else np.zeros(self._solver.m),
+                         status, int(res.info.iter), bool(solved))
+        if solved:
+            self._last = sol
+        return sol
