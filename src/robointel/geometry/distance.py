@@ -1,0 +1,377 @@
+"""Robot-obstacle distances with exact gradients (Ch. 4 (4.3)-(4.5), Ch. 7 collision constraints).
+
+The robot is covered by spheres on control points (Fig. 4.2, :class:`robointel.robot.SphereModel`).
+For sphere i with centre c_i(q), radius r_i and obstacle k with signed distance field phi_k, the
+surface-to-surface signed distance and its gradient are
+
+    d_ik(q) = phi_k(c_i(q)) - r_i,        dd_ik/dq = n_ik^T J_i(q),
+
+with n_ik = grad phi_k(c_i) the unit normal from the obstacle toward the sphere and J_i the linear
+Jacobian of the centre. The closest robot point is p_i = c_i - r_i n_ik; the Jacobian J_rep of
+(4.5) is that of p_i taken as a point fixed on its link, J_rep = J_v(c_i) - [p_i - c_i]x J_w.
+
+All primitive obstacles of a list are evaluated by one compiled call (numba), whatever their types;
+point clouds by one k-d tree query each. One robot-kinematics pass per configuration.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Iterable, Sequence
+
+import numpy as np
+
+from robointel._validate import as_array
+from robointel.errors import CollisionAtStart, InvalidInput
+from robointel.geometry import _kernels as K
+from robointel.geometry.obstacles import Obstacle, PointCloud
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.robot import Robot, SphereModel
+
+__all__ = [
+    "ObstacleSet", "SphereDistances", "MinDistance", "SelfDistance", "Collision",
+    "sphere_distances", "sphere_distances_batch", "min_distance", "self_collision_distance",
+    "in_collision", "check_collision_free",
+]
+
+
+class ObstacleSet:
+    """Obstacles packed for the compiled kernels (built once per obstacle list and cached).
+
+    Functions here accept a sequence of :class:`Obstacle`, one obstacle or an ``ObstacleSet``;
+    passing the same list object again reuses its packing. Column ``k`` of every result refers to
+    ``obstacles[k]``.
+    """
+
+    __slots__ = ("obstacles", "types", "params", "cols", "clouds")
+
+    def __init__(self, obstacles: Iterable[Obstacle] | Obstacle = ()) -> None:
+        if isinstance(obstacles, Obstacle):
+            obstacles = (obstacles,)
+        obs = tuple(obstacles)
+        for k, o in enumerate(obs):
+            if not isinstance(o, Obstacle):
+                raise InvalidInput(f"obstacles[{k}] is a {type(o).__name__}, not a robointel.geometry obstacle "
+                                   "(Sphere, Capsule, Cylinder, Box, PointCloud)", value=o)
+        self.obstacles = obs
+        prim = [k for k, o in enumerate(obs) if not isinstance(o, PointCloud)]
+        self.cols = np.array(prim, dtype=np.int64)
+        self.types = np.array([obs[k]._code for k in prim], dtype=np.int64)
+        self.params = (np.array([obs[k]._packed for k in prim], dtype=float).reshape(-1, K.NPARAM))
+        self.clouds = [(k, o) for k, o in enumerate(obs) if isinstance(o, PointCloud)]
+
+    def __len__(self) -> int:
+        return len(self.obstacles)
+
+    def __iter__(self):
+        return iter(self.obstacles)
+
+    def __getitem__(self, k: int) -> Obstacle:
+        return self.obstacles[k]
+
+
+_CACHE: dict[tuple, tuple[tuple, ObstacleSet]] = {}
+
+
+def _obstacle_set(obstacles) -> ObstacleSet:
+    if isinstance(obstacles, ObstacleSet):
+        return obstacles
+    if isinstance(obstacles, Obstacle):
+        obstacles = (obstacles,)
+    elif not isinstance(obstacles, (list, tuple)):
+        obstacles = tuple(obstacles)
+    key = tuple(map(id, obstacles))
+    hit = _CACHE.get(key)
+    if hit is not None:  # obstacles are immutable: same objects, same packing
+        return hit[1]
+    s = ObstacleSet(obstacles)
+    if len(_CACHE) > 64:
+        _CACHE.clear()
+    _CACHE[key] = (s.obstacles, s)  # keep the objects alive so their ids stay unique
+    return s
+
+
+def _sphere_model(robot: "Robot", spheres: "SphereModel | None") -> "SphereModel":
+    s = robot.spheres if spheres is None else spheres
+    if not hasattr(s, "kinematics") or not hasattr(s, "radii"):
+        raise InvalidInput(f"spheres must be a robointel.robot.SphereModel, got {type(s).__name__}", value=s)
+    return s
+
+
+@dataclass
+class SphereDistances:
+    """Distances between m robot spheres and k obstacles at one configuration (leading (T,) axis
+    added by :func:`sphere_distances_batch`).
+
+    Attributes:
+        d: (m, k) signed surface-to-surface distances (m), negative when penetrating.
+        grad: (m, k, n) dd/dq (m/rad), n^T J of (4.4).
+        normals: (m, k, 3) unit normals from the obstacle toward the sphere.
+        robot_points: (m, k, 3) closest points on the robot spheres.
+        obstacle_points: (m, k, 3) closest points on the obstacles.
+        spheres: (m,) index of each row's sphere in the sphere model.
+        obstacles: the k obstacles (column order).
+    """
+
+    d: np.ndarray
+    grad: np.ndarray
+    normals: np.ndarray
+    robot_points: np.ndarray
+    obstacle_points: np.ndarray
+    spheres: np.ndarray
+    obstacles: tuple
+
+    def argmin(self) -> tuple[int, int]:
+        """(row, column) of the smallest distance (one configuration; raises if empty)."""
+        if self.d.size == 0:
+            raise InvalidInput("no sphere/obstacle pairs to take a minimum over")
+        i, k = np.unravel_index(int(np.argmin(self.d)), self.d.shape)
+        return int(i), int(k)
+
+
+def _fill(C, J, radii, os_: ObstacleSet, D, N, RP, OP, G) -> None:
+    """Fill the output arrays for centres C (m,3), Jacobians J (m,>=3,n)."""
+    if len(os_.types):
+        K.sphere_pairs(C, J, radii, os_.types, os_.params, os_.cols, D, N, RP, OP, G)
+    for k, cloud in os_.clouds:
+        dk, ok, nk = cloud.distance(C)
+        D[:, k] = dk - radii
+        N[:, k] = nk
+        OP[:, k] = ok
+        RP[:, k] = C - radii[:, None] * nk
+        G[:, k] = np.einsum("mj,mjn->mn", nk, J[:, :3])
+
+
+def _alloc(m: int, k: int, n: int):
+    return np.empty((m, k)), np.empty((m, k, 3)), np.empty((m, k, 3)), np.empty((m, k, 3)), np.empty((m, k, n))
+
+
+def sphere_distances(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = None, *,
+                     movable_only: bool = False) -> SphereDistances:
+    """Signed distances, closest points and exact gradients between every robot sphere and every
+    obstacle at configuration ``q`` (n,) ((4.3)-(4.4): d = phi(c(q)) - r, dd/dq = n^T J).
+
+    Args:
+        robot: the robot (its :attr:`spheres` are used unless ``spheres`` is given).
+        q: (n,) joint configuration (rad / m).
+        obstacles: sequence of obstacles (or one, or an :class:`ObstacleSet`).
+        spheres: another :class:`SphereModel` bound to ``robot``.
+        movable_only: drop spheres on links that never move (their gradient is zero).
+
+    Raises:
+        ShapeError / NotFinite: bad ``q``. InvalidInput: not an obstacle.
+    """
+    sm = _sphere_model(robot, spheres)
+    os_ = _obstacle_set(obstacles)
+    C, J = sm.kinematics(q)
+    radii = np.asarray(sm.radii, float)
+    idx = np.arange(len(radii))
+    if movable_only:
+        mask = np.asarray(sm.movable, bool)
+        idx = idx[mask]
+        C, J, radii = C[mask], J[mask], radii[mask]
+    D, N, RP, OP, G = _alloc(len(radii), len(os_), J.shape[2])
+    _fill(C, J, radii, os_, D, N, RP, OP, G)
+    return SphereDistances(D, G, N, RP, OP, idx, os_.obstacles)
+
+
+def sphere_distances_batch(robot: "Robot", Q, obstacles, spheres: "SphereModel | None" = None, *,
+                           movable_only: bool = False) -> SphereDistances:
+    """:func:`sphere_distances` at T configurations ``Q`` (T, n) in one compiled call (CFS
+    collision constraints at all time steps, Ch. 7). Results carry a leading (T,) axis:
+    d (T, m, k), grad (T, m, k, n), normals/points (T, m, k, 3); ``spheres`` stays (m,)."""
+    sm = _sphere_model(robot, spheres)
+    os_ = _obstacle_set(obstacles)
+    Q = as_array(Q, "Q", (None, robot.nq))
+    radii = np.asarray(sm.radii, float)
+    idx = np.arange(len(radii))
+    mask = np.asarray(sm.movable, bool) if movable_only else np.ones(len(radii), bool)
+    idx, radii = idx[mask], radii[mask]
+    T, m, n = len(Q), len(idx), robot.nq
+    C = np.empty((T, m, 3))
+    J = np.empty((T, m, 3, n))
+    for t in range(T):
+        c, j = sm.kinematics(Q[t])
+        C[t], J[t] = c[mask], j[mask]
+    k = len(os_)
+    D, N, RP, OP, G = _alloc(T * m, k, n)
+    _fill(C.reshape(T * m, 3), J.reshape(T * m, 3, n), np.tile(radii, T), os_, D, N, RP, OP, G)
+    return SphereDistances(D.reshape(T, m, k), G.reshape(T, m, k, n), N.reshape(T, m, k, 3),
+                           RP.reshape(T, m, k, 3), OP.reshape(T, m, k, 3), idx, os_.obstacles)
+
+
+@dataclass
+class MinDistance:
+    """The closest (robot control point, obstacle) pair at one configuration (Ch. 4).
+
+    Attributes:
+        distance: signed surface-to-surface distance (m); ``inf`` when there is no obstacle.
+        sphere: index of the robot sphere in the sphere model (-1 when none).
+        link: the link that sphere is fixed on.
+        obstacle: index of the obstacle in the given list (-1 when none).
+        obstacle_name: its name, or ``"<type>[index]"``.
+        robot_point: (3,) closest point on the robot sphere (world, m).
+        obstacle_point: (3,) closest point on the obstacle.
+        normal: (3,) unit vector from the obstacle toward the robot.
+        gradient: (n,) d distance / dq = normal^T jacobian.
+        jacobian: (3, n) J_rep of (4.5): linear Jacobian of ``robot_point`` fixed on ``link``.
+    """
+
+    distance: float
+    sphere: int
+    link: str
+    obstacle: int
+    obstacle_name: str
+    robot_point: np.ndarray
+    obstacle_point: np.ndarray
+    normal: np.ndarray
+    gradient: np.ndarray
+    jacobian: np.ndarray
+
+
+def _cloud_min(os_: ObstacleSet, C, radii, best):
+    """Update ``best`` = (d, i, k, o, n) with the point clouds."""
+    for k, cloud in os_.clouds:
+        dk, ok, nk = cloud.distance(C)
+        dk = dk - radii
+        i = int(np.argmin(dk))
+        if dk[i] < best[0]:
+            best = (float(dk[i]), i, k, ok[i].copy(), nk[i].copy())
+    return best
+
+
+def min_distance(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = None, *,
+                 movable_only: bool = False) -> MinDistance:
+    """Minimum signed distance between the robot spheres and the obstacles at ``q`` (n,), with the
+    closest pair, the gradient (n,) and J_rep (3, n) of the closest robot point ((4.3)-(4.5)).
+
+    With no obstacles (or no spheres) the distance is ``inf`` and indices are -1.
+    """
+    sm = _sphere_model(robot, spheres)
+    os_ = _obstacle_set(obstacles)
+    C, J = sm.kinematics(q, angular=True)
+    radii = np.asarray(sm.radii, float)
+    n = J.shape[2]
+    if movable_only:
+        sel = np.flatnonzero(np.asarray(sm.movable, bool))
+        C, J, radii = C[sel], J[sel], radii[sel]
+    else:
+        sel = None
+    best = (np.inf, -1, -1, None, None)
+    if len(os_.types) and len(radii):
+        d, i, j, o, nrm = K.sphere_pairs_min(C, radii, os_.types, os_.params)
+        best = (d, i, int(os_.cols[j]), o, nrm)
+    if os_.clouds and len(radii):
+        best = _cloud_min(os_, C, radii, best)
+    d, i, k, o, nrm = best
+    if i < 0:
+        z = np.zeros(3)
+        return MinDistance(np.inf, -1, "", -1, "", z, z.copy(), z.copy(), np.zeros(n), np.zeros((3, n)))
+    r = radii[i]
+    c = C[i]
+    Jv, Jw = J[i, :3], J[i, 3:]
+    # J_rep = Jv - [p - c]x Jw with p - c = -r n  ->  Jv + r [n]x Jw
+    nx, ny, nz = nrm
+    S = np.array([[0.0, -nz, ny], [nz, 0.0, -nx], [-ny, nx, 0.0]])
+    Jrep = Jv + r * (S @ Jw)
+    sphere = int(i if sel is None else sel[i])
+    return MinDistance(float(d), sphere, sm.links[sphere], k, os_.obstacles[k].label(k), c - r * nrm, o, nrm,
+                       nrm @ Jv, Jrep)
+
+
+@dataclass
+class SelfDistance:
+    """Closest self-collision pair (spheres on non-adjacent links, ``SphereModel.self_pairs``).
+
+    Attributes:
+        distance: signed surface distance (m); ``inf`` when the model has no self pairs.
+        spheres: (i, k) sphere indices; links: their links.
+        normal: (3,) unit vector from sphere k toward sphere i.
+        points: (2, 3) closest points on spheres i and k.
+        gradient: (n,) d distance / dq.
+    """
+
+    distance: float
+    spheres: tuple[int, int]
+    links: tuple[str, str]
+    normal: np.ndarray
+    points: np.ndarray
+    gradient: np.ndarray
+
+
+def self_collision_distance(robot: "Robot", q, spheres: "SphereModel | None" = None) -> SelfDistance:
+    """Minimum signed distance over the robot's self-collision sphere pairs, with its gradient."""
+    sm = _sphere_model(robot, spheres)
+    C, J = sm.kinematics(q)
+    pairs = np.asarray(sm.self_pairs, int).reshape(-1, 2)
+    n = J.shape[2]
+    if len(pairs) == 0:
+        return SelfDistance(np.inf, (-1, -1), ("", ""), np.zeros(3), np.zeros((2, 3)), np.zeros(n))
+    radii = np.asarray(sm.radii, float)
+    a, b = pairs[:, 0], pairs[:, 1]
+    v = C[a] - C[b]
+    L = np.sqrt(np.einsum("ij,ij->i", v, v))
+    d = L - radii[a] - radii[b]
+    p = int(np.argmin(d))
+    i, k = int(a[p]), int(b[p])
+    u = v[p] / L[p] if L[p] > 1e-12 else np.array([0.0, 0.0, 1.0])
+    pts = np.array([C[i] - radii[i] * u, C[k] + radii[k] * u])
+    return SelfDistance(float(d[p]), (i, k), (sm.links[i], sm.links[k]), u, pts, u @ (J[i] - J[k]))
+
+
+@dataclass
+class Collision:
+    """Result of :func:`in_collision`; true (``bool(result)``) when in collision.
+
+    Attributes:
+        colliding: distance < margin.
+        distance: the smallest signed distance found (m).
+        link: robot link of the closest sphere; obstacle: obstacle index (-1 for self-collision);
+        obstacle_name: obstacle name, or the other link for a self-collision.
+        message: a sentence naming link and obstacle (for :class:`CollisionAtStart`).
+    """
+
+    colliding: bool
+    distance: float
+    link: str
+    obstacle: int
+    obstacle_name: str
+    margin: float = 0.0
+
+    def __bool__(self) -> bool:
+        return self.colliding
+
+    @property
+    def message(self) -> str:
+        if not np.isfinite(self.distance):
+            return "no obstacles to collide with"
+        what = "penetrates" if self.distance < 0 else ("is within the margin of" if self.colliding else "clears")
+        return (f"link {self.link!r} {what} {self.obstacle_name!r} (signed distance {self.distance * 1e3:.1f} mm, "
+                f"margin {self.margin * 1e3:.1f} mm)")
+
+
+def in_collision(robot: "Robot", q, obstacles, margin: float = 0.0, *, spheres: "SphereModel | None" = None,
+                 self_collision: bool = False) -> Collision:
+    """Is any robot sphere closer than ``margin`` (m) to an obstacle (or, with ``self_collision``,
+    to a non-adjacent link)? The result is truthy when colliding and names link and obstacle."""
+    margin = float(as_array(margin, "margin", ()))
+    md = min_distance(robot, q, obstacles, spheres)
+    res = Collision(md.distance < margin, md.distance, md.link, md.obstacle, md.obstacle_name, margin)
+    if self_collision:
+        sd = self_collision_distance(robot, q, spheres)
+        if sd.distance < res.distance:
+            res = Collision(sd.distance < margin, sd.distance, sd.links[0], -1, f"self: {sd.links[1]}", margin)
+    return res
+
+
+def check_collision_free(robot: "Robot", q, obstacles, margin: float = 0.0, *, what: str = "start configuration",
+                         spheres: "SphereModel | None" = None, self_collision: bool = False) -> Collision:
+    """Raise :class:`CollisionAtStart` naming link and obstacle when ``q`` is in collision.
+
+    Returns the (non-colliding) :class:`Collision` result otherwise.
+    """
+    res = in_collision(robot, q, obstacles, margin, spheres=spheres, self_collision=self_collision)
+    if res:
+        raise CollisionAtStart(f"{what} is in collision: {res.message}; move the {what} or the obstacle",
+                               value=np.asarray(q, float))
+    return res
