@@ -239,3 +239,21 @@ def test_self_collision_distance(robot):
 def test_bad_input(lrmate, call, exc):
     with pytest.raises(exc):
         call(lrmate)
+
+
+def test_warmup_and_self_collision_flag(lrmate):
+    from robointel.geometry import warmup
+
+    warmup()
+    sm = lrmate.spheres
+    # a folded-back configuration where the wrist nears the upper arm: self-collision counts
+    rng = np.random.default_rng(23)
+    Q = lrmate.random_configuration(rng, 400)
+    dists = np.array([sm.self_distances(q).min() for q in Q])
+    q = Q[int(np.argmin(dists))]
+    far = [Sphere([3.0, 3.0, 3.0], 0.1, name="far")]
+    res = in_collision(lrmate, q, far, self_collision=True)
+    assert res.distance == pytest.approx(min(dists.min(), min_distance(lrmate, q, far).distance))
+    if dists.min() < 0:
+        assert res and res.obstacle == -1 and res.obstacle_name.startswith("self")
+    assert not in_collision(lrmate, q, far, self_collision=False)

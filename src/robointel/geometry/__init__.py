@@ -18,6 +18,7 @@ from robointel.geometry.distance import (
     self_collision_distance,
     sphere_distances,
     sphere_distances_batch,
+    warmup,
 )
 from robointel.geometry.obstacles import (
     OBSTACLE_TYPES,
@@ -34,5 +35,5 @@ __all__ = [
     "Obstacle", "Sphere", "Capsule", "Cylinder", "Box", "PointCloud", "OBSTACLE_TYPES", "obstacle_from_dict",
     "ObstacleSet", "SphereDistances", "MinDistance", "SelfDistance", "Collision",
     "sphere_distances", "sphere_distances_batch", "min_distance", "self_collision_distance",
-    "in_collision", "check_collision_free", "rotations",
+    "in_collision", "check_collision_free", "warmup", "rotations",
 ]

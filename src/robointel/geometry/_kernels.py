@@ -156,8 +156,32 @@ def sphere_pairs(C, J, radii, types, params, cols, D, N, RP, OP, G):
 
 
 @njit(cache=True)
+def rep_terms(c, J, r, nrm):
+    """Closest robot point p = c - r n, gradient n^T J_v and J_rep = J_v - [p - c]x J_w (4.6).
+
+    c (3,) sphere centre, J (6, n) its Jacobian [v; w], r radius, nrm (3,) unit normal.
+    """
+    n = J.shape[1]
+    p = np.empty(3)
+    for a in range(3):
+        p[a] = c[a] - r * nrm[a]
+    g = np.empty(n)
+    Jr = np.empty((3, n))
+    nx, ny, nz = nrm[0], nrm[1], nrm[2]
+    for a in range(n):
+        wx, wy, wz = J[3, a], J[4, a], J[5, a]
+        g[a] = nx * J[0, a] + ny * J[1, a] + nz * J[2, a]
+        # p - c = -r n, so -[p - c]x w = r (n x w)
+        Jr[0, a] = J[0, a] + r * (ny * wz - nz * wy)
+        Jr[1, a] = J[1, a] + r * (nz * wx - nx * wz)
+        Jr[2, a] = J[2, a] + r * (nx * wy - ny * wx)
+    return p, g, Jr
+
+
+@njit(cache=True)
 def sphere_pairs_min(C, radii, types, params):
-    """Minimum over all (sphere, primitive) pairs: (d, i, j, closest xyz, normal xyz)."""
+    """Minimum over all (sphere, primitive) pairs: (d, i, j, closest (3,), normal (3,)); i = -1
+    when there is no pair."""
     best = np.inf
     bi, bj = -1, -1
     bo = np.zeros(3)
@@ -167,7 +191,7 @@ def sphere_pairs_min(C, radii, types, params):
         for j in range(types.shape[0]):
             d, ox, oy, oz, nx, ny, nz = _one(types[j], params[j], x, y, z)
             d -= r
-            if d < best:
+            if d < best or bi < 0:
                 best, bi, bj = d, i, j
                 bo[0], bo[1], bo[2] = ox, oy, oz
                 bn[0], bn[1], bn[2] = nx, ny, nz

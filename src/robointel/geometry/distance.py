@@ -1,4 +1,5 @@
-"""Robot-obstacle distances with exact gradients (Ch. 4 (4.3)-(4.5), Ch. 7 collision constraints).
+"""Robot-obstacle distances with exact gradients: the closest points and J_rep of Ch. 4 ((4.1)-(4.3),
+(4.6)) and the collision constraints d(x_t, O) >= d_min of the CFS planner (Ch. 7, (7.1)-(7.3)).
 
 The robot is covered by spheres on control points (Fig. 4.2, :class:`robointel.robot.SphereModel`).
 For sphere i with centre c_i(q), radius r_i and obstacle k with signed distance field phi_k, the
@@ -8,7 +9,7 @@ surface-to-surface signed distance and its gradient are
 
 with n_ik = grad phi_k(c_i) the unit normal from the obstacle toward the sphere and J_i the linear
 Jacobian of the centre. The closest robot point is p_i = c_i - r_i n_ik; the Jacobian J_rep of
-(4.5) is that of p_i taken as a point fixed on its link, J_rep = J_v(c_i) - [p_i - c_i]x J_w.
+(4.6) is that of p_i taken as a point fixed on its link, J_rep = J_v(c_i) - [p_i - c_i]x J_w.
 
 All primitive obstacles of a list are evaluated by one compiled call (numba), whatever their types;
 point clouds by one k-d tree query each. One robot-kinematics pass per configuration.
@@ -31,7 +32,7 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = [
     "ObstacleSet", "SphereDistances", "MinDistance", "SelfDistance", "Collision",
     "sphere_distances", "sphere_distances_batch", "min_distance", "self_collision_distance",
-    "in_collision", "check_collision_free",
+    "in_collision", "check_collision_free", "warmup",
 ]
 
 
@@ -105,7 +106,7 @@ class SphereDistances:
 
     Attributes:
         d: (m, k) signed surface-to-surface distances (m), negative when penetrating.
-        grad: (m, k, n) dd/dq (m/rad), n^T J of (4.4).
+        grad: (m, k, n) dd/dq (m/rad), n^T J (the linearisation CFS uses, Ch. 7).
         normals: (m, k, 3) unit normals from the obstacle toward the sphere.
         robot_points: (m, k, 3) closest points on the robot spheres.
         obstacle_points: (m, k, 3) closest points on the obstacles.
@@ -149,7 +150,8 @@ def _alloc(m: int, k: int, n: int):
 def sphere_distances(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = None, *,
                      movable_only: bool = False) -> SphereDistances:
     """Signed distances, closest points and exact gradients between every robot sphere and every
-    obstacle at configuration ``q`` (n,) ((4.3)-(4.4): d = phi(c(q)) - r, dd/dq = n^T J).
+    obstacle at configuration ``q`` (n,) (d = phi(c(q)) - r,
+    dd/dq = n^T J; the collision constraints of (7.1)-(7.3)).
 
     Args:
         robot: the robot (its :attr:`spheres` are used unless ``spheres`` is given).
@@ -190,9 +192,14 @@ def sphere_distances_batch(robot: "Robot", Q, obstacles, spheres: "SphereModel |
     T, m, n = len(Q), len(idx), robot.nq
     C = np.empty((T, m, 3))
     J = np.empty((T, m, 3, n))
-    for t in range(T):
-        c, j = sm.kinematics(Q[t])
-        C[t], J[t] = c[mask], j[mask]
+    kin = sm.kinematics
+    if movable_only:
+        for t in range(T):
+            c, j = kin(Q[t])
+            C[t], J[t] = c[mask], j[mask]
+    else:
+        for t in range(T):
+            C[t], J[t] = kin(Q[t])
     k = len(os_)
     D, N, RP, OP, G = _alloc(T * m, k, n)
     _fill(C.reshape(T * m, 3), J.reshape(T * m, 3, n), np.tile(radii, T), os_, D, N, RP, OP, G)
@@ -214,7 +221,7 @@ class MinDistance:
         obstacle_point: (3,) closest point on the obstacle.
         normal: (3,) unit vector from the obstacle toward the robot.
         gradient: (n,) d distance / dq = normal^T jacobian.
-        jacobian: (3, n) J_rep of (4.5): linear Jacobian of ``robot_point`` fixed on ``link``.
+        jacobian: (3, n) J_rep of (4.6): linear Jacobian of ``robot_point`` fixed on ``link``.
     """
 
     distance: float
@@ -243,7 +250,8 @@ def _cloud_min(os_: ObstacleSet, C, radii, best):
 def min_distance(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = None, *,
                  movable_only: bool = False) -> MinDistance:
     """Minimum signed distance between the robot spheres and the obstacles at ``q`` (n,), with the
-    closest pair, the gradient (n,) and J_rep (3, n) of the closest robot point ((4.3)-(4.5)).
+    closest pair, the gradient (n,) and J_rep (3, n) of the closest robot point (Ch. 4: the distance and
+    repulsive direction of (4.1)-(4.3), J_rep of (4.6)).
 
     With no obstacles (or no spheres) the distance is ``inf`` and indices are -1.
     """
@@ -267,16 +275,9 @@ def min_distance(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = N
     if i < 0:
         z = np.zeros(3)
         return MinDistance(np.inf, -1, "", -1, "", z, z.copy(), z.copy(), np.zeros(n), np.zeros((3, n)))
-    r = radii[i]
-    c = C[i]
-    Jv, Jw = J[i, :3], J[i, 3:]
-    # J_rep = Jv - [p - c]x Jw with p - c = -r n  ->  Jv + r [n]x Jw
-    nx, ny, nz = nrm
-    S = np.array([[0.0, -nz, ny], [nz, 0.0, -nx], [-ny, nx, 0.0]])
-    Jrep = Jv + r * (S @ Jw)
+    p, g, Jrep = K.rep_terms(C[i], J[i], radii[i], nrm)
     sphere = int(i if sel is None else sel[i])
-    return MinDistance(float(d), sphere, sm.links[sphere], k, os_.obstacles[k].label(k), c - r * nrm, o, nrm,
-                       nrm @ Jv, Jrep)
+    return MinDistance(float(d), sphere, sm.links[sphere], k, os_.obstacles[k].label(k), p, o, nrm, g, Jrep)
 
 
 @dataclass
@@ -375,3 +376,24 @@ def check_collision_free(robot: "Robot", q, obstacles, margin: float = 0.0, *, w
         raise CollisionAtStart(f"{what} is in collision: {res.message}; move the {what} or the obstacle",
                                value=np.asarray(q, float))
     return res
+
+
+def warmup() -> None:
+    """Compile (or load from numba's on-disk cache) every distance kernel now, so that the first
+    call inside a control loop does not pay the compilation (about a second per kernel, once)."""
+    from robointel.geometry.obstacles import Box, Capsule, Cylinder, Sphere
+
+    prims = [Sphere([0, 0, 0], 0.1), Capsule([0, 0, 0], [0, 0, 1], 0.1), Cylinder([0, 0, 0], [0, 0, 1], 0.1),
+             Box([0, 0, 0], [1, 1, 1])]
+    os_ = ObstacleSet(prims)
+    C = np.zeros((2, 3))
+    radii = np.full(2, 0.05)
+    for n in (6,):
+        J6 = np.zeros((2, 6, n))
+        for J in (J6[:, :3], np.ascontiguousarray(J6[:, :3])):  # the view the robot core returns, and contiguous
+            D, N, RP, OP, G = _alloc(2, len(prims), n)
+            K.sphere_pairs(C, J, radii, os_.types, os_.params, os_.cols, D, N, RP, OP, G)
+        d, i, j, o, nrm = K.sphere_pairs_min(C, radii, os_.types, os_.params)
+        K.rep_terms(C[i], J6[i], radii[i], nrm)
+    for p in prims:
+        p.distance(C)
