@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from robointel.errors import CollisionAtStart, InvalidInput, NotFinite, ShapeError
 from robointel.geometry import (
-    Box, Capsule, Cylinder, ObstacleSet, PointCloud, Sphere, check_collision_free, in_collision,
+    Box, Capsule, Cylinder, ObstacleSet, closest_pairs, PointCloud, Sphere, check_collision_free, in_collision,
     min_distance, self_collision_distance, sphere_distances, sphere_distances_batch,
 )
 from robointel.robot import Robot
@@ -254,6 +254,44 @@ def test_warmup_and_self_collision_flag(lrmate):
     far = [Sphere([3.0, 3.0, 3.0], 0.1, name="far")]
     res = in_collision(lrmate, q, far, self_collision=True)
     assert res.distance == pytest.approx(min(dists.min(), min_distance(lrmate, q, far).distance))
-    if dists.min() < 0:
-        assert res and res.obstacle == -1 and res.obstacle_name.startswith("self")
+    assert dists.min() < 0  # random configurations do fold the arm onto itself
+    assert res and res.obstacle == -1 and res.obstacle_name.startswith("self")
     assert not in_collision(lrmate, q, far, self_collision=False)
+
+
+@pytest.mark.parametrize("movable_only", [False, True])
+def test_closest_pairs_per_obstacle(robot, movable_only):
+    rng = np.random.default_rng(29)
+    obs = _scene(robot, 8)
+    for q in robot.random_configuration(rng, 4):
+        sd = sphere_distances(robot, q, obs, movable_only=movable_only)
+        cp = closest_pairs(robot, q, obs, movable_only=movable_only)
+        assert len(cp) == len(obs)
+        rows = sd.d.argmin(0)
+        np.testing.assert_allclose(cp.distance, sd.d.min(0), atol=1e-12)
+        np.testing.assert_array_equal(cp.sphere, sd.spheres[rows])
+        cols = np.arange(len(obs))
+        np.testing.assert_allclose(cp.gradient, sd.grad[rows, cols], atol=1e-12)
+        np.testing.assert_allclose(cp.normal, sd.normals[rows, cols], atol=1e-12)
+        np.testing.assert_allclose(cp.robot_point, sd.robot_points[rows, cols], atol=1e-12)
+        np.testing.assert_allclose(cp.obstacle_point, sd.obstacle_points[rows, cols], atol=1e-12)
+        for k in range(len(obs)):
+            pair = cp[k]
+            T = robot.frame_pose(q, pair.link)
+            p_link = T[:3, :3].T @ (pair.robot_point - T[:3, 3])
+            np.testing.assert_allclose(pair.jacobian, robot.point_jacobian(q, pair.link, p_link)[:3], atol=1e-12)
+        md = min_distance(robot, q, obs, movable_only=movable_only)
+        k = int(np.argmin(cp.distance))
+        assert md.obstacle == k and md.sphere == cp.sphere[k]
+        np.testing.assert_allclose(md.jacobian, cp.jacobian[k], atol=1e-12)
+
+
+def test_closest_pairs_primitives_only_and_empty(lrmate):
+    q = np.zeros(6)
+    obs = [Cylinder([0.5, 0, 0], [0.5, 0, 0.6], 0.05), Box([0.3, 0.4, 0.3], [0.1, 0.1, 0.1])]
+    cp = closest_pairs(lrmate, q, obs)
+    sd = sphere_distances(lrmate, q, obs)
+    np.testing.assert_allclose(cp.distance, sd.d.min(0), atol=1e-12)
+    assert cp.obstacle_names == ["cylinder[0]", "box[1]"]
+    empty = closest_pairs(lrmate, q, [])
+    assert len(empty) == 0 and empty.gradient.shape == (0, 6)

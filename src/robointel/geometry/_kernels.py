@@ -196,3 +196,33 @@ def sphere_pairs_min(C, radii, types, params):
                 bo[0], bo[1], bo[2] = ox, oy, oz
                 bn[0], bn[1], bn[2] = nx, ny, nz
     return best, bi, bj, bo, bn
+
+
+@njit(cache=True)
+def per_obstacle_min(C, J, radii, types, params):
+    """For each primitive j, the closest robot sphere: distance (k,), sphere (k,), obstacle point,
+    normal, robot point (k, 3), gradient (k, n) and J_rep (k, 3, n) (J: (m, 6, n) [v; w])."""
+    k = types.shape[0]
+    n = J.shape[2]
+    D = np.full(k, np.inf)
+    S = np.full(k, -1, np.int64)
+    O = np.zeros((k, 3))
+    N = np.zeros((k, 3))
+    P = np.zeros((k, 3))
+    G = np.zeros((k, n))
+    JR = np.zeros((k, 3, n))
+    for j in range(k):
+        for i in range(C.shape[0]):
+            d, ox, oy, oz, nx, ny, nz = _one(types[j], params[j], C[i, 0], C[i, 1], C[i, 2])
+            d -= radii[i]
+            if d < D[j] or S[j] < 0:
+                D[j], S[j] = d, i
+                O[j, 0], O[j, 1], O[j, 2] = ox, oy, oz
+                N[j, 0], N[j, 1], N[j, 2] = nx, ny, nz
+        i = S[j]
+        if i >= 0:
+            p, g, jr = rep_terms(C[i], J[i], radii[i], N[j])
+            P[j] = p
+            G[j] = g
+            JR[j] = jr
+    return D, S, O, N, P, G, JR

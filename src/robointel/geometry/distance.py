@@ -30,8 +30,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from robointel.robot import Robot, SphereModel
 
 __all__ = [
-    "ObstacleSet", "SphereDistances", "MinDistance", "SelfDistance", "Collision",
-    "sphere_distances", "sphere_distances_batch", "min_distance", "self_collision_distance",
+    "ObstacleSet", "SphereDistances", "MinDistance", "ClosestPairs", "SelfDistance", "Collision",
+    "sphere_distances", "sphere_distances_batch", "min_distance", "closest_pairs", "self_collision_distance",
     "in_collision", "check_collision_free", "warmup",
 ]
 
@@ -281,6 +281,76 @@ def min_distance(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = N
 
 
 @dataclass
+class ClosestPairs:
+    """For each of k obstacles, its closest robot sphere at one configuration: one repulsive
+    constraint per obstacle (the QP (4.11) of Ch. 4, with J_rep (4.6) of each closest point).
+
+    Attributes:
+        distance: (k,) signed surface distances (m); ``inf`` where there is no robot sphere.
+        sphere: (k,) sphere index of each obstacle's closest robot sphere (-1 when none).
+        links: k link names; obstacle_names: k obstacle labels.
+        robot_point, obstacle_point, normal: (k, 3) as in :class:`MinDistance`.
+        gradient: (k, n) d distance / dq. jacobian: (k, 3, n) J_rep of each robot point.
+    """
+
+    distance: np.ndarray
+    sphere: np.ndarray
+    links: list
+    obstacle_names: list
+    robot_point: np.ndarray
+    obstacle_point: np.ndarray
+    normal: np.ndarray
+    gradient: np.ndarray
+    jacobian: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.distance)
+
+    def __getitem__(self, k: int) -> MinDistance:
+        """The pair of obstacle ``k`` as a :class:`MinDistance`."""
+        return MinDistance(float(self.distance[k]), int(self.sphere[k]), self.links[k], k, self.obstacle_names[k],
+                           self.robot_point[k], self.obstacle_point[k], self.normal[k], self.gradient[k],
+                           self.jacobian[k])
+
+
+def closest_pairs(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = None, *,
+                  movable_only: bool = False) -> ClosestPairs:
+    """For every obstacle, the closest robot sphere at ``q`` (n,) with distance, closest points,
+    normal, gradient and J_rep (4.6): the per-obstacle constraints of the guidance QP (4.11)."""
+    sm = _sphere_model(robot, spheres)
+    os_ = _obstacle_set(obstacles)
+    C, J = sm.kinematics(q, angular=True)
+    radii = np.asarray(sm.radii, float)
+    n, k = J.shape[2], len(os_)
+    sel = None
+    if movable_only:
+        sel = np.flatnonzero(np.asarray(sm.movable, bool))
+        C, J, radii = C[sel], J[sel], radii[sel]
+    if not os_.clouds:
+        D, S, O, N, P, G, JR = K.per_obstacle_min(C, J, radii, os_.types, os_.params)
+    else:
+        D, S, O, N, P, G, JR = (np.full(k, np.inf), np.full(k, -1, np.int64), np.zeros((k, 3)), np.zeros((k, 3)),
+                                np.zeros((k, 3)), np.zeros((k, n)), np.zeros((k, 3, n)))
+        if len(os_.types):
+            res = K.per_obstacle_min(C, J, radii, os_.types, os_.params)
+            for dst, src in zip((D, S, O, N, P, G, JR), res):
+                dst[os_.cols] = src
+        for c, cloud in os_.clouds:
+            if not len(radii):
+                continue
+            dk, ok, nk = cloud.distance(C)
+            dk = dk - radii
+            i = int(np.argmin(dk))
+            D[c], S[c], O[c], N[c] = dk[i], i, ok[i], nk[i]
+            P[c], G[c], JR[c] = K.rep_terms(C[i], J[i], radii[i], nk[i].copy())
+    if sel is not None:
+        S = np.where(S >= 0, sel[np.maximum(S, 0)], -1)
+    links = [sm.links[i] if i >= 0 else "" for i in S]
+    names = [o.label(j) for j, o in enumerate(os_.obstacles)]
+    return ClosestPairs(D, S, links, names, P, O, N, G, JR)
+
+
+@dataclass
 class SelfDistance:
     """Closest self-collision pair (spheres on non-adjacent links, ``SphereModel.self_pairs``).
 
@@ -395,5 +465,6 @@ def warmup() -> None:
             K.sphere_pairs(C, J, radii, os_.types, os_.params, os_.cols, D, N, RP, OP, G)
         d, i, j, o, nrm = K.sphere_pairs_min(C, radii, os_.types, os_.params)
         K.rep_terms(C[i], J6[i], radii[i], nrm)
+        K.per_obstacle_min(C, J6, radii, os_.types, os_.params)
     for p in prims:
         p.distance(C)
