@@ -1,0 +1,72 @@
+"""Offscreen rendering of a :class:`~robointel.sim.Workcell` to PNG with ``mujoco.Renderer``.
+
+MuJoCo needs an offscreen OpenGL context: EGL (GPU or Mesa) or OSMesa (software). The backend is
+chosen by the ``MUJOCO_GL`` environment variable before ``mujoco`` is imported; when it is unset
+we try ``egl`` then ``osmesa`` in a subprocess probe and report clearly if neither works.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from robointel.errors import RobointelError
+
+_PROBE = ("import mujoco, numpy as np\n"
+          "m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom size=\".1\"/></worldbody></mujoco>')\n"
+          "r = mujoco.Renderer(m, 8, 8); d = mujoco.MjData(m); mujoco.mj_forward(m, d)\n"
+          "r.update_scene(d); r.render(); print('ok')\n")
+
+
+@lru_cache(maxsize=1)
+def available_backend() -> str | None:
+    """The first offscreen backend that works here (``MUJOCO_GL`` if set, else egl / osmesa), or None."""
+    cands = [os.environ["MUJOCO_GL"]] if os.environ.get("MUJOCO_GL") else ["egl", "osmesa"]
+    for b in cands:
+        try:
+            r = subprocess.run([sys.executable, "-c", _PROBE], env={**os.environ, "MUJOCO_GL": b},
+                               capture_output=True, text=True, timeout=60)
+        except (OSError, subprocess.TimeoutExpired):
+            continue
+        if r.returncode == 0 and "ok" in r.stdout:
+            return b
+    return None
+
+
+def render(workcell, path=None, *, width: int = 640, height: int = 480, camera: dict | None = None) -> np.ndarray:
+    """Render ``workcell`` to an (h, w, 3) uint8 image; write a PNG when ``path`` is given.
+
+    ``camera``: dict with ``lookat`` (3,), ``distance`` (m), ``azimuth``, ``elevation`` (deg).
+
+    Raises:
+        RobointelError: no offscreen OpenGL backend (EGL or OSMesa) works on this machine.
+    """
+    import mujoco
+
+    backend = available_backend()
+    if backend is None:
+        raise RobointelError("offscreen rendering is unavailable: neither MUJOCO_GL=egl nor MUJOCO_GL=osmesa "
+                             "works here (install libegl1/libosmesa6 or run with a display)")
+    if os.environ.get("MUJOCO_GL") not in (None, backend):
+        raise RobointelError(f"MUJOCO_GL={os.environ['MUJOCO_GL']} does not work here; set MUJOCO_GL={backend}")
+    os.environ.setdefault("MUJOCO_GL", backend)
+    cam = mujoco.MjvCamera()
+    c = {"lookat": (0.35, 0.0, 0.35), "distance": 2.2, "azimuth": 135.0, "elevation": -25.0, **(camera or {})}
+    cam.lookat[:] = c["lookat"]
+    cam.distance, cam.azimuth, cam.elevation = c["distance"], c["azimuth"], c["elevation"]
+    try:
+        with mujoco.Renderer(workcell.model, height, width) as r:
+            r.update_scene(workcell.data, camera=cam)
+            img = r.render().copy()
+    except Exception as exc:
+        raise RobointelError(f"offscreen rendering failed with MUJOCO_GL={backend}: {exc}") from None
+    if path is not None:
+        import matplotlib.image as mpimg
+
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        mpimg.imsave(str(path), img)
+    return img

@@ -1,0 +1,658 @@
+"""The simulated workcell: the LR Mate (or any robot) on a table in MuJoCo, under the joint controller.
+
+Frames: the MuJoCo world frame is the robot root frame (``base_link`` on the mounting plane; the
+table top is the plane z = 0; the floor is at z = -0.75 m). Joint vectors are in
+``robot.joint_names`` order. Control runs at 1 kHz; the physics step defaults to 1 ms.
+
+F/T sensor: the site ``"ft_sensor"`` at the flange, axes = the flange frame
+(``robot.frame_pose(q, "flange")``; for the LR Mate x points out of the flange along the J6 axis).
+:meth:`Workcell.ft_reading` returns the wrench [f; m] **exerted by the tool (and whatever acts on
+it: payload weight, the human's hand, contacts) on the sensor**, in the sensor frame, torque about
+the sensor origin. A payload of mass m with its CoM at r (sensor frame) at rest reads
+f = m g_s and m = r x (m g_s), with g_s gravity in the sensor frame.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import mujoco
+import numpy as np
+
+from robointel._validate import as_array, check_limits
+from robointel.errors import InvalidInput, NotFinite, SafetyStop, ShapeError
+from robointel.sim.controller import JointController, PIDGains, max_inertia, model_with_payload
+from robointel.sim.mjcf import (FT_SITE, OBJECT_PREFIX, OBSTACLE_PREFIX, TOOL_BODY, Payload, SimObject,
+                                build_spec, shape_geoms)
+
+CONTROL_DT = 0.001  # 1 kHz joint controller
+
+
+@dataclass
+class FTSensor:
+    """Configuration of the simulated F/T sensor's imperfections (added in Python).
+
+    Args:
+        bias: (6,) constant offset [N, N, N, N m, N m, N m] added to every reading.
+        noise_std: scalar or (6,) standard deviation of white Gaussian noise.
+        seed: seed of the noise generator (deterministic by default).
+    """
+
+    bias: Any = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    noise_std: Any = 0.0
+    seed: int | None = 0
+
+    def __post_init__(self) -> None:
+        self.bias = as_array(self.bias, "FTSensor.bias", (6,))
+        self.noise_std = np.broadcast_to(as_array(self.noise_std, "FTSensor.noise_std"), (6,)).astype(float)
+        if np.any(self.noise_std < 0):
+            raise InvalidInput("FTSensor.noise_std must be >= 0", value=self.noise_std)
+        self.rng = np.random.default_rng(self.seed)
+
+
+@dataclass(frozen=True)
+class Contact:
+    """One MuJoCo contact involving the robot (or its tool).
+
+    ``distance`` is MuJoCo's signed contact distance (m, negative = penetration); ``position``
+    (3,) the contact point and ``normal`` (3,) the unit normal pointing from ``robot_geom`` toward
+    ``other_geom``, both in the world frame. ``kind`` is "obstacle", "table", "floor", "object",
+    "self" (robot-robot) or "world".
+    """
+
+    robot_geom: str
+    other_geom: str
+    robot_body: str
+    other_body: str
+    kind: str
+    distance: float
+    position: np.ndarray
+    normal: np.ndarray
+
+
+@dataclass
+class TrackingLog:
+    """What :meth:`Workcell.run_trajectory` recorded at each 1 kHz control step.
+
+    Arrays: ``t`` (N,) s; ``q``, ``qd``, ``q_ref``, ``qd_ref``, ``tau`` (N, n) rad, rad/s, N m;
+    ``ft`` (N, 6) sensor wrench or None; ``contacts`` (N,) number of robot contacts with the
+    environment (obstacles, table, floor, self); ``distance`` (N,) minimum robot-obstacle signed
+    distance (m; NaN where not evaluated, ``inf`` without obstacles).
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    q_ref: np.ndarray
+    qd_ref: np.ndarray
+    tau: np.ndarray
+    ft: np.ndarray | None
+    contacts: np.ndarray
+    distance: np.ndarray
+    joint_names: list[str] = field(default_factory=list)
+    saturated: np.ndarray | None = None
+
+    @property
+    def error(self) -> np.ndarray:
+        """Tracking error q_ref - q, (N, n) rad."""
+        return self.q_ref - self.q
+
+    @property
+    def rms_error(self) -> np.ndarray:
+        """RMS tracking error per joint, (n,) rad."""
+        return np.sqrt(np.mean(self.error**2, axis=0))
+
+    @property
+    def max_error(self) -> np.ndarray:
+        """Maximum absolute tracking error per joint, (n,) rad."""
+        return np.max(np.abs(self.error), axis=0)
+
+    @property
+    def min_distance(self) -> float:
+        """Smallest robot-obstacle distance over the run (m; ``inf`` without obstacles)."""
+        d = self.distance[np.isfinite(self.distance) | np.isinf(self.distance)]
+        return float(np.min(d)) if d.size else float("inf")
+
+    @property
+    def collided(self) -> bool:
+        """True if the robot touched an obstacle, the table, the floor or itself."""
+        return bool(np.any(self.contacts > 0)) or self.min_distance < 0
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0]) if len(self.t) else 0.0
+
+    def tcp_error(self, robot) -> np.ndarray:
+        """TCP position error |p(q_ref) - p(q)| per sample, (N,) m."""
+        return np.array([np.linalg.norm(robot.fk(a)[:3, 3] - robot.fk(b)[:3, 3]) for a, b in zip(self.q_ref, self.q)])
+
+    def summary(self) -> dict:
+        """Scalars for reports: RMS/max error per joint (rad), min distance, collided, duration."""
+        return {"rms_error_rad": self.rms_error.tolist(), "max_error_rad": self.max_error.tolist(),
+                "rms_error_all_rad": float(np.sqrt(np.mean(self.error**2))),
+                "min_distance_m": self.min_distance, "collided": self.collided, "duration_s": self.duration}
+
+
+class Workcell:
+    """A MuJoCo workcell built from the robot's URDF, driven by the Fig. 2.3 joint controller.
+
+    Args:
+        robot: a :class:`robointel.robot.Robot` or a name for ``Robot.load`` (default: the LR Mate).
+        obstacles: ``robointel.geometry`` shapes in the world frame (mocap bodies, movable).
+        objects: :class:`SimObject` free bodies.
+        table: add the table (top at z = 0) and the floor.
+        ft_sensor: add the flange F/T sensor; pass an :class:`FTSensor` to set bias and noise.
+        payload: optional :class:`Payload` after the sensor.
+        timestep: physics step (s); the controller runs every 1 ms (``timestep`` must divide it).
+        gains: :class:`PIDGains` (default from the model's inertia, see ``controller``).
+        compensate_payload: include the payload in the controller's feed-forward model.
+        armature: optional (n,) reflected rotor inertia (kg m^2) in MuJoCo and in the controller.
+        self_collision: robot-robot contacts in MuJoCo (off by default, see ``mjcf.build_spec``).
+        q0: initial configuration (default: zeros clipped into the limits).
+    """
+
+    def __init__(self, robot=None, obstacles: Sequence[Any] = (), objects: Sequence[SimObject] = (),
+                 table: bool = True, ft_sensor: bool | FTSensor = True, payload: Payload | None = None,
+                 timestep: float = 0.001, *, gains: PIDGains | None = None, compensate_payload: bool = True,
+                 armature=None, self_collision: bool = False, q0=None) -> None:
+        if robot is None or isinstance(robot, str):
+            from robointel.robot import Robot
+
+            robot = Robot.load(robot or "lrmate200id7l")
+        self.robot = robot
+        self.n = robot.nq
+        self.timestep = float(timestep)
+        sub = CONTROL_DT / self.timestep
+        if abs(sub - round(sub)) > 1e-9 or round(sub) < 1:
+            raise InvalidInput(f"timestep {timestep!r} must divide the 1 ms control period", value=timestep)
+        self.substeps = int(round(sub))
+        self.ft_config = ft_sensor if isinstance(ft_sensor, FTSensor) else FTSensor()
+        self._has_ft = bool(ft_sensor)
+        self.payload = payload
+        self._armature = None if armature is None else as_array(armature, "armature", (self.n,))
+        self._table = table
+        self._self_collision = bool(self_collision)
+        self._obstacles = list(obstacles)
+        self._objects = list(objects)
+        self._build()
+        pin_model = model_with_payload(robot, payload if compensate_payload else None)
+        if self._armature is not None:
+            pin_model.armature = self._armature.copy()
+        if gains is None:
+            gains = PIDGains.from_inertia(self._max_mujoco_inertia(), effort_limit=robot.effort_limit)
+        self.controller = JointController(robot, gains, dt=CONTROL_DT, model=pin_model)
+        self._wrench: tuple[int, np.ndarray, np.ndarray, np.ndarray] | None = None
+        self.reset(q0)
+
+    # ------------------------------------------------------------------ model
+    def _build(self) -> None:
+        self.spec, self.info = build_spec(self.robot, table=self._table, obstacles=self._obstacles,
+                                          objects=self._objects, ft_sensor=self._has_ft, payload=self.payload,
+                                          timestep=self.timestep, armature=self._armature,
+                                          self_collision=self._self_collision)
+        try:
+            self.model = self.spec.compile()
+        except Exception as exc:
+            from robointel.errors import DescriptionError
+
+            raise DescriptionError(f"MuJoCo could not compile the workcell: {exc}") from None
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        jids = [m.joint(nm).id for nm in self.robot.joint_names]
+        self._qadr = np.array([m.jnt_qposadr[j] for j in jids])
+        self._vadr = np.array([m.jnt_dofadr[j] for j in jids])
+        self._aid = np.array([m.actuator(nm).id for nm in self.robot.joint_names])
+        if np.array_equal(self._qadr, np.arange(self.n)) and np.array_equal(self._vadr, np.arange(self.n)):
+            self._qadr = self._vadr = slice(0, self.n)
+        if np.array_equal(self._aid, np.arange(self.n)):
+            self._aid = slice(0, self.n)
+        # which geoms belong to the robot (bodies in the subtree of the robot's root link)
+        root = m.body(self._root_link()).id
+        robot_bodies = {b for b in range(m.nbody) if self._in_subtree(b, root)}
+        self._robot_body = np.array([b in robot_bodies for b in range(m.nbody)])
+        self._geom_robot = self._robot_body[m.geom_bodyid]
+        self._geom_names = [m.geom(g).name or f"geom{g}" for g in range(m.ngeom)]
+        self._body_names = [m.body(b).name for b in range(m.nbody)]
+        self._obstacle_geoms = np.array([g for g in range(m.ngeom) if self._geom_names[g].startswith(OBSTACLE_PREFIX)],
+                                        dtype=int)
+        self._robot_geoms = np.flatnonzero(self._geom_robot & (m.geom_contype | m.geom_conaffinity > 0))
+        self._mocap = {nm: int(m.body_mocapid[m.body(OBSTACLE_PREFIX + nm).id]) for nm in self.info["obstacles"]}
+        self._tool_id = m.body(TOOL_BODY).id
+        if self._has_ft:
+            self._ft_adr = int(m.sensor_adr[m.sensor("ft_force").id])
+            self._site_id = m.site(FT_SITE).id
+        self._warn0 = 0
+
+    def _root_link(self) -> str:
+        import xml.etree.ElementTree as ET
+
+        root = ET.fromstring(self.robot.urdf)
+        children = {j.find("child").get("link") for j in root.iter("joint")}
+        for link in root.iter("link"):
+            if link.get("name") not in children:
+                return link.get("name")
+        return root.find("link").get("name")
+
+    def _in_subtree(self, b: int, root: int) -> bool:
+        m = self.model
+        while b > 0:
+            if b == root:
+                return True
+            b = m.body_parentid[b]
+        return b == root
+
+    def _max_mujoco_inertia(self, samples: int = 64) -> np.ndarray:
+        """max_q diag M(q) of the MuJoCo model (payload and armature included), (n,)."""
+        m, d = self.model, mujoco.MjData(self.model)
+        rng = np.random.default_rng(0)
+        lo, hi = self.robot.lower, self.robot.upper
+        lo = np.where(np.isfinite(lo), lo, -np.pi)
+        hi = np.where(np.isfinite(hi), hi, np.pi)
+        best = np.zeros(self.n)
+        M = np.zeros((m.nv, m.nv))
+        for _ in range(samples):
+            d.qpos[self._qadr] = rng.uniform(lo, hi)
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            mujoco.mj_crb(m, d)
+            mujoco.mj_fullM(m, d, M)
+            best = np.maximum(best, np.diag(M)[self._vadr])
+        return best
+
+    # ------------------------------------------------------------------ state
+    def reset(self, q=None, qd=None) -> None:
+        """Reset time, objects and obstacles to their initial poses and the robot to ``q``
+        (default zeros clipped into the limits) at velocity ``qd`` (default 0); clear the
+        controller's integral, the applied wrench and hold at ``q``.
+
+        Raises:
+            ShapeError, NotFinite, LimitViolation: bad ``q``/``qd``.
+        """
+        if q is None:
+            q = np.clip(np.zeros(self.n), self.robot.lower, self.robot.upper)
+        q = self.robot.check_q(q, "q", limits=True)
+        qd = np.zeros(self.n) if qd is None else self.robot.check_q(qd, "qd")
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[self._qadr] = q
+        self.data.qvel[self._vadr] = qd
+        mujoco.mj_forward(self.model, self.data)
+        self.controller.reset()
+        self._wrench = None
+        self.data.xfrc_applied[:] = 0
+        self._hold = (q.copy(), np.zeros(self.n), np.zeros(self.n))
+        self._warn0 = self._bad_count()
+
+    @property
+    def q(self) -> np.ndarray:
+        """Joint positions (n,) rad."""
+        return self.data.qpos[self._qadr].copy()
+
+    @property
+    def qd(self) -> np.ndarray:
+        """Joint velocities (n,) rad/s."""
+        return self.data.qvel[self._vadr].copy()
+
+    @property
+    def time(self) -> float:
+        """Simulated time (s)."""
+        return float(self.data.time)
+
+    @property
+    def hold_reference(self) -> np.ndarray:
+        """The joint position the controller holds when no valid command arrives, (n,) rad."""
+        return self._hold[0].copy()
+
+    def _bad_count(self) -> int:
+        w = self.data.warning
+        return int(w[mujoco.mjtWarning.mjWARN_BADQACC].number)
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, tau) -> None:
+        """One physics step with joint torques ``tau`` (n,) N m (clipped to the effort limits).
+
+        Raises:
+            ShapeError, NotFinite: bad ``tau`` (nothing is applied, the state is unchanged).
+            SafetyStop: the simulation became unstable (MuJoCo reset the state).
+        """
+        tau = as_array(tau, "tau", (self.n,))
+        self._physics_step(tau)
+
+    def _physics_step(self, tau: np.ndarray) -> None:
+        d = self.data
+        d.ctrl[self._aid] = tau
+        if self._wrench is not None:
+            self._apply_wrench_now()
+        mujoco.mj_step(self.model, d)
+        if self._bad_count() != self._warn0:
+            self._warn0 = self._bad_count()
+            raise SafetyStop("MuJoCo reported an unstable simulation (bad qacc) and reset the state; "
+                             "lower the gains/torques or the timestep")
+
+    def track(self, q_ref, qd_ref=None, qdd_ref=None) -> np.ndarray:
+        """One 1 kHz control period tracking (q_ref, qd_ref, qdd_ref) (each (n,); velocities and
+        accelerations default to 0, i.e. position command). Returns the applied torques (n,).
+
+        Raises:
+            ShapeError, NotFinite: a bad command. The controller then holds the last valid
+                reference (zero velocity); nothing is stepped. Call :meth:`hold` to keep holding.
+        """
+        try:
+            q_ref = as_array(q_ref, "q_ref", (self.n,))
+            qd_ref = np.zeros(self.n) if qd_ref is None else as_array(qd_ref, "qd_ref", (self.n,))
+            qdd_ref = np.zeros(self.n) if qdd_ref is None else as_array(qdd_ref, "qdd_ref", (self.n,))
+        except (ShapeError, NotFinite):
+            self._hold = (self._hold[0], np.zeros(self.n), np.zeros(self.n))
+            raise
+        self._hold = (q_ref, np.zeros(self.n), np.zeros(self.n))
+        return self._control(q_ref, qd_ref, qdd_ref)
+
+    def _control(self, q_ref, qd_ref, qdd_ref) -> np.ndarray:
+        d = self.data
+        tau = self.controller.compute(d.qpos[self._qadr], d.qvel[self._vadr], q_ref, qd_ref, qdd_ref)
+        for _ in range(self.substeps):
+            self._physics_step(tau)
+        return tau
+
+    def hold(self, duration: float = CONTROL_DT) -> None:
+        """Hold the last valid reference position for ``duration`` seconds (whole control periods)."""
+        steps = max(1, int(round(float(duration) / CONTROL_DT)))
+        q, z, _ = self._hold
+        for _ in range(steps):
+            self._control(q, z, z)
+
+    def command_velocity(self, qd_cmd) -> np.ndarray:
+        """Velocity command mode: integrate ``qd_cmd`` (n,) rad/s into the held reference
+        (clipped to the joint limits) and track it for one control period. Returns torques."""
+        try:
+            qd_cmd = as_array(qd_cmd, "qd_cmd", (self.n,))
+        except (ShapeError, NotFinite):
+            self._hold = (self._hold[0], np.zeros(self.n), np.zeros(self.n))
+            raise
+        q_ref = np.clip(self._hold[0] + qd_cmd * CONTROL_DT, self.robot.lower, self.robot.upper)
+        qd_ref = np.where((q_ref <= self.robot.lower) | (q_ref >= self.robot.upper), 0.0, qd_cmd)
+        self._hold = (q_ref, np.zeros(self.n), np.zeros(self.n))
+        return self._control(q_ref, qd_ref, np.zeros(self.n))
+
+    def run_trajectory(self, t, q, qd=None, qdd=None, *, reset: bool = True, record_ft: bool = True,
+                       distance_every: int = 10, stop_on_contact: bool = False) -> TrackingLog:
+        """Track a joint trajectory with the controller at 1 kHz and log the result.
+
+        Args:
+            t: (N,) strictly increasing times (s).
+            q: (N, n) joint positions within the limits; ``qd``, ``qdd`` (N, n) optional. The
+                reference is resampled on the 1 kHz grid: cubic Hermite on (q, qd) when qd is
+                given (qdd linearly interpolated, or from the Hermite spline), else a
+                not-a-knot cubic spline through q and its derivatives.
+            reset: start from rest at q[0] (else from the current state).
+            record_ft: log the F/T wrench each period.
+            distance_every: evaluate the robot-obstacle distance every this many periods.
+            stop_on_contact: stop at the first contact with the environment.
+
+        Raises:
+            ShapeError, NotFinite, LimitViolation, InvalidInput: bad trajectory (nothing runs).
+        """
+        from scipy.interpolate import CubicHermiteSpline, CubicSpline
+
+        t = as_array(t, "t", (None,))
+        N = len(t)
+        if N < 2:
+            raise InvalidInput("a trajectory needs at least 2 samples", value=t)
+        if np.any(np.diff(t) <= 0):
+            raise InvalidInput("t must be strictly increasing", value=t)
+        q = as_array(q, "q", (N, self.n))
+        if np.any(q < self.robot.lower - 1e-6) or np.any(q > self.robot.upper + 1e-6):
+            k = int(np.flatnonzero(np.any((q < self.robot.lower - 1e-6) | (q > self.robot.upper + 1e-6), axis=1))[0])
+            check_limits(q[k], self.robot.lower, self.robot.upper, self.robot.joint_names, f"q[{k}]", tol=1e-6)
+        qd = None if qd is None else as_array(qd, "qd", (N, self.n))
+        qdd = None if qdd is None else as_array(qdd, "qdd", (N, self.n))
+        tg = np.arange(t[0], t[-1] + 0.5 * CONTROL_DT, CONTROL_DT)
+        tg = tg[tg <= t[-1] + 1e-12]
+        if qd is not None:
+            sp = CubicHermiteSpline(t, q, qd)
+            Q, QD = sp(tg), sp(tg, 1)
+            QDD = (np.stack([np.interp(tg, t, qdd[:, j]) for j in range(self.n)], axis=1)
+                   if qdd is not None else sp(tg, 2))
+        else:
+            sp = CubicSpline(t, q)
+            Q, QD = sp(tg), sp(tg, 1)
+            QDD = (np.stack([np.interp(tg, t, qdd[:, j]) for j in range(self.n)], axis=1)
+                   if qdd is not None else sp(tg, 2))
+        Q = np.clip(Q, self.robot.lower, self.robot.upper)
+        if reset:
+            self.reset(Q[0], QD[0])
+        K = len(tg)
+        t0 = self.time
+        logs = {k: np.empty((K, self.n)) for k in ("q", "qd", "tau")}
+        ft = np.empty((K, 6)) if (record_ft and self._has_ft) else None
+        ncon = np.zeros(K, dtype=int)
+        dist = np.full(K, np.inf if len(self._obstacle_geoms) == 0 else np.nan)
+        sat = np.zeros((K, self.n), dtype=bool)
+        d = self.data
+        last = K
+        for k in range(K):
+            logs["q"][k] = d.qpos[self._qadr]
+            logs["qd"][k] = d.qvel[self._vadr]
+            self._hold = (Q[k], np.zeros(self.n), np.zeros(self.n))
+            logs["tau"][k] = self._control(Q[k], QD[k], QDD[k])
+            sat[k] = self.controller.saturated
+            if ft is not None:
+                ft[k] = self.ft_reading()
+            ncon[k] = self._environment_contact_count()
+            if len(self._obstacle_geoms) and (k % distance_every == 0 or ncon[k]):
+                dist[k] = self.obstacle_distance()[0]
+            if stop_on_contact and ncon[k]:
+                last = k + 1
+                break
+        sl = slice(0, last)
+        return TrackingLog(t=t0 + tg[sl] - tg[0], q=logs["q"][sl], qd=logs["qd"][sl], q_ref=Q[sl], qd_ref=QD[sl],
+                           tau=logs["tau"][sl], ft=None if ft is None else ft[sl], contacts=ncon[sl],
+                           distance=dist[sl], joint_names=list(self.robot.joint_names), saturated=sat[sl])
+
+    # ------------------------------------------------------------------ sensing and interaction
+    def ft_reading(self, noise=None, bias=None, *, frame: str = "sensor") -> np.ndarray:
+        """The F/T wrench [f (N); m (N m)] exerted by the tool on the sensor, (6,).
+
+        ``frame="sensor"`` (the flange frame) or ``"world"`` (same wrench, axes of the world
+        frame, torque still about the sensor origin). ``noise`` (std, scalar or (6,)) and ``bias``
+        (6,) override the :class:`FTSensor` configuration for this reading. The value is the one
+        computed in the last physics step.
+        """
+        if not self._has_ft:
+            raise InvalidInput("this workcell has no F/T sensor; build it with ft_sensor=True")
+        w = -self.data.sensordata[self._ft_adr:self._ft_adr + 6].copy()
+        cfg = self.ft_config
+        b = cfg.bias if bias is None else as_array(bias, "bias", (6,))
+        s = cfg.noise_std if noise is None else np.broadcast_to(as_array(noise, "noise"), (6,))
+        w = w + b
+        if np.any(s > 0):
+            w = w + s * cfg.rng.standard_normal(6)
+        if frame == "world":
+            R = self.data.site_xmat[self._site_id].reshape(3, 3)
+            return np.concatenate([R @ w[:3], R @ w[3:]])
+        if frame != "sensor":
+            raise InvalidInput(f"frame must be 'sensor' or 'world', got {frame!r}", value=frame)
+        return w
+
+    def sensor_pose(self) -> np.ndarray:
+        """4x4 world pose of the F/T sensor frame."""
+        if not self._has_ft:
+            raise InvalidInput("this workcell has no F/T sensor")
+        T = np.eye(4)
+        T[:3, :3] = self.data.site_xmat[self._site_id].reshape(3, 3)
+        T[:3, 3] = self.data.site_xpos[self._site_id]
+        return T
+
+    def apply_wrench(self, force, torque=(0.0, 0.0, 0.0), point=None, body: str | None = None) -> None:
+        """Apply a persistent external wrench (the human's hand) until :meth:`clear_wrench`.
+
+        Args:
+            force: (3,) N, world frame.
+            torque: (3,) N m, world frame (a pure couple).
+            point: (3,) world point where the force acts at the time of the call; it then moves
+                with the body. Default: the body frame origin.
+            body: MuJoCo body name; default the tool after the F/T sensor (so the sensor feels the
+                wrench; use ``"link_6"`` to push the flange link before the sensor).
+        """
+        f = as_array(force, "force", (3,))
+        tq = as_array(torque, "torque", (3,))
+        name = TOOL_BODY if body is None else body
+        bid = self._body_id(name)
+        d = self.data
+        R = d.xmat[bid].reshape(3, 3)
+        p = d.xpos[bid].copy() if point is None else as_array(point, "point", (3,))
+        self._wrench = (bid, f.copy(), tq.copy(), R.T @ (p - d.xpos[bid]))
+        self._apply_wrench_now()
+
+    def clear_wrench(self) -> None:
+        """Remove the external wrench."""
+        self._wrench = None
+        self.data.xfrc_applied[:] = 0
+
+    def _apply_wrench_now(self) -> None:
+        bid, f, tq, p_local = self._wrench
+        d = self.data
+        p = d.xmat[bid].reshape(3, 3) @ p_local + d.xpos[bid]
+        d.xfrc_applied[bid, :3] = f
+        d.xfrc_applied[bid, 3:] = tq + np.cross(p - d.xipos[bid], f)
+
+    def _body_id(self, name: str) -> int:
+        m = self.model
+        for cand in (name, OBSTACLE_PREFIX + name, OBJECT_PREFIX + name):
+            i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, cand)
+            if i >= 0:
+                return i
+        raise InvalidInput(f"no body {name!r}; bodies: {self._body_names}", value=name)
+
+    def body_pose(self, name: str) -> np.ndarray:
+        """4x4 world pose of a MuJoCo body (robot links, ``"tool"``, obstacles and objects by
+        their names)."""
+        i = self._body_id(name)
+        T = np.eye(4)
+        T[:3, :3] = self.data.xmat[i].reshape(3, 3)
+        T[:3, 3] = self.data.xpos[i]
+        return T
+
+    def _contact_kind(self, g: int) -> str:
+        n = self._geom_names[g]
+        if self._geom_robot[g]:
+            return "self"
+        if n.startswith(OBSTACLE_PREFIX):
+            return "obstacle"
+        if n.startswith(OBJECT_PREFIX):
+            return "object"
+        if n in ("table", "floor"):
+            return n
+        return "world"
+
+    def contacts(self) -> list[Contact]:
+        """Current contacts with at least one robot geom (the robot geom first)."""
+        out = []
+        d = self.data
+        for c in d.contact[: d.ncon] if d.ncon else []:
+            g1, g2 = int(c.geom1), int(c.geom2)
+            r1, r2 = self._geom_robot[g1], self._geom_robot[g2]
+            if not (r1 or r2):
+                continue
+            normal = np.array(c.frame[:3])
+            if not r1:
+                g1, g2, normal = g2, g1, -normal
+            out.append(Contact(self._geom_names[g1], self._geom_names[g2],
+                               self._body_names[self.model.geom_bodyid[g1]],
+                               self._body_names[self.model.geom_bodyid[g2]], self._contact_kind(g2),
+                               float(c.dist), np.array(c.pos), normal))
+        return out
+
+    def _environment_contact_count(self) -> int:
+        d = self.data
+        if d.ncon == 0:
+            return 0
+        g1 = d.contact.geom1[: d.ncon]
+        g2 = d.contact.geom2[: d.ncon]
+        r1, r2 = self._geom_robot[g1], self._geom_robot[g2]
+        objs = np.array([self._geom_names[g].startswith(OBJECT_PREFIX) for g in np.concatenate([g1, g2])])
+        obj = objs[: d.ncon] | objs[d.ncon:]
+        return int(np.count_nonzero((r1 | r2) & ~obj))
+
+    def obstacle_distance(self, distmax: float = 1.0) -> tuple[float, str | None, str | None]:
+        """Minimum signed distance (m) between robot geoms and obstacle geoms, with the two geom
+        names (``inf``, None, None without obstacles or beyond ``distmax``)."""
+        if len(self._obstacle_geoms) == 0:
+            return float("inf"), None, None
+        m, d = self.model, self.data
+        rg, og = self._robot_geoms, self._obstacle_geoms
+        centre = np.linalg.norm(d.geom_xpos[rg][:, None] - d.geom_xpos[og][None], axis=2)
+        gap = centre - m.geom_rbound[rg][:, None] - m.geom_rbound[og][None]
+        best, pair = float("inf"), (None, None)
+        for i, j in zip(*np.nonzero(gap < distmax)):
+            dd = mujoco.mj_geomDistance(m, d, int(rg[i]), int(og[j]), distmax, None)
+            if dd < best:
+                best, pair = dd, (self._geom_names[rg[i]], self._geom_names[og[j]])
+        return best, pair[0], pair[1]
+
+    # ------------------------------------------------------------------ scene edits
+    @property
+    def obstacle_names(self) -> list[str]:
+        return list(self.info["obstacles"])
+
+    def add_obstacle(self, shape) -> str:
+        """Add a ``robointel.geometry`` shape (recompiles the model, keeps the state). Returns
+        its name."""
+        shape_geoms(shape)  # validate first
+        state = self._save_state()
+        self._obstacles.append(shape)
+        try:
+            self._build()
+        except Exception:
+            self._obstacles.pop()
+            self._build()
+            self._restore_state(state)
+            raise
+        self._restore_state(state)
+        return self.info["obstacles"][-1]
+
+    def set_obstacle_pose(self, name: str, position, rotation=None) -> None:
+        """Move an obstacle (its reference point: centre / axis midpoint) to ``position`` (3,)
+        with optional 3x3 ``rotation`` (world frame). Takes effect immediately (moving obstacles)."""
+        if name not in self._mocap:
+            raise InvalidInput(f"no obstacle {name!r}; obstacles: {self.obstacle_names}", value=name)
+        i = self._mocap[name]
+        self.data.mocap_pos[i] = as_array(position, "position", (3,))
+        if rotation is not None:
+            R = as_array(rotation, "rotation", (3, 3))
+            if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+                raise InvalidInput("rotation must be a proper rotation matrix", value=rotation)
+            mujoco.mju_mat2Quat(self.data.mocap_quat[i], R.reshape(9))
+        mujoco.mj_kinematics(self.model, self.data)
+        mujoco.mj_collision(self.model, self.data)
+
+    def _save_state(self) -> dict:
+        d = self.data
+        return {"qpos": d.qpos.copy(), "qvel": d.qvel.copy(), "time": d.time, "mocap_pos": d.mocap_pos.copy(),
+                "mocap_quat": d.mocap_quat.copy(), "ctrl": d.ctrl.copy()}
+
+    def _restore_state(self, s: dict) -> None:
+        d = self.data
+        d.qpos[:] = s["qpos"]
+        d.qvel[:] = s["qvel"]
+        d.time = s["time"]
+        k = len(s["mocap_pos"])
+        d.mocap_pos[:k] = s["mocap_pos"]
+        d.mocap_quat[:k] = s["mocap_quat"]
+        d.ctrl[:] = s["ctrl"]
+        mujoco.mj_forward(self.model, d)
+        self._warn0 = self._bad_count()
+
+    # ------------------------------------------------------------------ rendering
+    def render(self, path=None, *, width: int = 640, height: int = 480, camera: dict | None = None):
+        """Render the scene offscreen to an (h, w, 3) uint8 image, saved as PNG when ``path``.
+
+        Raises:
+            SafetyStop: never; RobointelError with the reason when no offscreen OpenGL is available.
+        """
+        from robointel.sim.render import render
+
+        return render(self, path, width=width, height=height, camera=camera)
+
+    def __repr__(self) -> str:
+        return (f"Workcell({self.robot.name!r}, obstacles={self.obstacle_names}, objects={self.info['objects']}, "
+                f"payload={self.payload is not None}, t={self.time:.3f}s)")
