@@ -306,3 +306,19 @@ def test_shapes_are_immutable():
         s.radius = 2.0
     with pytest.raises(ValueError):
         s.center[0] = 1.0
+
+
+def test_pickle_keeps_shapes_immutable_and_equal():
+    import copy
+    import pickle
+
+    rng = np.random.default_rng(1)
+    shapes = [Sphere([0, 0, 0], 1.0, name="a"), Capsule([0, 0, 0], [1, 0, 0], 0.1),
+              Cylinder([0, 0, 0], [0, 0, 1], 0.2), Box([0, 0, 0], [1, 2, 1]), PointCloud(rng.random((10, 3)), 0.01)]
+    P = rng.random((20, 3))
+    for s in shapes:
+        for s2 in (pickle.loads(pickle.dumps(s)), copy.deepcopy(s)):
+            assert type(s2) is type(s) and s2.name == s.name
+            np.testing.assert_array_equal(s2.distance(P)[0], s.distance(P)[0])
+            arrays = [v for v in vars(s2).values() if isinstance(v, np.ndarray)]
+            assert arrays and not any(a.flags.writeable for a in arrays)

@@ -65,8 +65,13 @@ class Obstacle:
     type: ClassVar[str] = "obstacle"
     _code: ClassVar[int] = -1
 
-    def _params(self) -> np.ndarray:  # pragma: no cover - overridden
-        raise NotImplementedError
+    def __setstate__(self, state: dict) -> None:
+        """Unpickling: restore the fields and keep the arrays read-only (immutable shapes)."""
+        for k, v in state.items():
+            if isinstance(v, np.ndarray):
+                v = v.copy()
+                v.flags.writeable = False
+            object.__setattr__(self, k, v)
 
     # geometry ---------------------------------------------------------------
     def distance(self, points) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
