@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
+from numba import njit
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
@@ -112,23 +113,36 @@ class JointController:
     def compute(self, q, qd, q_ref, qd_ref, qdd_ref) -> np.ndarray:
         """One control period: the saturated joint torques (n,) N m. Inputs are (n,) arrays that
         the caller has validated (finite, right shape)."""
-        g = self.gains
-        e = q_ref - q
-        ed = qd_ref - qd
         ff = self.feedforward_torque(q_ref, qd_ref, qdd_ref) if self.feedforward else np.zeros(self.n)
-        # conditional integration (anti-windup): do not integrate joints that were saturated in the
-        # direction that would grow the error term
-        grow = ~(self.saturated & (np.sign(e) == np.sign(self.last_tau)))
-        integral = self.integral + np.where(grow, e * self.dt, 0.0)
-        i_term = np.clip(g.ki * integral, -g.i_limit, g.i_limit)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            self.integral = np.where(g.ki > 0, i_term / np.where(g.ki > 0, g.ki, 1.0), 0.0)
-        tau = ff + g.kp * e + g.kd * ed + i_term
-        sat = np.clip(tau, -self.effort_limit, self.effort_limit)
-        self.saturated = sat != tau
-        self.last_tau = sat
+        g = self.gains
+        tau = np.empty(self.n)
+        _pid(np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(qd, dtype=float), q_ref, qd_ref, ff,
+             g.kp, g.ki, g.kd, g.i_limit, self.effort_limit, self.dt, self.integral, self.saturated, self.last_tau,
+             tau)
+        self.last_tau = tau
         self.last_ff = ff
-        return sat
+        return tau
+
+
+@njit(cache=True)
+def _pid(q, qd, q_ref, qd_ref, ff, kp, ki, kd, i_limit, effort, dt, integral, saturated, last_tau, out):
+    """PID + feed-forward with conditional-integration anti-windup; updates integral/saturated."""
+    for i in range(q.shape[0]):
+        e = q_ref[i] - q[i]
+        # do not integrate a joint saturated in the direction that would grow its error
+        if not (saturated[i] and ((e > 0 and last_tau[i] > 0) or (e < 0 and last_tau[i] < 0))):
+            integral[i] += e * dt
+        it = ki[i] * integral[i]
+        if it > i_limit[i]:
+            it = i_limit[i]
+            integral[i] = it / ki[i]
+        elif it < -i_limit[i]:
+            it = -i_limit[i]
+            integral[i] = it / ki[i]
+        t = ff[i] + kp[i] * e + kd[i] * (qd_ref[i] - qd[i]) + it
+        sat = min(max(t, -effort[i]), effort[i])
+        saturated[i] = sat != t
+        out[i] = sat
 
 
 def max_inertia(model: pin.Model, samples: int = 64, seed: int = 0) -> np.ndarray:

@@ -317,13 +317,13 @@ class Workcell:
         tau = as_array(tau, "tau", (self.n,))
         self._physics_step(tau)
 
-    def _physics_step(self, tau: np.ndarray) -> None:
+    def _physics_step(self, tau: np.ndarray, check: bool = True) -> None:
         d = self.data
         d.ctrl[self._aid] = tau
         if self._wrench is not None:
             self._apply_wrench_now()
         mujoco.mj_step(self.model, d)
-        if self._bad_count() != self._warn0:
+        if check and self._bad_count() != self._warn0:
             self._warn0 = self._bad_count()
             raise SafetyStop("MuJoCo reported an unstable simulation (bad qacc) and reset the state; "
                              "lower the gains/torques or the timestep")
@@ -349,8 +349,8 @@ class Workcell:
     def _control(self, q_ref, qd_ref, qdd_ref) -> np.ndarray:
         d = self.data
         tau = self.controller.compute(d.qpos[self._qadr], d.qvel[self._vadr], q_ref, qd_ref, qdd_ref)
-        for _ in range(self.substeps):
-            self._physics_step(tau)
+        for k in range(self.substeps):
+            self._physics_step(tau, check=k == self.substeps - 1)
         return tau
 
     def hold(self, duration: float = CONTROL_DT) -> None:
@@ -429,20 +429,31 @@ class Workcell:
         sat = np.zeros((K, self.n), dtype=bool)
         d = self.data
         last = K
+        qadr, vadr = self._qadr, self._vadr
+        nobst = len(self._obstacle_geoms)
+        fa = self._ft_adr if ft is not None else 0
+        zero = np.zeros(self.n)
+        ctrl = self.controller
         for k in range(K):
-            logs["q"][k] = d.qpos[self._qadr]
-            logs["qd"][k] = d.qvel[self._vadr]
-            self._hold = (Q[k], np.zeros(self.n), np.zeros(self.n))
+            logs["q"][k] = d.qpos[qadr]
+            logs["qd"][k] = d.qvel[vadr]
+            self._hold = (Q[k], zero, zero)
             logs["tau"][k] = self._control(Q[k], QD[k], QDD[k])
-            sat[k] = self.controller.saturated
+            sat[k] = ctrl.saturated
             if ft is not None:
-                ft[k] = self.ft_reading()
-            ncon[k] = self._environment_contact_count()
-            if len(self._obstacle_geoms) and (k % distance_every == 0 or ncon[k]):
+                ft[k] = d.sensordata[fa:fa + 6]
+            if d.ncon:
+                ncon[k] = self._environment_contact_count()
+            if nobst and (k % distance_every == 0 or ncon[k]):
                 dist[k] = self.obstacle_distance()[0]
             if stop_on_contact and ncon[k]:
                 last = k + 1
                 break
+        if ft is not None:  # sign convention, bias and noise as in ft_reading
+            cfg = self.ft_config
+            ft = -ft + cfg.bias
+            if np.any(cfg.noise_std > 0):
+                ft = ft + cfg.noise_std * cfg.rng.standard_normal(ft.shape)
         sl = slice(0, last)
         return TrackingLog(t=t0 + tg[sl] - tg[0], q=logs["q"][sl], qd=logs["qd"][sl], q_ref=Q[sl], qd_ref=QD[sl],
                            tau=logs["tau"][sl], ft=None if ft is None else ft[sl], contacts=ncon[sl],
