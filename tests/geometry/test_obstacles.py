@@ -322,3 +322,37 @@ def test_pickle_keeps_shapes_immutable_and_equal():
             np.testing.assert_array_equal(s2.distance(P)[0], s.distance(P)[0])
             arrays = [v for v in vars(s2).values() if isinstance(v, np.ndarray)]
             assert arrays and not any(a.flags.writeable for a in arrays)
+
+
+def _mesh_sample(mesh, n=60000):
+    import trimesh
+
+    return trimesh.sample.sample_surface_even(mesh, n, seed=0)[0]
+
+
+def test_against_trimesh_primitives():
+    """|d| equals the distance to a dense sampling of trimesh's own primitive meshes, and no sample
+    is nearer than |d| (up to the mesh's polygonal error)."""
+    import trimesh
+
+    rng = np.random.default_rng(11)
+    R = Rotation.random(random_state=11).as_matrix()
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, [0.1, -0.2, 0.3]
+    a, b = T[:3, 3] - 0.25 * R[:, 2], T[:3, 3] + 0.25 * R[:, 2]
+    cases = [
+        (Box(T[:3, 3], [0.3, 0.2, 0.4], R), trimesh.creation.box(extents=[0.3, 0.2, 0.4], transform=T), 1e-12),
+        (Cylinder(a, b, 0.1), trimesh.creation.cylinder(radius=0.1, height=0.5, transform=T, sections=512), 3e-6),
+        (Capsule(a, b, 0.1), trimesh.creation.capsule(height=0.5, radius=0.1, count=[128, 128], transform=T), 1e-4),
+        (Sphere(T[:3, 3], 0.15), trimesh.creation.icosphere(subdivisions=5, radius=0.15).apply_translation(T[:3, 3]),
+         1e-4),
+    ]
+    P = T[:3, 3] + rng.uniform(-0.4, 0.4, size=(300, 3))
+    for obs, mesh, poly_err in cases:
+        d = obs.distance(P)[0]
+        S = _mesh_sample(mesh)
+        brute = cKDTree(S).query(P)[0]
+        assert np.all(np.abs(d) <= brute + poly_err + 1e-12), obs
+        np.testing.assert_allclose(np.abs(d), brute, atol=8e-3, err_msg=str(obs))
+        # the obstacle's own surface point for each sample is (nearly) the sample itself
+        np.testing.assert_allclose(obs.distance(S[:2000])[0], 0.0, atol=poly_err + 1e-9, err_msg=str(obs))
