@@ -17,7 +17,7 @@ point clouds by one k-d tree query each. One robot-kinematics pass per configura
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Iterable, Sequence
+from typing import TYPE_CHECKING, Iterable
 
 import numpy as np
 

@@ -22,7 +22,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from robointel._validate import as_array
-from robointel.errors import InvalidInput, ShapeError
+from robointel.errors import InvalidInput
 from robointel.geometry import _kernels as K
 from robointel.geometry.rotations import check_rotation, quat_to_matrix, rpy_to_matrix
 
