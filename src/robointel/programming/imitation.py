@@ -1,0 +1,261 @@
+"""Kinematic imitation on the LR Mate (Ch. 3.2, (3.1)).
+
+The TCP follows the operator's hand relative to the hip centre,
+
+    p_d = p_h - p_c                                                        (3.1)
+
+mapped into the robot's workspace by one uniform scale and an offset (the body frame of
+:mod:`robointel.programming.skeleton` is already x forward, y left, z up, like the robot's), with a
+fixed tool orientation. Every frame is solved with the closed-form IK, choosing the solution
+closest to the previous one (continuity); unreachable targets hold the last pose and are counted.
+The 30 Hz joint targets become a 1 kHz reference through ``ruckig`` (jerk-limited online
+trajectory generation within the joint velocity and acceleration limits), so the limits are
+respected by construction; a *limit hit* is a frame whose raw IK motion would have exceeded them.
+The reference is then tracked by the simulated robot (``robointel.sim.Workcell``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from robointel._validate import as_array
+from robointel.errors import IKFailure, InvalidInput
+from robointel.programming.skeleton import Skeleton, clean
+
+#: Default workspace box for the TCP (robot root frame, m): every point is reachable with the
+#: default tool orientation, and J5 stays away from the wrist singularity there.
+WORKSPACE_LO = np.array([0.30, -0.30, 0.15])
+WORKSPACE_HI = np.array([0.60, 0.30, 0.60])
+#: Default fixed tool orientation: the flange's approach axis (x) pointing down (Ry(pi/2)).
+TOOL_DOWN = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+
+
+@dataclass(frozen=True)
+class WorkspaceMap:
+    """p_robot = center_robot + scale * (p_human - center_human)  [m]."""
+
+    scale: float
+    center_human: np.ndarray
+    center_robot: np.ndarray
+
+    def __call__(self, p: np.ndarray) -> np.ndarray:
+        return self.center_robot + self.scale * (np.asarray(p, float) - self.center_human)
+
+
+def fit_workspace(d: np.ndarray, lo=WORKSPACE_LO, hi=WORKSPACE_HI, *, max_scale: float = 1.0) -> WorkspaceMap:
+    """Uniform scale (<= ``max_scale``) and offset putting the hand-minus-hip path ``d`` (N, 3)
+    inside the box [lo, hi] (centred), preserving the shape of the motion."""
+    d = as_array(d, "d", (None, 3))
+    lo, hi = as_array(lo, "lo", (3,)), as_array(hi, "hi", (3,))
+    if np.any(hi <= lo):
+        raise InvalidInput("workspace box needs hi > lo on every axis", value=(lo, hi))
+    dmin, dmax = d.min(axis=0), d.max(axis=0)
+    ext = np.maximum(dmax - dmin, 1e-6)
+    scale = float(min(max_scale, np.min((hi - lo) / ext)))
+    return WorkspaceMap(scale, 0.5 * (dmin + dmax), 0.5 * (lo + hi))
+
+
+@dataclass
+class ImitationPlan:
+    """The robot motion derived from a skeleton.
+
+    Attributes:
+        t: (N,) frame times [s]; p_target: (N, 3) TCP targets [m]; q_ik: (N, 6) IK per frame [rad];
+        reachable: (N,) IK found a solution; limit_hits: (6,) frames per joint whose raw IK
+        velocity or acceleration exceeded the limit; t_ref, q_ref, qd_ref, qdd_ref: the 1 kHz
+        jerk-limited reference; mapping: the workspace map; source: the recording.
+    """
+
+    t: np.ndarray
+    p_target: np.ndarray
+    R_tool: np.ndarray
+    q_ik: np.ndarray
+    reachable: np.ndarray
+    limit_hits: np.ndarray
+    t_ref: np.ndarray
+    q_ref: np.ndarray
+    qd_ref: np.ndarray
+    qdd_ref: np.ndarray
+    mapping: WorkspaceMap
+    source: str = ""
+
+
+def hand_targets(skel: Skeleton, *, side: str | None = None, mapping: WorkspaceMap | None = None,
+                 lo=WORKSPACE_LO, hi=WORKSPACE_HI) -> tuple[np.ndarray, WorkspaceMap]:
+    """(N, 3) TCP targets p_d = map(p_h - p_c) (3.1) and the map used."""
+    side = side or skel.active_side()
+    a = skel.arm(side)
+    d = a["hand"] - a["hip"]
+    mapping = mapping or fit_workspace(d, lo, hi)
+    return mapping(d), mapping
+
+
+def solve_ik_path(robot, p: np.ndarray, R: np.ndarray, q0=None) -> tuple[np.ndarray, np.ndarray]:
+    """Closed-form IK for each target (N, 3) with fixed rotation R, each solution the one closest
+    to the previous (``q0`` for the first). Unreachable targets hold the previous solution.
+
+    Returns: (q (N, n), reachable (N,) bool).
+    """
+    p = as_array(p, "p", (None, 3))
+    R = as_array(R, "R", (3, 3))
+    q_prev = None if q0 is None else robot.check_q(q0, "q0")
+    out = np.zeros((len(p), robot.nq))
+    ok = np.zeros(len(p), dtype=bool)
+    T = np.eye(4)
+    T[:3, :3] = R
+    for k, pk in enumerate(p):
+        T[:3, 3] = pk
+        try:
+            sols = robot.ik(T, q_ref=q_prev)
+            q_prev = sols[0] if q_prev is not None else min(sols, key=lambda s: float(np.abs(s).sum()))
+            ok[k] = True
+        except IKFailure:
+            if q_prev is None:
+                continue
+        out[k] = q_prev
+    if not ok.any():
+        raise IKFailure("no frame of the imitation path is reachable; adjust the workspace box", value=p)
+    first = int(np.argmax(ok))
+    out[:first] = out[first]
+    return out, ok
+
+
+def jerk_limited(t: np.ndarray, q: np.ndarray, vmax, amax, jmax, *, dt: float = 0.001,
+                 lower=None, upper=None, gain: float = 12.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Follow the C2 spline through targets q (N, n) at times t (N,) within velocity, acceleration
+    and jerk limits, with ``ruckig`` in its velocity interface: at every period the commanded
+    velocity is the spline's velocity plus a feedback on the position error (``gain`` times it
+    near the path, at most sqrt(amax |e| / 2) far from it so that catching up never overshoots),
+    clipped to the velocity limit; ruckig reaches it jerk-limited. Returns (t_ref, q, qd, qdd) at 1/dt Hz."""
+    from ruckig import ControlInterface, InputParameter, OutputParameter, Result, Ruckig
+    from scipy.interpolate import CubicSpline
+
+    t = as_array(t, "t", (None,))
+    q = as_array(q, "q", (len(t), None))
+    n = q.shape[1]
+    vmax, amax, jmax = (np.broadcast_to(as_array(x, "limit"), (n,)).astype(float) for x in (vmax, amax, jmax))
+    otg = Ruckig(n, dt)
+    inp, out = InputParameter(n), OutputParameter(n)
+    inp.control_interface = ControlInterface.Velocity
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = vmax.tolist(), amax.tolist(), jmax.tolist()
+    inp.current_position = q[0].tolist()
+    inp.current_velocity = [0.0] * n
+    inp.current_acceleration = [0.0] * n
+    inp.target_acceleration = [0.0] * n
+    tg = np.arange(t[0], t[-1] + 0.5 * dt, dt)
+    sp = CubicSpline(t, q, axis=0)
+    S, SD = sp(tg), sp(tg, 1)
+    if lower is not None:
+        S = np.clip(S, lower, upper)
+    Q = np.empty((len(tg), n))
+    QD = np.empty_like(Q)
+    QDD = np.empty_like(Q)
+    cur = q[0].copy()
+    for k in range(len(tg)):
+        e = S[k] - cur
+        # linear near the path, braking-distance limited far from it (no overshoot under the
+        # acceleration limit): |v_fb| <= sqrt(amax |e| / 2)
+        fb = np.sign(e) * np.minimum(gain * np.abs(e), np.sqrt(0.5 * amax * np.abs(e)))
+        v = np.clip(SD[k] + fb, -vmax, vmax)
+        inp.target_velocity = v.tolist()
+        res = otg.update(inp, out)
+        if res not in (Result.Working, Result.Finished):
+            raise InvalidInput(f"ruckig failed ({res}) at t = {tg[k]:.3f} s", value=tg[k])
+        Q[k], QD[k], QDD[k] = out.new_position, out.new_velocity, out.new_acceleration
+        cur = Q[k]
+        out.pass_to_input(inp)
+    if lower is not None:
+        Q = np.clip(Q, lower, upper)
+    return tg, Q, QD, QDD
+
+
+def kinematic_imitation(skel: Skeleton, robot, *, side: str | None = None, R_tool=None,
+                        lo=WORKSPACE_LO, hi=WORKSPACE_HI, dt: float = 0.001, cutoff_hz: float = 6.0,
+                        jerk_factor: float = 20.0) -> ImitationPlan:
+    """Skeleton -> cleaned hand path -> TCP targets (3.1) -> closed-form IK -> jerk-limited 1 kHz
+    joint reference within the robot's velocity and acceleration limits.
+
+    Args:
+        skel: raw skeleton (bridged and filtered here with :func:`clean`).
+        robot: the LR Mate (any robot with ``ik``).
+        R_tool: fixed 3x3 tool orientation (default ``TOOL_DOWN``; pointing forward, identity,
+            puts the wrist at its singularity q5 = 0 in the middle of the workspace).
+        lo, hi: TCP workspace box [m].
+        jerk_factor: jerk limit = jerk_factor * acceleration limit [rad/s^3].
+    """
+    side = side or skel.active_side()
+    s = "Right" if side == "right" else "Left"
+    c = clean(skel, cutoff_hz=cutoff_hz, joints=["SpineBase", f"Shoulder{s}", f"Elbow{s}", f"Hand{s}"])
+    p, mapping = hand_targets(c, side=side, lo=lo, hi=hi)
+    R = TOOL_DOWN if R_tool is None else as_array(R_tool, "R_tool", (3, 3))
+    q_ik, ok = solve_ik_path(robot, p, R)
+    v = np.abs(np.gradient(q_ik, c.t, axis=0))
+    a = np.abs(np.gradient(np.gradient(q_ik, c.t, axis=0), c.t, axis=0))
+    hits = np.sum((v > robot.velocity_limit) | (a > robot.acceleration_limit), axis=0)
+    tg, Q, QD, QDD = jerk_limited(c.t, q_ik, robot.velocity_limit, robot.acceleration_limit,
+                                  jerk_factor * robot.acceleration_limit, dt=dt, lower=robot.lower, upper=robot.upper)
+    return ImitationPlan(c.t, p, R, q_ik, ok, hits, tg, Q, QD, QDD, mapping, skel.source)
+
+
+@dataclass
+class ImitationRun:
+    """A plan tracked in MuJoCo: ``log`` is the Workcell's TrackingLog; ``rms`` (6,) RMS of the
+    simulated joints against the per-frame IK targets (the imitation error, rad);
+    ``tracking_rms`` (6,) against the 1 kHz reference (the controller's error);
+    ``tcp_rms`` RMS TCP distance to the hand targets [m]; ``tcp`` (N, 3) TCP at the frame times."""
+
+    plan: ImitationPlan
+    log: object
+    rms: np.ndarray
+    tracking_rms: np.ndarray
+    tcp_rms: float
+    tcp: np.ndarray
+
+
+def simulate_imitation(plan: ImitationPlan, robot, workcell=None) -> ImitationRun:
+    """Track the plan's reference in the MuJoCo workcell (1 kHz PID + feed-forward, Fig. 2.3)."""
+    if workcell is None:
+        from robointel.sim import Workcell
+
+        workcell = Workcell(robot, ft_sensor=False)
+    log = workcell.run_trajectory(plan.t_ref, plan.q_ref, plan.qd_ref, plan.qdd_ref, record_ft=False)
+    tq = plan.t_ref[: len(log.q)]
+    target = np.stack([np.interp(tq, plan.t, plan.q_ik[:, j]) for j in range(robot.nq)], axis=1)
+    rms = np.sqrt(np.mean((log.q - target) ** 2, axis=0))
+    idx = np.searchsorted(tq, plan.t).clip(0, len(tq) - 1)
+    tcp = np.array([robot.fk(log.q[i])[:3, 3] for i in idx])
+    d = np.linalg.norm(tcp - plan.p_target, axis=1)
+    return ImitationRun(plan, log, rms, log.rms_error, float(np.sqrt(np.mean(d ** 2))), tcp)
+
+
+def plot_imitation(run: ImitationRun, path) -> None:
+    """Joint targets vs simulated joints, and the TCP path against the hand targets."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    plan, log = run.plan, run.log
+    fig = plt.figure(figsize=(12, 6))
+    for j in range(6):
+        ax = fig.add_subplot(3, 3, j + 1)
+        ax.plot(plan.t, plan.q_ik[:, j], "k.", ms=2, label="IK per frame")
+        ax.plot(plan.t_ref[: len(log.q)], log.q[:, j], "C0-", lw=1, label="LR Mate (MuJoCo)")
+        ax.set_title(f"J{j + 1}: RMS {run.rms[j]:.4f} rad, {int(plan.limit_hits[j])} limit hits", fontsize=8)
+        ax.tick_params(labelsize=7)
+        if j == 0:
+            ax.legend(fontsize=6)
+    ax = fig.add_subplot(3, 3, (7, 9))
+    labels = "xyz"
+    for i in range(3):
+        ax.plot(plan.t, plan.p_target[:, i], "--", color=f"C{i}", lw=1, label=f"hand target {labels[i]}")
+        ax.plot(plan.t, run.tcp[:, i], "-", color=f"C{i}", lw=1, label=f"TCP {labels[i]}")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("TCP target [m]")
+    ax.legend(fontsize=6, ncol=3)
+    fig.suptitle(f"Kinematic imitation (3.1) on the LR Mate: {plan.source}; TCP RMS {run.tcp_rms * 1000:.1f} mm, "
+                 f"{int((~plan.reachable).sum())} unreachable frames", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)

@@ -1,0 +1,80 @@
+"""Dynamic imitation on the 2-link SCARA: DARE gain, computed torque, latency and compensation."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robointel.errors import InvalidInput
+from robointel.programming.scara import (ComputedTorqueLQ, KalmanPredictor, arm_angles, double_integrator, lq_gain,
+                                         simulate_scara)
+from robointel.programming.skeleton import read_bvh, read_kinect_csv, synthetic_wave, synthetic_wave_bvh
+from robointel.robot import Robot
+
+
+@pytest.fixture(scope="module")
+def scara():
+    return Robot.load("scara2")
+
+
+def test_dare_gain_is_optimal_and_stable():
+    A, B = double_integrator(2, 0.001)
+    Q, R = np.diag([1, 1, 1e-3, 1e-3]), 1e-8 * np.eye(2)
+    K, P = lq_gain(A, B, Q, R)
+    # P solves (3.7) and the closed loop is stable
+    res = A.T @ P @ A - A.T @ P @ B @ np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A) + Q - P
+    assert np.abs(res).max() < 1e-6 * np.abs(P).max()
+    assert np.abs(np.linalg.eigvals(A - B @ K)).max() < 1.0
+
+
+def test_arm_angles_recover_bvh_joint_angles():
+    sk = read_bvh(synthetic_wave_bvh(3.0))
+    q = arm_angles(sk, "right")
+    # the forearm-upper arm angle is the BVH elbow flexion in the arm's plane (|angle| 25..95 deg)
+    assert np.degrees(np.abs(q[:, 1])).min() > 15 and np.degrees(np.abs(q[:, 1])).max() < 100
+
+
+def test_computed_torque_tracks_in_mujoco(scara):
+    from robointel.sim import Workcell
+
+    wc = Workcell(scara, table=False, ft_sensor=False)
+    ctrl = ComputedTorqueLQ(scara)
+    wc.reset(np.zeros(2), np.array([1.0, 1.2]))
+    err = []
+    for k in range(2000):
+        t = k * 1e-3
+        qr = np.array([0.5 * np.sin(2 * t), 0.4 * np.sin(3 * t)])
+        qdr = np.array([1.0 * np.cos(2 * t), 1.2 * np.cos(3 * t)])
+        qddr = np.array([-2.0 * np.sin(2 * t), -3.6 * np.sin(3 * t)])
+        wc.step(ctrl.torque(wc.q, wc.qd, qr, qdr, qddr))
+        err.append(wc.q - np.array([0.5 * np.sin(2 * (t + 1e-3)), 0.4 * np.sin(3 * (t + 1e-3))]))
+    assert np.abs(err).max() < 2e-3  # model-exact computed torque: the plant is a double integrator
+
+
+def test_kalman_predictor_extrapolates_ramp():
+    kf = KalmanPredictor(1, accel_psd=10.0, meas_std=0.01)
+    for k in range(60):
+        kf.update(k / 30, np.array([0.5 * k / 30]))
+    q, qd = kf.predict(59 / 30 + 0.1)
+    assert abs(qd[0] - 0.5) < 0.02 and abs(q[0] - 0.5 * (59 / 30 + 0.1)) < 0.005
+
+
+def test_latency_shows_and_tracking_is_tight(scara):
+    sk = synthetic_wave(4.0, dropout_at=2.0, speed=0.5)
+    r0 = simulate_scara(sk, robot=scara, latency=0.0)
+    r1 = simulate_scara(sk, robot=scara, latency=0.1)
+    assert r1.rms.mean() > r0.rms.mean()             # the latency costs imitation accuracy
+    assert r1.tracking_rms.max() < 0.01              # the controller follows what it receives
+    rc = simulate_scara(sk, robot=scara, latency=0.1, compensate=True)
+    assert rc.rms.mean() < r1.rms.mean()             # prediction recovers part of the delay
+
+
+def test_recording_runs(scara, shared_data):
+    sk = read_kinect_csv(shared_data("kinect", "Ges01_wavehand.csv"))
+    r = simulate_scara(sk, robot=scara)
+    assert np.all(np.isfinite(r.q)) and r.rms.shape == (2,)
+    assert np.all(np.abs(r.q) <= scara.upper + 0.05)
+
+
+def test_bad_latency(scara):
+    with pytest.raises(InvalidInput):
+        simulate_scara(synthetic_wave(1.0), robot=scara, latency=-0.1)
