@@ -155,6 +155,20 @@ def sphere_pairs(C, J, radii, types, params, cols, D, N, RP, OP, G):
                 G[i, c, a] = nx * J[i, 0, a] + ny * J[i, 1, a] + nz * J[i, 2, a]
 
 
+@njit(cache=True, inline="always")
+def _rep_into(c, J, r, nrm, p, g, Jr):
+    n = J.shape[1]
+    nx, ny, nz = nrm[0], nrm[1], nrm[2]
+    p[0], p[1], p[2] = c[0] - r * nx, c[1] - r * ny, c[2] - r * nz
+    for a in range(n):
+        wx, wy, wz = J[3, a], J[4, a], J[5, a]
+        g[a] = nx * J[0, a] + ny * J[1, a] + nz * J[2, a]
+        # p - c = -r n, so -[p - c]x w = r (n x w)
+        Jr[0, a] = J[0, a] + r * (ny * wz - nz * wy)
+        Jr[1, a] = J[1, a] + r * (nz * wx - nx * wz)
+        Jr[2, a] = J[2, a] + r * (nx * wy - ny * wx)
+
+
 @njit(cache=True)
 def rep_terms(c, J, r, nrm):
     """Closest robot point p = c - r n, gradient n^T J_v and J_rep = J_v - [p - c]x J_w (4.6).
@@ -163,18 +177,9 @@ def rep_terms(c, J, r, nrm):
     """
     n = J.shape[1]
     p = np.empty(3)
-    for a in range(3):
-        p[a] = c[a] - r * nrm[a]
     g = np.empty(n)
     Jr = np.empty((3, n))
-    nx, ny, nz = nrm[0], nrm[1], nrm[2]
-    for a in range(n):
-        wx, wy, wz = J[3, a], J[4, a], J[5, a]
-        g[a] = nx * J[0, a] + ny * J[1, a] + nz * J[2, a]
-        # p - c = -r n, so -[p - c]x w = r (n x w)
-        Jr[0, a] = J[0, a] + r * (ny * wz - nz * wy)
-        Jr[1, a] = J[1, a] + r * (nz * wx - nx * wz)
-        Jr[2, a] = J[2, a] + r * (nx * wy - ny * wx)
+    _rep_into(c, J, r, nrm, p, g, Jr)
     return p, g, Jr
 
 
@@ -199,30 +204,21 @@ def sphere_pairs_min(C, radii, types, params):
 
 
 @njit(cache=True)
-def per_obstacle_min(C, J, radii, types, params):
-    """For each primitive j, the closest robot sphere: distance (k,), sphere (k,), obstacle point,
-    normal, robot point (k, 3), gradient (k, n) and J_rep (k, 3, n) (J: (m, 6, n) [v; w])."""
-    k = types.shape[0]
-    n = J.shape[2]
-    D = np.full(k, np.inf)
-    S = np.full(k, -1, np.int64)
-    O = np.zeros((k, 3))
-    N = np.zeros((k, 3))
-    P = np.zeros((k, 3))
-    G = np.zeros((k, n))
-    JR = np.zeros((k, 3, n))
-    for j in range(k):
+def per_obstacle_min(C, J, radii, types, params, cols, D, S, O, N, P, G, JR):
+    """For each primitive j (output column cols[j]), the closest robot sphere: distance D, sphere
+    S, obstacle point O, normal N, robot point P (.., 3), gradient G (.., n) and J_rep JR
+    (.., 3, n); J: (m, 6, n) [v; w]. Columns stay untouched when there is no sphere."""
+    for j in range(types.shape[0]):
+        c = cols[j]
+        best = np.inf
+        bi = -1
         for i in range(C.shape[0]):
             d, ox, oy, oz, nx, ny, nz = _one(types[j], params[j], C[i, 0], C[i, 1], C[i, 2])
             d -= radii[i]
-            if d < D[j] or S[j] < 0:
-                D[j], S[j] = d, i
-                O[j, 0], O[j, 1], O[j, 2] = ox, oy, oz
-                N[j, 0], N[j, 1], N[j, 2] = nx, ny, nz
-        i = S[j]
-        if i >= 0:
-            p, g, jr = rep_terms(C[i], J[i], radii[i], N[j])
-            P[j] = p
-            G[j] = g
-            JR[j] = jr
-    return D, S, O, N, P, G, JR
+            if d < best or bi < 0:
+                best, bi = d, i
+                O[c, 0], O[c, 1], O[c, 2] = ox, oy, oz
+                N[c, 0], N[c, 1], N[c, 2] = nx, ny, nz
+        if bi >= 0:
+            D[c], S[c] = best, bi
+            _rep_into(C[bi], J[bi], radii[bi], N[c], P[c], G[c], JR[c])

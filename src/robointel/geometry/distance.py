@@ -326,23 +326,17 @@ def closest_pairs(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = 
     if movable_only:
         sel = np.flatnonzero(np.asarray(sm.movable, bool))
         C, J, radii = C[sel], J[sel], radii[sel]
-    if not os_.clouds:
-        D, S, O, N, P, G, JR = K.per_obstacle_min(C, J, radii, os_.types, os_.params)
-    else:
-        D, S, O, N, P, G, JR = (np.full(k, np.inf), np.full(k, -1, np.int64), np.zeros((k, 3)), np.zeros((k, 3)),
-                                np.zeros((k, 3)), np.zeros((k, n)), np.zeros((k, 3, n)))
-        if len(os_.types):
-            res = K.per_obstacle_min(C, J, radii, os_.types, os_.params)
-            for dst, src in zip((D, S, O, N, P, G, JR), res):
-                dst[os_.cols] = src
+    D, S = np.full(k, np.inf), np.full(k, -1, np.int64)
+    O, N, P, G, JR = np.zeros((k, 3)), np.zeros((k, 3)), np.zeros((k, 3)), np.zeros((k, n)), np.zeros((k, 3, n))
+    if len(os_.types):
+        K.per_obstacle_min(C, J, radii, os_.types, os_.params, os_.cols, D, S, O, N, P, G, JR)
+    if len(radii):
         for c, cloud in os_.clouds:
-            if not len(radii):
-                continue
             dk, ok, nk = cloud.distance(C)
             dk = dk - radii
             i = int(np.argmin(dk))
             D[c], S[c], O[c], N[c] = dk[i], i, ok[i], nk[i]
-            P[c], G[c], JR[c] = K.rep_terms(C[i], J[i], radii[i], nk[i].copy())
+            P[c], G[c], JR[c] = K.rep_terms(C[i], J[i], radii[i], N[c])
     if sel is not None:
         S = np.where(S >= 0, sel[np.maximum(S, 0)], -1)
     links = [sm.links[i] if i >= 0 else "" for i in S]
@@ -465,6 +459,9 @@ def warmup() -> None:
             K.sphere_pairs(C, J, radii, os_.types, os_.params, os_.cols, D, N, RP, OP, G)
         d, i, j, o, nrm = K.sphere_pairs_min(C, radii, os_.types, os_.params)
         K.rep_terms(C[i], J6[i], radii[i], nrm)
-        K.per_obstacle_min(C, J6, radii, os_.types, os_.params)
+        k = len(prims)
+        K.per_obstacle_min(C, J6, radii, os_.types, os_.params, os_.cols, np.zeros(k), np.zeros(k, np.int64),
+                           np.zeros((k, 3)), np.zeros((k, 3)), np.zeros((k, 3)), np.zeros((k, n)),
+                           np.zeros((k, 3, n)))
     for p in prims:
         p.distance(C)
