@@ -29,7 +29,7 @@ import scipy.sparse as sp
 
 from robointel._validate import as_array
 from robointel.errors import InfeasibleProblem, InvalidInput
-from robointel.planning.qp import INF, SparseQP
+from robointel.planning.qp import INF, DenseQP, SparseQP
 
 KINDS = ("convex", "complement_convex", "general")
 
@@ -43,8 +43,11 @@ class NonlinearConstraint:
         jac: ``z (n,) -> dphi/dz (m, n)``.
         kind: ``"convex"``, ``"complement_convex"`` or ``"general"`` (see module docstring).
         hess_lb: for ``"general"``: lower bound of each phi_i's Hessian, a scalar mu <= 0
-            (H* = mu I for all i), an (m,) array of such scalars, or an (n, n) matrix H* (<= 0).
+            (H* = mu I for all i), an (m,) array of such scalars, an (n, n) matrix H* (<= 0) shared by
+            all, or an (m, n, n) stack of matrices, one per phi_i.
         name: used in messages.
+        hess_diag: for ``"general"``, alternative to ``hess_lb``: an (m, n) array whose row i is the
+            diagonal of a diagonal H*_i (cheap for many constraints on many variables).
     """
 
     fun: Callable[[np.ndarray], np.ndarray]
@@ -52,12 +55,13 @@ class NonlinearConstraint:
     kind: str = "complement_convex"
     hess_lb: float | np.ndarray | None = None
     name: str = "phi"
+    hess_diag: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise InvalidInput(f"constraint {self.name!r}: kind must be one of {KINDS}, got {self.kind!r}",
                                value=self.kind)
-        if self.kind == "general" and self.hess_lb is None:
+        if self.kind == "general" and self.hess_lb is None and self.hess_diag is None:
             raise InvalidInput(f"constraint {self.name!r}: kind 'general' needs hess_lb (the Hessian lower "
                                "bound H* of (7.6))")
 
@@ -100,6 +104,8 @@ def _hlb_matrix(c: NonlinearConstraint, i: int, n: int) -> np.ndarray:
         return min(float(h), 0.0) * np.eye(n)
     if h.ndim == 1:
         return min(float(h[i]), 0.0) * np.eye(n)
+    if h.ndim == 3:
+        return h[i]
     return h
 
 
@@ -114,12 +120,29 @@ class _ConvexSet:
         self.G = np.atleast_2d(np.asarray(c.jac(z_r), float)).reshape(self.phi.size, n)
         self.ref_feasible = bool(np.all(self.phi >= -tol))
         self.H = None
-        if c.kind == "general":
-            self.H = np.array([_hlb_matrix(c, i, n) for i in range(self.phi.size)])
+        self.Hd = None
+        if c.kind == "general" and c.hess_diag is not None:
+            self.Hd = np.minimum(np.asarray(c.hess_diag, float).reshape(self.phi.size, n), 0.0)
+        elif c.kind == "general":
+            h = np.asarray(c.hess_lb, float)
+            self.H = h if h.ndim == 3 else np.array([_hlb_matrix(c, i, n) for i in range(self.phi.size)])
 
-    def rows(self) -> tuple[np.ndarray, np.ndarray]:
-        """Linearisation ``G z >= G z_r - phi(z_r)`` (exact F for case 2, outer for 1 and 3)."""
-        return self.G, self.G @ self.z_r - self.phi
+    def rows(self, rho: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Linearisation ``G z >= G z_r - phi(z_r)`` (exact F for case 2, outer for 1 and 3).
+
+        With a trust box ``|z - z_r| <= rho`` and case 3, the curvature term of (7.6) is bounded
+        below on the box (``1/2 d'H*d >= -1/2 rho'|H*|rho``), giving half spaces inside F_i.
+        """
+        h = self.G @ self.z_r - self.phi
+        if rho is not None and self.c.kind == "general" and self.ref_feasible:
+            if self.Hd is not None:
+                h = h - 0.5 * (self.Hd @ (rho * rho))
+            else:
+                h = h + 0.5 * np.einsum("i,kij,j->k", rho, np.abs(self.H), rho)
+        return self.G, h
+
+    def curved_with(self, trust: bool) -> bool:
+        return self.curved and not (trust and self.c.kind == "general")
 
     @property
     def curved(self) -> bool:
@@ -130,18 +153,26 @@ class _ConvexSet:
         if self.c.kind == "convex":
             return np.atleast_1d(np.asarray(self.c.fun(z), float))
         d = z - self.z_r
-        return self.phi + self.G @ d + 0.5 * np.einsum("i,kij,j->k", d, self.H, d)
+        return self.phi + self.G @ d + 0.5 * self._quad(d)
+
+    def _quad(self, d: np.ndarray) -> np.ndarray:
+        """d' H*_i d for every i."""
+        if self.Hd is not None:
+            return self.Hd @ (d * d)
+        return np.einsum("i,kij,j->k", d, self.H, d)
 
     def g_jac(self, z: np.ndarray) -> np.ndarray:
         if self.c.kind == "convex":
             return np.atleast_2d(np.asarray(self.c.jac(z), float)).reshape(self.phi.size, z.size)
         d = z - self.z_r
+        if self.Hd is not None:
+            return self.G + self.Hd * d[None]
         return self.G + np.einsum("kij,j->ki", self.H, d)
 
     def max_step(self, d: np.ndarray, tol: float) -> float:
         """Largest alpha in [0, 1] with g(z_r + alpha d) >= 0 (F is convex and contains z_r)."""
         if self.c.kind == "general":
-            a = 0.5 * np.einsum("i,kij,j->k", d, self.H, d)  # <= 0
+            a = 0.5 * self._quad(d)  # <= 0
             b = self.G @ d
             c0 = self.phi
             alpha = 1.0
@@ -170,7 +201,8 @@ class _ConvexSet:
 
 def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None, u=None,
         z0=None, eps: float = 1e-6, max_iter: int = 100, tol: float = 1e-9, max_cuts: int = 5,
-        keep_iterates: bool = False, qp: SparseQP | None = None) -> CFSResult:
+        keep_iterates: bool = False, qp: SparseQP | DenseQP | None = None,
+        trust=None) -> CFSResult:
     """Solve ``min 1/2 z'Hz + f'z  s.t. phi_i(z) >= 0, l <= Az <= u`` by CFS (Algorithm 2).
 
     Args:
@@ -186,7 +218,12 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
         tol: feasibility tolerance on phi.
         max_cuts: tangent-cut rounds per iteration for the curved sets (cases 1 and 3).
         keep_iterates: keep every iterate on the result (for inspection and tests).
-        qp: a :class:`SparseQP` to reuse (warm start across calls).
+        qp: the QP solver to use and reuse (warm start across calls): a :class:`SparseQP` (OSQP,
+            default) or a :class:`DenseQP` (DAQP, for small dense problems).
+        trust: for case-3 constraints, instead of cuts use a polyhedral inner approximation of
+            (7.6) on a trust box ``|z - z_r| <= rho`` (scalar or (n,) initial radius); the radius
+            follows the step length (twice the last step, at most the initial radius). One QP of
+            fixed pattern per iteration.
 
     Returns:
         :class:`CFSResult`.
@@ -248,20 +285,39 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
     iterates = [z.copy()] if keep_iterates else []
     best, best_cost = (z.copy(), costs[0]) if feasible(z) else (None, np.inf)
     status, it, qp_iters = "max_iter", 0, 0
-    Hup = sp.triu(Hs, format="csc")
+    dense = isinstance(qp, DenseQP)
+    Hup = Hs.toarray() if dense else sp.triu(Hs, format="csc")
+    A_dense = A_lin.toarray() if dense else None
+    use_trust = trust is not None and any(c.kind == "general" for c in constraints)
+    if use_trust:
+        rho0 = np.broadcast_to(np.asarray(trust, float), (n,)).copy()
+        if np.any(rho0 <= 0) or not np.all(np.isfinite(rho0)):
+            raise InvalidInput("trust radius must be positive and finite", value=trust)
+        kappa = 1.0
+        A_box = sp.eye(n, format="csc")
+        A_lin_all = sp.vstack([A_lin, A_box], format="csc")
+        A_dense = A_lin_all.toarray() if dense else None
     for it in range(1, max_iter + 1):
         sets = [_ConvexSet(c, z, tol) for c in constraints]
         G_rows, h_rows = [], []
+        rho = kappa * rho0 if use_trust else None
         for s in sets:
-            G, h = s.rows()
+            G, h = s.rows(rho)
             G_rows.append(G)
             h_rows.append(h)
+        if use_trust:
+            A_cur, l_cur, u_cur = A_lin_all, np.concatenate([l_lin, z - rho]), np.concatenate([u_lin, z + rho])
+        else:
+            A_cur, l_cur, u_cur = A_lin, l_lin, u_lin
         cuts_G, cuts_h = [], []
         z_new = None
         for _round in range(max_cuts + 1):
-            Ablk = sp.vstack([A_lin] + [sp.csc_matrix(G) for G in G_rows + cuts_G], format="csc")
-            lo = np.concatenate([l_lin] + h_rows + cuts_h)
-            up = np.concatenate([u_lin] + [np.full(len(h), INF) for h in h_rows + cuts_h])
+            if dense:
+                Ablk = np.vstack([A_dense] + G_rows + cuts_G)
+            else:
+                Ablk = sp.vstack([A_cur] + [sp.csc_matrix(G) for G in G_rows + cuts_G], format="csc")
+            lo = np.concatenate([l_cur] + h_rows + cuts_h)
+            up = np.concatenate([u_cur] + [np.full(len(h), INF) for h in h_rows + cuts_h])
             sol = qp.solve(Hup, f, Ablk, lo, up, x0=z)
             qp_iters += sol.iterations
             if not sol.solved:
@@ -269,7 +325,7 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
             z_new = sol.x
             added = False
             for s in sets:
-                if not s.curved:
+                if not s.curved_with(use_trust):
                     continue
                 gv = s.g(z_new)
                 bad = gv < -tol
@@ -295,13 +351,17 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
                 alpha = min(alpha, s.max_step(d, 1e-12))
         z_new = z + alpha * d
         step = float(np.linalg.norm(z_new - z))
+        at_box = False
+        if use_trust:
+            at_box = bool(np.max(np.abs(z_new - z) / rho) > 0.99)
+            kappa = float(np.clip(2.0 * np.max(np.abs(z_new - z) / rho0), 1e-6, 1.0))
         z = z_new
         costs.append(cost(z))
         if keep_iterates:
             iterates.append(z.copy())
         if feasible(z) and costs[-1] <= best_cost:
             best, best_cost = z.copy(), costs[-1]
-        if step <= eps:
+        if step <= eps and not at_box:
             status = "converged"
             break
     if status != "converged" and best is not None:

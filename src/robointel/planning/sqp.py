@@ -67,3 +67,59 @@ def slsqp(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=No
         viol = max(viol, float(np.max(np.abs(v) if c["type"] == "eq" else -v, initial=0.0)))
     return SQPResult(z=res.x, iterations=int(res.nit), success=bool(res.success), message=str(res.message),
                      cost=float(res.fun), max_violation=max(viol, 0.0), seconds=secs)
+
+
+def slsqp_segment(planner, start, goal, *, reference=None, tol: float = 1e-4, max_iter: int = 500,
+                  pairs: str = "all") -> tuple[np.ndarray, SQPResult]:
+    """The SQP baseline of Table 7.1 for one segment of a :class:`TrajectoryPlanner`.
+
+    Same cost (7.1), same linear limits, same exact distance constraints
+    ``d(x(s)) >= d_min + safety`` at the same samples (every movable sphere x every obstacle,
+    ``pairs="all"``), same initial guess (the reference), solved by SLSQP.
+
+    Returns:
+        (path (N+1, n), :class:`SQPResult`).
+    """
+    from robointel.planning.trajectory import straight_reference
+
+    n, N = planner.n, planner.N
+    x0, xN = np.asarray(start, float), np.asarray(goal, float)
+    Xr = straight_reference(x0, xN, N) if reference is None else np.asarray(reference, float)
+    P, q = planner.cost_terms(x0, xN, Xr)
+    lo, up = planner._linear_bounds(x0, xN)
+    A_lin = planner.A[: planner._m_lin]
+    d_req = planner.settings.d_min + planner.settings.safety
+    t_s, a_s = planner._sample_t, planner._sample_a
+    S = len(t_s)
+
+    def knots(z):
+        X = np.empty((N + 1, n))
+        X[0], X[N] = x0, xN
+        X[1:N] = z.reshape(N - 1, n)
+        return X
+
+    cache = {}
+
+    def dist(z):
+        key = z.tobytes()
+        if key not in cache:
+            cache.clear()
+            cache[key] = planner.distances(knots(z))
+        return cache[key]
+
+    def fun(z):
+        return dist(z).d.reshape(-1) - d_req
+
+    def jac(z):
+        D = dist(z)
+        g = D.grad.reshape(S, -1, n)
+        J = np.zeros((S, g.shape[1], N - 1, n))
+        for side, w in ((0, 1 - a_s), (1, a_s)):
+            b = t_s + side
+            ok = (b >= 1) & (b <= N - 1) & (w > 0)
+            J[np.flatnonzero(ok), :, b[ok] - 1, :] += w[ok, None, None] * g[ok]
+        return J.reshape(S * g.shape[1], (N - 1) * n)
+
+    cons = [NonlinearConstraint(fun, jac, kind="general", hess_lb=0.0, name="clearance")] if planner.obstacles else []
+    res = slsqp(P, q, constraints=cons, A=A_lin, l=lo, u=up, z0=Xr[1:N].ravel(), tol=tol, max_iter=max_iter)
+    return knots(res.z), res

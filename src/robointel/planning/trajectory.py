@@ -1,0 +1,417 @@
+"""Collision-free trajectory planning by CFS, (7.1)-(7.3) (Sec. 7.3).
+
+One path segment between two stop-by waypoints is x_0..x_N (joint positions, fixed step dt), with
+x_0 and x_N fixed. The problem
+
+    min  w1 sum_t ||x_t - x^r_t||_Q^2 + w2 sum_t ||u_t||_R^2,   u_t = (x_{t+1} - 2 x_t + x_{t-1}) / dt^2
+    s.t. lower <= x_t <= upper,  |x_{t+1} - x_t| <= vmax dt,  |u_t| <= amax               (7.1)-(7.2)
+         d(x(s), O_k) >= d_min  for every robot sphere, obstacle and sample s               (7.3)
+
+is solved by CFS: at the reference the signed distances d (robot.spheres vs. the obstacles of
+:mod:`robointel.geometry`) are linearised through the sphere Jacobians, d + grad d (x - x_r) >= d_min
+(the half space (7.5) in Cartesian space, mapped to joint space), and the QP is solved. Samples are
+the knots and ``substeps`` points on the joint-space segment between consecutive knots, so the
+motion between knots is checked too. Each QP solution is checked with the exact distances; if a
+feasible reference would be left for an infeasible point (the Jacobian linearisation is not exact
+in joint space), the step is halved (at most ``backtracks`` times).
+
+Speed: the cost is banded (double integrator) and constant; the constraint matrix has a fixed
+sparsity pattern (``slots`` rows per sample, filled with the closest sphere/obstacle pairs within
+``margin``, empty rows relaxed to -inf), so one OSQP workspace is set up once and then updated in
+place (``update(l=, u=, Ax=)``) and warm-started; all samples' distances and gradients come from one
+compiled call (:func:`robointel.geometry.sphere_distances_batch`).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from robointel._validate import as_array, check_limits
+from robointel.errors import CollisionAtStart, InfeasibleProblem, InvalidInput, LimitViolation
+from robointel.geometry import sphere_distances_batch
+from robointel.planning.qp import INF, SparseQP
+
+
+@dataclass
+class PlannerSettings:
+    """Weights and tolerances of :class:`TrajectoryPlanner`.
+
+    Attributes:
+        d_min: required clearance between robot spheres and obstacles (m).
+        safety: extra clearance planned for on top of ``d_min`` (m), absorbing the interpolation
+            between samples.
+        margin: sphere/obstacle pairs farther than ``d_min + margin`` are not constrained (m).
+        slots: constraint rows per sample (the closest pairs within the margin).
+        substeps: extra samples on each interval between knots.
+        w1, w2: weights of reference tracking and acceleration (7.1).
+        Q, R: diagonal joint weights (n,) of the two terms (default ones).
+        eps: CFS stops when ||z(k+1) - z(k)||_inf <= eps (rad).
+        max_iter: CFS iteration cap.
+        backtracks: step halvings when an iterate leaves the feasible set.
+    """
+
+    d_min: float = 0.05
+    safety: float = 0.005
+    margin: float = 0.15
+    slots: int = 8
+    substeps: int = 1
+    w1: float = 1.0
+    w2: float = 0.02
+    Q: np.ndarray | None = None
+    R: np.ndarray | None = None
+    eps: float = 1e-3
+    max_iter: int = 30
+    backtracks: int = 4
+
+    def __post_init__(self) -> None:
+        for name in ("d_min", "safety", "margin", "w1", "w2", "eps"):
+            v = float(getattr(self, name))
+            if not np.isfinite(v) or v < 0:
+                raise InvalidInput(f"planner setting {name} must be finite and >= 0, got {v}", value=v)
+        if self.w2 <= 0 and self.w1 <= 0:
+            raise InvalidInput("w1 and w2 cannot both be zero (the cost must be strictly convex)")
+        if int(self.slots) < 1 or int(self.substeps) < 0 or int(self.max_iter) < 1:
+            raise InvalidInput("slots >= 1, substeps >= 0 and max_iter >= 1 are required",
+                               value=(self.slots, self.substeps, self.max_iter))
+
+
+@dataclass
+class SegmentPlan:
+    """One planned segment.
+
+    Attributes:
+        path: (N+1, n) joint positions at the knots (rad).
+        iterations: CFS iterations.
+        costs: cost at the initial guess and after each iteration.
+        status: ``"converged"``, ``"max_iter"`` (best feasible iterate returned) or ``"qp_failed"``.
+        feasible: every sample clear of every obstacle by ``d_min``.
+        min_distance: smallest sphere/obstacle distance over the samples (m).
+        seconds: wall time of the CFS loop.
+        blocked: the reference (straight) path violated the clearance.
+    """
+
+    path: np.ndarray
+    iterations: int
+    costs: list[float]
+    status: str
+    feasible: bool
+    min_distance: float
+    seconds: float
+    blocked: bool
+    iterates: list[np.ndarray] = field(default_factory=list)
+
+
+def straight_reference(start: np.ndarray, goal: np.ndarray, N: int) -> np.ndarray:
+    """Joint-space straight line x^r, (N+1, n), from ``start`` to ``goal``."""
+    s = np.linspace(0.0, 1.0, N + 1)[:, None]
+    return start[None] + s * (goal - start)[None]
+
+
+class TrajectoryPlanner:
+    """CFS planner for segments of N steps of ``dt`` on one robot among obstacles.
+
+    Args:
+        robot: a :class:`robointel.robot.Robot` (its ``spheres`` are the collision model).
+        obstacles: sequence of :mod:`robointel.geometry` obstacles.
+        N: steps per segment (N+1 knots).
+        dt: fixed time step (s).
+        vmax, amax: (n,) velocity / acceleration limits (default: the robot's).
+        settings: :class:`PlannerSettings`.
+    """
+
+    def __init__(self, robot, obstacles=(), *, N: int, dt: float, vmax=None, amax=None,
+                 settings: PlannerSettings | None = None) -> None:
+        self.robot = robot
+        self.n = n = robot.nq
+        if int(N) < 2:
+            raise InvalidInput(f"a segment needs N >= 2 steps, got {N}", value=N)
+        if not (np.isfinite(dt) and dt > 0):
+            raise InvalidInput(f"dt must be positive and finite, got {dt}", value=dt)
+        self.N, self.dt = int(N), float(dt)
+        self.settings = settings or PlannerSettings()
+        self.vmax = as_array(robot.velocity_limit if vmax is None else np.broadcast_to(vmax, (n,)), "vmax", (n,))
+        self.amax = as_array(robot.acceleration_limit if amax is None else np.broadcast_to(amax, (n,)), "amax", (n,))
+        if np.any(self.vmax <= 0) or np.any(self.amax <= 0):
+            raise LimitViolation("velocity and acceleration limits must be positive", value=(self.vmax, self.amax))
+        self.set_obstacles(obstacles)
+        self._build()
+        self.qp = SparseQP(eps_abs=1e-5, eps_rel=1e-5)
+        self._qp_ready = False
+
+    # ------------------------------------------------------------------ set-up
+    def set_obstacles(self, obstacles) -> None:
+        """Replace the obstacles (same count keeps the QP pattern: used by replanning)."""
+        self.obstacles = tuple(obstacles)
+        self._movable = np.flatnonzero(np.asarray(self.robot.spheres.movable, bool))
+
+    def _build(self) -> None:
+        n, N, st = self.n, self.N, self.settings
+        nv = (N - 1) * n  # interior knots x_1..x_{N-1}
+        self.nv = nv
+        Qw = np.ones(n) if st.Q is None else as_array(st.Q, "Q", (n,))
+        Rw = np.ones(n) if st.R is None else as_array(st.R, "R", (n,))
+        # full-trajectory quadratic over X = [x_0..x_N]: w1 ||X - Xr||_Q^2 + w2 ||D2 X / dt^2||_R^2
+        D2 = sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(N - 1, N + 1)).tocsc()
+        W1 = sp.diags(np.r_[0.0, np.ones(N - 1), 0.0])
+        self._P_full = (2 * st.w1 * sp.kron(W1, sp.diags(Qw)) +
+                        2 * st.w2 / self.dt ** 4 * sp.kron(D2.T @ D2, sp.diags(Rw))).tocsc()
+        self._Qw = Qw
+        idx = np.arange((N + 1) * n).reshape(N + 1, n)
+        self._int = idx[1:N].ravel()
+        self._ends = np.r_[idx[0], idx[N]]
+        self.P = self._P_full[self._int][:, self._int].tocsc()
+        self._P_ie = self._P_full[self._int][:, self._ends].tocsc()
+        # linear constraints on z: box (limits), velocity, acceleration; the fixed ends enter the bounds
+        I = sp.eye(nv, format="csc")
+        D1 = sp.diags([-1.0, 1.0], [0, 1], shape=(N, N + 1)).tocsc()
+        self._D1_int = sp.kron(D1[:, 1:N], sp.eye(n)).tocsc()
+        self._D1_end = sp.kron(D1[:, [0, N]], sp.eye(n)).tocsc()
+        self._D2_int = sp.kron(D2[:, 1:N], sp.eye(n)).tocsc()
+        self._D2_end = sp.kron(D2[:, [0, N]], sp.eye(n)).tocsc()
+        # collision rows: samples (knot t, fraction a) with a in {0, 1/(S+1), ...}
+        S = int(st.substeps)
+        samples = [(t, 0.0) for t in range(1, N)]
+        samples += [(t, (j + 1) / (S + 1)) for t in range(N) for j in range(S)]
+        self.samples = samples
+        K = int(st.slots)
+        rows, cols = [], []
+        for si, (t, a) in enumerate(samples):
+            blocks = [t] if a == 0.0 else [t, t + 1]
+            blocks = [b for b in blocks if 1 <= b <= N - 1]
+            for k in range(K):
+                r = si * K + k
+                for b in blocks:
+                    for j in range(n):
+                        rows.append(r)
+                        cols.append((b - 1) * n + j)
+        ncol = len(samples) * K
+        C = sp.csc_matrix((np.ones(len(rows)), (rows, cols)), shape=(ncol, nv))
+        C.sort_indices()
+        # map (row, col) -> position in C.data for fast in-place filling
+        Ccoo = C.tocoo()
+        pos = {}
+        order = np.lexsort((Ccoo.row, Ccoo.col))  # CSC order: by column then row
+        for p, (r_, c_) in enumerate(zip(Ccoo.row[order], Ccoo.col[order])):
+            pos[(int(r_), int(c_))] = p
+        self._coll_nrows = ncol
+        self._sample_t = np.array([s[0] for s in samples])
+        self._sample_a = np.array([s[1] for s in samples])
+        # data index arrays: for sample si, slot k, block side (0: x_t, 1: x_{t+1}), joint j
+        self._pos = np.full((len(samples), K, 2, n), -1, dtype=np.int64)
+        for si, (t, a) in enumerate(samples):
+            for k in range(K):
+                for side, b in enumerate((t, t + 1)):
+                    if 1 <= b <= N - 1 and (side == 0 or a > 0):
+                        for j in range(n):
+                            self._pos[si, k, side, j] = pos[(si * K + k, (b - 1) * n + j)]
+        self.A = sp.vstack([I, self._D1_int, self._D2_int, C], format="csc")
+        self.A.sort_indices()
+        self._A_lin_nnz = sp.vstack([I, self._D1_int, self._D2_int], format="csc")
+        # the full A is [lin; C] stacked by rows: in CSC, data of each column interleaves both parts,
+        # so recompute the index of C's entries inside A.data
+        Afull = self.A.tocoo()
+        order = np.lexsort((Afull.row, Afull.col))
+        m_lin = nv + self._D1_int.shape[0] + self._D2_int.shape[0]
+        self._m_lin = m_lin
+        amap = {}
+        for p, (r_, c_) in enumerate(zip(Afull.row[order], Afull.col[order])):
+            if r_ >= m_lin:
+                amap[(int(r_ - m_lin), int(c_))] = p
+        cpos_to_apos = np.empty(C.nnz, dtype=np.int64)
+        for (r_, c_), p in pos.items():
+            cpos_to_apos[p] = amap[(r_, c_)]
+        self._pos = np.where(self._pos >= 0, cpos_to_apos[np.maximum(self._pos, 0)], -1)
+        self._A_data = self.A.data.copy()
+        self._A_data[:] = 0.0
+        lin = sp.vstack([I, self._D1_int, self._D2_int], format="coo")
+        ordl = {(int(r_), int(c_)): float(v) for r_, c_, v in zip(lin.row, lin.col, lin.data)}
+        for p, (r_, c_) in enumerate(zip(Afull.row[order], Afull.col[order])):
+            if r_ < m_lin:
+                self._A_data[p] = ordl[(int(r_), int(c_))]
+        self.A.data = self._A_data.copy()
+
+    # ------------------------------------------------------------------ pieces
+    def _sample_configs(self, X: np.ndarray) -> np.ndarray:
+        """Configurations at every sample, (S_total, n), from knots X (N+1, n)."""
+        t, a = self._sample_t, self._sample_a[:, None]
+        return (1 - a) * X[t] + a * X[t + 1]
+
+    def distances(self, X: np.ndarray):
+        """Exact signed distances at all samples: d (S, m', k) and grad (S, m', k, n)."""
+        if not self.obstacles:
+            return None
+        return sphere_distances_batch(self.robot, self._sample_configs(X), self.obstacles, movable_only=True)
+
+    def _linear_bounds(self, x0: np.ndarray, xN: np.ndarray):
+        n = self.n
+        N = self.N
+        ends = np.r_[x0, xN]
+        lo = np.tile(self.robot.lower, N - 1)
+        up = np.tile(self.robot.upper, N - 1)
+        vb = np.tile(self.vmax * self.dt, N)
+        v_off = self._D1_end @ ends
+        ab = np.tile(self.amax * self.dt ** 2, N - 1)
+        a_off = self._D2_end @ ends
+        return (np.r_[lo, -vb - v_off, -ab - a_off], np.r_[up, vb - v_off, ab - a_off])
+
+    def _collision_rows(self, X: np.ndarray, D, d_req: float):
+        """Fill A's collision entries and bounds from distances D at the samples of X."""
+        st = self.settings
+        K, n = int(st.slots), self.n
+        S = len(self.samples)
+        data = self._A_data.copy()
+        lo = np.full((S, K), -INF)
+        if D is None:
+            return data, lo.ravel()
+        d = D.d.reshape(S, -1)  # (S, m'*k)
+        g = D.grad.reshape(S, -1, n)
+        kk = min(K, d.shape[1])
+        sel = np.argpartition(d, kk - 1, axis=1)[:, :kk] if kk < d.shape[1] else np.tile(np.arange(d.shape[1]), (S, 1))
+        ds = np.take_along_axis(d, sel, 1)  # (S, kk)
+        gs = np.take_along_axis(g, sel[:, :, None], 1)  # (S, kk, n)
+        active = ds < d_req + st.margin
+        a = self._sample_a
+        t = self._sample_t
+        Xs = self._sample_configs(X)
+        # row: sum_side coef_side * g . x_side >= d_req - d + g . x_s  (fixed ends move to the bound)
+        rhs = d_req - ds + np.einsum("skn,sn->sk", gs, Xs)
+        w0 = (1 - a)[:, None, None] * gs  # coefficients on x_t
+        w1 = a[:, None, None] * gs        # on x_{t+1}
+        N = self.N
+        fixed0 = (t == 0)
+        fixedN = (t + 1 == N)
+        rhs -= np.where(fixed0[:, None], np.einsum("skn,n->sk", w0, X[0]), 0.0)
+        rhs -= np.where(fixedN[:, None], np.einsum("skn,n->sk", w1, X[N]), 0.0)
+        pos = self._pos[:, :kk]
+        w0 = np.where(active[:, :, None], w0, 0.0)
+        w1 = np.where(active[:, :, None], w1, 0.0)
+        m0 = pos[:, :, 0, :] >= 0
+        data[pos[:, :, 0, :][m0]] = w0[m0]
+        m1 = pos[:, :, 1, :] >= 0
+        data[pos[:, :, 1, :][m1]] = w1[m1]
+        lo[:, :kk] = np.where(active, rhs, -INF)
+        return data, lo.ravel()
+
+    def check_waypoints(self, waypoints: np.ndarray, names: list[str] | None = None) -> None:
+        """Raise if a waypoint is outside the joint limits or in collision (CollisionAtStart naming
+        the link and obstacle)."""
+        W = as_array(waypoints, "waypoints", (None, self.n))
+        for i, w in enumerate(W):
+            label = names[i] if names else f"waypoint {i}"
+            check_limits(w, self.robot.lower, self.robot.upper, self.robot.joint_names, what=label)
+        if not self.obstacles:
+            return
+        D = sphere_distances_batch(self.robot, W, self.obstacles, movable_only=True)
+        sm = self.robot.spheres
+        for i in range(len(W)):
+            j, k = np.unravel_index(int(np.argmin(D.d[i])), D.d[i].shape)
+            if D.d[i, j, k] < self.settings.d_min:
+                label = names[i] if names else f"waypoint {i}"
+                link = sm.links[int(D.spheres[j])]
+                obs = self.obstacles[k].label(k)
+                raise CollisionAtStart(
+                    f"{label} is in collision: link {link!r} is {D.d[i, j, k] * 1000:.1f} mm from obstacle "
+                    f"{obs!r} (required clearance {self.settings.d_min * 1000:.1f} mm); move the waypoint or "
+                    "the obstacle", value={"waypoint": i, "link": link, "obstacle": obs,
+                                           "distance": float(D.d[i, j, k])})
+
+    # ------------------------------------------------------------------ solve
+    def plan_segment(self, start, goal, *, reference=None, init=None, keep_iterates: bool = False) -> SegmentPlan:
+        """Plan x_0..x_N from ``start`` to ``goal`` (both (n,), fixed) by CFS.
+
+        Args:
+            reference: (N+1, n) x^r (default: the joint-space straight line).
+            init: (N+1, n) initial guess (default: the reference); a previous plan warm-starts
+                replanning.
+        """
+        t0 = time.perf_counter()
+        n, N, st = self.n, self.N, self.settings
+        x0 = as_array(start, "start", (n,))
+        xN = as_array(goal, "goal", (n,))
+        Xr = straight_reference(x0, xN, N) if reference is None else as_array(reference, "reference", (N + 1, n))
+        X = Xr.copy() if init is None else as_array(init, "init", (N + 1, n)).copy()
+        X[0], X[N] = x0, xN
+        X[1:N] = np.clip(X[1:N], self.robot.lower, self.robot.upper)
+        _, q = self.cost_terms(x0, xN, Xr)
+        lo_lin, up_lin = self._linear_bounds(x0, xN)
+        d_req = st.d_min + st.safety
+        D = self.distances(X)
+        dmin = float(D.d.min()) if D is not None else np.inf
+        blocked = dmin < st.d_min
+        feas = dmin >= st.d_min - 1e-9
+        cost = self._cost(X, Xr)
+        costs = [cost]
+        iterates = [X.copy()] if keep_iterates else []
+        best = (X.copy(), cost, dmin) if feas else None
+        status, it = "max_iter", 0
+        up_coll = np.full(self._coll_nrows, INF)
+        for it in range(1, st.max_iter + 1):
+            data, lo_c = self._collision_rows(X, D, d_req)
+            l = np.r_[lo_lin, lo_c]
+            u = np.r_[up_lin, up_coll]
+            if not self._qp_ready:
+                self.A.data = data
+                sol = self.qp.solve(self.P, q, self.A, l, u, x0=X[1:N].ravel())
+                self._qp_ready = True
+            else:
+                sol = self.qp.update(q=q, l=l, u=u, Ax=data, x0=X[1:N].ravel())
+            if not sol.solved:
+                status = "qp_failed"
+                break
+            Znew = sol.x.reshape(N - 1, n)
+            Xnew = X.copy()
+            beta = 1.0
+            for _ in range(st.backtracks + 1):
+                Xnew[1:N] = X[1:N] + beta * (Znew - X[1:N])
+                Xnew[1:N] = np.clip(Xnew[1:N], self.robot.lower, self.robot.upper)
+                Dn = self.distances(Xnew)
+                dn = float(Dn.d.min()) if Dn is not None else np.inf
+                if dn >= st.d_min - 1e-9 or not feas:
+                    break
+                beta *= 0.5
+            step = float(np.max(np.abs(Xnew - X)))
+            X, D, dmin = Xnew, Dn, dn
+            feas = dmin >= st.d_min - 1e-9
+            cost = self._cost(X, Xr)
+            costs.append(cost)
+            if keep_iterates:
+                iterates.append(X.copy())
+            if feas and (best is None or cost <= best[1]):
+                best = (X.copy(), cost, dmin)
+            if step <= st.eps and feas:
+                status = "converged"
+                break
+        if status != "converged" and best is not None:
+            X, cost, dmin = best
+            feas = True
+        if status == "qp_failed" and best is None and it == 1:
+            raise InfeasibleProblem(f"the first CFS subproblem is infeasible (OSQP: {sol.status}); the limits "
+                                    "may be too tight for N steps of dt, or the segment unreachable", value=sol.status)
+        return SegmentPlan(path=X, iterations=it, costs=costs, status=status, feasible=bool(feas),
+                           min_distance=float(dmin), seconds=time.perf_counter() - t0, blocked=bool(blocked),
+                           iterates=iterates)
+
+    def _q_full(self, Xr: np.ndarray) -> np.ndarray:
+        """Linear term over all knots: -2 w1 Q x^r on interior knots, 0 at the fixed ends."""
+        w = np.zeros_like(Xr)
+        w[1:-1] = Xr[1:-1] * self._Qw[None]
+        return -2 * self.settings.w1 * w.ravel()
+
+    def _cost(self, X: np.ndarray, Xr: np.ndarray) -> float:
+        """J of (7.1) at the knots X (constant terms included)."""
+        st = self.settings
+        E = (X[1:-1] - Xr[1:-1])
+        U = (X[2:] - 2 * X[1:-1] + X[:-2]) / self.dt ** 2
+        return float(st.w1 * np.sum(E * E * self._Qw) + st.w2 * np.sum(U * U * (np.ones(self.n) if st.R is None else st.R)))
+
+    def cost_terms(self, start, goal, reference=None):
+        """(P, q) of the QP in z = x_1..x_{N-1}: J = 1/2 z'Pz + q'z + const (also for the baselines)."""
+        n, N = self.n, self.N
+        x0 = as_array(start, "start", (n,))
+        xN = as_array(goal, "goal", (n,))
+        Xr = straight_reference(x0, xN, N) if reference is None else reference
+        qfull = self._q_full(np.asarray(Xr, float))
+        return self.P, qfull[self._int] + self._P_ie @ np.r_[x0, xN]
