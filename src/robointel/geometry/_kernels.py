@@ -133,26 +133,26 @@ def point_distances(t, p, P):
 
 
 @njit(cache=True)
-def sphere_pairs(C, J, radii, types, params, cols, D, N, RP, OP, G):
-    """Fill the outputs for all (robot sphere i, primitive j) pairs.
+def sphere_pairs(C, J, radii, rows, types, params, cols, D, N, RP, OP, G):
+    """Fill the outputs for all (robot sphere rows[ii], primitive j) pairs.
 
-    C (m, 3) sphere centres; J (m, >=3, n) their Jacobians (first 3 rows linear); radii (m,);
-    types (k,), params (k, NPARAM); cols (k,) output column of each primitive. Outputs: D (m, K),
-    N, RP, OP (m, K, 3), G (m, K, n) with dd/dq = n^T J.
+    C (M, 3) sphere centres; J (M, >=3, n) their Jacobians (first 3 rows linear); radii (M,);
+    rows (m,) the spheres to use; types (k,), params (k, NPARAM); cols (k,) output column of each
+    primitive. Outputs: D (m, K), N, RP, OP (m, K, 3), G (m, K, n) with dd/dq = n^T J.
     """
-    m = C.shape[0]
     n = J.shape[2]
-    for i in range(m):
+    for ii in range(rows.shape[0]):
+        i = rows[ii]
         x, y, z, r = C[i, 0], C[i, 1], C[i, 2], radii[i]
         for j in range(types.shape[0]):
             c = cols[j]
             d, ox, oy, oz, nx, ny, nz = _one(types[j], params[j], x, y, z)
-            D[i, c] = d - r
-            N[i, c, 0], N[i, c, 1], N[i, c, 2] = nx, ny, nz
-            OP[i, c, 0], OP[i, c, 1], OP[i, c, 2] = ox, oy, oz
-            RP[i, c, 0], RP[i, c, 1], RP[i, c, 2] = x - r * nx, y - r * ny, z - r * nz
+            D[ii, c] = d - r
+            N[ii, c, 0], N[ii, c, 1], N[ii, c, 2] = nx, ny, nz
+            OP[ii, c, 0], OP[ii, c, 1], OP[ii, c, 2] = ox, oy, oz
+            RP[ii, c, 0], RP[ii, c, 1], RP[ii, c, 2] = x - r * nx, y - r * ny, z - r * nz
             for a in range(n):
-                G[i, c, a] = nx * J[i, 0, a] + ny * J[i, 1, a] + nz * J[i, 2, a]
+                G[ii, c, a] = nx * J[i, 0, a] + ny * J[i, 1, a] + nz * J[i, 2, a]
 
 
 @njit(cache=True, inline="always")
@@ -184,14 +184,15 @@ def rep_terms(c, J, r, nrm):
 
 
 @njit(cache=True)
-def sphere_pairs_min(C, radii, types, params):
-    """Minimum over all (sphere, primitive) pairs: (d, i, j, closest (3,), normal (3,)); i = -1
-    when there is no pair."""
+def sphere_pairs_min(C, radii, rows, types, params):
+    """Minimum over all (sphere in rows, primitive) pairs: (d, i, j, closest (3,), normal (3,));
+    i (an index into C) = -1 when there is no pair."""
     best = np.inf
     bi, bj = -1, -1
     bo = np.zeros(3)
     bn = np.zeros(3)
-    for i in range(C.shape[0]):
+    for ii in range(rows.shape[0]):
+        i = rows[ii]
         x, y, z, r = C[i, 0], C[i, 1], C[i, 2], radii[i]
         for j in range(types.shape[0]):
             d, ox, oy, oz, nx, ny, nz = _one(types[j], params[j], x, y, z)
@@ -204,15 +205,17 @@ def sphere_pairs_min(C, radii, types, params):
 
 
 @njit(cache=True)
-def per_obstacle_min(C, J, radii, types, params, cols, D, S, O, N, P, G, JR):
-    """For each primitive j (output column cols[j]), the closest robot sphere: distance D, sphere
-    S, obstacle point O, normal N, robot point P (.., 3), gradient G (.., n) and J_rep JR
-    (.., 3, n); J: (m, 6, n) [v; w]. Columns stay untouched when there is no sphere."""
+def per_obstacle_min(C, J, radii, rows, types, params, cols, D, S, O, N, P, G, JR):
+    """For each primitive j (output column cols[j]), the closest robot sphere among ``rows``:
+    distance D, sphere S (index into C), obstacle point O, normal N, robot point P (.., 3),
+    gradient G (.., n) and J_rep JR (.., 3, n); J: (M, 6, n) [v; w]. Columns stay untouched when
+    there is no sphere."""
     for j in range(types.shape[0]):
         c = cols[j]
         best = np.inf
         bi = -1
-        for i in range(C.shape[0]):
+        for ii in range(rows.shape[0]):
+            i = rows[ii]
             d, ox, oy, oz, nx, ny, nz = _one(types[j], params[j], C[i, 0], C[i, 1], C[i, 2])
             d -= radii[i]
             if d < best or bi < 0:

@@ -44,7 +44,7 @@ class ObstacleSet:
     ``obstacles[k]``.
     """
 
-    __slots__ = ("obstacles", "types", "params", "cols", "clouds")
+    __slots__ = ("obstacles", "types", "params", "cols", "clouds", "labels")
 
     def __init__(self, obstacles: Iterable[Obstacle] | Obstacle = ()) -> None:
         if isinstance(obstacles, Obstacle):
@@ -60,6 +60,7 @@ class ObstacleSet:
         self.types = np.array([obs[k]._code for k in prim], dtype=np.int64)
         self.params = (np.array([obs[k]._packed for k in prim], dtype=float).reshape(-1, K.NPARAM))
         self.clouds = [(k, o) for k, o in enumerate(obs) if isinstance(o, PointCloud)]
+        self.labels = tuple(o.label(k) for k, o in enumerate(obs))
 
     def __len__(self) -> int:
         return len(self.obstacles)
@@ -130,10 +131,19 @@ class SphereDistances:
         return int(i), int(k)
 
 
-def _fill(C, J, radii, os_: ObstacleSet, D, N, RP, OP, G) -> None:
-    """Fill the output arrays for centres C (m,3), Jacobians J (m,>=3,n)."""
+def _rows(sm: "SphereModel", movable_only: bool) -> np.ndarray:
+    """Indices of the spheres to use: all, or those on links that move."""
+    if movable_only:
+        return np.flatnonzero(np.asarray(sm.movable, bool))
+    return np.arange(len(sm.radii))
+
+
+def _fill(C, J, radii, rows, os_: ObstacleSet, D, N, RP, OP, G) -> None:
+    """Fill the output arrays for the spheres ``rows`` of centres C (M,3), Jacobians J (M,>=3,n)."""
     if len(os_.types):
-        K.sphere_pairs(C, J, radii, os_.types, os_.params, os_.cols, D, N, RP, OP, G)
+        K.sphere_pairs(C, J, radii, rows, os_.types, os_.params, os_.cols, D, N, RP, OP, G)
+    if os_.clouds:
+        C, J, radii = C[rows], J[rows], radii[rows]
     for k, cloud in os_.clouds:
         dk, ok, nk = cloud.distance(C)
         D[:, k] = dk - radii
@@ -167,14 +177,10 @@ def sphere_distances(robot: "Robot", q, obstacles, spheres: "SphereModel | None"
     os_ = _obstacle_set(obstacles)
     C, J = sm.kinematics(q)
     radii = np.asarray(sm.radii, float)
-    idx = np.arange(len(radii))
-    if movable_only:
-        mask = np.asarray(sm.movable, bool)
-        idx = idx[mask]
-        C, J, radii = C[mask], J[mask], radii[mask]
-    D, N, RP, OP, G = _alloc(len(radii), len(os_), J.shape[2])
-    _fill(C, J, radii, os_, D, N, RP, OP, G)
-    return SphereDistances(D, G, N, RP, OP, idx, os_.obstacles)
+    rows = _rows(sm, movable_only)
+    D, N, RP, OP, G = _alloc(len(rows), len(os_), J.shape[2])
+    _fill(C, J, radii, rows, os_, D, N, RP, OP, G)
+    return SphereDistances(D, G, N, RP, OP, rows, os_.obstacles)
 
 
 def sphere_distances_batch(robot: "Robot", Q, obstacles, spheres: "SphereModel | None" = None, *,
@@ -185,10 +191,9 @@ def sphere_distances_batch(robot: "Robot", Q, obstacles, spheres: "SphereModel |
     sm = _sphere_model(robot, spheres)
     os_ = _obstacle_set(obstacles)
     Q = as_array(Q, "Q", (None, robot.nq))
-    radii = np.asarray(sm.radii, float)
-    idx = np.arange(len(radii))
-    mask = np.asarray(sm.movable, bool) if movable_only else np.ones(len(radii), bool)
-    idx, radii = idx[mask], radii[mask]
+    idx = _rows(sm, movable_only)
+    mask = np.asarray(sm.movable, bool)
+    radii = np.asarray(sm.radii, float)[idx]
     T, m, n = len(Q), len(idx), robot.nq
     C = np.empty((T, m, 3))
     J = np.empty((T, m, 3, n))
@@ -202,7 +207,7 @@ def sphere_distances_batch(robot: "Robot", Q, obstacles, spheres: "SphereModel |
             C[t], J[t] = kin(Q[t])
     k = len(os_)
     D, N, RP, OP, G = _alloc(T * m, k, n)
-    _fill(C.reshape(T * m, 3), J.reshape(T * m, 3, n), np.tile(radii, T), os_, D, N, RP, OP, G)
+    _fill(C.reshape(T * m, 3), J.reshape(T * m, 3, n), np.tile(radii, T), np.arange(T * m), os_, D, N, RP, OP, G)
     return SphereDistances(D.reshape(T, m, k), G.reshape(T, m, k, n), N.reshape(T, m, k, 3),
                            RP.reshape(T, m, k, 3), OP.reshape(T, m, k, 3), idx, os_.obstacles)
 
@@ -236,14 +241,14 @@ class MinDistance:
     jacobian: np.ndarray
 
 
-def _cloud_min(os_: ObstacleSet, C, radii, best):
-    """Update ``best`` = (d, i, k, o, n) with the point clouds."""
+def _cloud_min(os_: ObstacleSet, C, radii, rows, best):
+    """Update ``best`` = (d, i, k, o, n) with the point clouds (i indexes C)."""
     for k, cloud in os_.clouds:
-        dk, ok, nk = cloud.distance(C)
-        dk = dk - radii
-        i = int(np.argmin(dk))
-        if dk[i] < best[0]:
-            best = (float(dk[i]), i, k, ok[i].copy(), nk[i].copy())
+        dk, ok, nk = cloud.distance(C[rows])
+        dk = dk - radii[rows]
+        ii = int(np.argmin(dk))
+        if dk[ii] < best[0]:
+            best = (float(dk[ii]), int(rows[ii]), k, ok[ii].copy(), nk[ii].copy())
     return best
 
 
@@ -260,24 +265,19 @@ def min_distance(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = N
     C, J = sm.kinematics(q, angular=True)
     radii = np.asarray(sm.radii, float)
     n = J.shape[2]
-    if movable_only:
-        sel = np.flatnonzero(np.asarray(sm.movable, bool))
-        C, J, radii = C[sel], J[sel], radii[sel]
-    else:
-        sel = None
+    rows = _rows(sm, movable_only)
     best = (np.inf, -1, -1, None, None)
-    if len(os_.types) and len(radii):
-        d, i, j, o, nrm = K.sphere_pairs_min(C, radii, os_.types, os_.params)
+    if len(os_.types) and len(rows):
+        d, i, j, o, nrm = K.sphere_pairs_min(C, radii, rows, os_.types, os_.params)
         best = (d, i, int(os_.cols[j]), o, nrm)
-    if os_.clouds and len(radii):
-        best = _cloud_min(os_, C, radii, best)
+    if os_.clouds and len(rows):
+        best = _cloud_min(os_, C, radii, rows, best)
     d, i, k, o, nrm = best
     if i < 0:
         z = np.zeros(3)
         return MinDistance(np.inf, -1, "", -1, "", z, z.copy(), z.copy(), np.zeros(n), np.zeros((3, n)))
     p, g, Jrep = K.rep_terms(C[i], J[i], radii[i], nrm)
-    sphere = int(i if sel is None else sel[i])
-    return MinDistance(float(d), sphere, sm.links[sphere], k, os_.obstacles[k].label(k), p, o, nrm, g, Jrep)
+    return MinDistance(float(d), int(i), sm.links[i], k, os_.labels[k], p, o, nrm, g, Jrep)
 
 
 @dataclass
@@ -322,26 +322,21 @@ def closest_pairs(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = 
     C, J = sm.kinematics(q, angular=True)
     radii = np.asarray(sm.radii, float)
     n, k = J.shape[2], len(os_)
-    sel = None
-    if movable_only:
-        sel = np.flatnonzero(np.asarray(sm.movable, bool))
-        C, J, radii = C[sel], J[sel], radii[sel]
+    rows = _rows(sm, movable_only)
     D, S = np.full(k, np.inf), np.full(k, -1, np.int64)
     O, N, P, G, JR = np.zeros((k, 3)), np.zeros((k, 3)), np.zeros((k, 3)), np.zeros((k, n)), np.zeros((k, 3, n))
     if len(os_.types):
-        K.per_obstacle_min(C, J, radii, os_.types, os_.params, os_.cols, D, S, O, N, P, G, JR)
-    if len(radii):
+        K.per_obstacle_min(C, J, radii, rows, os_.types, os_.params, os_.cols, D, S, O, N, P, G, JR)
+    if len(rows):
         for c, cloud in os_.clouds:
-            dk, ok, nk = cloud.distance(C)
-            dk = dk - radii
-            i = int(np.argmin(dk))
-            D[c], S[c], O[c], N[c] = dk[i], i, ok[i], nk[i]
+            dk, ok, nk = cloud.distance(C[rows])
+            dk = dk - radii[rows]
+            ii = int(np.argmin(dk))
+            i = int(rows[ii])
+            D[c], S[c], O[c], N[c] = dk[ii], i, ok[ii], nk[ii]
             P[c], G[c], JR[c] = K.rep_terms(C[i], J[i], radii[i], N[c])
-    if sel is not None:
-        S = np.where(S >= 0, sel[np.maximum(S, 0)], -1)
-    links = [sm.links[i] if i >= 0 else "" for i in S]
-    names = [o.label(j) for j, o in enumerate(os_.obstacles)]
-    return ClosestPairs(D, S, links, names, P, O, N, G, JR)
+    links = sm.links
+    return ClosestPairs(D, S, [links[i] if i >= 0 else "" for i in S.tolist()], list(os_.labels), P, O, N, G, JR)
 
 
 @dataclass
@@ -452,15 +447,16 @@ def warmup() -> None:
     os_ = ObstacleSet(prims)
     C = np.zeros((2, 3))
     radii = np.full(2, 0.05)
+    rows = np.arange(2)
     for n in (6,):
         J6 = np.zeros((2, 6, n))
         for J in (J6[:, :3], np.ascontiguousarray(J6[:, :3])):  # the view the robot core returns, and contiguous
             D, N, RP, OP, G = _alloc(2, len(prims), n)
-            K.sphere_pairs(C, J, radii, os_.types, os_.params, os_.cols, D, N, RP, OP, G)
-        d, i, j, o, nrm = K.sphere_pairs_min(C, radii, os_.types, os_.params)
+            K.sphere_pairs(C, J, radii, rows, os_.types, os_.params, os_.cols, D, N, RP, OP, G)
+        d, i, j, o, nrm = K.sphere_pairs_min(C, radii, rows, os_.types, os_.params)
         K.rep_terms(C[i], J6[i], radii[i], nrm)
         k = len(prims)
-        K.per_obstacle_min(C, J6, radii, os_.types, os_.params, os_.cols, np.zeros(k), np.zeros(k, np.int64),
+        K.per_obstacle_min(C, J6, radii, rows, os_.types, os_.params, os_.cols, np.zeros(k), np.zeros(k, np.int64),
                            np.zeros((k, 3)), np.zeros((k, 3)), np.zeros((k, 3)), np.zeros((k, n)),
                            np.zeros((k, 3, n)))
     for p in prims:
