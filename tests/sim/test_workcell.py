@@ -177,3 +177,24 @@ def test_bad_input_raises_and_holds(wc):
         wc.ft_reading(frame="moon")
     with pytest.raises(InvalidInput):
         wc.set_obstacle_pose("nothing", [0, 0, 0])
+
+
+@pytest.mark.parametrize("name", ["lrmate200id7l", "ur5", "panda"])
+def test_controller_stable_across_the_workspace(name):
+    """Inertia-scheduled gains: stable when folded (small J1 inertia) and stretched, for any arm."""
+    from robointel.robot import Robot
+
+    robot = Robot.load(name)
+    wc = Workcell(robot, table=False)
+    rng = np.random.default_rng(3)
+    qs = sorted(robot.random_configuration(rng, 40), key=lambda q: robot.mass_matrix(q)[0, 0])
+    lo, hi = robot.lower + 0.02, robot.upper - 0.02
+    for q in (qs[0], qs[-1]):  # smallest and largest J1 inertia
+        q = np.clip(q, lo, hi)
+        wc.reset(q)
+        wc.hold(0.3)
+        assert np.abs(wc.q - q).max() < 1e-4 and np.abs(wc.qd).max() < 1e-2
+    a, b = np.clip(qs[0], lo, hi), np.clip(qs[-1], lo, hi)
+    t, q, qd, qdd = smooth_trajectory(a, a + 0.5 * (b - a), T=1.5, n=151)
+    log = wc.run_trajectory(t, q, qd, qdd)
+    assert np.all(np.isfinite(log.q)) and log.max_error.max() < 5e-3, log.max_error

@@ -9,17 +9,23 @@ The feed-forward is the rigid-body inverse dynamics (2.5) of the robot core (Pin
 control rate (1 kHz in the :class:`~robointel.sim.Workcell`), with anti-windup (the integral
 is frozen while the output saturates, and clamped to ``i_limit``).
 
-Default gains (:meth:`PIDGains.from_inertia`): each joint is treated as a double integrator with
-inertia J_i (the largest diagonal entry of M(q) over the workspace, payload included) and the
+Default gains: inertia-scheduled. Each joint is treated as a double integrator with the effective
+inertia it has right now, J_i(q) = 1 / (M(q)^-1)_ii (the inertia felt at joint i when the other
+joints are free; Pinocchio's M^-1 at the measured q, payload and armature included), and the
 closed loop J s^3 + Kd s^2 + Kp s + Ki = J (s + w)^3 gets a triple pole at -w:
 
-    Kp = 3 J w^2,   Kd = 3 J w,   Ki = J w^3,   w = 2 pi f_i,
+    Kp = 3 J_i(q) w^2,   Kd = 3 J_i(q) w,   Ki = J_i(q) w^3,   w = 2 pi f_i,
 
-with f = (10, 10, 15, 30, 40, 50) Hz for a 6-axis arm (w dt <= 0.31 at 1 kHz: the discrete loop keeps
-the continuous-time behaviour). The wrist gets the higher bandwidths because its link inertias are
-tiny next to its Coulomb friction (the LR Mate's J6: 2e-5 kg m^2 against 0.2 N m; no rotor
-inertia is modelled): lower gains let a step command hunt in a stick-slip limit cycle of a few
-centiradians; at 50 Hz the cycle stays below 1 mrad.
+with f = (10, 10, 15, 30, 40, 50) Hz for a 6-axis arm (padded with the last value). The integral is
+kept as a torque (sum of Ki e dt), so changing gains never bumps the output. Scheduling matters:
+the LR Mate's J1 inertia varies 46-fold over the workspace (0.067 to 3.07 kg m^2), so fixed gains
+sized for the stretched arm make the discrete loop unstable when the arm is folded (Kd dt / J > 2).
+The effective inertia (not M_ii) matters for coupled joints: with M_ii the UR5's shoulder-elbow
+pair, whose M_ii (M^-1)_ii reaches 5, oscillates at 1 kHz.
+The wrist gets the higher bandwidths because its link inertias are tiny next to its Coulomb
+friction (the LR Mate's J6: 2e-5 kg m^2 against 0.2 N m; no rotor inertia is modelled): lower
+gains let a step command hunt in a stick-slip limit cycle of a few centiradians; at 50 Hz the
+cycle stays below 1 mrad. Fixed gains (:class:`PIDGains`) can be passed instead.
 """
 from __future__ import annotations
 
@@ -71,7 +77,9 @@ class JointController:
 
     Args:
         robot: the robot core (:class:`robointel.robot.Robot`); its model gives the feed-forward.
-        gains: :class:`PIDGains`; default from the mass matrix of ``model`` (see module doc).
+        gains: fixed :class:`PIDGains`; default (None): inertia-scheduled triple-pole gains.
+        bandwidth_hz: scalar or (n,) closed-loop pole frequency of the scheduled gains (default
+            :data:`DEFAULT_BANDWIDTH_HZ`).
         dt: control period (s), 1 ms by default.
         feedforward: add the inverse-dynamics feed-forward torque.
         friction_compensation: add F_v qd_ref + F_c tanh(qd_ref / 1e-3) from the URDF.
@@ -79,8 +87,9 @@ class JointController:
             :func:`model_with_payload` to compensate a known payload).
     """
 
-    def __init__(self, robot, gains: PIDGains | None = None, *, dt: float = 0.001, feedforward: bool = True,
-                 friction_compensation: bool = True, model: pin.Model | None = None) -> None:
+    def __init__(self, robot, gains: PIDGains | None = None, *, bandwidth_hz=None, dt: float = 0.001,
+                 feedforward: bool = True, friction_compensation: bool = True,
+                 model: pin.Model | None = None) -> None:
         if not (np.isfinite(dt) and dt > 0):
             raise InvalidInput(f"dt must be a positive number of seconds, got {dt!r}", value=dt)
         self.robot = robot
@@ -90,15 +99,28 @@ class JointController:
         self._data = self.model.createData()
         self.effort_limit = np.where(np.isfinite(robot.effort_limit) & (robot.effort_limit > 0),
                                      robot.effort_limit, np.inf)
-        self.gains = gains if gains is not None else PIDGains.from_inertia(
-            max_inertia(self.model), effort_limit=self.effort_limit)
+        self.scheduled = gains is None
+        if bandwidth_hz is None:
+            f = np.array([DEFAULT_BANDWIDTH_HZ[min(i, len(DEFAULT_BANDWIDTH_HZ) - 1)] for i in range(self.n)])
+        else:
+            f = np.broadcast_to(as_array(bandwidth_hz, "bandwidth_hz"), (self.n,)).astype(float)
+            if np.any(f <= 0):
+                raise InvalidInput("bandwidth_hz must be positive", value=bandwidth_hz)
+        self.omega = 2 * np.pi * f
+        self.i_limit = 0.3 * self.effort_limit
+        if gains is not None:
+            if any(np.shape(getattr(gains, k)) != (self.n,) for k in ("kp", "ki", "kd", "i_limit")):
+                raise InvalidInput(f"gains must hold (n,) = ({self.n},) arrays", value=gains)
+            self.gains = gains
+        else:
+            self.gains = PIDGains(np.zeros(self.n), np.zeros(self.n), np.zeros(self.n), self.i_limit.copy())
         self.feedforward = feedforward
         self.friction_compensation = friction_compensation
         self.reset()
 
     def reset(self) -> None:
         """Clear the integral state."""
-        self.integral = np.zeros(self.n)  # int(e) dt, rad s
+        self.integral = np.zeros(self.n)  # integral term sum(Ki e dt), N m
         self.last_tau = np.zeros(self.n)
         self.last_ff = np.zeros(self.n)
         self.saturated = np.zeros(self.n, dtype=bool)
@@ -115,8 +137,12 @@ class JointController:
         the caller has validated (finite, right shape)."""
         ff = self.feedforward_torque(q_ref, qd_ref, qdd_ref) if self.feedforward else np.zeros(self.n)
         g = self.gains
+        q = np.ascontiguousarray(q, dtype=float)
+        if self.scheduled:
+            Minv = pin.computeMinverse(self.model, self._data, q)
+            _schedule(Minv, self.omega, g.kp, g.ki, g.kd)
         tau = np.empty(self.n)
-        _pid(np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(qd, dtype=float), q_ref, qd_ref, ff,
+        _pid(q, np.ascontiguousarray(qd, dtype=float), q_ref, qd_ref, ff,
              g.kp, g.ki, g.kd, g.i_limit, self.effort_limit, self.dt, self.integral, self.saturated, self.last_tau,
              tau)
         self.last_tau = tau
@@ -125,21 +151,26 @@ class JointController:
 
 
 @njit(cache=True)
+def _schedule(Minv, w, kp, ki, kd):
+    """Triple-pole gains for the effective inertias J_i = 1 / (M^-1)_ii: Kp = 3 J w^2,
+    Kd = 3 J w, Ki = J w^3 (in place)."""
+    for i in range(w.shape[0]):
+        J = 1.0 / Minv[i, i]
+        kp[i] = 3.0 * J * w[i] * w[i]
+        kd[i] = 3.0 * J * w[i]
+        ki[i] = J * w[i] * w[i] * w[i]
+
+
+@njit(cache=True)
 def _pid(q, qd, q_ref, qd_ref, ff, kp, ki, kd, i_limit, effort, dt, integral, saturated, last_tau, out):
-    """PID + feed-forward with conditional-integration anti-windup; updates integral/saturated."""
+    """PID + feed-forward; ``integral`` is the integral torque (clamped to +-i_limit), not
+    integrated while the joint is saturated in the direction that grows its error."""
     for i in range(q.shape[0]):
         e = q_ref[i] - q[i]
-        # do not integrate a joint saturated in the direction that would grow its error
         if not (saturated[i] and ((e > 0 and last_tau[i] > 0) or (e < 0 and last_tau[i] < 0))):
-            integral[i] += e * dt
-        it = ki[i] * integral[i]
-        if it > i_limit[i]:
-            it = i_limit[i]
-            integral[i] = it / ki[i]
-        elif it < -i_limit[i]:
-            it = -i_limit[i]
-            integral[i] = it / ki[i]
-        t = ff[i] + kp[i] * e + kd[i] * (qd_ref[i] - qd[i]) + it
+            integral[i] += ki[i] * e * dt
+        integral[i] = min(max(integral[i], -i_limit[i]), i_limit[i])
+        t = ff[i] + kp[i] * e + kd[i] * (qd_ref[i] - qd[i]) + integral[i]
         sat = min(max(t, -effort[i]), effort[i])
         saturated[i] = sat != t
         out[i] = sat

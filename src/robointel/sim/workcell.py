@@ -21,7 +21,7 @@ import numpy as np
 
 from robointel._validate import as_array, check_limits
 from robointel.errors import InvalidInput, NotFinite, SafetyStop, ShapeError
-from robointel.sim.controller import JointController, PIDGains, max_inertia, model_with_payload
+from robointel.sim.controller import JointController, PIDGains, model_with_payload
 from robointel.sim.mjcf import (FT_SITE, OBJECT_PREFIX, OBSTACLE_PREFIX, TOOL_BODY, Payload, SimObject,
                                 build_spec, shape_geoms)
 
@@ -144,7 +144,8 @@ class Workcell:
         ft_sensor: add the flange F/T sensor; pass an :class:`FTSensor` to set bias and noise.
         payload: optional :class:`Payload` after the sensor.
         timestep: physics step (s); the controller runs every 1 ms (``timestep`` must divide it).
-        gains: :class:`PIDGains` (default from the model's inertia, see ``controller``).
+        gains: fixed :class:`PIDGains`; default: inertia-scheduled gains (see ``controller``).
+        bandwidth_hz: closed-loop bandwidth of the scheduled gains, scalar or (n,) Hz.
         compensate_payload: include the payload in the controller's feed-forward model.
         armature: optional (n,) reflected rotor inertia (kg m^2) in MuJoCo and in the controller.
         self_collision: robot-robot contacts in MuJoCo (off by default, see ``mjcf.build_spec``).
@@ -153,7 +154,8 @@ class Workcell:
 
     def __init__(self, robot=None, obstacles: Sequence[Any] = (), objects: Sequence[SimObject] = (),
                  table: bool = True, ft_sensor: bool | FTSensor = True, payload: Payload | None = None,
-                 timestep: float = 0.001, *, gains: PIDGains | None = None, compensate_payload: bool = True,
+                 timestep: float = 0.001, *, gains: PIDGains | None = None, bandwidth_hz=None,
+                 compensate_payload: bool = True,
                  armature=None, self_collision: bool = False, q0=None) -> None:
         if robot is None or isinstance(robot, str):
             from robointel.robot import Robot
@@ -178,9 +180,7 @@ class Workcell:
         pin_model = model_with_payload(robot, payload if compensate_payload else None)
         if self._armature is not None:
             pin_model.armature = self._armature.copy()
-        if gains is None:
-            gains = PIDGains.from_inertia(self._max_mujoco_inertia(), effort_limit=robot.effort_limit)
-        self.controller = JointController(robot, gains, dt=CONTROL_DT, model=pin_model)
+        self.controller = JointController(robot, gains, bandwidth_hz=bandwidth_hz, dt=CONTROL_DT, model=pin_model)
         self._wrench: tuple[int, np.ndarray, np.ndarray, np.ndarray] | None = None
         self.reset(q0)
 
@@ -224,14 +224,12 @@ class Workcell:
         self._warn0 = 0
 
     def _root_link(self) -> str:
-        import xml.etree.ElementTree as ET
-
-        root = ET.fromstring(self.robot.urdf)
-        children = {j.find("child").get("link") for j in root.iter("joint")}
-        for link in root.iter("link"):
-            if link.get("name") not in children:
-                return link.get("name")
-        return root.find("link").get("name")
+        """The robot's root body: the ancestor of the first joint's body that hangs on the world."""
+        m = self.model
+        b = int(m.jnt_bodyid[m.joint(self.robot.joint_names[0]).id])
+        while m.body_parentid[b] != 0:
+            b = int(m.body_parentid[b])
+        return m.body(b).name
 
     def _in_subtree(self, b: int, root: int) -> bool:
         m = self.model
@@ -240,24 +238,6 @@ class Workcell:
                 return True
             b = m.body_parentid[b]
         return b == root
-
-    def _max_mujoco_inertia(self, samples: int = 64) -> np.ndarray:
-        """max_q diag M(q) of the MuJoCo model (payload and armature included), (n,)."""
-        m, d = self.model, mujoco.MjData(self.model)
-        rng = np.random.default_rng(0)
-        lo, hi = self.robot.lower, self.robot.upper
-        lo = np.where(np.isfinite(lo), lo, -np.pi)
-        hi = np.where(np.isfinite(hi), hi, np.pi)
-        best = np.zeros(self.n)
-        M = np.zeros((m.nv, m.nv))
-        for _ in range(samples):
-            d.qpos[self._qadr] = rng.uniform(lo, hi)
-            mujoco.mj_kinematics(m, d)
-            mujoco.mj_comPos(m, d)
-            mujoco.mj_crb(m, d)
-            mujoco.mj_fullM(m, d, M)
-            best = np.maximum(best, np.diag(M)[self._vadr])
-        return best
 
     # ------------------------------------------------------------------ state
     def reset(self, q=None, qd=None) -> None:
