@@ -243,3 +243,12 @@ def test_bad_input_errors(lrmate, tmp_path):
         lrmate.check_q(np.array([0, 3.0, 0, 0, 0, 0]), limits=True)
     with pytest.raises(NotFinite):
         lrmate.ik(np.full((4, 4), np.inf))
+
+
+def test_sphere_kinematics_batch_equals_loop(lrmate):
+    Q = lrmate.random_configuration(8, 5)
+    P, J = lrmate.spheres.kinematics_batch(Q, angular=True)
+    for b, q in enumerate(Q):
+        p1, j1 = lrmate.spheres.kinematics(q, angular=True)
+        assert np.array_equal(P[b], p1) and np.array_equal(J[b], j1)
+    assert lrmate.spheres.kinematics_batch(Q)[1].shape == (5, len(lrmate.spheres), 3, 6)

@@ -127,3 +127,10 @@ def lrmate_ik(T6, d1, a1, a2, a3, d4, d6, lower, upper, tol):  # pragma: no cove
                 if ok:
                     k += 1
     return out[:k]
+
+
+@njit(cache=True)
+def points_jacobians_batch(T, Jw, joints, pts, anc, P, J):  # pragma: no cover - compiled
+    """:func:`points_jacobians` for a batch: T (B, nj, 4, 4), Jw (B, 6, n) -> P (B, m, 3), J (B, m, 6, n)."""
+    for b in range(T.shape[0]):
+        points_jacobians(T[b], Jw[b], joints, pts, anc, P[b], J[b])

@@ -154,6 +154,12 @@ class SphereModel:
         q = self._robot.check_q(q)
         return self._robot.points_kinematics(q, self.joints, self._in_joint, angular=angular)
 
+    def kinematics_batch(self, Q, *, angular: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """Centres (B, m, 3) and Jacobians (B, m, 3, n) (or (B, m, 6, n)) for configurations Q (B, n)."""
+        if self._robot is None:
+            raise InvalidInput("sphere model is not bound to a robot; call bind(robot)")
+        return self._robot.points_kinematics_batch(Q, self.joints, self._in_joint, angular=angular)
+
     def positions(self, q) -> np.ndarray:
         """World centres (m, 3) of all spheres."""
         return self.kinematics(q)[0]

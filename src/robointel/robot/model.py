@@ -20,7 +20,7 @@ import pinocchio as pin
 
 from robointel._validate import as_array, check_limits
 from robointel.errors import DescriptionError, IKFailure, InvalidInput, NotFinite, ShapeError, UnknownRobot
-from robointel.robot._kernels import points_jacobians
+from robointel.robot._kernels import points_jacobians, points_jacobians_batch
 
 DESCRIPTIONS = Path(__file__).resolve().parent / "descriptions"
 BUILTIN = {
@@ -258,6 +258,25 @@ class Robot:
         """
         P, J = self._point_jacobians(q, joints, points)
         return (P, J) if angular else (P, J[:, :3])
+
+    def points_kinematics_batch(self, Q, joints: np.ndarray, points: np.ndarray, *,
+                                angular: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`points_kinematics` for many configurations Q (B, n): positions (B, m, 3) and
+        Jacobians (B, m, 3, n) (``angular=True``: (B, m, 6, n)). One compiled pass for all."""
+        Q = as_array(Q, "Q", (None, self.nq))
+        B, nj = len(Q), self.model.njoints
+        Ts = np.empty((B, nj, 4, 4))
+        Jws = np.empty((B, 6, self.nq))
+        for b in range(B):
+            pin.computeJointJacobians(self.model, self.data, Q[b])
+            for i, x in enumerate(self._oMi):
+                Ts[b, i] = x.np
+            Jws[b] = self._Jw
+        m = len(joints)
+        P = np.empty((B, m, 3))
+        J = np.empty((B, m, 6, self.nq))
+        points_jacobians_batch(Ts, Jws, np.asarray(joints, np.int64), np.asarray(points, float), self._ancestor, P, J)
+        return (P, J) if angular else (P, J[:, :, :3])
 
     def _point_jacobians(self, q: np.ndarray, joints: np.ndarray, points: np.ndarray):
         d = self.data
