@@ -143,6 +143,10 @@ class StreamingController:
         from robointel.robot import Robot
 
         self.robot = robot or Robot.load("lrmate200id7l")
+        r = self.robot
+        # IK runs in the network thread: its own Pinocchio data, never shared with the control thread
+        self._ik_robot = Robot(r.urdf, name=r.name, urdf_path=r.urdf_path, flange_frame=r.flange_frame, tool=r.tool)
+        self._ik_lock = threading.Lock()
         if workcell is None:
             from robointel.sim import Workcell
 
@@ -218,7 +222,8 @@ class StreamingController:
             with self._lock:
                 ref = (self._pending or self._target).q if (self._pending or self._target) else self.q_ref
             try:
-                q = self.robot.ik(T, q_ref=ref)[0]
+                with self._ik_lock:
+                    q = self._ik_robot.ik(T, q_ref=ref)[0]
             except IKFailure as exc:
                 raise Rejected("unreachable", str(exc)) from None
             return "joint_target", Target(q, seq, ack, time.perf_counter())

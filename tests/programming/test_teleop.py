@@ -1,0 +1,73 @@
+"""Teleoperation logic without a browser: IK on hand moves, unreachable not sent, program files."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from robointel.errors import InvalidInput
+from robointel.programming.streaming import StreamingController
+from robointel.programming.teleop import TeleopApp, load_program, save_program
+
+
+@pytest.fixture()
+def app(lrmate):
+    ctrl = StreamingController(lrmate)
+    a = TeleopApp(ctrl)   # not started: no page, the controller is stepped by hand
+    yield a
+
+
+def _wxyz_down():
+    return np.array([np.cos(np.pi / 4), 0.0, np.sin(np.pi / 4), 0.0])  # Ry(pi/2): tool pointing down
+
+
+def test_reachable_move_is_sent_unreachable_is_not(app, lrmate):
+    assert app.move_hand([0.45, 0.1, 0.4], _wxyz_down())
+    q1 = app.desired.copy()
+    np.testing.assert_allclose(lrmate.fk(q1)[:3, 3], [0.45, 0.1, 0.4], atol=1e-9)
+    assert app.sent == 1 and app.controller.accepted == 1
+    assert not app.move_hand([2.0, 0.0, 0.4], _wxyz_down())
+    assert app.sent == 1 and app.controller.accepted == 1 and app.unreachable_moves == 1
+    np.testing.assert_array_equal(app.desired, q1)
+    app.controller.advance(1500)  # 1.5 s of control: the robot reaches the reachable target
+    np.testing.assert_allclose(app.controller.wc.q, q1, atol=2e-3)
+
+
+def test_record_save_load_roundtrip(app, lrmate, tmp_path):
+    for p in ([0.45, 0.1, 0.4], [0.40, -0.15, 0.3]):
+        app.move_hand(p, _wxyz_down())
+        app.record()
+    path = app.save(tmp_path / "prog.yaml")
+    prog = load_program(path)
+    assert prog["robot"] == "lrmate200id7l" and prog["waypoints"].shape == (2, 6)
+    np.testing.assert_allclose(prog["waypoints"], np.array(app.waypoints))
+    import yaml
+    doc = yaml.safe_load(path.read_text())
+    np.testing.assert_allclose(doc["waypoints"][1]["position"], [0.40, -0.15, 0.3], atol=1e-9)
+    app.clear()
+    assert app.waypoints == []
+    with pytest.raises(InvalidInput):
+        app.save(tmp_path / "empty.yaml")
+
+
+def test_save_rejects_out_of_limit_waypoint(lrmate, tmp_path):
+    with pytest.raises(InvalidInput):
+        save_program(tmp_path / "bad.yaml", lrmate, [np.array([4.0, 0, 0, 0, 0, 0])])
+
+
+def test_page_bind_needs_token(lrmate):
+    with pytest.raises(InvalidInput, match="token"):
+        TeleopApp(StreamingController.__new__(StreamingController), host="0.0.0.0")
+
+
+def test_replay_reaches_waypoints_headless(app):
+    app.controller.start()
+    try:
+        for p in ([0.45, 0.1, 0.4], [0.40, -0.15, 0.3]):
+            app.move_hand(p, _wxyz_down())
+            app.record()
+        errs = app.replay(timeout_per_waypoint=5.0, dwell=0.05)
+        assert len(errs) == 2 and max(errs) < 2e-3
+    finally:
+        app.controller.stop()
