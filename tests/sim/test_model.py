@@ -9,7 +9,7 @@ from robointel.robot import Robot
 from robointel.sim import Workcell, build_model
 
 
-@pytest.fixture(scope="module", params=["lrmate200id7l", "scara2"])
+@pytest.fixture(scope="module", params=["lrmate200id7l", "scara2", "ur5", "panda"])
 def robot_and_model(request):
     robot = Robot.load(request.param)
     model, _ = build_model(robot, table=False)

@@ -55,7 +55,7 @@ class PIDGains:
         """Triple-pole gains Kp = 3 J w^2, Kd = 3 J w, Ki = J w^3 for inertias J (n,) kg m^2.
 
         ``bandwidth_hz`` (scalar or (n,)) defaults to :data:`DEFAULT_BANDWIDTH_HZ` (padded with its
-        last value). The integral clamp is 30 % of the effort limit (or inf).
+        last value). The integral clamp is the effort limit (or inf).
         """
         J = as_array(inertia, "inertia", (None,))
         n = len(J)
@@ -68,7 +68,7 @@ class PIDGains:
         if np.any(f <= 0):
             raise InvalidInput("bandwidth_hz must be positive", value=bandwidth_hz)
         w = 2 * np.pi * f
-        lim = np.full(n, np.inf) if effort_limit is None else 0.3 * as_array(effort_limit, "effort_limit", (n,))
+        lim = np.full(n, np.inf) if effort_limit is None else as_array(effort_limit, "effort_limit", (n,)).copy()
         return cls(kp=3 * J * w**2, ki=J * w**3, kd=3 * J * w, i_limit=lim)
 
 
@@ -85,11 +85,14 @@ class JointController:
         friction_compensation: add F_v qd_ref + F_c tanh(qd_ref / 1e-3) from the URDF.
         model: Pinocchio model for the feed-forward (default ``robot.model``; pass
             :func:`model_with_payload` to compensate a known payload).
+        gain_model: Pinocchio model whose inertia schedules the gains (default ``model``). It
+            should include the payload even when the feed-forward does not: gains sized for an
+            inertia under 1/9 of the real one make the triple-pole PID unstable (Routh).
     """
 
     def __init__(self, robot, gains: PIDGains | None = None, *, bandwidth_hz=None, dt: float = 0.001,
                  feedforward: bool = True, friction_compensation: bool = True,
-                 model: pin.Model | None = None) -> None:
+                 model: pin.Model | None = None, gain_model: pin.Model | None = None) -> None:
         if not (np.isfinite(dt) and dt > 0):
             raise InvalidInput(f"dt must be a positive number of seconds, got {dt!r}", value=dt)
         self.robot = robot
@@ -97,6 +100,8 @@ class JointController:
         self.dt = float(dt)
         self.model = robot.model if model is None else model
         self._data = self.model.createData()
+        self.gain_model = self.model if gain_model is None else gain_model
+        self._gdata = self.gain_model.createData()
         self.effort_limit = np.where(np.isfinite(robot.effort_limit) & (robot.effort_limit > 0),
                                      robot.effort_limit, np.inf)
         self.scheduled = gains is None
@@ -107,7 +112,7 @@ class JointController:
             if np.any(f <= 0):
                 raise InvalidInput("bandwidth_hz must be positive", value=bandwidth_hz)
         self.omega = 2 * np.pi * f
-        self.i_limit = 0.3 * self.effort_limit
+        self.i_limit = self.effort_limit.copy()
         if gains is not None:
             if any(np.shape(getattr(gains, k)) != (self.n,) for k in ("kp", "ki", "kd", "i_limit")):
                 raise InvalidInput(f"gains must hold (n,) = ({self.n},) arrays", value=gains)
@@ -139,7 +144,7 @@ class JointController:
         g = self.gains
         q = np.ascontiguousarray(q, dtype=float)
         if self.scheduled:
-            Minv = pin.computeMinverse(self.model, self._data, q)
+            Minv = pin.computeMinverse(self.gain_model, self._gdata, q)
             _schedule(Minv, self.omega, g.kp, g.ki, g.kd)
         tau = np.empty(self.n)
         _pid(q, np.ascontiguousarray(qd, dtype=float), q_ref, qd_ref, ff,

@@ -39,6 +39,7 @@ TABLE_EXTENTS = (-0.4, 1.0, -0.7, 0.7)
 TABLE_THICKNESS = 0.05
 GRAVITY = (0.0, 0.0, -9.81)
 
+ROBOT_RGBA = (1.0, 0.78, 0.05, 1.0)  # FANUC yellow
 ROBOT_CONTYPE = 1
 ENV_CONTYPE, ENV_CONAFFINITY = 2, 3
 TOOL_BODY = "tool"
@@ -279,6 +280,7 @@ def build_spec(robot, *, table: bool = True, obstacles: Sequence[Any] = (), obje
     except Exception as exc:  # mujoco raises ValueError with its parser message
         raise DescriptionError(f"MuJoCo could not read the URDF of {robot.name!r}: {exc}", value=robot.name) from None
     spec.modelname = f"robointel_{robot.name}"
+    spec.compiler.discardvisual = False  # URDF visuals are already dropped by the parser; keep our textures
     spec.option.gravity = np.array(GRAVITY)
     spec.option.timestep = float(timestep)
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
@@ -288,6 +290,7 @@ def build_spec(robot, *, table: bool = True, obstacles: Sequence[Any] = (), obje
 
     for g in spec.geoms:  # only the robot's geoms exist at this point
         g.contype, g.conaffinity = ROBOT_CONTYPE, (3 if self_collision else 2)
+        g.rgba = list(ROBOT_RGBA)
     joints = [spec.joint(n) for n in robot.joint_names]
     if any(j is None for j in joints):
         raise DescriptionError("MuJoCo's model lacks some of the robot core's joints", value=robot.joint_names)
@@ -344,10 +347,18 @@ def build_spec(robot, *, table: bool = True, obstacles: Sequence[Any] = (), obje
                     size=[(x1 - x0) / 2, (y1 - y0) / 2, TABLE_THICKNESS / 2],
                     pos=[(x1 + x0) / 2, (y1 + y0) / 2, -TABLE_THICKNESS / 2], rgba=[0.55, 0.42, 0.3, 1],
                     contype=ENV_CONTYPE, conaffinity=ENV_CONAFFINITY)
+        tex = spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
+                               builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, rgb1=[0.82, 0.82, 0.82],
+                               rgb2=[0.7, 0.7, 0.7], width=256, height=256)
+        mat = spec.add_material(name="grid", texrepeat=[8, 8], reflectance=0.05)
+        mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = tex.name
         wb.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[3, 3, 0.1],
-                    pos=[0, 0, -TABLE_HEIGHT], rgba=[0.8, 0.8, 0.8, 1],
+                    pos=[0, 0, -TABLE_HEIGHT], material="grid",
                     contype=ENV_CONTYPE, conaffinity=ENV_CONAFFINITY)
-    wb.add_light(name="light", pos=[0.5, -1.0, 2.5], dir=[-0.2, 0.4, -1.0], diffuse=[0.8, 0.8, 0.8])
+    wb.add_light(name="light", pos=[0.5, -1.0, 2.5], dir=[-0.2, 0.4, -1.0], diffuse=[0.7, 0.7, 0.7])
+    spec.add_texture(name="sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX, builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT,
+                     rgb1=[0.75, 0.85, 0.95], rgb2=[0.2, 0.25, 0.3], width=256, height=256)
+    spec.visual.headlight.ambient = [0.35, 0.35, 0.35]
 
     # ---- obstacles on mocap bodies
     names: list[str] = []

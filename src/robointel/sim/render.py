@@ -37,10 +37,28 @@ def available_backend() -> str | None:
     return None
 
 
+_SUBPROCESS = """
+import sys, numpy as np, mujoco, matplotlib.image as mpimg
+model = mujoco.MjModel.from_binary_path(sys.argv[1])
+st = np.load(sys.argv[2])
+d = mujoco.MjData(model)
+d.qpos[:] = st["qpos"]; d.mocap_pos[:] = st["mocap_pos"]; d.mocap_quat[:] = st["mocap_quat"]
+mujoco.mj_forward(model, d)
+cam = mujoco.MjvCamera(); cam.lookat[:] = st["lookat"]
+cam.distance, cam.azimuth, cam.elevation = (float(x) for x in st["view"])
+with mujoco.Renderer(model, int(st["size"][0]), int(st["size"][1])) as r:
+    r.update_scene(d, camera=cam)
+    img = r.render()
+np.save(sys.argv[3], img)
+"""
+
+
 def render(workcell, path=None, *, width: int = 640, height: int = 480, camera: dict | None = None) -> np.ndarray:
     """Render ``workcell`` to an (h, w, 3) uint8 image; write a PNG when ``path`` is given.
 
     ``camera``: dict with ``lookat`` (3,), ``distance`` (m), ``azimuth``, ``elevation`` (deg).
+    In-process when ``MUJOCO_GL`` was set to a working backend before ``mujoco`` was imported;
+    otherwise in a subprocess with the working backend (about a second per image).
 
     Raises:
         RobointelError: no offscreen OpenGL backend (EGL or OSMesa) works on this machine.
@@ -51,22 +69,40 @@ def render(workcell, path=None, *, width: int = 640, height: int = 480, camera: 
     if backend is None:
         raise RobointelError("offscreen rendering is unavailable: neither MUJOCO_GL=egl nor MUJOCO_GL=osmesa "
                              "works here (install libegl1/libosmesa6 or run with a display)")
-    if os.environ.get("MUJOCO_GL") not in (None, backend):
-        raise RobointelError(f"MUJOCO_GL={os.environ['MUJOCO_GL']} does not work here; set MUJOCO_GL={backend}")
-    os.environ.setdefault("MUJOCO_GL", backend)
-    cam = mujoco.MjvCamera()
     c = {"lookat": (0.35, 0.0, 0.35), "distance": 2.2, "azimuth": 135.0, "elevation": -25.0, **(camera or {})}
-    cam.lookat[:] = c["lookat"]
-    cam.distance, cam.azimuth, cam.elevation = c["distance"], c["azimuth"], c["elevation"]
-    try:
-        with mujoco.Renderer(workcell.model, height, width) as r:
-            r.update_scene(workcell.data, camera=cam)
-            img = r.render().copy()
-    except Exception as exc:
-        raise RobointelError(f"offscreen rendering failed with MUJOCO_GL={backend}: {exc}") from None
+    if os.environ.get("MUJOCO_GL") == backend:
+        cam = mujoco.MjvCamera()
+        cam.lookat[:] = c["lookat"]
+        cam.distance, cam.azimuth, cam.elevation = c["distance"], c["azimuth"], c["elevation"]
+        try:
+            with mujoco.Renderer(workcell.model, height, width) as r:
+                r.update_scene(workcell.data, camera=cam)
+                img = r.render().copy()
+        except Exception as exc:
+            raise RobointelError(f"offscreen rendering failed with MUJOCO_GL={backend}: {exc}") from None
+    else:
+        img = _render_subprocess(workcell, backend, width, height, c)
     if path is not None:
         import matplotlib.image as mpimg
 
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         mpimg.imsave(str(path), img)
     return img
+
+
+def _render_subprocess(workcell, backend: str, width: int, height: int, c: dict) -> np.ndarray:
+    import tempfile
+
+    import mujoco
+
+    d = workcell.data
+    with tempfile.TemporaryDirectory() as tmp:
+        mjb, st, out = (str(Path(tmp) / n) for n in ("m.mjb", "s.npz", "img.npy"))
+        mujoco.mj_saveModel(workcell.model, mjb, None)
+        np.savez(st, qpos=d.qpos, mocap_pos=d.mocap_pos, mocap_quat=d.mocap_quat, lookat=np.asarray(c["lookat"]),
+                 view=np.array([c["distance"], c["azimuth"], c["elevation"]]), size=np.array([height, width]))
+        r = subprocess.run([sys.executable, "-c", _SUBPROCESS, mjb, st, out],
+                           env={**os.environ, "MUJOCO_GL": backend}, capture_output=True, text=True, timeout=120)
+        if r.returncode != 0:
+            raise RobointelError(f"offscreen rendering failed with MUJOCO_GL={backend}: {r.stderr.strip()[-400:]}")
+        return np.load(out)

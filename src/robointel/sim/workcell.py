@@ -143,10 +143,12 @@ class Workcell:
         table: add the table (top at z = 0) and the floor.
         ft_sensor: add the flange F/T sensor; pass an :class:`FTSensor` to set bias and noise.
         payload: optional :class:`Payload` after the sensor.
-        timestep: physics step (s); the controller runs every 1 ms (``timestep`` must divide it).
+        timestep: physics step (s). The controller runs every 1 ms (``timestep`` must divide it),
+            or at the physics rate when ``timestep`` >= 1 ms (:attr:`control_dt`).
         gains: fixed :class:`PIDGains`; default: inertia-scheduled gains (see ``controller``).
         bandwidth_hz: closed-loop bandwidth of the scheduled gains, scalar or (n,) Hz.
-        compensate_payload: include the payload in the controller's feed-forward model.
+        compensate_payload: include the payload in the controller's feed-forward model (the gain
+            schedule always includes it).
         armature: optional (n,) reflected rotor inertia (kg m^2) in MuJoCo and in the controller.
         self_collision: robot-robot contacts in MuJoCo (off by default, see ``mjcf.build_spec``).
         q0: initial configuration (default: zeros clipped into the limits).
@@ -164,10 +166,15 @@ class Workcell:
         self.robot = robot
         self.n = robot.nq
         self.timestep = float(timestep)
-        sub = CONTROL_DT / self.timestep
-        if abs(sub - round(sub)) > 1e-9 or round(sub) < 1:
-            raise InvalidInput(f"timestep {timestep!r} must divide the 1 ms control period", value=timestep)
-        self.substeps = int(round(sub))
+        if not (np.isfinite(self.timestep) and self.timestep > 0):
+            raise InvalidInput(f"timestep must be a positive number of seconds, got {timestep!r}", value=timestep)
+        if self.timestep >= CONTROL_DT - 1e-12:  # coarse physics: control at the physics rate
+            self.control_dt, self.substeps = self.timestep, 1
+        else:
+            sub = CONTROL_DT / self.timestep
+            if abs(sub - round(sub)) > 1e-6:
+                raise InvalidInput(f"timestep {timestep!r} must divide the 1 ms control period", value=timestep)
+            self.control_dt, self.substeps = CONTROL_DT, int(round(sub))
         self.ft_config = ft_sensor if isinstance(ft_sensor, FTSensor) else FTSensor()
         self._has_ft = bool(ft_sensor)
         self.payload = payload
@@ -178,9 +185,12 @@ class Workcell:
         self._objects = list(objects)
         self._build()
         pin_model = model_with_payload(robot, payload if compensate_payload else None)
+        gain_model = model_with_payload(robot, payload)  # the servo tuning knows the tool
         if self._armature is not None:
             pin_model.armature = self._armature.copy()
-        self.controller = JointController(robot, gains, bandwidth_hz=bandwidth_hz, dt=CONTROL_DT, model=pin_model)
+            gain_model.armature = self._armature.copy()
+        self.controller = JointController(robot, gains, bandwidth_hz=bandwidth_hz, dt=self.control_dt, model=pin_model,
+                                          gain_model=gain_model)
         self._wrench: tuple[int, np.ndarray, np.ndarray, np.ndarray] | None = None
         self.reset(q0)
 
@@ -333,9 +343,10 @@ class Workcell:
             self._physics_step(tau, check=k == self.substeps - 1)
         return tau
 
-    def hold(self, duration: float = CONTROL_DT) -> None:
-        """Hold the last valid reference position for ``duration`` seconds (whole control periods)."""
-        steps = max(1, int(round(float(duration) / CONTROL_DT)))
+    def hold(self, duration: float | None = None) -> None:
+        """Hold the last valid reference position for ``duration`` seconds (whole control periods;
+        default one period)."""
+        steps = 1 if duration is None else max(1, int(round(float(duration) / self.control_dt)))
         q, z, _ = self._hold
         for _ in range(steps):
             self._control(q, z, z)
@@ -348,7 +359,7 @@ class Workcell:
         except (ShapeError, NotFinite):
             self._hold = (self._hold[0], np.zeros(self.n), np.zeros(self.n))
             raise
-        q_ref = np.clip(self._hold[0] + qd_cmd * CONTROL_DT, self.robot.lower, self.robot.upper)
+        q_ref = np.clip(self._hold[0] + qd_cmd * self.control_dt, self.robot.lower, self.robot.upper)
         qd_ref = np.where((q_ref <= self.robot.lower) | (q_ref >= self.robot.upper), 0.0, qd_cmd)
         self._hold = (q_ref, np.zeros(self.n), np.zeros(self.n))
         return self._control(q_ref, qd_ref, np.zeros(self.n))
@@ -385,7 +396,7 @@ class Workcell:
             check_limits(q[k], self.robot.lower, self.robot.upper, self.robot.joint_names, f"q[{k}]", tol=1e-6)
         qd = None if qd is None else as_array(qd, "qd", (N, self.n))
         qdd = None if qdd is None else as_array(qdd, "qdd", (N, self.n))
-        tg = np.arange(t[0], t[-1] + 0.5 * CONTROL_DT, CONTROL_DT)
+        tg = np.arange(t[0], t[-1] + 0.5 * self.control_dt, self.control_dt)
         tg = tg[tg <= t[-1] + 1e-12]
         if qd is not None:
             sp = CubicHermiteSpline(t, q, qd)

@@ -1,0 +1,125 @@
+"""Workcell scene: objects, point clouds, scene edits, payloads, time steps, rendering."""
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+import trimesh
+
+from robointel.errors import InvalidInput, RobointelError
+from robointel.geometry import Box, Capsule, Cylinder, PointCloud, Sphere
+from robointel.sim import Payload, SimObject, Workcell
+
+Q0 = np.array([0.0, 0.3, -0.2, 0.0, -0.5, 0.0])
+
+
+def test_objects_fall_and_rest_on_the_table(lrmate):
+    mug = trimesh.creation.cylinder(radius=0.04, height=0.1)
+    pose = np.eye(4)
+    pose[:3, 3] = [0.5, 0.2, 0.2]
+    objs = [SimObject("cube", Box(np.array([0.45, -0.2, 0.1]), np.array([0.05, 0.05, 0.05])), 0.2),
+            SimObject("ball", Sphere(np.array([0.6, 0.0, 0.3]), 0.03), 0.1, friction=2.0),
+            SimObject("mug", mug, 0.3, pose=pose)]
+    wc = Workcell(lrmate, objects=objs)
+    m = wc.model
+    # masses as given; the mesh inertia is trimesh's, scaled to the mass
+    assert m.body_mass[m.body("object/cube").id] == pytest.approx(0.2)
+    assert m.body_mass[m.body("object/mug").id] == pytest.approx(0.3)
+    I = mug.moment_inertia * 0.3 / mug.mass
+    np.testing.assert_allclose(np.sort(m.body_inertia[m.body("object/mug").id]), np.sort(np.linalg.eigvalsh(I)),
+                               rtol=1e-6)
+    wc.reset(Q0)
+    wc.hold(1.0)
+    assert wc.body_pose("cube")[2, 3] == pytest.approx(0.025, abs=1e-3)
+    assert wc.body_pose("mug")[2, 3] == pytest.approx(0.05, abs=1e-3)
+    assert wc.body_pose("ball")[2, 3] == pytest.approx(0.03, abs=1e-3)
+    # reset puts them back
+    wc.reset(Q0)
+    np.testing.assert_allclose(wc.body_pose("mug")[:3, 3], [0.5, 0.2, 0.2], atol=1e-12)
+    assert wc.contacts() == []  # objects touching the table are not robot contacts
+
+
+def test_all_obstacle_shapes_become_geoms(lrmate):
+    pts = np.random.default_rng(0).uniform([0.4, -0.6, 0.0], [0.6, -0.5, 0.1], (50, 3))
+    obs = [Sphere(np.array([0.5, 0.3, 0.4]), 0.08, name="s"),
+           Capsule(np.array([0.3, 0.4, 0.1]), np.array([0.3, 0.4, 0.5]), 0.04, name="c"),
+           Cylinder(np.array([0.7, 0.0, 0.0]), np.array([0.7, 0.1, 0.2]), 0.05, name="y"),
+           Box(np.array([0.6, -0.3, 0.15]), np.array([0.1, 0.2, 0.3]), name="b"),
+           PointCloud(pts, 0.01, name="p")]
+    wc = Workcell(lrmate, obstacles=obs)
+    m, d = wc.model, wc.data
+    G = mujoco.mjtGeom
+    assert m.geom_type[m.geom("obstacle/s").id] == G.mjGEOM_SPHERE
+    assert m.geom_type[m.geom("obstacle/c").id] == G.mjGEOM_CAPSULE
+    assert m.geom_type[m.geom("obstacle/y").id] == G.mjGEOM_CYLINDER
+    assert m.geom_type[m.geom("obstacle/b").id] == G.mjGEOM_BOX
+    assert sum(1 for g in range(m.ngeom) if m.geom(g).name.startswith("obstacle/p/")) == 50
+    # the MuJoCo geoms are the shapes: signed distance from test points agrees with geometry's
+    rng = np.random.default_rng(1)
+    probe = m.geom("obstacle/s").id
+    for shape, name in zip(obs[:4], ["s", "c", "y", "b"]):
+        gid = m.geom(f"obstacle/{name}").id
+        for p in rng.uniform([0.0, -0.7, -0.1], [1.0, 0.7, 0.7], (5, 3)):
+            d_ours = shape.distance(p[None])[0][0]
+            # a 1 mm sphere probe placed at p (move the 's' obstacle there) measured by MuJoCo
+            if name == "s":
+                continue
+            wc.set_obstacle_pose("s", p)
+            m.geom_size[probe][0] = 1e-3
+            mujoco.mj_forward(m, d)
+            dm = mujoco.mj_geomDistance(m, d, probe, gid, 2.0, None)
+            assert dm + 1e-3 == pytest.approx(d_ours, abs=2e-6), (name, p)
+    with pytest.raises(InvalidInput):
+        Workcell(lrmate, obstacles=[Sphere(np.zeros(3) + 1, 0.1, name="a"), Sphere(np.zeros(3) + 2, 0.1, name="a")])
+    with pytest.raises(InvalidInput):
+        Workcell(lrmate, obstacles=["not a shape"])
+
+
+def test_add_obstacle_keeps_the_state(lrmate):
+    wc = Workcell(lrmate)
+    wc.reset(Q0)
+    wc.command_velocity(np.full(6, 0.1))
+    for _ in range(200):
+        wc.command_velocity(np.full(6, 0.1))
+    q, qd, t = wc.q, wc.qd, wc.time
+    name = wc.add_obstacle(Sphere(np.array([0.6, 0.0, 0.6]), 0.05, name="late"))
+    assert name == "late" and wc.obstacle_names == ["late"]
+    np.testing.assert_array_equal(wc.q, q)
+    np.testing.assert_array_equal(wc.qd, qd)
+    assert wc.time == t
+    wc.set_obstacle_pose("late", [0.7, 0.1, 0.5])
+    np.testing.assert_allclose(wc.body_pose("late")[:3, 3], [0.7, 0.1, 0.5])
+
+
+def test_uncompensated_payload_is_held_by_the_integral(lrmate):
+    wc = Workcell(lrmate, payload=Payload(3.0, (0.1, 0.0, 0.0)), compensate_payload=False)
+    q = np.array([0.0, 0.2, 0.1, 0.0, -0.6, 0.0])
+    wc.reset(q)
+    wc.hold(1.5)
+    np.testing.assert_allclose(wc.q, q, atol=5e-5)  # measured 1e-5 (stiction band of the integral)
+    assert np.abs(wc.qd).max() < 1e-3
+
+
+@pytest.mark.parametrize("timestep", [0.0005, 0.002])
+def test_other_timesteps(lrmate, timestep):
+    wc = Workcell(lrmate, timestep=timestep)
+    assert wc.control_dt == max(timestep, 0.001)
+    wc.reset(Q0)
+    wc.hold(0.5)
+    np.testing.assert_allclose(wc.q, Q0, atol=1e-6)
+    assert wc.time == pytest.approx(0.5)
+    with pytest.raises(InvalidInput):
+        Workcell(lrmate, timestep=0.0003)
+
+
+def test_render_png_or_clear_error(lrmate, tmp_path):
+    from robointel.sim.render import available_backend
+
+    wc = Workcell(lrmate, obstacles=[Sphere(np.array([0.5, 0.3, 0.4]), 0.08)])
+    if available_backend() is None:
+        with pytest.raises(RobointelError, match="offscreen rendering is unavailable"):
+            wc.render(tmp_path / "x.png")
+        return
+    img = wc.render(tmp_path / "cell.png", width=160, height=120)
+    assert img.shape == (120, 160, 3) and img.std() > 10
+    assert (tmp_path / "cell.png").stat().st_size > 1000
