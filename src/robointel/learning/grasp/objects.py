@@ -1,0 +1,283 @@
+"""Objects for grasping: real YCB scans, generated primitives and articulated toy robot arms.
+
+Every object is an :class:`ObjectModel` in its own frame: resting upright on ``z = 0`` and centred
+at the origin in x, y (metres), with a surface ``mesh`` (for point sampling and ray casting) and
+convex collision ``pieces`` (for MuJoCo).
+
+* :func:`ycb_object` reads ``objects/ycb/<name>/mesh.ply`` (scan) and ``collision.stl`` (V-HACD,
+  split into its connected convex parts) from the shared reference data.
+* :func:`primitive_object` builds cups, cans, boxes, balls and long tools with trimesh.
+* :func:`toy_arm` poses a robot arm from ``example-robot-data`` (UR5, Panda) at given joint angles
+  with Pinocchio, gathers its collision meshes and scales it to toy size (the articulated category).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from robointel.errors import DataMissing, InvalidInput
+from robointel.learning.grasp.transfer import Grasp, grasp_from_axis
+
+__all__ = ["ObjectModel", "YCB_CATEGORIES", "ycb_object", "primitive_object", "toy_arm", "split_convex",
+           "sample_points", "taught_grasps", "demo_objects", "ycb_objects"]
+
+YCB_CATEGORIES: dict[str, list[str]] = {
+    "cup": ["065-a_cups", "065-b_cups", "065-c_cups", "065-d_cups", "065-e_cups", "065-f_cups", "065-g_cups",
+            "065-h_cups", "065-i_cups", "065-j_cups"],
+    "clamp": ["050_medium_clamp", "051_large_clamp", "052_extra_large_clamp"],
+    "can": ["005_tomato_soup_can", "002_master_chef_can", "007_tuna_fish_can", "010_potted_meat_can"],
+    "box": ["004_sugar_box", "003_cracker_box", "008_pudding_box", "009_gelatin_box", "036_wood_block"],
+    "ball": ["055_baseball", "053_mini_soccer_ball", "054_softball", "056_tennis_ball", "057_racquetball",
+             "058_golf_ball"],
+    "long_tool": ["043_phillips_screwdriver", "030_fork", "031_spoon", "032_knife", "040_large_marker",
+                  "044_flat_screwdriver"],
+}
+
+
+@dataclass
+class ObjectModel:
+    """An object in its own frame (z up, resting on z = 0, centred in x, y)."""
+
+    name: str
+    category: str
+    mesh: trimesh.Trimesh
+    pieces: list = field(default_factory=list)
+    mass: float = 0.1
+
+    @property
+    def height(self) -> float:
+        return float(self.mesh.bounds[1, 2])
+
+
+def split_convex(mesh: trimesh.Trimesh) -> list[trimesh.Trimesh]:
+    """Connected parts of a convex decomposition (e.g. YCB ``collision.stl``), each as its hull."""
+    n = len(mesh.faces)
+    adj = mesh.face_adjacency
+    g = coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])), shape=(n, n))
+    k, lab = connected_components(g, directed=False)
+    parts = []
+    for i in range(k):
+        faces = mesh.faces[lab == i]
+        verts = mesh.vertices[np.unique(faces)]
+        if len(verts) >= 4:
+            try:
+                hull = trimesh.convex.convex_hull(verts)
+            except Exception:  # flat or degenerate piece
+                continue
+            if hull.volume > 1e-9:
+                parts.append(hull)
+    return parts
+
+
+def _canonical(mesh: trimesh.Trimesh, pieces: list) -> tuple[trimesh.Trimesh, list]:
+    c = mesh.bounds.mean(axis=0)
+    off = np.array([-c[0], -c[1], -mesh.bounds[0, 2]])
+    mesh = mesh.copy()
+    mesh.apply_translation(off)
+    out = []
+    for p in pieces:
+        p = p.copy()
+        p.apply_translation(off)
+        out.append(p)
+    return mesh, out
+
+
+def ycb_object(name: str, category: str | None = None, *, density: float = 400.0) -> ObjectModel:
+    """Load a YCB object from ``../shared/data/objects/ycb/<name>`` (scan + convex pieces)."""
+    from robointel.io.reference import data_path
+
+    folder = data_path("objects", "ycb", name)
+    mesh = trimesh.load(folder / "mesh.ply", force="mesh")
+    pieces = split_convex(trimesh.load(folder / "collision.stl", force="mesh"))
+    if not pieces:
+        raise DataMissing(f"no convex pieces in {folder / 'collision.stl'}", value=str(folder))
+    mesh, pieces = _canonical(mesh, pieces)
+    if category is None:
+        category = next((c for c, names in YCB_CATEGORIES.items() if name in names), "other")
+    mass = float(np.clip(density * sum(p.volume for p in pieces), 0.02, 1.0))
+    return ObjectModel(name, category, mesh, pieces, mass)
+
+
+def ycb_objects(categories: dict[str, list[str]] | None = None) -> dict[str, list[ObjectModel]]:
+    """All listed YCB objects by category (default :data:`YCB_CATEGORIES`)."""
+    cats = categories or YCB_CATEGORIES
+    return {c: [ycb_object(n, c) for n in names] for c, names in cats.items()}
+
+
+def _ring(r_in: float, r_out: float, z0: float, z1: float, segments: int) -> list[trimesh.Trimesh]:
+    out = []
+    for i in range(segments):
+        a0, a1 = 2 * np.pi * i / segments, 2 * np.pi * (i + 1) / segments
+        pts = []
+        for a in (a0, a1):
+            for r in (r_in, r_out):
+                for z in (z0, z1):
+                    pts.append([r * np.cos(a), r * np.sin(a), z])
+        out.append(trimesh.convex.convex_hull(np.array(pts)))
+    return out
+
+
+def primitive_object(category: str, rng: np.random.Generator | int = 0, name: str | None = None) -> ObjectModel:
+    """A generated object of ``category`` ("cup", "can", "box", "ball", "long_tool") with random
+    proportions (seeded ``rng``). Sizes fit a 48 mm gripper where the category's taught grasp needs it."""
+    rng = np.random.default_rng(rng)
+    name = name or f"{category}-{int(rng.integers(1 << 30))}"
+    if category == "cup":
+        r, h, t = rng.uniform(0.03, 0.045), rng.uniform(0.07, 0.11), 0.004
+        wall = trimesh.creation.annulus(r_min=r - t, r_max=r, height=h, sections=48)
+        wall.apply_translation([0, 0, h / 2])
+        bottom = trimesh.creation.cylinder(radius=r, height=t, sections=48)
+        bottom.apply_translation([0, 0, t / 2])
+        mesh = trimesh.util.concatenate([wall, bottom])
+        pieces = _ring(r - t, r, t, h, 16) + [bottom]
+        mass = 0.08
+    elif category == "can":
+        r, h = rng.uniform(0.016, 0.022), rng.uniform(0.06, 0.12)
+        mesh = trimesh.creation.cylinder(radius=r, height=h, sections=48)
+        mesh.apply_translation([0, 0, h / 2])
+        pieces, mass = [mesh], 0.15
+    elif category == "box":
+        e = np.array([rng.uniform(0.05, 0.09), rng.uniform(0.025, 0.04), rng.uniform(0.05, 0.12)])
+        mesh = trimesh.creation.box(extents=e)
+        mesh.apply_translation([0, 0, e[2] / 2])
+        pieces, mass = [mesh], 0.12
+    elif category == "ball":
+        r = rng.uniform(0.017, 0.022)
+        mesh = trimesh.creation.icosphere(subdivisions=3, radius=r)
+        mesh.apply_translation([0, 0, r])
+        pieces, mass = [mesh], 0.05
+    elif category == "long_tool":
+        L, r = rng.uniform(0.12, 0.2), rng.uniform(0.008, 0.013)
+        handle = trimesh.creation.cylinder(radius=r, height=0.45 * L, sections=24)
+        handle.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [0, 1, 0]))
+        handle.apply_translation([-0.275 * L, 0, r])
+        shaft = trimesh.creation.box(extents=[0.55 * L, 0.3 * r, 0.3 * r])
+        shaft.apply_translation([0.225 * L, 0, r])
+        mesh = trimesh.util.concatenate([handle, shaft])
+        pieces, mass = [handle, shaft], 0.06
+    else:
+        raise InvalidInput(f"unknown primitive category {category!r}", value=category)
+    mesh, pieces = _canonical(mesh, pieces)
+    return ObjectModel(name, category, mesh, pieces, mass)
+
+
+_ARMS = {"ur5": "ur_description/urdf/ur5_robot.urdf", "panda": "panda_description/urdf/panda.urdf"}
+
+
+def toy_arm(q=None, *, robot: str = "ur5", height: float = 0.25, rng: np.random.Generator | int | None = 0,
+            name: str | None = None) -> ObjectModel:
+    """A robot arm from ``example-robot-data`` posed at joint angles ``q`` (random within a safe band
+    of its limits when None, seeded by ``rng``), its collision meshes merged and scaled so that its
+    base-to-top height at the home pose is about ``height`` metres (a toy manipulator)."""
+    import pinocchio as pin
+
+    from robointel.robot.model import _example_robot_data_dir
+
+    root = _example_robot_data_dir()
+    if root is None or robot not in _ARMS:
+        raise DataMissing(f"example-robot-data arm {robot!r} not available", value=robot)
+    urdf = root / _ARMS[robot]
+    model, cmodel, _ = pin.buildModelsFromUrdf(str(urdf), package_dirs=[str(root.parent.parent), str(root.parent), str(root)])
+    data, cdata = model.createData(), cmodel.createData() if hasattr(cmodel, "createData") else pin.GeometryData(cmodel)
+    if q is None:
+        g = np.random.default_rng(rng)
+        lo = np.maximum(model.lowerPositionLimit, -np.pi)
+        hi = np.minimum(model.upperPositionLimit, np.pi)
+        mid = 0.5 * (lo + hi)
+        q = mid + 0.35 * (hi - lo) * g.uniform(-1, 1, model.nq) * 0.6
+        if robot == "ur5":
+            q[1] = g.uniform(-2.2, -0.9)  # shoulder raised: the arm stands up like a toy
+            q[2] = g.uniform(0.6, 1.8)
+    q = np.asarray(q, float)
+    pin.forwardKinematics(model, data, q)
+    pin.updateGeometryPlacements(model, data, cmodel, cdata)
+    parts = []
+    for go, oMg in zip(cmodel.geometryObjects, cdata.oMg):
+        path = Path(go.meshPath)
+        if not path.exists():
+            continue
+        m = trimesh.load(path, force="mesh")
+        m.apply_scale(np.asarray(go.meshScale, float))
+        m.apply_transform(oMg.homogeneous)
+        parts.append(m)
+    if not parts:
+        raise DataMissing(f"no collision meshes found for {robot}", value=str(urdf))
+    mesh = trimesh.util.concatenate(parts)
+    scale = height / {"ur5": 1.0, "panda": 1.0}[robot]
+    mesh.apply_scale(scale)
+    pieces = []
+    for p in parts:
+        p = p.copy()
+        p.apply_scale(scale)
+        pieces.append(trimesh.convex.convex_hull(p.vertices))
+    base = pieces[0]
+    # centre on the base (the taught grasp holds the arm by its base)
+    c = base.bounds.mean(axis=0)
+    off = np.array([-c[0], -c[1], -mesh.bounds[0, 2]])
+    mesh.apply_translation(off)
+    for p in pieces:
+        p.apply_translation(off)
+    return ObjectModel(name or f"toy_{robot}", "toy_arm", mesh, pieces, 0.1)
+
+
+def sample_points(obj: ObjectModel, n: int = 1500, rng: np.random.Generator | int = 0) -> np.ndarray:
+    """``n`` points sampled uniformly on the object's surface (object frame)."""
+    pts, _ = trimesh.sample.sample_surface(obj.mesh, int(n), seed=np.random.default_rng(rng))
+    return np.asarray(pts, float)
+
+
+def taught_grasps(obj: ObjectModel) -> list[Grasp]:
+    """The demonstrated grasps for a category template (object frame), as a human would teach them:
+    cups by the rim wall, cans/boxes/balls across their narrow side from above, long tools by the
+    handle, toy arms by the base."""
+    b = obj.mesh.bounds
+    h = b[1, 2]
+    down = np.array([0.0, 0.0, -1.0])
+    cat = obj.category
+    if cat == "cup":
+        r = 0.5 * (b[1, 0] - b[0, 0])
+        return [grasp_from_axis([r - 0.002, 0, h - 0.012], [1, 0, 0], down, 0.01, "rim"),
+                grasp_from_axis([0, r - 0.002, h - 0.012], [0, 1, 0], down, 0.01, "rim2")]
+    if cat in ("can", "ball"):
+        return [grasp_from_axis([0, 0, 0.6 * h], [1, 0, 0], down, 2 * b[1, 0], "side"),
+                grasp_from_axis([0, 0, 0.6 * h], [0, 1, 0], down, 2 * b[1, 1], "side2")]
+    if cat == "box":
+        ax = 1 if (b[1, 1] - b[0, 1]) < (b[1, 0] - b[0, 0]) else 0
+        axis = np.eye(3)[ax]
+        return [grasp_from_axis([0, 0, h - 0.015], axis, down, b[1, ax] - b[0, ax], "narrow")]
+    if cat == "long_tool":
+        ext = b[1] - b[0]
+        long_ax = int(np.argmax(ext[:2]))
+        axis = np.eye(3)[1 - long_ax]
+        c = np.zeros(3)
+        c[long_ax] = b[0, long_ax] + 0.25 * ext[long_ax]
+        c[2] = 0.5 * h
+        return [grasp_from_axis(c, axis, down, ext[1 - long_ax], "handle")]
+    if cat == "toy_arm":
+        zb = 0.5 * float(obj.pieces[0].bounds[1, 2]) if obj.pieces else 0.01
+        wb = float(obj.pieces[0].extents[0]) if obj.pieces else 0.03
+        return [grasp_from_axis([0, 0, zb], [1, 0, 0], down, wb, "base"),
+                grasp_from_axis([0, 0, zb], [0, 1, 0], down, wb, "base2")]
+    if cat == "clamp":
+        return [grasp_from_axis([0, 0, 0.5 * h], [0, 1, 0], down, b[1, 1] - b[0, 1], "body")]
+    return [grasp_from_axis([0, 0, 0.5 * h], [1, 0, 0], down, b[1, 0] - b[0, 0], "middle")]
+
+
+def demo_objects(per_category: int = 4, seed: int = 0, *, arms: bool = True) -> dict[str, list[ObjectModel]]:
+    """Objects that need no shared data: primitives of five categories with varied proportions and
+    toy UR5 arms at random joint angles (``per_category`` instances each)."""
+    rng = np.random.default_rng(seed)
+    out = {c: [primitive_object(c, rng, f"{c}{i}") for i in range(per_category)]
+           for c in ("cup", "can", "box", "ball", "long_tool")}
+    if arms:
+        try:
+            out["toy_arm"] = [toy_arm(robot="ur5", rng=int(rng.integers(1 << 30)), name=f"toy_arm{i}")
+                              for i in range(per_category)]
+        except DataMissing:
+            pass
+    return out

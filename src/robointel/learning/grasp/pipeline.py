@@ -1,0 +1,201 @@
+"""The Ch. 6 grasp pipeline and MuJoCo lift-and-shake trials (Table 6.2).
+
+:class:`GraspPlanner` classifies a perceived cloud against the templates (6.17)-(6.19), transfers the
+taught grasps through the fitted CPD warp (6.14)-(6.16), scores them (6.20) and refines the best by the
+orientation search (6.21) with the LR Mate's IK. :func:`grasp_trial` places an object at a random pose,
+perceives it with the two simulated depth cameras, plans, then drives the gripper along the LR Mate's
+forward kinematics of the joint path (pre-grasp, grasp, close, lift 10 cm, shake with J1 and J6) and
+reports success when the object is still between the fingers at the end.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+from scipy.spatial import cKDTree
+
+from robointel.errors import IKFailure, InvalidInput
+from robointel.learning.grasp.classify import Classification, Template, classify
+from robointel.learning.grasp.objects import ObjectModel
+from robointel.learning.grasp.perception import default_cameras, depth_image, perceive
+from robointel.learning.grasp.quality import ParallelGripper
+from robointel.learning.grasp.scene import Placement, scene_xml
+from robointel.learning.grasp.search import SearchResult, orientation_search
+from robointel.learning.grasp.transfer import Grasp, transfer_grasps
+
+__all__ = ["GraspPlanner", "GraspPlan", "TrialResult", "grasp_trial", "lrmate_with_gripper"]
+
+
+def lrmate_with_gripper(gripper: ParallelGripper = ParallelGripper()):
+    """The LR Mate 200iD/7L with the gripper's grasp frame as its tool (for :func:`orientation_search`)."""
+    from robointel.robot import Robot
+
+    return Robot.load("lrmate200id7l", tool=gripper.tool_transform())
+
+
+@dataclass
+class GraspPlan:
+    """A planned grasp: the classification, the transferred grasps, the chosen search result and the
+    wall-clock time of each step (s)."""
+
+    classification: Classification
+    transferred: list[Grasp]
+    search: SearchResult
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def feasible(self) -> bool:
+        return self.search.feasible
+
+
+class GraspPlanner:
+    """Templates + gripper + robot; :meth:`plan` runs classify -> register -> transfer -> score -> search.
+
+    Args:
+        templates: taught objects (points + grasps in their frames).
+        robot: robot with the gripper tool (default the LR Mate); None skips IK.
+        base_pose: 4x4 world pose of the robot root. table_z: table height (world).
+        n_points: points per cloud used in registration.
+    """
+
+    def __init__(self, templates: list[Template], *, gripper: ParallelGripper = ParallelGripper(), robot="lrmate",
+                 base_pose: np.ndarray | None = None, table_z: float = 0.0, n_points: int = 300,
+                 q_ref=None) -> None:
+        if not templates:
+            raise InvalidInput("GraspPlanner needs at least one template", value=templates)
+        self.templates = templates
+        self.gripper = gripper
+        self.robot = lrmate_with_gripper(gripper) if robot == "lrmate" else robot
+        self.base_pose = np.eye(4) if base_pose is None else np.asarray(base_pose, float)
+        self.table_z = table_z
+        self.n_points = n_points
+        self.q_ref = np.radians([0, 20, -10, 0, -70, 0]) if q_ref is None else q_ref
+
+    def plan(self, cloud) -> GraspPlan:
+        """Plan a grasp on ``cloud`` (n, 3) in the world frame."""
+        t0 = time.perf_counter()
+        cls = classify(cloud, self.templates, n_points=self.n_points)
+        t1 = time.perf_counter()
+        fit = cls.best
+        grasps = transfer_grasps(fit.warp, fit.template.grasps)
+        t2 = time.perf_counter()
+        # the warped template completes the sides the cameras do not see
+        full = np.vstack([np.asarray(cloud, float), fit.warp(fit.template.points)])
+        tree = cKDTree(full)
+        best = None
+        for g in grasps:
+            r = orientation_search(g, full, self.robot, gripper=self.gripper, table_z=self.table_z,
+                                   base_pose=self.base_pose, q_ref=self.q_ref, tree=tree)
+            if best is None or r.cost < best.cost:
+                best = r
+        t3 = time.perf_counter()
+        return GraspPlan(cls, grasps, best, {"classify_register": t1 - t0, "transfer": t2 - t1,
+                                             "score_search": t3 - t2, "total": t3 - t0})
+
+
+@dataclass
+class TrialResult:
+    """One lift-and-shake trial: ``success``, the planned ``plan`` (None if perception failed),
+    the predicted ``category``, the object's final height (m) and a ``reason``."""
+
+    success: bool
+    reason: str
+    category: str | None = None
+    plan: GraspPlan | None = None
+    final_height: float = float("nan")
+    cloud: np.ndarray | None = None
+
+
+def _smooth(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
+    s = 0.5 - 0.5 * np.cos(np.linspace(0, np.pi, n))
+    return a + (b - a) * s[:, None]
+
+
+def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *, rng=None,
+                cameras=None, shake_amplitude: float = 0.15, settle: float = 0.3) -> TrialResult:
+    """Place ``obj`` (free body), perceive, plan, approach, close, lift 10 cm, shake; success if the
+    object is still held (above 5 cm and within 3 cm of where it sat in the gripper after the lift)."""
+    rng = np.random.default_rng(rng)
+    g = planner.gripper
+    cams = cameras or default_cameras()
+    m = mujoco.MjModel.from_xml_string(scene_xml([placement], dynamic=True, gripper=g))
+    d = mujoco.MjData(m)
+    park = np.array([0.5, 0.0, 1.6])
+    d.mocap_pos[0] = park
+    d.ctrl[:] = 0.0
+    mujoco.mj_forward(m, d)
+    # background: the same scene with the object moved far away (the empty workspace)
+    qadr = m.jnt_qposadr[m.joint("obj0").id]
+    saved = d.qpos[qadr:qadr + 7].copy()
+    d.qpos[qadr:qadr + 3] = [5.0, 5.0, -5.0]
+    mujoco.mj_forward(m, d)
+    bgs = [depth_image(m, d, c, rng) for c in cams]
+    d.qpos[qadr:qadr + 7] = saved
+    mujoco.mj_forward(m, d)
+    for _ in range(int(settle / m.opt.timestep)):
+        mujoco.mj_step(m, d)
+    clouds = perceive(m, d, cams, bgs, rng=rng)
+    if not clouds:
+        return TrialResult(False, "nothing perceived")
+    cloud = clouds[0]
+    if len(cloud) < 20:
+        return TrialResult(False, "cloud too small", cloud=cloud)
+    plan = planner.plan(cloud)
+    cat = plan.classification.category
+    res = plan.search
+    if not res.feasible or res.q is None:
+        return TrialResult(False, f"no feasible grasp ({plan.search.detail.reason if plan.search.detail else '-'})",
+                           cat, plan, cloud=cloud)
+    robot = planner.robot
+    Tb = planner.base_pose
+    G = res.grasp.pose
+    pre = G.copy()
+    pre[:3, 3] -= 0.08 * res.grasp.approach
+    up = G.copy()
+    up[2, 3] += 0.10
+    try:
+        q_grasp = res.q
+        q_pre = robot.ik(np.linalg.inv(Tb) @ pre, q_ref=q_grasp)[0]
+        q_up = robot.ik(np.linalg.inv(Tb) @ up, q_ref=q_grasp)[0]
+    except IKFailure:
+        return TrialResult(False, "approach or lift unreachable", cat, plan, cloud=cloud)
+    dt = m.opt.timestep
+    open_w = g.max_width / 2 - 0.0  # finger joint 0 = open
+    path = [(_smooth(q_pre, q_pre, int(0.1 / dt)), 0.0)]
+    path.append((_smooth(q_pre, q_grasp, int(0.8 / dt)), 0.0))
+    path.append((_smooth(q_grasp, q_grasp, int(0.6 / dt)), open_w))
+    path.append((_smooth(q_grasp, q_up, int(1.0 / dt)), open_w))
+    n_sh = int(1.5 / dt)
+    tt = np.arange(n_sh) * dt
+    shake = np.tile(q_up, (n_sh, 1))
+    shake[:, 0] += 0.06 * np.sin(2 * np.pi * 2.0 * tt)
+    shake[:, 5] += shake_amplitude * np.sin(2 * np.pi * 2.0 * tt)
+    path.append((shake, open_w))
+    path.append((_smooth(q_up, q_up, int(0.4 / dt)), open_w))
+    body = m.body("obj0").id
+    gbody = m.body("gripper").id
+    gadr = m.jnt_qposadr[m.joint("gripper").id]
+    T0 = Tb @ robot.fk(q_pre)
+    q0 = np.empty(4)
+    mujoco.mju_mat2Quat(q0, T0[:3, :3].ravel())
+    d.qpos[gadr:gadr + 3] = T0[:3, 3]
+    d.qpos[gadr + 3:gadr + 7] = q0
+    d.qvel[m.jnt_dofadr[m.joint("gripper").id]:][:6] = 0.0
+    rel_after_lift = None
+    for k, (qs, ctrl) in enumerate(path):
+        for q in qs:
+            T = Tb @ robot.fk(q)
+            d.mocap_pos[0] = T[:3, 3]
+            qw = np.empty(4)
+            mujoco.mju_mat2Quat(qw, T[:3, :3].ravel())
+            d.mocap_quat[0] = qw
+            d.ctrl[:] = ctrl
+            mujoco.mj_step(m, d)
+        if k == 3:
+            rel_after_lift = (d.xpos[body] - d.xpos[gbody]).copy()
+    rel = d.xpos[body] - d.xpos[gbody]
+    h = float(d.xpos[body][2])
+    held = h > 0.05 and rel_after_lift is not None and np.linalg.norm(rel - rel_after_lift) < 0.03
+    return TrialResult(bool(held), "held" if held else "dropped", cat, plan, h, cloud)

@@ -1,0 +1,203 @@
+"""Grasp quality (6.20) on a point cloud, and the parallel-jaw gripper model.
+
+Contacts come from a line search along the grasp axis: the cloud points within ``axis_radius`` of the
+axis line are projected on it; each jaw, closing from its side, meets the outermost point on its side.
+Surface normals are estimated from the cloud (PCA of the k nearest neighbours). The grasp map stacks,
+for each contact, the edges of a linearised friction cone (point contact with friction ``mu``) and a
+soft-finger torsion pair (``mu_t``), as wrenches about the grasp centre with torques divided by a
+characteristic length. Quality = isotropy index sigma_min / sigma_max of that 6 x 12 map (6.20).
+
+Negative quality marks grasps that cannot work (Table 6.1 of the dissertation, plus a friction check):
+
+* -1 ``off-axis``: no cloud points near the axis on one side of the centre,
+* -2 ``sparse``: too few points around a contact to estimate its normal,
+* -3 ``too wide``: the contacts are farther apart than the gripper opens,
+* -4 ``slip``: a contact normal is outside the friction cone about the closing axis.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from robointel._validate import as_array
+from robointel.errors import InvalidInput
+from robointel.learning.grasp.transfer import Grasp
+
+__all__ = ["ParallelGripper", "GraspQuality", "grasp_quality", "estimate_normals", "grasp_map",
+           "isotropy"]
+
+OFF_AXIS, SPARSE, TOO_WIDE, SLIP = -1.0, -2.0, -3.0, -4.0
+
+
+@dataclass(frozen=True)
+class ParallelGripper:
+    """A parallel-jaw gripper like the SMC LEHF20K2-48 (48 mm stroke), in the grasp frame.
+
+    Grasp frame: origin between the finger pads, y = closing axis, z = approach. The fingertips reach
+    ``tip_depth`` past the centre along z. Sizes in metres.
+    """
+
+    max_width: float = 0.048
+    finger_length: float = 0.045
+    finger_breadth: float = 0.018
+    finger_thickness: float = 0.008
+    tip_depth: float = 0.008
+    palm_height: float = 0.03
+    palm_breadth: float = 0.04
+    flange_offset: float = 0.07  # flange to palm face along the approach
+    mass: float = 0.4
+
+    def boxes(self, opening: float | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(centre, full size) of the two fingers and the palm in the grasp frame at ``opening``."""
+        w = self.max_width if opening is None else float(opening)
+        zc = self.tip_depth - self.finger_length / 2
+        f = np.array([self.finger_breadth, self.finger_thickness, self.finger_length])
+        out = [(np.array([0.0, s * (w / 2 + self.finger_thickness / 2), zc]), f) for s in (1, -1)]
+        palm_z = self.tip_depth - self.finger_length - self.palm_height / 2
+        out.append((np.array([0.0, 0.0, palm_z]),
+                    np.array([self.palm_breadth, self.max_width + 2 * self.finger_thickness, self.palm_height])))
+        return out
+
+    def tool_transform(self) -> np.ndarray:
+        """4x4 pose of the grasp frame in the LR Mate flange frame (flange x = approach)."""
+        T = np.eye(4)
+        # grasp z = flange x, grasp y = flange y, grasp x = flange -z
+        T[:3, :3] = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+        T[:3, 3] = [self.flange_offset + self.palm_height + self.finger_length - self.tip_depth, 0.0, 0.0]
+        return T
+
+    def collides(self, grasp: Grasp, cloud: np.ndarray, *, opening: float | None = None, margin: float = 0.001,
+                 table_z: float | None = None) -> bool:
+        """True when any cloud point is inside a finger or the palm (grown by ``margin``), or a box
+        reaches below the table plane ``z = table_z`` (world frame)."""
+        local = (np.asarray(cloud, float) - grasp.centre) @ grasp.rotation
+        for c, size in self.boxes(opening):
+            h = size / 2 + margin
+            if np.any(np.all(np.abs(local - c) <= h, axis=1)):
+                return True
+            if table_z is not None:
+                corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * (size / 2) + c
+                world = corners @ grasp.rotation.T + grasp.centre
+                if world[:, 2].min() < table_z + margin:
+                    return True
+        return False
+
+
+@dataclass
+class GraspQuality:
+    """Result of :func:`grasp_quality`: ``quality`` (isotropy in [0, 1], or a negative code),
+    ``reason``, the two ``contacts`` (2, 3), outward ``normals`` (2, 3), ``width`` (m) and the
+    re-centred grasp (centre at the contacts' midpoint)."""
+
+    quality: float
+    reason: str
+    contacts: np.ndarray = field(default_factory=lambda: np.full((2, 3), np.nan))
+    normals: np.ndarray = field(default_factory=lambda: np.full((2, 3), np.nan))
+    width: float = float("nan")
+    grasp: Grasp | None = None
+
+
+def estimate_normals(cloud, k: int = 12, *, viewpoint=None, tree: cKDTree | None = None) -> np.ndarray:
+    """Unit normals (n, 3) by PCA of the ``k`` nearest neighbours, oriented away from the centroid
+    (or toward ``viewpoint``)."""
+    P = as_array(cloud, "cloud", (None, 3))
+    if len(P) < 3:
+        raise InvalidInput(f"need at least 3 points to estimate normals, got {len(P)}", value=P.shape)
+    k = min(k, len(P))
+    tree = tree or cKDTree(P)
+    _, idx = tree.query(P, k=k)
+    nb = P[idx] - P[idx].mean(axis=1, keepdims=True)
+    C = np.einsum("nki,nkj->nij", nb, nb)
+    _, V = np.linalg.eigh(C)
+    n = V[:, :, 0]
+    ref = P - (P.mean(0) if viewpoint is None else as_array(viewpoint, "viewpoint", (3,)))
+    if viewpoint is not None:
+        ref = -ref
+    n *= np.where(np.sum(n * ref, axis=1) < 0, -1.0, 1.0)[:, None]
+    return n
+
+
+def grasp_map(contacts: np.ndarray, normals: np.ndarray, centre: np.ndarray, *, mu: float = 0.5,
+              mu_t: float = 0.3, edges: int = 4, length: float | None = None) -> np.ndarray:
+    """The grasp map G (6, 2 (edges + 2)): friction-cone edge forces and soft-finger torsion about
+    ``centre``; torques divided by ``length`` (default half the contact distance) to be unit-free.
+    ``normals`` point out of the object; contact forces push along -normal."""
+    contacts = np.asarray(contacts, float)
+    normals = np.asarray(normals, float)
+    L = length or max(0.5 * float(np.linalg.norm(contacts[0] - contacts[1])), 1e-3)
+    cols = []
+    for c, n in zip(contacts, normals):
+        f_n = -n / np.linalg.norm(n)
+        t1 = np.cross(f_n, [1.0, 0, 0])
+        if np.linalg.norm(t1) < 1e-6:
+            t1 = np.cross(f_n, [0, 1.0, 0])
+        t1 /= np.linalg.norm(t1)
+        t2 = np.cross(f_n, t1)
+        r = (c - centre) / L
+        for k in range(edges):
+            a = 2 * np.pi * k / edges
+            f = (f_n + mu * (np.cos(a) * t1 + np.sin(a) * t2)) / np.sqrt(1 + mu * mu)
+            cols.append(np.r_[f, np.cross(r, f)])
+        for s in (1.0, -1.0):
+            cols.append(np.r_[np.zeros(3), s * mu_t * f_n])
+    return np.array(cols).T
+
+
+def isotropy(G: np.ndarray) -> float:
+    """(6.20): sigma_min / sigma_max of the grasp map."""
+    s = np.linalg.svd(G, compute_uv=False)
+    return float(s[-1] / s[0]) if s[0] > 0 else 0.0
+
+
+def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGripper(), mu: float = 0.5,
+                  axis_radius: float = 0.006, normal_radius: float = 0.010, min_neighbors: int = 5,
+                  tree: cKDTree | None = None) -> GraspQuality:
+    """(6.20) grasp isotropy of ``grasp`` on ``cloud`` (n, 3), negative for infeasible grasps.
+
+    Args:
+        cloud: object points (n, 3), metres. grasp: the grasp frame.
+        gripper: jaw model (max opening). mu: friction coefficient.
+        axis_radius: points within this distance of the axis line count for the line search.
+        normal_radius: neighbourhood for the contact normals; ``min_neighbors`` points needed there.
+    """
+    P = as_array(cloud, "cloud", (None, 3))
+    if len(P) < min_neighbors:
+        return GraspQuality(SPARSE, "sparse")
+    y = grasp.axis
+    rel = P - grasp.centre
+    s = rel @ y
+    off = np.linalg.norm(rel - s[:, None] * y, axis=1)
+    near = off < axis_radius
+    half = gripper.max_width / 2
+    if np.any(near & (np.abs(s) > half) & (np.abs(s) <= half + gripper.finger_thickness)):
+        return GraspQuality(TOO_WIDE, "too wide")  # a jaw would land on the object
+    near &= np.abs(s) <= half
+    pos = near & (s > 0)
+    neg = near & (s <= 0)
+    if not pos.any() or not neg.any():
+        return GraspQuality(OFF_AXIS, "off-axis")
+    ip = np.flatnonzero(pos)[np.argmax(s[pos])]
+    ineg = np.flatnonzero(neg)[np.argmin(s[neg])]
+    contacts = P[[ip, ineg]]
+    width = float(s[ip] - s[ineg])
+    mid = grasp.centre + 0.5 * (s[ip] + s[ineg]) * y
+    regrasp = Grasp(mid, grasp.rotation, width, grasp.name)
+    if width > gripper.max_width:
+        return GraspQuality(TOO_WIDE, "too wide", contacts, width=width, grasp=regrasp)
+    tree = tree or cKDTree(P)
+    normals = np.zeros((2, 3))
+    for i, (c, sign) in enumerate(zip(contacts, (1.0, -1.0))):
+        nb = tree.query_ball_point(c, normal_radius)
+        if len(nb) < min_neighbors:
+            return GraspQuality(SPARSE, "sparse", contacts, width=width, grasp=regrasp)
+        Q = P[nb] - P[nb].mean(0)
+        _, V = np.linalg.eigh(Q.T @ Q)
+        n = V[:, 0]
+        normals[i] = n if n @ y * sign >= 0 else -n
+    cos_lim = 1.0 / np.sqrt(1.0 + mu * mu)
+    if normals[0] @ y < cos_lim or -(normals[1] @ y) < cos_lim:
+        return GraspQuality(SLIP, "slip", contacts, normals, width, regrasp)
+    q = isotropy(grasp_map(contacts, normals, mid, mu=mu))
+    return GraspQuality(q, "ok", contacts, normals, width, regrasp)

@@ -1,0 +1,111 @@
+"""Grasp transfer (6.14)-(6.16), quality (6.20), orientation search (6.21), classification (6.17)-(6.19)."""
+import numpy as np
+import pytest
+
+from robointel.errors import InvalidInput
+from robointel.learning.grasp.classify import Template, classify, confusion_matrix, yaw_matrix
+from robointel.learning.grasp.cpd import AffineWarp, RigidWarp, cpd_nonrigid
+from robointel.learning.grasp.objects import primitive_object, sample_points, taught_grasps
+from robointel.learning.grasp.quality import (OFF_AXIS, SLIP, TOO_WIDE, ParallelGripper, estimate_normals,
+                                              grasp_quality)
+from robointel.learning.grasp.search import orientation_search
+from robointel.learning.grasp.transfer import Grasp, grasp_from_axis, nearest_rotation, transfer_grasp
+
+
+def test_nearest_rotation_never_reflects():
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        A = rng.normal(size=(3, 3))
+        R = nearest_rotation(A)
+        assert np.allclose(R.T @ R, np.eye(3), atol=1e-10)
+        assert np.isclose(np.linalg.det(R), 1.0)
+    R = nearest_rotation(np.diag([1.0, 1.0, -1.0]))  # a pure reflection
+    assert np.isclose(np.linalg.det(R), 1.0)
+
+
+def test_transfer_under_rigid_and_reflecting_affine_warp():
+    g = grasp_from_axis([0.1, 0.0, 0.05], [1, 0, 0], [0, 0, -1], 0.03)
+    th = 0.7
+    R = yaw_matrix(th)
+    w = RigidWarp(2.0, R, np.array([0.3, -0.1, 0.0]))
+    h = transfer_grasp(w, g)
+    assert np.allclose(h.centre, 2.0 * R @ g.centre + [0.3, -0.1, 0.0])
+    assert np.allclose(h.rotation, R @ g.rotation, atol=1e-12)
+    assert np.isclose(h.width, 0.06)
+    mirror = AffineWarp(np.diag([-1.0, 1.0, 1.0]), np.zeros(3))
+    m = transfer_grasp(mirror, g)
+    assert np.isclose(np.linalg.det(m.rotation), 1.0)
+
+
+def test_transfer_through_cpd_follows_the_surface():
+    cup_a, cup_b = primitive_object("cup", 1), primitive_object("cup", 2)
+    A, B = sample_points(cup_a, 500, 0), sample_points(cup_b, 500, 1)
+    res = cpd_nonrigid(B, A, beta=2.0, lmbda=3.0, w=0.0, method="lowrank", max_iterations=80, tolerance=1e-6)
+    g = taught_grasps(cup_a)[0]
+    h = transfer_grasp(res.warp, g)
+    r_b = 0.5 * cup_b.mesh.extents[0]
+    assert abs(np.hypot(*h.centre[:2]) - r_b) < 0.006  # still on the rim wall of the new cup
+    assert abs(h.approach @ [0, 0, -1]) > 0.95  # still from above
+
+
+def test_quality_box_and_negative_codes():
+    box = primitive_object("box", 3)
+    P = sample_points(box, 4000, 0)
+    g = taught_grasps(box)[0]
+    q = grasp_quality(P, g)
+    assert 0.0 < q.quality <= 1.0 and q.reason == "ok"
+    assert q.width == pytest.approx(box.mesh.extents[1], abs=0.004)
+    # across the long side: wider than the 48 mm stroke
+    wide = grasp_from_axis(g.centre, [1, 0, 0] if box.mesh.extents[0] > box.mesh.extents[1] else [0, 1, 0], [0, 0, -1])
+    assert grasp_quality(P, wide).quality == TOO_WIDE
+    # axis that misses the object
+    miss = Grasp(g.centre + [0, 0, 0.5], g.rotation)
+    assert grasp_quality(P, miss).quality == OFF_AXIS
+    # slanted axis through a flat face: outside the friction cone
+    slant = grasp_from_axis(g.centre, [0.0, 1.0, 1.2] if g.axis[1] > 0.5 else [1.0, 0, 1.2], [1, 0, 0] if g.axis[1] > 0.5 else [0, 1, 0])
+    assert grasp_quality(P, slant).quality in (SLIP, TOO_WIDE)
+
+
+def test_normals_unit_and_outward_on_sphere():
+    rng = np.random.default_rng(0)
+    P = rng.normal(size=(800, 3))
+    P /= np.linalg.norm(P, axis=1, keepdims=True)
+    n = estimate_normals(P, 10)
+    assert np.allclose(np.linalg.norm(n, axis=1), 1.0)
+    assert np.mean(np.sum(n * P, axis=1)) > 0.98
+
+
+def test_orientation_search_with_lrmate_ik(lrmate):
+    from robointel.learning.grasp.pipeline import lrmate_with_gripper
+    gripper = ParallelGripper()
+    robot = lrmate_with_gripper(gripper)
+    box = primitive_object("box", 3)
+    P = sample_points(box, 3000, 0) + [0.5, 0.0, 0.0]
+    g = taught_grasps(box)[0].transformed(np.r_[np.c_[np.eye(3), [0.5, 0, 0]], [[0, 0, 0, 1]]])
+    r = orientation_search(g, P, robot, gripper=gripper, table_z=0.0)
+    assert r.feasible and r.q is not None
+    assert np.allclose(robot.fk(r.q), r.grasp.pose, atol=1e-6)
+    assert not gripper.collides(r.grasp, P, table_z=0.0)
+    # far out of reach: every angle penalised, result infeasible
+    far = g.transformed(np.r_[np.c_[np.eye(3), [3.0, 0, 0]], [[0, 0, 0, 1]]])
+    assert not orientation_search(far, P + [3.0, 0, 0], robot, gripper=gripper, table_z=0.0).feasible
+
+
+def test_classify_held_out_primitives():
+    cats = ["cup", "box", "ball", "long_tool"]
+    templates = []
+    for i, c in enumerate(cats):
+        o = primitive_object(c, 100 + i)
+        templates.append(Template(o.name, c, sample_points(o, 400, i), taught_grasps(o)))
+    rng = np.random.default_rng(7)
+    true, pred = [], []
+    for i, c in enumerate(cats):
+        for k in range(2):
+            o = primitive_object(c, 200 + 10 * i + k)
+            P = sample_points(o, 400, rng) @ yaw_matrix(rng.uniform(0, 6.28)).T + [0.5, 0.1, 0]
+            true.append(c)
+            pred.append(classify(P, templates, n_points=200).category)
+    C, labels = confusion_matrix(true, pred, cats)
+    assert C.sum() == 8 and np.trace(C) >= 7
+    with pytest.raises(InvalidInput):
+        classify(np.zeros((10, 3)), [])
