@@ -87,7 +87,7 @@ def slsqp_segment(planner, start, goal, *, reference=None, tol: float = 1e-4, ma
     Xr = straight_reference(x0, xN, N) if reference is None else np.asarray(reference, float)
     P, q = planner.cost_terms(x0, xN, Xr)
     lo, up = planner._linear_bounds(x0, xN)
-    A_lin = planner.A[: planner._m_lin]
+    A_lin = planner.A[: planner._m_lin, : planner.nv]
     d_req = planner.settings.d_min + planner.settings.safety
     t_s, a_s = planner._sample_t, planner._sample_a
     S = len(t_s)

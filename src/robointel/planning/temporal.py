@@ -88,11 +88,23 @@ def spline_segment(t: np.ndarray, path: np.ndarray) -> CubicSpline:
 
 
 def limit_stretch(spline: CubicSpline, duration: float, vmax, amax, dt: float = 1e-3) -> float:
-    """Uniform time factor s >= 1 so that the spline's |qd| <= vmax and |qdd| <= amax on a dt grid."""
-    ts = np.linspace(0.0, duration, max(int(np.ceil(duration / dt)) + 1, 2))
-    v = np.max(np.abs(spline(ts, 1)) / vmax)
-    a = np.max(np.abs(spline(ts, 2)) / amax)
-    return float(max(1.0, v, np.sqrt(a)) * (1 + 1e-9))
+    """Uniform time factor s >= 1 so that the spline's |qd| <= vmax and |qdd| <= amax: accelerations
+    at the knots (exact, a cubic's acceleration is piecewise linear), velocities on a ``dt`` grid
+    plus the knots and the interior extrema of each cubic piece."""
+    knots = np.asarray(spline.x)
+    ts = np.union1d(np.linspace(0.0, duration, max(int(np.ceil(duration / dt)) + 1, 2)), knots)
+    # velocity extrema inside each piece: roots of the acceleration (linear per piece)
+    a0 = spline(knots[:-1], 2)
+    a1 = spline(knots[1:], 2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        frac = a0 / (a0 - a1)
+    inside = (frac > 0) & (frac < 1)
+    h = np.diff(knots)[:, None]
+    t_ext = (knots[:-1, None] + frac * h)[inside]
+    v = max(np.max(np.abs(spline(ts, 1)) / vmax),
+            np.max(np.abs(spline(t_ext, 1)) / vmax, axis=None, initial=0.0) if t_ext.size else 0.0)
+    amax_ratio = np.max(np.abs(spline(knots, 2)) / amax)
+    return float(max(1.0, v, np.sqrt(amax_ratio)) * (1 + 1e-7))
 
 
 def _knot_ratios(t: np.ndarray, path: np.ndarray, vmax: np.ndarray, amax: np.ndarray, sub: int = 8):

@@ -48,9 +48,12 @@ class PlannerSettings:
         substeps: extra samples on each interval between knots.
         w1, w2: weights of reference tracking and acceleration (7.1).
         Q, R: diagonal joint weights (n,) of the two terms (default ones).
-        eps: CFS stops when ||z(k+1) - z(k)||_inf <= eps (rad).
+        eps: CFS stops when ||z(k+1) - z(k)||_inf <= eps (rad) ...
+        ftol: ... or when the cost of a feasible iterate fell by less than ``ftol`` (relative).
         max_iter: CFS iteration cap.
         backtracks: step halvings when an iterate leaves the feasible set.
+        elastic: penalty (per metre) on the clearance slacks used while the reference is still in
+            collision (the straight line through an obstacle); zero slack once it is clear.
     """
 
     d_min: float = 0.05
@@ -63,8 +66,10 @@ class PlannerSettings:
     Q: np.ndarray | None = None
     R: np.ndarray | None = None
     eps: float = 1e-3
+    ftol: float = 5e-3
     max_iter: int = 30
     backtracks: int = 4
+    elastic: float = 1e2
 
     def __post_init__(self) -> None:
         for name in ("d_min", "safety", "margin", "w1", "w2", "eps"):
@@ -138,7 +143,7 @@ class TrajectoryPlanner:
             raise LimitViolation("velocity and acceleration limits must be positive", value=(self.vmax, self.amax))
         self.set_obstacles(obstacles)
         self._build()
-        self.qp = SparseQP(eps_abs=1e-5, eps_rel=1e-5)
+        self.qp = SparseQP(eps_abs=1e-5, eps_rel=1e-5, polishing=False, max_iter=4000)
         self._qp_ready = False
 
     # ------------------------------------------------------------------ set-up
@@ -177,61 +182,59 @@ class TrajectoryPlanner:
         samples += [(t, (j + 1) / (S + 1)) for t in range(N) for j in range(S)]
         self.samples = samples
         K = int(st.slots)
-        rows, cols = [], []
-        for si, (t, a) in enumerate(samples):
-            blocks = [t] if a == 0.0 else [t, t + 1]
-            blocks = [b for b in blocks if 1 <= b <= N - 1]
-            for k in range(K):
-                r = si * K + k
-                for b in blocks:
-                    for j in range(n):
-                        rows.append(r)
-                        cols.append((b - 1) * n + j)
-        ncol = len(samples) * K
-        C = sp.csc_matrix((np.ones(len(rows)), (rows, cols)), shape=(ncol, nv))
-        C.sort_indices()
-        # map (row, col) -> position in C.data for fast in-place filling
-        Ccoo = C.tocoo()
-        pos = {}
-        order = np.lexsort((Ccoo.row, Ccoo.col))  # CSC order: by column then row
-        for p, (r_, c_) in enumerate(zip(Ccoo.row[order], Ccoo.col[order])):
-            pos[(int(r_), int(c_))] = p
-        self._coll_nrows = ncol
-        self._sample_t = np.array([s[0] for s in samples])
-        self._sample_a = np.array([s[1] for s in samples])
-        # data index arrays: for sample si, slot k, block side (0: x_t, 1: x_{t+1}), joint j
-        self._pos = np.full((len(samples), K, 2, n), -1, dtype=np.int64)
-        for si, (t, a) in enumerate(samples):
-            for k in range(K):
-                for side, b in enumerate((t, t + 1)):
-                    if 1 <= b <= N - 1 and (side == 0 or a > 0):
-                        for j in range(n):
-                            self._pos[si, k, side, j] = pos[(si * K + k, (b - 1) * n + j)]
-        self.A = sp.vstack([I, self._D1_int, self._D2_int, C], format="csc")
-        self.A.sort_indices()
-        self._A_lin_nnz = sp.vstack([I, self._D1_int, self._D2_int], format="csc")
-        # the full A is [lin; C] stacked by rows: in CSC, data of each column interleaves both parts,
-        # so recompute the index of C's entries inside A.data
-        Afull = self.A.tocoo()
-        order = np.lexsort((Afull.row, Afull.col))
-        m_lin = nv + self._D1_int.shape[0] + self._D2_int.shape[0]
-        self._m_lin = m_lin
-        amap = {}
-        for p, (r_, c_) in enumerate(zip(Afull.row[order], Afull.col[order])):
-            if r_ >= m_lin:
-                amap[(int(r_ - m_lin), int(c_))] = p
-        cpos_to_apos = np.empty(C.nnz, dtype=np.int64)
-        for (r_, c_), p in pos.items():
-            cpos_to_apos[p] = amap[(r_, c_)]
-        self._pos = np.where(self._pos >= 0, cpos_to_apos[np.maximum(self._pos, 0)], -1)
-        self._A_data = self.A.data.copy()
-        self._A_data[:] = 0.0
+        nS = len(samples)
+        self._sample_t = np.array([s_[0] for s_ in samples])
+        self._sample_a = np.array([s_[1] for s_ in samples])
+        self._coll_nrows = nS * K
+        # variables z = [x_1..x_{N-1} (nv), s (nS elastic slacks, one per sample)]
+        nz = nv + nS
+        self.nz = nz
         lin = sp.vstack([I, self._D1_int, self._D2_int], format="coo")
-        ordl = {(int(r_), int(c_)): float(v) for r_, c_, v in zip(lin.row, lin.col, lin.data)}
-        for p, (r_, c_) in enumerate(zip(Afull.row[order], Afull.col[order])):
-            if r_ < m_lin:
-                self._A_data[p] = ordl[(int(r_), int(c_))]
-        self.A.data = self._A_data.copy()
+        m_lin = lin.shape[0] + nS  # + slack bound rows
+        self._m_lin = lin.shape[0]
+        rows = [lin.row, nv + self._D1_int.shape[0] + self._D2_int.shape[0] + np.arange(nS)]
+        cols = [lin.col, nv + np.arange(nS)]
+        vals = [lin.data, np.ones(nS)]
+        # collision rows: slot k of sample si touches x_t (and x_{t+1} between knots) and s_si
+        self._pos = np.full((nS, K, 2, n), -1, dtype=np.int64)
+        ids = []  # entry ids of the collision x-coefficients, in self._pos order
+        cr, cc, cv = [], [], []
+        for si, (t, a_) in enumerate(samples):
+            for k in range(K):
+                r = m_lin + si * K + k
+                for side, blk in enumerate((t, t + 1)):
+                    if 1 <= blk <= N - 1 and (side == 0 or a_ > 0):
+                        for j in range(n):
+                            cr.append(r)
+                            cc.append((blk - 1) * n + j)
+                            cv.append(0.0)
+                            ids.append((si, k, side, j))
+                cr.append(r)
+                cc.append(nv + si)
+                cv.append(1.0)
+                ids.append(None)
+        rows.append(np.array(cr, dtype=np.int64))
+        cols.append(np.array(cc, dtype=np.int64))
+        vals.append(np.array(cv))
+        R_ = np.concatenate(rows)
+        C_ = np.concatenate(cols)
+        V_ = np.concatenate(vals)
+        m = m_lin + nS * K
+        tag = sp.csc_matrix((np.arange(1, R_.size + 1, dtype=float), (R_, C_)), shape=(m, nz))
+        tag.sort_indices()
+        where = np.empty(R_.size, dtype=np.int64)
+        where[tag.data.astype(np.int64) - 1] = np.arange(R_.size)  # entry id -> position in data
+        data = np.empty(R_.size)
+        data[where] = V_
+        self.A = sp.csc_matrix((data, tag.indices.copy(), tag.indptr.copy()), shape=(m, nz))
+        self._A_data = data.copy()
+        n_before = R_.size - len(cr)
+        for e, key in enumerate(ids):
+            if key is not None:
+                self._pos[key] = where[n_before + e]
+        self._m_all_lin = m_lin
+        # cost over z: the x block, a tiny ridge on the slacks (their linear weight is set per solve)
+        self.P_z = sp.block_diag([self.P, sp.eye(nS) * 1.0], format="csc")
 
     # ------------------------------------------------------------------ pieces
     def _sample_configs(self, X: np.ndarray) -> np.ndarray:
@@ -348,20 +351,25 @@ class TrajectoryPlanner:
         best = (X.copy(), cost, dmin) if feas else None
         status, it = "max_iter", 0
         up_coll = np.full(self._coll_nrows, INF)
+        nS = len(self.samples)
+        qz = np.r_[q, np.full(nS, st.elastic)]
         for it in range(1, st.max_iter + 1):
             data, lo_c = self._collision_rows(X, D, d_req)
-            l = np.r_[lo_lin, lo_c]
-            u = np.r_[up_lin, up_coll]
+            # elastic slacks only while the reference is infeasible (Sec. 7.2: CFS from an infeasible start)
+            smax = INF if not feas else 0.0
+            l = np.r_[lo_lin, np.zeros(nS), lo_c]
+            u = np.r_[up_lin, np.full(nS, smax), up_coll]
+            z0 = np.r_[X[1:N].ravel(), np.zeros(nS)]
             if not self._qp_ready:
                 self.A.data = data
-                sol = self.qp.solve(self.P, q, self.A, l, u, x0=X[1:N].ravel())
+                sol = self.qp.solve(self.P_z, qz, self.A, l, u, x0=z0)
                 self._qp_ready = True
             else:
-                sol = self.qp.update(q=q, l=l, u=u, Ax=data, x0=X[1:N].ravel())
+                sol = self.qp.update(q=qz, l=l, u=u, Ax=data, x0=z0)
             if not sol.solved:
                 status = "qp_failed"
                 break
-            Znew = sol.x.reshape(N - 1, n)
+            Znew = sol.x[: self.nv].reshape(N - 1, n)
             Xnew = X.copy()
             beta = 1.0
             for _ in range(st.backtracks + 1):
@@ -373,6 +381,7 @@ class TrajectoryPlanner:
                     break
                 beta *= 0.5
             step = float(np.max(np.abs(Xnew - X)))
+            prev_feas = feas
             X, D, dmin = Xnew, Dn, dn
             feas = dmin >= st.d_min - 1e-9
             cost = self._cost(X, Xr)
@@ -381,7 +390,7 @@ class TrajectoryPlanner:
                 iterates.append(X.copy())
             if feas and (best is None or cost <= best[1]):
                 best = (X.copy(), cost, dmin)
-            if step <= st.eps and feas:
+            if feas and (step <= st.eps or (prev_feas and costs[-2] - cost <= st.ftol * abs(cost))):
                 status = "converged"
                 break
         if status != "converged" and best is not None:
