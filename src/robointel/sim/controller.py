@@ -100,6 +100,8 @@ class JointController:
         self.dt = float(dt)
         self.model = robot.model if model is None else model
         self._data = self.model.createData()
+        self._viscous = np.ascontiguousarray(robot.viscous, dtype=float)
+        self._coulomb = np.ascontiguousarray(robot.coulomb, dtype=float)
         self.gain_model = self.model if gain_model is None else gain_model
         self._gdata = self.gain_model.createData()
         self.effort_limit = np.where(np.isfinite(robot.effort_limit) & (robot.effort_limit > 0),
@@ -131,10 +133,10 @@ class JointController:
         self.saturated = np.zeros(self.n, dtype=bool)
 
     def feedforward_torque(self, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref: np.ndarray) -> np.ndarray:
-        """tau_ff = RNEA(q_ref, qd_ref, qdd_ref) (+ friction of qd_ref), (n,) N m."""
+        """tau_ff = RNEA(q_ref, qd_ref, qdd_ref) (+ F_v qd_ref + F_c tanh(qd_ref / 1e-3)), (n,) N m."""
         tau = np.array(pin.rnea(self.model, self._data, q_ref, qd_ref, qdd_ref))
         if self.friction_compensation:
-            tau += self.robot.viscous * qd_ref + self.robot.coulomb * np.tanh(qd_ref / 1e-3)
+            _add_friction(tau, qd_ref, self._viscous, self._coulomb)
         return tau
 
     def compute(self, q, qd, q_ref, qd_ref, qdd_ref) -> np.ndarray:
@@ -153,6 +155,13 @@ class JointController:
         self.last_tau = tau
         self.last_ff = ff
         return tau
+
+
+@njit(cache=True)
+def _add_friction(tau, qd, viscous, coulomb):
+    """tau += F_v qd + F_c tanh(qd / 1e-3) (in place)."""
+    for i in range(tau.shape[0]):
+        tau[i] += viscous[i] * qd[i] + coulomb[i] * np.tanh(qd[i] * 1e3)
 
 
 @njit(cache=True)

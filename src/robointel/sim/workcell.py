@@ -232,6 +232,8 @@ class Workcell:
             self._ft_adr = int(m.sensor_adr[m.sensor("ft_force").id])
             self._site_id = m.site(FT_SITE).id
         self._warn0 = 0
+        self._zero = np.zeros(self.n)
+        self._zero.flags.writeable = False
 
     def _root_link(self) -> str:
         """The robot's root body: the ancestor of the first joint's body that hangs on the world."""
@@ -327,14 +329,22 @@ class Workcell:
                 reference (zero velocity); nothing is stepped. Call :meth:`hold` to keep holding.
         """
         try:
-            q_ref = as_array(q_ref, "q_ref", (self.n,))
-            qd_ref = np.zeros(self.n) if qd_ref is None else as_array(qd_ref, "qd_ref", (self.n,))
-            qdd_ref = np.zeros(self.n) if qdd_ref is None else as_array(qdd_ref, "qdd_ref", (self.n,))
+            q_ref = self._vec(q_ref, "q_ref")
+            qd_ref = self._zero if qd_ref is None else self._vec(qd_ref, "qd_ref")
+            qdd_ref = self._zero if qdd_ref is None else self._vec(qdd_ref, "qdd_ref")
         except (ShapeError, NotFinite):
             self._hold = (self._hold[0], np.zeros(self.n), np.zeros(self.n))
             raise
         self._hold = (q_ref, np.zeros(self.n), np.zeros(self.n))
         return self._control(q_ref, qd_ref, qdd_ref)
+
+    def _vec(self, x, name: str) -> np.ndarray:
+        """as_array(x, name, (n,)) with a fast path for finite float64 (n,) arrays (a copy)."""
+        if type(x) is np.ndarray and x.shape == (self.n,) and x.dtype == np.float64:
+            s = float(x.sum())
+            if s - s == 0.0:  # finite sum <=> all finite (barring overflow near 1e308)
+                return x.copy()
+        return as_array(x, name, (self.n,))
 
     def _control(self, q_ref, qd_ref, qdd_ref) -> np.ndarray:
         d = self.data
