@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 import daqp
 import numpy as np
 import pinocchio as pin
+from numba import njit
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput, SafetyStop, ShapeError, SolverFailure
@@ -218,8 +219,16 @@ class GuidanceController:
         self._vmax = np.asarray(robot.velocity_limit, float) * c.velocity_scale
         self._lower = np.asarray(robot.lower, float)
         self._upper = np.asarray(robot.upper, float)
-        self._eye = np.eye(self.n)
         self._sense_cache: dict[tuple[int, bool], np.ndarray] = {}
+        n = self.n
+        K = len(self.obstacles)
+        self._H, self._f, self._lb, self._ub = np.empty((n, n)), np.empty(n), np.empty(n), np.empty(n)
+        self._A0, self._z0 = np.zeros((0, n)), np.zeros(0)
+        self._dk, self._dh, self._rows, self._G = np.empty(K), np.empty(K), np.empty(K, np.int64), np.empty((K, n))
+        self._qp_par = np.array([c.damping, c.singular_epsilon ** 2, c.singular_damping ** 2, c.limit_gain])
+        g = c.gains
+        self._lead_par = np.array([g.force_deadband, g.torque_deadband, g.translational, g.rotational,
+                                   c.max_speed, c.max_angular_speed])
         self._beta_s = float(c.softmin_beta)
         self._beta = 1.0 - np.exp(-2 * np.pi * c.filter_hz * c.dt) if c.filter_hz > 0 else 1.0
         self.reset()
@@ -227,8 +236,10 @@ class GuidanceController:
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
         """Forget the last sample and any fault."""
-        self._last = None  # last good wrench
-        self._wf = None  # filtered wrench
+        self._lastw = np.zeros(6)  # last good wrench
+        self._has_last = False
+        self._wf = np.zeros(6)  # filtered wrench
+        self._first = True
         self._hold = 0  # good samples still needed
         self._why = ""
         self.last_step: GuidanceStep | None = None
@@ -246,37 +257,11 @@ class GuidanceController:
             self._sense_cache[key] = s
         return s
 
-    def _check_wrench(self, w: np.ndarray) -> str:
-        """'' if the reading is usable, else why not."""
-        c = self.config
-        if not np.isfinite(w).all():
-            return "F/T reading is NaN or inf"
-        f = np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-        t = np.sqrt(w[3] * w[3] + w[4] * w[4] + w[5] * w[5])
-        if f > c.max_force or t > c.max_torque:
-            return f"F/T reading out of range (|f| = {f:.1f} N, |tau| = {t:.2f} N m)"
-        if self._last is not None:
-            dw = w - self._last
-            df = np.sqrt(dw[0] * dw[0] + dw[1] * dw[1] + dw[2] * dw[2])
-            dt_ = np.sqrt(dw[3] * dw[3] + dw[4] * dw[4] + dw[5] * dw[5])
-            if df > c.spike_force or dt_ > c.spike_torque:
-                return f"F/T spike ({df:.1f} N / {dt_:.2f} N m in one sample)"
-        return ""
-
-    def lead_twist(self, wrench: np.ndarray) -> np.ndarray:
-        """V_lead = C F_E (3.11) with deadbands and the speed limits, (6,)."""
-        c = self.config
-        g = c.gains
+    def lead_twist(self, wrench) -> np.ndarray:
+        """V_lead = C F_E (3.11) of one (unfiltered) wrench, with deadbands and speed limits, (6,)."""
+        w = as_array(wrench, "wrench", (6,))
         V = np.empty(6)
-        for sl, band, gain, vmax in ((slice(0, 3), g.force_deadband, g.translational, c.max_speed),
-                                     (slice(3, 6), g.torque_deadband, g.rotational, c.max_angular_speed)):
-            x = wrench[sl]
-            nx = np.sqrt(x @ x)
-            if nx <= band:
-                V[sl] = 0.0
-            else:
-                s = gain * (nx - band)
-                V[sl] = x * (min(s, vmax) / nx)
+        _filter_lead(w, np.zeros(6), 1.0, True, self._lead_par, V)
         return V
 
     def tcp_jacobian(self, q: np.ndarray) -> np.ndarray:
@@ -290,12 +275,6 @@ class GuidanceController:
             J = J.copy()
             J[:3] += np.cross(J[3:].T, r).T  # v_tcp = v + w x r
         return J
-
-    def _bounds(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        k = self.config.limit_gain
-        ub = np.minimum(self._vmax, np.maximum(0.0, k * (self._upper - q)))
-        lb = np.maximum(-self._vmax, np.minimum(0.0, k * (self._lower - q)))
-        return lb, ub
 
     def _solve(self, H, f, A, lb, ub, bl, bu, equality: bool) -> np.ndarray:
         k = A.shape[0]
@@ -324,35 +303,30 @@ class GuidanceController:
             raise ShapeError(f"wrench must have shape (6,), got {w.shape}", value=w)
         if not np.isfinite(q).all():
             return self._fault("joint reading is NaN or inf", q, w, bad_q=True)
-        why = self._check_wrench(w)
-        if why:
+        code, a, b = _check_wrench(w, self._lastw, self._has_last, c.max_force, c.max_torque,
+                                   c.spike_force, c.spike_torque)
+        if code:
+            why = ("F/T reading is NaN or inf" if code == 1 else
+                   f"F/T reading out of range (|f| = {a:.1f} N, |tau| = {b:.2f} N m)" if code == 2 else
+                   f"F/T spike ({a:.1f} N / {b:.2f} N m in one sample)")
             self._hold = c.recover_samples + 1
             self._why = why
-            self._wf = None  # restart the filter from the first good sample
+            self._first = True  # restart the filter from the first good sample
             return self._fault(why, q, w)
-        self._last = w.copy()
+        self._lastw[:] = w
+        self._has_last = True
         if self._hold > 0:
             self._hold -= 1
             if self._hold > 0:
                 return self._fault(f"recovering after: {self._why}", q, w)
-        if self._wf is None:
-            self._wf = w.copy()
-        else:
-            self._wf += self._beta * (w - self._wf)
-        V = self.lead_twist(self._wf)
+        V = np.empty(6)
+        _filter_lead(w, self._wf, self._beta, self._first, self._lead_par, V)
+        self._first = False
         J = self.tcp_jacobian(q)
-        JtW = J.T * self._W
-        H0 = JtW @ J
-        smin2 = np.linalg.eigvalsh(H0)[0]
-        eps2 = c.singular_epsilon ** 2
-        mu = c.damping + (c.singular_damping ** 2 * (1.0 - max(smin2, 0.0) / eps2) if smin2 < eps2 else 0.0)
-        H = H0 + mu * self._eye
-        f = -(JtW @ V)
-        lb, ub = self._bounds(q)
-        # free command: least squares within the joint bounds
-        qd_free = -np.linalg.solve(H, f)
-        if np.any(qd_free > ub) or np.any(qd_free < lb):
-            qd_free = self._solve(H, f, np.zeros((0, n)), lb, ub, np.zeros(0), np.zeros(0), False)
+        H, f, lb, ub, qd_free = self._H, self._f, self._lb, self._ub, np.empty(n)
+        inside = _qp_terms(J, self._W, V, self._qp_par, q, self._lower, self._upper, self._vmax, H, f, lb, ub, qd_free)
+        if not inside:  # free command: least squares within the joint bounds
+            qd_free = self._solve(H, f, self._A0, lb, ub, self._z0, self._z0, False)
         # distances of every movable sphere to every obstacle, closest sphere per obstacle
         K = len(self.obstacles)
         if K == 0:
@@ -360,20 +334,8 @@ class GuidanceController:
             dmin, kmin, u, rate, lam, nact = np.inf, -1, np.zeros(3), 0.0, 0.0, 0
         else:
             sd = sphere_distances(self.robot, q, self.obstacles, self.spheres, movable_only=True)
-            D = sd.d
-            rows = np.argmin(D, axis=0)
-            cols = np.arange(K)
-            dhard = D[rows, cols]
-            if self._beta_s > 0:
-                # one row per obstacle on the smooth minimum over control points (log-sum-exp):
-                # d_soft <= min_i d_i, and its gradient is continuous when the closest point changes
-                E = np.exp(-self._beta_s * (D - dhard))
-                S = E.sum(axis=0)
-                dk = dhard - np.log(S) / self._beta_s
-                G = np.einsum("mk,mkn->kn", E / S, sd.grad)
-            else:
-                dk = dhard
-                G = sd.grad[rows, cols]  # (K, n) rows u_k^T J_rep,k
+            dk, dhard, rows, G = self._dk, self._dh, self._rows, self._G
+            _soft_min(sd.d, sd.grad, self._beta_s, dk, dhard, rows, G)
             kmin = int(np.argmin(dk))
             dmin = float(dhard.min())
             u = sd.normals[rows[kmin], kmin]
@@ -392,7 +354,7 @@ class GuidanceController:
                     else:
                         z = np.zeros(nact)
                         qd_av = self._solve(H, f, A, lb, ub, z, z if eq else np.full(nact, _INF), eq)
-                    self.last_qp = (H, f, A, lb, ub, qd_av)
+                    self.last_qp = (H.copy(), f.copy(), A, lb.copy(), ub.copy(), qd_av)
                     qd = lam * qd_av + (1.0 - lam) * qd_free
             else:
                 lam = float(blend_weight(dk[kmin], c.d0, c.alpha)) if nact else 0.0
@@ -448,6 +410,116 @@ class GuidanceController:
             elif (qd[i] > 0 and ub[i] <= 0) or (qd[i] < 0 and lb[i] >= 0):
                 s = 0.0
         return qd * s
+
+
+@njit(cache=True)
+def _check_wrench(w, last, has_last, max_f, max_t, spike_f, spike_t):  # pragma: no cover - compiled
+    """(code, a, b): 0 usable; 1 NaN/inf; 2 out of range (|f|, |tau|); 3 spike (|df|, |dtau|)."""
+    for i in range(6):
+        if not np.isfinite(w[i]):
+            return 1, 0.0, 0.0
+    f = np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    t = np.sqrt(w[3] * w[3] + w[4] * w[4] + w[5] * w[5])
+    if f > max_f or t > max_t:
+        return 2, f, t
+    if has_last:
+        a = w[0] - last[0]
+        b = w[1] - last[1]
+        c = w[2] - last[2]
+        df = np.sqrt(a * a + b * b + c * c)
+        a = w[3] - last[3]
+        b = w[4] - last[4]
+        c = w[5] - last[5]
+        dt = np.sqrt(a * a + b * b + c * c)
+        if df > spike_f or dt > spike_t:
+            return 3, df, dt
+    return 0, 0.0, 0.0
+
+
+@njit(cache=True)
+def _filter_lead(w, wf, beta, first, par, V):  # pragma: no cover - compiled
+    """Low-pass the wrench into wf (in place) and write V = C F (3.11) with deadbands and speed
+    limits. par = [band_f, band_t, K_d, K_r, v_max, w_max]."""
+    for i in range(6):
+        wf[i] = w[i] if first else wf[i] + beta * (w[i] - wf[i])
+    for o in (0, 3):
+        band, gain, vmax = (par[0], par[2], par[4]) if o == 0 else (par[1], par[3], par[5])
+        nx = np.sqrt(wf[o] * wf[o] + wf[o + 1] * wf[o + 1] + wf[o + 2] * wf[o + 2])
+        if nx <= band:
+            V[o] = V[o + 1] = V[o + 2] = 0.0
+        else:
+            sc = min(gain * (nx - band), vmax) / nx
+            V[o] = wf[o] * sc
+            V[o + 1] = wf[o + 1] * sc
+            V[o + 2] = wf[o + 2] * sc
+
+
+@njit(cache=True)
+def _qp_terms(J, W, V, par, q, lower, upper, vmax, H, f, lb, ub, x):  # pragma: no cover - compiled
+    """Cost of (4.11): H = J^T W J + mu I (mu grows near singularities), f = -J^T W V; joint bounds
+    containing 0; x = the unconstrained minimiser. Returns whether x is within the bounds.
+    par = [mu_0, epsilon^2, lambda_max^2, k_limit]."""
+    n = J.shape[1]
+    for i in range(n):
+        s = 0.0
+        for r in range(6):
+            s -= J[r, i] * W[r] * V[r]
+        f[i] = s
+        for j in range(i, n):
+            s = 0.0
+            for r in range(6):
+                s += J[r, i] * W[r] * J[r, j]
+            H[i, j] = s
+            H[j, i] = s
+    smin2 = max(np.linalg.eigvalsh(H)[0], 0.0)
+    mu = par[0]
+    if smin2 < par[1]:
+        mu += par[2] * (1.0 - smin2 / par[1])
+    for i in range(n):
+        H[i, i] += mu
+    x[:] = np.linalg.solve(H, -f)
+    inside = True
+    k = par[3]
+    for i in range(n):
+        u = min(vmax[i], max(0.0, k * (upper[i] - q[i])))
+        l = max(-vmax[i], min(0.0, k * (lower[i] - q[i])))
+        ub[i] = u
+        lb[i] = l
+        if x[i] > u or x[i] < l:
+            inside = False
+    return inside
+
+
+@njit(cache=True)
+def _soft_min(D, G3, beta, dk, dh, rows, G):  # pragma: no cover - compiled
+    """Per obstacle k: hard minimum dh[k] over control points (row rows[k]), the smooth minimum
+    dk[k] = dh - log(sum exp(-beta (d - dh))) / beta and its gradient G[k] (softmax-weighted rows
+    of G3 (m, K, n)); beta = 0 takes the hard minimum's row."""
+    m, K = D.shape
+    n = G3.shape[2]
+    for k in range(K):
+        i0 = 0
+        for i in range(1, m):
+            if D[i, k] < D[i0, k]:
+                i0 = i
+        rows[k] = i0
+        dh[k] = D[i0, k]
+        if beta <= 0.0:
+            dk[k] = dh[k]
+            for j in range(n):
+                G[k, j] = G3[i0, k, j]
+            continue
+        S = 0.0
+        for j in range(n):
+            G[k, j] = 0.0
+        for i in range(m):
+            e = np.exp(-beta * (D[i, k] - dh[k]))
+            S += e
+            for j in range(n):
+                G[k, j] += e * G3[i, k, j]
+        for j in range(n):
+            G[k, j] /= S
+        dk[k] = dh[k] - np.log(S) / beta
 
 
 def _dls(J: np.ndarray, lam: float) -> np.ndarray:
