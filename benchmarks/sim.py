@@ -81,6 +81,14 @@ def main() -> None:
         log = wc.run_trajectory(t, q, qd, qdd)
         walls.append(time.perf_counter() - w)
     rtf = log.duration / float(np.median(walls))
+    # the same trajectory without the model feed-forward (PID only) and with an unmodelled payload
+    pid_only = Workcell(robot)
+    pid_only.controller.feedforward = False
+    log_pid = pid_only.run_trajectory(t, q, qd, qdd, record_ft=False)
+    from robointel.sim import Payload
+
+    loaded = Workcell(robot, payload=Payload(2.0, (0.08, 0.0, 0.0)), compensate_payload=False)
+    log_pl = loaded.run_trajectory(t, q, qd, qdd, record_ft=False)
     wc.reset(q0)
     ours_track = median_us(lambda: wc.track(q0))
 
@@ -115,6 +123,10 @@ def main() -> None:
         "tracking_rms_rad": log.rms_error.tolist(),
         "tracking_max_rad": log.max_error.tolist(),
         "tracking_tcp_max_m": float(log.tcp_error(robot).max()),
+        "tracking_rms_pid_only_rad": log_pid.rms_error.tolist(),
+        "tracking_tcp_max_pid_only_m": float(log_pid.tcp_error(robot).max()),
+        "tracking_rms_unmodelled_2kg_payload_rad": log_pl.rms_error.tolist(),
+        "tracking_tcp_max_unmodelled_2kg_payload_m": float(log_pl.tcp_error(robot).max()),
         "flexible_step_us": flex_us,
         "pinocchio_vs_mujoco": model_agreement(robot),
     }
@@ -126,6 +138,8 @@ def main() -> None:
     print(f"bare mj_step: {bare:.2f} us; real-time factor run_trajectory {rtf:.1f}x, track {1e3 / ours_track:.1f}x")
     print(f"tracking RMS (rad) {np.array2string(log.rms_error, precision=2)}; max TCP error "
           f"{out['tracking_tcp_max_m'] * 1e6:.2f} um")
+    print(f"PID only: max TCP error {out['tracking_tcp_max_pid_only_m'] * 1e3:.2f} mm; unmodelled 2 kg payload: "
+          f"{out['tracking_tcp_max_unmodelled_2kg_payload_m'] * 1e3:.2f} mm")
     print(f"flexible-joint step {flex_us:.1f} us; Pinocchio vs MuJoCo {out['pinocchio_vs_mujoco']}")
 
 

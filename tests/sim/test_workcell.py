@@ -115,7 +115,8 @@ def test_obstacles_are_geoms_and_motion_into_them_makes_contacts(lrmate):
     t, q, qd, qdd = smooth_trajectory(np.array([-0.8, 0.3, 0.0, 0.0, -0.3, 0.0]),
                                       np.array([0.8, 0.3, 0.0, 0.0, -0.3, 0.0]), T=1.5, n=151)
     mid = lrmate.fk(q[75])[:3, 3]
-    obstacles = [Sphere(mid, 0.05, name="ball"), Box(np.array([0.3, -0.5, 0.2]), np.array([0.1, 0.1, 0.4]), name="post")]
+    obstacles = [Sphere(mid, 0.05, name="ball"),
+                 Box(np.array([0.3, -0.5, 0.2]), np.array([0.1, 0.1, 0.4]), name="post")]
     wc = Workcell(lrmate, obstacles=obstacles)
     assert wc.obstacle_names == ["ball", "post"]
     assert wc.model.geom("obstacle/ball").id >= 0 and wc.model.geom("obstacle/post").id >= 0

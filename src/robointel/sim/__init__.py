@@ -9,10 +9,11 @@ Public API:
 * :class:`FlexibleJointModel`, :class:`FlexibleJointParams` - the flexible-joint model (2.1)-(2.2).
 * :func:`build_spec`, :func:`build_model` - the MuJoCo model from the robot's own URDF.
 """
-from robointel.sim.flexible import FlexibleJointModel, FlexibleJointParams
 from robointel.sim.controller import JointController, PIDGains, model_with_payload
+from robointel.sim.flexible import FlexibleJointModel, FlexibleJointParams
 from robointel.sim.mjcf import TABLE_HEIGHT, Payload, SimObject, build_model, build_spec
 from robointel.sim.workcell import CONTROL_DT, Contact, FTSensor, TrackingLog, Workcell
 
 __all__ = ["Workcell", "TrackingLog", "Contact", "FTSensor", "Payload", "SimObject", "JointController",
-           "PIDGains", "model_with_payload", "FlexibleJointModel", "FlexibleJointParams", "build_spec", "build_model", "TABLE_HEIGHT", "CONTROL_DT"]
+           "PIDGains", "model_with_payload", "FlexibleJointModel", "FlexibleJointParams", "build_spec",
+           "build_model", "TABLE_HEIGHT", "CONTROL_DT"]

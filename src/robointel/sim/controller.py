@@ -142,7 +142,10 @@ class JointController:
     def compute(self, q, qd, q_ref, qd_ref, qdd_ref) -> np.ndarray:
         """One control period: the saturated joint torques (n,) N m. Inputs are (n,) arrays that
         the caller has validated (finite, right shape)."""
-        ff = self.feedforward_torque(q_ref, qd_ref, qdd_ref) if self.feedforward else np.zeros(self.n)
+        if self.feedforward:
+            ff = np.array(pin.rnea(self.model, self._data, q_ref, qd_ref, qdd_ref))
+        else:
+            ff = np.zeros(self.n)
         g = self.gains
         q = np.ascontiguousarray(q, dtype=float)
         if self.scheduled:
@@ -150,6 +153,7 @@ class JointController:
             _schedule(Minv, self.omega, g.kp, g.ki, g.kd)
         tau = np.empty(self.n)
         _pid(q, np.ascontiguousarray(qd, dtype=float), q_ref, qd_ref, ff,
+             self._viscous, self._coulomb, self.feedforward and self.friction_compensation,
              g.kp, g.ki, g.kd, g.i_limit, self.effort_limit, self.dt, self.integral, self.saturated, self.last_tau,
              tau)
         self.last_tau = tau
@@ -176,10 +180,14 @@ def _schedule(Minv, w, kp, ki, kd):
 
 
 @njit(cache=True)
-def _pid(q, qd, q_ref, qd_ref, ff, kp, ki, kd, i_limit, effort, dt, integral, saturated, last_tau, out):
-    """PID + feed-forward; ``integral`` is the integral torque (clamped to +-i_limit), not
-    integrated while the joint is saturated in the direction that grows its error."""
+def _pid(q, qd, q_ref, qd_ref, ff, viscous, coulomb, friction, kp, ki, kd, i_limit, effort, dt, integral,
+         saturated, last_tau, out):
+    """PID + feed-forward (``ff`` gets the friction compensation added in place when ``friction``);
+    ``integral`` is the integral torque (clamped to +-i_limit), not integrated while the joint is
+    saturated in the direction that grows its error."""
     for i in range(q.shape[0]):
+        if friction:
+            ff[i] += viscous[i] * qd_ref[i] + coulomb[i] * np.tanh(qd_ref[i] * 1e3)
         e = q_ref[i] - q[i]
         if not (saturated[i] and ((e > 0 and last_tau[i] > 0) or (e < 0 and last_tau[i] < 0))):
             integral[i] += ki[i] * e * dt
