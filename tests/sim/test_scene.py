@@ -123,3 +123,53 @@ def test_render_png_or_clear_error(lrmate, tmp_path):
     img = wc.render(tmp_path / "cell.png", width=160, height=120)
     assert img.shape == (120, 160, 3) and img.std() > 10
     assert (tmp_path / "cell.png").stat().st_size > 1000
+
+
+def test_tool_contact_force_is_felt_by_the_sensor(lrmate):
+    peg = Payload(0.5, (0.06, 0, 0), shape=Cylinder(np.zeros(3), np.array([0.12, 0, 0]), 0.01), collide=True)
+    wc = Workcell(lrmate, payload=peg)
+    down = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0.0]])  # flange x axis pointing down
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = down, [0.5, 0.0, 0.13]  # peg tip 1 cm above the table
+    q = lrmate.ik(T, q_ref=np.array([0, 0.5, 0, 0, -1.0, 0]))[0]
+    T[2, 3] = 0.10  # command the tip 2 cm into the table
+    q_press = lrmate.ik(T, q_ref=q)[0]
+    wc.reset(q)
+    for _ in range(800):
+        wc.track(q_press)
+    cs = wc.contacts()
+    assert cs and all(c.kind == "table" and c.robot_geom == "payload" and c.robot_body == "tool" for c in cs)
+    f_contact = sum(c.force for c in cs)
+    assert f_contact[2] > 50  # the table pushes the peg up
+    # quasi-static: the sensor feels the contact force plus the peg's weight (world axes)
+    w = wc.ft_reading(frame="world")
+    np.testing.assert_allclose(w[:3], f_contact + [0, 0, -0.5 * 9.81], rtol=0.02, atol=0.5)
+
+
+def test_instability_stops_safely(lrmate):
+    wc = Workcell(lrmate)
+    q = np.array([0.0, 0.6, -0.3, 0.0, -0.3, 0.0])
+    wc.reset(q)
+    wc.hold(0.1)
+    t = wc.time
+    wc.apply_wrench([1e30, 0, 0])  # absurd: MuJoCo diverges
+    with pytest.raises(RobointelError, match="unstable"):
+        wc.hold(0.01)
+    np.testing.assert_allclose(wc.q, q, atol=1e-6)  # put back where it was, not at MuJoCo's qpos0
+    assert np.all(wc.qd == 0) and wc.time == pytest.approx(t, abs=0.002)
+    wc.hold(0.2)  # and it holds
+    np.testing.assert_allclose(wc.q, q, atol=1e-5)
+
+
+def test_armature_enters_mujoco_and_the_controller(lrmate):
+    arm = np.array([0.5, 0.5, 0.2, 0.02, 0.02, 0.01])
+    wc = Workcell(lrmate, armature=arm, table=False)
+    q = np.array([0.1, 0.4, -0.2, 0.3, -0.5, 0.2])
+    wc.reset(q)
+    M = np.zeros((6, 6))
+    mujoco.mj_fullM(wc.model, wc.data, M)
+    np.testing.assert_allclose(M, lrmate.mass_matrix(q) + np.diag(arm), atol=1e-12)
+    t = np.linspace(0, 1, 101)
+    s = 0.5 - 0.5 * np.cos(np.pi * t)
+    log = wc.run_trajectory(t, q + np.outer(s, [0.3, 0.2, 0.2, 0.5, 0.5, 0.5]))
+    assert log.max_error.max() < 5e-4

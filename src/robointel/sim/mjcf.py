@@ -58,7 +58,10 @@ class Payload:
         inertia: 3x3 rotational inertia about the CoM in the flange frame (kg m^2); default: a
             solid sphere of radius ``radius``.
         radius: radius (m) of the sphere geom drawn for the payload (and of the default inertia).
-        collide: whether the payload geom takes part in contacts.
+        collide: whether the payload geom takes part in contacts (contact forces on it are felt by
+            the F/T sensor, e.g. a peg in a hole).
+        shape: optional ``robointel.geometry`` Sphere/Capsule/Cylinder/Box in the flange frame
+            used as the payload's geom instead of the sphere (its mass is still ``mass`` at ``com``).
     """
 
     mass: float
@@ -66,6 +69,7 @@ class Payload:
     inertia: Any = None
     radius: float = 0.03
     collide: bool = False
+    shape: Any = None
 
     def checked(self) -> tuple[float, np.ndarray, np.ndarray]:
         m = float(self.mass)
@@ -120,7 +124,8 @@ def _frame_z_to(axis: np.ndarray) -> np.ndarray:
 
 
 def _kind(shape: Any) -> str:
-    return type(shape).__name__.lower()
+    t = getattr(type(shape), "type", None)
+    return t if isinstance(t, str) else type(shape).__name__.lower()
 
 
 def shape_geoms(shape: Any, *, max_points: int = 2000) -> tuple[np.ndarray, list[dict]]:
@@ -329,9 +334,20 @@ def build_spec(robot, *, table: bool = True, obstacles: Sequence[Any] = (), obje
         tool.ipos = com
         tool.fullinertia = [inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2]]
         tool.explicitinertial = True
-        g = tool.add_geom(name="payload", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[float(payload.radius), 0, 0],
-                          pos=com, rgba=[0.3, 0.3, 0.8, 1.0], mass=0.0)
-        g.contype, g.conaffinity = (ROBOT_CONTYPE, 3 if self_collision else 2) if payload.collide else (0, 0)
+        if payload.shape is None:
+            geoms = [dict(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[float(payload.radius), 0, 0], pos=com,
+                          quat=np.array([1.0, 0, 0, 0]))]
+        else:
+            if _kind(payload.shape) not in ("sphere", "capsule", "cylinder", "box"):
+                raise InvalidInput("payload.shape must be a Sphere, Capsule, Cylinder or Box", value=payload.shape)
+            pos, geoms = shape_geoms(payload.shape)
+            for g in geoms:
+                g["pos"] = g["pos"] + pos
+        for g in geoms:
+            geom = tool.add_geom(name="payload", type=g["type"], size=g["size"], pos=g["pos"], quat=g["quat"],
+                                 rgba=[0.3, 0.3, 0.8, 1.0], mass=0.0)
+            geom.contype, geom.conaffinity = ((ROBOT_CONTYPE, 3 if self_collision else 2) if payload.collide
+                                              else (0, 0))
     if ft_sensor:
         tool.add_site(name=FT_SITE, size=[0.01, 0, 0], rgba=[1, 0, 0, 1])
         spec.add_sensor(name="ft_force", type=mujoco.mjtSensor.mjSENS_FORCE, objtype=mujoco.mjtObj.mjOBJ_SITE,

@@ -56,8 +56,9 @@ class Contact:
 
     ``distance`` is MuJoCo's signed contact distance (m, negative = penetration); ``position``
     (3,) the contact point and ``normal`` (3,) the unit normal pointing from ``robot_geom`` toward
-    ``other_geom``, both in the world frame. ``kind`` is "obstacle", "table", "floor", "object",
-    "self" (robot-robot) or "world".
+    ``other_geom``, both in the world frame. ``force`` (3,) N is the contact force the other geom
+    exerts on the robot geom (world frame; normal + friction). ``kind`` is "obstacle", "table",
+    "floor", "object", "self" (robot-robot) or "world".
     """
 
     robot_geom: str
@@ -68,6 +69,7 @@ class Contact:
     distance: float
     position: np.ndarray
     normal: np.ndarray
+    force: np.ndarray
 
 
 @dataclass
@@ -272,6 +274,7 @@ class Workcell:
         self._wrench = None
         self.data.xfrc_applied[:] = 0
         self._hold = (q.copy(), np.zeros(self.n), np.zeros(self.n))
+        self._q_safe, self._t_safe = q.copy(), 0.0
         self._warn0 = self._bad_count()
 
     @property
@@ -304,9 +307,10 @@ class Workcell:
 
         Raises:
             ShapeError, NotFinite: bad ``tau`` (nothing is applied, the state is unchanged).
-            SafetyStop: the simulation became unstable (MuJoCo reset the state).
+            SafetyStop: the simulation became unstable; the robot is put back at rest where it was.
         """
         tau = as_array(tau, "tau", (self.n,))
+        self._q_safe, self._t_safe = self.data.qpos[self._qadr].copy(), self.data.time
         self._physics_step(tau)
 
     def _physics_step(self, tau: np.ndarray, check: bool = True) -> None:
@@ -316,9 +320,24 @@ class Workcell:
             self._apply_wrench_now()
         mujoco.mj_step(self.model, d)
         if check and self._bad_count() != self._warn0:
-            self._warn0 = self._bad_count()
-            raise SafetyStop("MuJoCo reported an unstable simulation (bad qacc) and reset the state; "
-                             "lower the gains/torques or the timestep")
+            self._safe_stop()
+
+    def _safe_stop(self) -> None:
+        """MuJoCo diverged and reset its state: put the robot back where it last was, at rest,
+        holding there (objects stay where MuJoCo's reset put them), and raise SafetyStop."""
+        d = self.data
+        self._warn0 = self._bad_count()
+        self._wrench = None
+        d.xfrc_applied[:] = 0
+        d.qpos[self._qadr] = self._q_safe
+        d.qvel[:] = 0
+        d.time = self._t_safe
+        mujoco.mj_forward(self.model, d)
+        self.controller.reset()
+        self._hold = (self._q_safe.copy(), np.zeros(self.n), np.zeros(self.n))
+        raise SafetyStop("the simulation became unstable (MuJoCo: bad qacc); the robot was put back at rest where "
+                         "it last was, the external wrench cleared, and it holds there. Lower the torques, wrenches "
+                         "or the timestep", value=self._q_safe.copy())
 
     def track(self, q_ref, qd_ref=None, qdd_ref=None) -> np.ndarray:
         """One 1 kHz control period tracking (q_ref, qd_ref, qdd_ref) (each (n,); velocities and
@@ -348,7 +367,9 @@ class Workcell:
 
     def _control(self, q_ref, qd_ref, qdd_ref) -> np.ndarray:
         d = self.data
-        tau = self.controller.compute(d.qpos[self._qadr], d.qvel[self._vadr], q_ref, qd_ref, qdd_ref)
+        q = d.qpos[self._qadr].copy()
+        self._q_safe, self._t_safe = q, d.time
+        tau = self.controller.compute(q, d.qvel[self._vadr], q_ref, qd_ref, qdd_ref)
         for k in range(self.substeps):
             self._physics_step(tau, check=k == self.substeps - 1)
         return tau
@@ -560,18 +581,24 @@ class Workcell:
         """Current contacts with at least one robot geom (the robot geom first)."""
         out = []
         d = self.data
-        for c in d.contact[: d.ncon] if d.ncon else []:
+        f6 = np.zeros(6)
+        for i in range(d.ncon):
+            c = d.contact[i]
             g1, g2 = int(c.geom1), int(c.geom2)
             r1, r2 = self._geom_robot[g1], self._geom_robot[g2]
             if not (r1 or r2):
                 continue
             normal = np.array(c.frame[:3])
+            # mj_contactForce: force of geom1 on geom2 in the contact frame (rows of c.frame)
+            mujoco.mj_contactForce(self.model, d, i, f6)
+            f_on_2 = np.asarray(c.frame).reshape(3, 3).T @ f6[:3]
+            force = -f_on_2
             if not r1:
-                g1, g2, normal = g2, g1, -normal
+                g1, g2, normal, force = g2, g1, -normal, f_on_2
             out.append(Contact(self._geom_names[g1], self._geom_names[g2],
                                self._body_names[self.model.geom_bodyid[g1]],
                                self._body_names[self.model.geom_bodyid[g2]], self._contact_kind(g2),
-                               float(c.dist), np.array(c.pos), normal))
+                               float(c.dist), np.array(c.pos), normal, force))
         return out
 
     def _environment_contact_count(self) -> int:
