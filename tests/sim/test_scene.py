@@ -173,3 +173,35 @@ def test_armature_enters_mujoco_and_the_controller(lrmate):
     s = 0.5 - 0.5 * np.cos(np.pi * t)
     log = wc.run_trajectory(t, q + np.outer(s, [0.3, 0.2, 0.2, 0.5, 0.5, 0.5]))
     assert log.max_error.max() < 5e-4
+
+
+def test_grasp_carries_an_object_and_release_drops_it(lrmate):
+    cube = SimObject("cube", Box(np.array([0.5, 0.0, 0.025]), np.array([0.05, 0.05, 0.05])), 0.4)
+    wc = Workcell(lrmate, objects=[cube])
+    down = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0.0]])
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = down, [0.5, 0.0, 0.06]  # flange just above the cube
+    q = lrmate.ik(T, q_ref=np.array([0, 0.5, 0, 0, -1.0, 0]))[0]
+    wc.reset(q)
+    wc.hold(0.3)
+    w0 = wc.ft_reading(frame="world")
+    wc.grasp("cube")
+    assert wc.grasped() == ["cube"]
+    rel0 = np.linalg.inv(wc.body_pose("tool")) @ wc.body_pose("cube")
+    offset = wc.body_pose("cube")[:3, 3] - wc.body_pose("tool")[:3, 3]
+    T[:3, 3] = [0.4, 0.2, 0.3]
+    q1 = lrmate.ik(T, q_ref=q)[0]
+    tt = np.linspace(0, 1.5, 151)
+    s = 0.5 - 0.5 * np.cos(np.pi * tt / 1.5)
+    wc.run_trajectory(tt, q + np.outer(s, q1 - q), reset=False)
+    wc.hold(0.5)
+    rel = np.linalg.inv(wc.body_pose("tool")) @ wc.body_pose("cube")
+    np.testing.assert_allclose(rel[:3, 3], rel0[:3, 3], atol=1e-3)
+    np.testing.assert_allclose(wc.body_pose("cube")[:3, 3], np.array([0.4, 0.2, 0.3]) + offset, atol=2e-3)
+    dw = wc.ft_reading(frame="world") - w0
+    np.testing.assert_allclose(dw[:3], [0, 0, -0.4 * 9.81], atol=0.02)
+    wc.release("cube")
+    wc.hold(1.0)
+    assert wc.grasped() == [] and wc.body_pose("cube")[2, 3] == pytest.approx(0.025, abs=2e-3)
+    with pytest.raises(InvalidInput):
+        wc.grasp("nothing")

@@ -399,6 +399,10 @@ def build_spec(robot, *, table: bool = True, obstacles: Sequence[Any] = (), obje
             raise InvalidInput(f"duplicate object name {obj.name!r}", value=obj.name)
         onames.append(obj.name)
         _add_object(spec, obj)
+        # an inactive weld tool -> object, switched on by Workcell.grasp (relative pose set then)
+        spec.add_equality(name=OBJECT_PREFIX + obj.name, type=mujoco.mjtEq.mjEQ_WELD, objtype=mujoco.mjtObj.mjOBJ_BODY,
+                          name1=TOOL_BODY, name2=OBJECT_PREFIX + obj.name, active=False,
+                          solref=[4.0 * float(timestep), 1.0], solimp=[0.99, 0.999, 0.001, 0.5, 2.0])
     return spec, {"obstacles": names, "objects": onames, "flange_body": flange_body}
 
 

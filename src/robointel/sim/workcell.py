@@ -628,6 +628,34 @@ class Workcell:
                 best, pair = dd, (self._geom_names[rg[i]], self._geom_names[og[j]])
         return best, pair[0], pair[1]
 
+    def grasp(self, name: str) -> None:
+        """Rigidly attach object ``name`` to the tool where it is now (a MuJoCo weld; an idealised
+        grasp). Its mass is then carried by the arm and felt by the F/T sensor; the controller's
+        feed-forward does not know it (the integral takes it up)."""
+        eq = self._object_eq(name)
+        m, d = self.model, self.data
+        Tt, To = self.body_pose(TOOL_BODY), self.body_pose(name)
+        Tr = np.linalg.inv(Tt) @ To  # object pose in the tool frame
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, np.ascontiguousarray(Tr[:3, :3]).reshape(9))
+        m.eq_data[eq, 0:3] = 0.0
+        m.eq_data[eq, 3:6] = Tr[:3, 3]
+        m.eq_data[eq, 6:10] = quat
+        d.eq_active[eq] = 1
+
+    def release(self, name: str) -> None:
+        """Detach an object attached by :meth:`grasp`."""
+        self.data.eq_active[self._object_eq(name)] = 0
+
+    def grasped(self) -> list[str]:
+        """Names of the objects currently attached to the tool."""
+        return [n for n in self.info["objects"] if self.data.eq_active[self._object_eq(n)]]
+
+    def _object_eq(self, name: str) -> int:
+        if name not in self.info["objects"]:
+            raise InvalidInput(f"no object {name!r}; objects: {self.info['objects']}", value=name)
+        return int(mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_EQUALITY, OBJECT_PREFIX + name))
+
     # ------------------------------------------------------------------ scene edits
     @property
     def obstacle_names(self) -> list[str]:
@@ -667,7 +695,8 @@ class Workcell:
     def _save_state(self) -> dict:
         d = self.data
         return {"qpos": d.qpos.copy(), "qvel": d.qvel.copy(), "time": d.time, "mocap_pos": d.mocap_pos.copy(),
-                "mocap_quat": d.mocap_quat.copy(), "ctrl": d.ctrl.copy()}
+                "mocap_quat": d.mocap_quat.copy(), "ctrl": d.ctrl.copy(), "eq_active": d.eq_active.copy(),
+                "eq_data": self.model.eq_data.copy()}
 
     def _restore_state(self, s: dict) -> None:
         d = self.data
@@ -678,6 +707,9 @@ class Workcell:
         d.mocap_pos[:k] = s["mocap_pos"]
         d.mocap_quat[:k] = s["mocap_quat"]
         d.ctrl[:] = s["ctrl"]
+        k = len(s["eq_active"])  # objects come before nothing else with equalities: same order
+        d.eq_active[:k] = s["eq_active"]
+        self.model.eq_data[:k] = s["eq_data"]
         mujoco.mj_forward(self.model, d)
         self._warn0 = self._bad_count()
 
