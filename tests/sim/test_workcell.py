@@ -199,3 +199,17 @@ def test_controller_stable_across_the_workspace(name):
     t, q, qd, qdd = smooth_trajectory(a, a + 0.5 * (b - a), T=1.5, n=151)
     log = wc.run_trajectory(t, q, qd, qdd)
     assert np.all(np.isfinite(log.q)) and log.max_error.max() < 5e-3, log.max_error
+
+
+def test_log_roundtrip_and_trajectory_object(wc, tmp_path):
+    from robointel.io.trajectory import Trajectory
+
+    t, q, qd, qdd = smooth_trajectory(Q0, Q0 + 0.2, T=0.5, n=51)
+    traj = Trajectory(t, q, qd, qdd, joint_names=list(wc.robot.joint_names))
+    log = wc.run_trajectory(traj)
+    assert log.q.shape == (501, 6)
+    log.save(tmp_path / "log.npz")
+    back = type(log).load(tmp_path / "log.npz")
+    np.testing.assert_array_equal(back.q, log.q)
+    np.testing.assert_array_equal(back.ft, log.ft)
+    assert back.joint_names == log.joint_names and back.summary() == log.summary()

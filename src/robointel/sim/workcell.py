@@ -128,6 +128,29 @@ class TrackingLog:
         """TCP position error |p(q_ref) - p(q)| per sample, (N,) m."""
         return np.array([np.linalg.norm(robot.fk(a)[:3, 3] - robot.fk(b)[:3, 3]) for a, b in zip(self.q_ref, self.q)])
 
+    def to_dict(self) -> dict:
+        """All arrays and the joint names (for ``np.savez`` / JSON)."""
+        out = {k: getattr(self, k) for k in ("t", "q", "qd", "q_ref", "qd_ref", "tau", "contacts", "distance")}
+        if self.ft is not None:
+            out["ft"] = self.ft
+        if self.saturated is not None:
+            out["saturated"] = self.saturated
+        out["joint_names"] = np.array(self.joint_names)
+        return out
+
+    def save(self, path) -> None:
+        """Write the log as a compressed ``.npz``."""
+        np.savez_compressed(path, **self.to_dict())
+
+    @classmethod
+    def load(cls, path) -> "TrackingLog":
+        """Read a log written by :meth:`save`."""
+        with np.load(path) as z:
+            d = {k: z[k] for k in z.files}
+        return cls(t=d["t"], q=d["q"], qd=d["qd"], q_ref=d["q_ref"], qd_ref=d["qd_ref"], tau=d["tau"],
+                   ft=d.get("ft"), contacts=d["contacts"], distance=d["distance"],
+                   joint_names=[str(x) for x in d["joint_names"]], saturated=d.get("saturated"))
+
     def summary(self) -> dict:
         """Scalars for reports: RMS/max error per joint (rad), min distance, collided, duration."""
         return {"rms_error_rad": self.rms_error.tolist(), "max_error_rad": self.max_error.tolist(),
@@ -395,12 +418,13 @@ class Workcell:
         self._hold = (q_ref, np.zeros(self.n), np.zeros(self.n))
         return self._control(q_ref, qd_ref, np.zeros(self.n))
 
-    def run_trajectory(self, t, q, qd=None, qdd=None, *, reset: bool = True, record_ft: bool = True,
+    def run_trajectory(self, t, q=None, qd=None, qdd=None, *, reset: bool = True, record_ft: bool = True,
                        distance_every: int = 10, stop_on_contact: bool = False) -> TrackingLog:
         """Track a joint trajectory with the controller at 1 kHz and log the result.
 
         Args:
-            t: (N,) strictly increasing times (s).
+            t: (N,) strictly increasing times (s), or a trajectory object with ``t``, ``q``,
+                ``qd``, ``qdd`` attributes (``robointel.io.trajectory.Trajectory``).
             q: (N, n) joint positions within the limits; ``qd``, ``qdd`` (N, n) optional. The
                 reference is resampled on the 1 kHz grid: cubic Hermite on (q, qd) when qd is
                 given (qdd linearly interpolated, or from the Hermite spline), else a
@@ -415,6 +439,10 @@ class Workcell:
         """
         from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
+        if q is None and hasattr(t, "t") and hasattr(t, "q"):
+            t, q, qd, qdd = t.t, t.q, getattr(t, "qd", None), getattr(t, "qdd", None)
+        if q is None:
+            raise InvalidInput("run_trajectory needs q (N, n) or a trajectory object", value=t)
         t = as_array(t, "t", (None,))
         N = len(t)
         if N < 2:
