@@ -191,8 +191,8 @@ def toy_arm(q=None, *, robot: str = "ur5", height: float = 0.25, rng: np.random.
         mid = 0.5 * (lo + hi)
         q = mid + 0.35 * (hi - lo) * g.uniform(-1, 1, model.nq) * 0.6
         if robot == "ur5":
-            q[1] = g.uniform(-2.2, -0.9)  # shoulder raised: the arm stands up like a toy
-            q[2] = g.uniform(0.6, 1.8)
+            q[1] = g.uniform(-1.85, -1.3)  # upper arm near vertical: the toy stands on its base
+            q[2] = g.uniform(0.3, 1.6)
     q = np.asarray(q, float)
     pin.forwardKinematics(model, data, q)
     pin.updateGeometryPlacements(model, data, cmodel, cdata)
@@ -232,40 +232,53 @@ def sample_points(obj: ObjectModel, n: int = 1500, rng: np.random.Generator | in
 
 
 def taught_grasps(obj: ObjectModel) -> list[Grasp]:
-    """The demonstrated grasps for a category template (object frame), as a human would teach them:
-    cups by the rim wall, cans/boxes/balls across their narrow side from above, long tools by the
-    handle, toy arms by the base."""
+    """The demonstrated grasps of a category template (object frame), a few per object as a human
+    would teach them: cups on the rim wall at four places, cans and balls across from above in two
+    directions, boxes across the narrow side at three places, long tools across the handle at three
+    places, toy arms around the upper arm in four directions, clamps across the body."""
     b = obj.mesh.bounds
+    ext = b[1] - b[0]
     h = b[1, 2]
     down = np.array([0.0, 0.0, -1.0])
     cat = obj.category
     if cat == "cup":
-        r = 0.5 * (b[1, 0] - b[0, 0])
-        return [grasp_from_axis([r - 0.002, 0, h - 0.012], [1, 0, 0], down, 0.01, "rim"),
-                grasp_from_axis([0, r - 0.002, h - 0.012], [0, 1, 0], down, 0.01, "rim2")]
+        r = 0.5 * ext[0]
+        out = []
+        for k, a in enumerate(np.radians([0, 90, 180, 270])):
+            u = np.array([np.cos(a), np.sin(a), 0.0])
+            out.append(grasp_from_axis((r - 0.002) * u + [0, 0, h - 0.012], u, down, 0.01, f"rim{k}"))
+        return out
     if cat in ("can", "ball"):
-        return [grasp_from_axis([0, 0, 0.6 * h], [1, 0, 0], down, 2 * b[1, 0], "side"),
-                grasp_from_axis([0, 0, 0.6 * h], [0, 1, 0], down, 2 * b[1, 1], "side2")]
-    if cat == "box":
-        ax = 1 if (b[1, 1] - b[0, 1]) < (b[1, 0] - b[0, 0]) else 0
-        axis = np.eye(3)[ax]
-        return [grasp_from_axis([0, 0, h - 0.015], axis, down, b[1, ax] - b[0, ax], "narrow")]
+        z = min(0.6 * h, h - 0.01)
+        return [grasp_from_axis([0, 0, z], [1, 0, 0], down, ext[0], "side"),
+                grasp_from_axis([0, 0, z], [0, 1, 0], down, ext[1], "side2")]
+    if cat in ("box", "clamp"):
+        ax = 1 if ext[1] < ext[0] else 0
+        long = 1 - ax
+        out = []
+        for k, f in enumerate((0.0, -0.25, 0.25)):
+            c = np.zeros(3)
+            c[long] = f * ext[long]
+            c[2] = max(h - 0.015, 0.5 * h)
+            out.append(grasp_from_axis(c, np.eye(3)[ax], down, ext[ax], f"narrow{k}"))
+        return out
     if cat == "long_tool":
-        ext = b[1] - b[0]
         long_ax = int(np.argmax(ext[:2]))
-        axis = np.eye(3)[1 - long_ax]
-        c = np.zeros(3)
-        c[long_ax] = b[0, long_ax] + 0.25 * ext[long_ax]
-        c[2] = 0.5 * h
-        return [grasp_from_axis(c, axis, down, ext[1 - long_ax], "handle")]
+        out = []
+        for k, f in enumerate((0.15, 0.25, 0.35)):
+            c = np.zeros(3)
+            c[long_ax] = b[0, long_ax] + f * ext[long_ax]
+            c[2] = 0.5 * h
+            out.append(grasp_from_axis(c, np.eye(3)[1 - long_ax], down, ext[1 - long_ax], f"handle{k}"))
+        return out
     if cat == "toy_arm":
-        zb = 0.5 * float(obj.pieces[0].bounds[1, 2]) if obj.pieces else 0.01
-        wb = float(obj.pieces[0].extents[0]) if obj.pieces else 0.03
-        return [grasp_from_axis([0, 0, zb], [1, 0, 0], down, wb, "base"),
-                grasp_from_axis([0, 0, zb], [0, 1, 0], down, wb, "base2")]
-    if cat == "clamp":
-        return [grasp_from_axis([0, 0, 0.5 * h], [0, 1, 0], down, b[1, 1] - b[0, 1], "body")]
-    return [grasp_from_axis([0, 0, 0.5 * h], [1, 0, 0], down, b[1, 0] - b[0, 0], "middle")]
+        # around the upper arm (third piece), which stands near vertical on the shoulder
+        piece = obj.pieces[2] if len(obj.pieces) > 2 else obj.mesh
+        c = piece.bounds.mean(axis=0)
+        wb = float(min(piece.extents[:2]))
+        return [grasp_from_axis(c, [np.cos(a), np.sin(a), 0], down, wb, f"upper_arm{k}")
+                for k, a in enumerate(np.radians([0, 45, 90, 135]))]
+    return [grasp_from_axis([0, 0, 0.5 * h], [1, 0, 0], down, ext[0], "middle")]
 
 
 def demo_objects(per_category: int = 4, seed: int = 0, *, arms: bool = True) -> dict[str, list[ObjectModel]]:

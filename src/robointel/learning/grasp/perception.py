@@ -43,8 +43,8 @@ class DepthCamera:
 
     position: np.ndarray
     R: np.ndarray
-    width: int = 160
-    height: int = 120
+    width: int = 320
+    height: int = 240
     fovy: float = np.radians(45.0)
     near: float = 0.2
     far: float = 2.5
@@ -95,7 +95,7 @@ def depth_image(model: mujoco.MjModel, data: mujoco.MjData, cam: DepthCamera, rn
 
 
 def foreground_points(depth: np.ndarray, background: np.ndarray, cam: DepthCamera, *,
-                      threshold: float = 0.008) -> np.ndarray:
+                      threshold: float = 0.005) -> np.ndarray:
     """World points (k, 3) of pixels at least ``threshold`` m closer than the empty-workspace snapshot."""
     d = depth.ravel()
     b = background.ravel()
@@ -118,7 +118,7 @@ def voxel_downsample(points, voxel: float = 0.005) -> np.ndarray:
     return out / cnt[:, None]
 
 
-def cluster_objects(points, *, eps: float = 0.012, min_samples: int = 8, min_points: int = 30) -> list[np.ndarray]:
+def cluster_objects(points, *, eps: float = 0.02, min_samples: int = 8, min_points: int = 30) -> list[np.ndarray]:
     """DBSCAN (scikit-learn) clusters of the foreground points, largest first; noise and clusters
     smaller than ``min_points`` are dropped."""
     P = as_array(points, "points", (None, 3))
@@ -131,7 +131,7 @@ def cluster_objects(points, *, eps: float = 0.012, min_samples: int = 8, min_poi
 
 
 def perceive(model, data, cameras: list[DepthCamera], backgrounds: list[np.ndarray], *, voxel: float = 0.005,
-             rng=None, table_z: float = 0.0, min_height: float = 0.003) -> list[np.ndarray]:
+             rng=None, table_z: float = 0.0, min_height: float = 0.004) -> list[np.ndarray]:
     """The Fig. 6.4 pipeline: depth from each camera, background removal, merge, drop points at the
     table plane, DBSCAN, voxel downsampling. Returns one (k, 3) cloud per object, largest first."""
     rng = np.random.default_rng(rng)

@@ -16,14 +16,15 @@ import mujoco
 import numpy as np
 from scipy.spatial import cKDTree
 
-from robointel.errors import IKFailure, InvalidInput
-from robointel.learning.grasp.classify import Classification, Template, classify
+from robointel.errors import IKFailure, InvalidInput, RobointelError
+from robointel.learning.grasp.classify import Classification, ComposedWarp, Template, classify
+from robointel.learning.grasp.cpd import cpd_rigid
 from robointel.learning.grasp.objects import ObjectModel
 from robointel.learning.grasp.perception import default_cameras, depth_image, perceive
 from robointel.learning.grasp.quality import ParallelGripper
 from robointel.learning.grasp.scene import Placement, scene_xml
 from robointel.learning.grasp.search import SearchResult, orientation_search
-from robointel.learning.grasp.transfer import Grasp, transfer_grasps
+from robointel.learning.grasp.transfer import Grasp, transfer_grasp
 
 __all__ = ["GraspPlanner", "GraspPlan", "TrialResult", "grasp_trial", "lrmate_with_gripper"]
 
@@ -62,7 +63,7 @@ class GraspPlanner:
 
     def __init__(self, templates: list[Template], *, gripper: ParallelGripper = ParallelGripper(), robot="lrmate",
                  base_pose: np.ndarray | None = None, table_z: float = 0.0, n_points: int = 300,
-                 q_ref=None) -> None:
+                 q_ref=None, local_radius: float = 0.04) -> None:
         if not templates:
             raise InvalidInput("GraspPlanner needs at least one template", value=templates)
         self.templates = templates
@@ -71,7 +72,31 @@ class GraspPlanner:
         self.base_pose = np.eye(4) if base_pose is None else np.asarray(base_pose, float)
         self.table_z = table_z
         self.n_points = n_points
+        self.local_radius = local_radius
         self.q_ref = np.radians([0, 20, -10, 0, -70, 0]) if q_ref is None else q_ref
+
+    def _transfer(self, fit, g: Grasp, cloud: np.ndarray) -> Grasp:
+        """(6.14)-(6.16) through the fitted warp, optionally followed by a local rigid CPD of the
+        template's neighbourhood of the grasp (radius ``local_radius``) onto the target's, which keeps
+        grasps on articulated or locally different parts where a smooth global warp lags."""
+        h = transfer_grasp(fit.warp, g)
+        r = self.local_radius
+        if not r:
+            return h
+        Y = fit.template.points
+        local = Y[np.linalg.norm(Y - g.centre, axis=1) < r]
+        Xl = cloud[np.linalg.norm(cloud - h.centre, axis=1) < 1.5 * r]
+        if len(local) < 20 or len(Xl) < 20:
+            return h
+        Wl = fit.warp(local)
+        try:
+            rr = cpd_rigid(Xl, Wl, scale=False, w=0.1, tolerance=1e-6, max_iterations=50)
+        except RobointelError:
+            return h
+        ang = np.arccos(np.clip((np.trace(rr.warp.R) - 1) / 2, -1, 1))
+        if ang > np.radians(20) or np.linalg.norm(rr.warp.t + rr.warp.R @ h.centre - h.centre) > r:
+            return h  # the local fit jumped to another part: keep the global transfer
+        return transfer_grasp(ComposedWarp(fit.warp, rr.warp), g)
 
     def plan(self, cloud) -> GraspPlan:
         """Plan a grasp on ``cloud`` (n, 3) in the world frame."""
@@ -79,10 +104,11 @@ class GraspPlanner:
         cls = classify(cloud, self.templates, n_points=self.n_points)
         t1 = time.perf_counter()
         fit = cls.best
-        grasps = transfer_grasps(fit.warp, fit.template.grasps)
+        cloud = np.asarray(cloud, float)
+        grasps = [self._transfer(fit, g, cloud) for g in fit.template.grasps]
         t2 = time.perf_counter()
         # the warped template completes the sides the cameras do not see
-        full = np.vstack([np.asarray(cloud, float), fit.warp(fit.template.points)])
+        full = np.vstack([cloud, fit.warp(fit.template.points)])
         tree = cKDTree(full)
         best = None
         for g in grasps:

@@ -97,7 +97,7 @@ def scene_xml(placements: list[Placement], *, dynamic: bool = False, gripper: Pa
         fingers = ""
         for name, s in (("fp", 1.0), ("fn", -1.0)):
             fingers += (f'<body name="{name}" pos="0 {s * y0:.6g} {zc:.6g}"><joint name="{name}" type="slide" axis="0 {-s:.0f} 0" '
-                        f'range="0 {g.max_width / 2:.6g}" damping="5" armature="0.01"/>'
+                        f'range="0 {g.max_width / 2:.6g}" damping="200" armature="0.01"/>'
                         f'<geom type="box" size="{_fmt(fb)}" mass="0.05" friction="{friction} 0.02 0.001" condim="6" '
                         f'rgba=".2 .2 .2 1"/></body>')
         grip = (f'<body name="target" mocap="true" pos="0.5 0 1.6"/>'
