@@ -121,28 +121,75 @@ def solve_ik_path(robot, p: np.ndarray, R: np.ndarray, q0=None) -> tuple[np.ndar
     return out, ok
 
 
+class LimitedFollower:
+    """Online jerk-limited follower of a moving target (``ruckig``, velocity interface).
+
+    Each period the commanded velocity is the target's velocity plus a feedback on the position
+    error (``gain`` times it near the target, at most sqrt(amax |e| / 2) far from it, so that
+    catching up never overshoots), clipped to the velocity limit; ruckig reaches it within the
+    acceleration and jerk limits. Positions are clipped to [lower, upper].
+
+    Args:
+        n: joints.  vmax, amax, jmax: (n,) limits [rad/s, rad/s^2, rad/s^3].  dt: period [s].
+    """
+
+    def __init__(self, n: int, vmax, amax, jmax, *, dt: float = 0.001, gain: float = 12.0,
+                 lower=None, upper=None) -> None:
+        from ruckig import ControlInterface, InputParameter, OutputParameter, Ruckig
+
+        self.n = n
+        self.vmax, self.amax, self.jmax = (np.broadcast_to(as_array(x, "limit"), (n,)).astype(float)
+                                           for x in (vmax, amax, jmax))
+        if np.any(self.vmax <= 0) or np.any(self.amax <= 0) or np.any(self.jmax <= 0):
+            raise InvalidInput("velocity, acceleration and jerk limits must be positive")
+        self.gain = float(gain)
+        self.lower, self.upper = lower, upper
+        self.otg = Ruckig(n, dt)
+        self.inp, self.out = InputParameter(n), OutputParameter(n)
+        self.inp.control_interface = ControlInterface.Velocity
+        self.inp.max_velocity = self.vmax.tolist()
+        self.inp.max_acceleration = self.amax.tolist()
+        self.inp.max_jerk = self.jmax.tolist()
+        self.inp.target_acceleration = [0.0] * n
+        self.q = np.zeros(n)
+
+    def reset(self, q, qd=None) -> None:
+        self.q = np.array(q, float)
+        self.inp.current_position = self.q.tolist()
+        self.inp.current_velocity = [0.0] * self.n if qd is None else list(map(float, qd))
+        self.inp.current_acceleration = [0.0] * self.n
+
+    def step(self, target, target_velocity=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One period toward ``target`` (n,) moving at ``target_velocity`` (n,): (q, qd, qdd)."""
+        from ruckig import Result
+
+        e = np.asarray(target, float) - self.q
+        fb = np.sign(e) * np.minimum(self.gain * np.abs(e), np.sqrt(0.5 * self.amax * np.abs(e)))
+        tv = np.zeros(self.n) if target_velocity is None else np.asarray(target_velocity, float)
+        self.inp.target_velocity = np.clip(tv + fb, -self.vmax, self.vmax).tolist()
+        res = self.otg.update(self.inp, self.out)
+        if res not in (Result.Working, Result.Finished):
+            raise InvalidInput(f"ruckig failed ({res})", value=res)
+        q = np.array(self.out.new_position)
+        if self.lower is not None:
+            q = np.clip(q, self.lower, self.upper)
+        self.q = q
+        qd, qdd = np.array(self.out.new_velocity), np.array(self.out.new_acceleration)
+        self.out.pass_to_input(self.inp)
+        return q, qd, qdd
+
+
 def jerk_limited(t: np.ndarray, q: np.ndarray, vmax, amax, jmax, *, dt: float = 0.001,
                  lower=None, upper=None, gain: float = 12.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Follow the C2 spline through targets q (N, n) at times t (N,) within velocity, acceleration
-    and jerk limits, with ``ruckig`` in its velocity interface: at every period the commanded
-    velocity is the spline's velocity plus a feedback on the position error (``gain`` times it
-    near the path, at most sqrt(amax |e| / 2) far from it so that catching up never overshoots),
-    clipped to the velocity limit; ruckig reaches it jerk-limited. Returns (t_ref, q, qd, qdd) at 1/dt Hz."""
-    from ruckig import ControlInterface, InputParameter, OutputParameter, Result, Ruckig
+    and jerk limits with a :class:`LimitedFollower`. Returns (t_ref, q, qd, qdd) at 1/dt Hz."""
     from scipy.interpolate import CubicSpline
 
     t = as_array(t, "t", (None,))
     q = as_array(q, "q", (len(t), None))
     n = q.shape[1]
-    vmax, amax, jmax = (np.broadcast_to(as_array(x, "limit"), (n,)).astype(float) for x in (vmax, amax, jmax))
-    otg = Ruckig(n, dt)
-    inp, out = InputParameter(n), OutputParameter(n)
-    inp.control_interface = ControlInterface.Velocity
-    inp.max_velocity, inp.max_acceleration, inp.max_jerk = vmax.tolist(), amax.tolist(), jmax.tolist()
-    inp.current_position = q[0].tolist()
-    inp.current_velocity = [0.0] * n
-    inp.current_acceleration = [0.0] * n
-    inp.target_acceleration = [0.0] * n
+    fol = LimitedFollower(n, vmax, amax, jmax, dt=dt, gain=gain, lower=lower, upper=upper)
+    fol.reset(q[0])
     tg = np.arange(t[0], t[-1] + 0.5 * dt, dt)
     sp = CubicSpline(t, q, axis=0)
     S, SD = sp(tg), sp(tg, 1)
@@ -151,22 +198,8 @@ def jerk_limited(t: np.ndarray, q: np.ndarray, vmax, amax, jmax, *, dt: float = 
     Q = np.empty((len(tg), n))
     QD = np.empty_like(Q)
     QDD = np.empty_like(Q)
-    cur = q[0].copy()
     for k in range(len(tg)):
-        e = S[k] - cur
-        # linear near the path, braking-distance limited far from it (no overshoot under the
-        # acceleration limit): |v_fb| <= sqrt(amax |e| / 2)
-        fb = np.sign(e) * np.minimum(gain * np.abs(e), np.sqrt(0.5 * amax * np.abs(e)))
-        v = np.clip(SD[k] + fb, -vmax, vmax)
-        inp.target_velocity = v.tolist()
-        res = otg.update(inp, out)
-        if res not in (Result.Working, Result.Finished):
-            raise InvalidInput(f"ruckig failed ({res}) at t = {tg[k]:.3f} s", value=tg[k])
-        Q[k], QD[k], QDD[k] = out.new_position, out.new_velocity, out.new_acceleration
-        cur = Q[k]
-        out.pass_to_input(inp)
-    if lower is not None:
-        Q = np.clip(Q, lower, upper)
+        Q[k], QD[k], QDD[k] = fol.step(S[k], SD[k])
     return tg, Q, QD, QDD
 
 

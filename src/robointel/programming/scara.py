@@ -16,11 +16,14 @@ Riccati equation (3.7)-(3.8) (``scipy.linalg.solve_discrete_are``):
     P = A'PA - A'PB (R + B'PB)^-1 B'PA + Q,     K = (R + B'PB)^-1 B'PA,
     u_k = qdd_r,k - K (x_k - r_k).
 
-The Kinect delivers frames at ~30 Hz with ~0.1 s latency. Without compensation the reference is
-the latest received estimate (the human motion delayed by the latency). With delay compensation a
-Kalman filter on the received angles (white-noise-acceleration model) predicts them forward by
-the latency plus the age of the frame; it is causal: it uses only frames that have arrived.
-Errors are measured against the true human angles (the zero-phase cleaned recording, not delayed).
+The Kinect delivers frames at ~30 Hz with ~0.1 s latency; a live system sees them cleaned
+causally (dropouts held, causal low-pass). A Kalman filter on the received angles (white-noise-
+acceleration model) estimates angle and rate. Without compensation the reference is that estimate
+at t - latency (the human motion, delayed); with delay compensation it is extrapolated to t (across
+the latency plus the age of the frame). Causal throughout: only frames that have arrived are used.
+A jerk-limited follower (``ruckig``) turns the estimate into a reference (q_r, qd_r, qdd_r) within
+velocity/acceleration limits the torque limits can deliver. Errors are measured against the true
+human angles (the zero-phase cleaned recording, not delayed).
 """
 from __future__ import annotations
 
@@ -165,31 +168,6 @@ class KalmanPredictor:
         return self.x[:, 0] + h * self.x[:, 1], self.x[:, 1].copy()
 
 
-class ReferenceSmoother:
-    """Critically damped second-order filter qdd = w^2 (r - q) - 2 w qd (semi-implicit Euler at
-    ``dt``): turns the 30 Hz, piecewise extrapolated estimate into a reference with continuous
-    position and velocity and a bounded acceleration for the feed-forward. Its lag is ``2/w``."""
-
-    def __init__(self, n: int, *, bandwidth_hz: float = 8.0, dt: float = 0.001) -> None:
-        if bandwidth_hz <= 0:
-            raise InvalidInput(f"bandwidth_hz must be positive, got {bandwidth_hz}", value=bandwidth_hz)
-        self.w, self.dt = 2 * np.pi * float(bandwidth_hz), float(dt)
-        self.q, self.qd = np.zeros(n), np.zeros(n)
-
-    @property
-    def lag(self) -> float:
-        return 2.0 / self.w
-
-    def reset(self, q) -> None:
-        self.q, self.qd = np.array(q, float), np.zeros_like(np.asarray(q, float))
-
-    def step(self, r) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        qdd = self.w ** 2 * (r - self.q) - 2 * self.w * self.qd
-        self.qd = self.qd + self.dt * qdd
-        self.q = self.q + self.dt * self.qd
-        return self.q.copy(), self.qd.copy(), qdd
-
-
 @dataclass
 class ScaraResult:
     """One SCARA imitation run.
@@ -235,7 +213,8 @@ def human_reference(skel: Skeleton, side: str | None = None) -> tuple[np.ndarray
 
 def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensate: bool = False,
                    side: str | None = None, dt: float = 0.001, controller: ComputedTorqueLQ | None = None,
-                   workcell=None, predictor_psd: float = 10.0, smoothing_hz: float = 4.0) -> ScaraResult:
+                   workcell=None, predictor_psd: float = 10.0, max_accel=(60.0, 120.0),
+                   jerk_factor: float = 20.0, follow_gain: float = 12.0) -> ScaraResult:
     """Simulate dynamic imitation of a recording on the SCARA in MuJoCo at 1/dt Hz.
 
     Frames captured at t_k reach the controller at t_k + ``latency``. The reference at time t is the
@@ -249,6 +228,10 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
         latency: sensor latency [s] (>= 0).
         compensate: predict across the latency.
         workcell: a ``robointel.sim.Workcell`` of ``robot`` (default: built here, no table).
+        predictor_psd: Kalman process noise of the prediction [rad^2/s^3].
+        max_accel: (2,) acceleration limit of the reference [rad/s^2] (what the torque limits can
+            deliver); jerk limit = ``jerk_factor`` * max_accel; the reference follows the estimate
+            with :class:`~robointel.programming.imitation.LimitedFollower` (``follow_gain`` [1/s]).
 
     Returns:
         :class:`ScaraResult`.
@@ -272,13 +255,16 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
     t = np.arange(M) * dt
     truth = CubicSpline(t_h, q_true, axis=0)(t)
     kf = KalmanPredictor(2, accel_psd=predictor_psd)
-    smooth = ReferenceSmoother(2, bandwidth_hz=smoothing_hz, dt=dt)
-    lead = smooth.lag if compensate else 0.0
+    from robointel.programming.imitation import LimitedFollower
+
+    acc = np.broadcast_to(np.asarray(max_accel, float), (2,))
+    follow = LimitedFollower(2, robot.velocity_limit, acc, jerk_factor * acc, dt=dt, gain=follow_gain,
+                             lower=robot.lower, upper=robot.upper)
     arrival = t_h + latency
     nxt = 0
     # the robot starts at rest at the first frame's pose (the operator is in view before start)
     kf.update(t_h[0], q_meas[0])
-    smooth.reset(q_meas[0])
+    follow.reset(q_meas[0])
     workcell.reset(q_meas[0], np.zeros(2))
     q_log = np.zeros((M, 2))
     ref_log = np.zeros((M, 2))
@@ -288,9 +274,9 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
             if nxt > 0:
                 kf.update(t_h[nxt], q_meas[nxt])
             nxt += 1
-        tq = t[k] + lead if compensate else max(t[k] - latency, t_h[0])
-        raw, _ = kf.predict(min(tq, kf.t + 0.5))  # never extrapolate more than 0.5 s
-        q_r, qd_r, qdd_r = smooth.step(np.clip(raw, robot.lower, robot.upper))
+        tq = t[k] if compensate else max(t[k] - latency, t_h[0])
+        raw, rate = kf.predict(min(tq, kf.t + 0.5))  # never extrapolate more than 0.5 s
+        q_r, qd_r, qdd_r = follow.step(np.clip(raw, robot.lower, robot.upper), rate)
         q, qd = workcell.q, workcell.qd
         tau = ctrl.torque(q, qd, q_r, qd_r, qdd_r)
         workcell.step(tau)

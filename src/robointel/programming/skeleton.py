@@ -362,21 +362,31 @@ def synthetic_wave(duration: float = 6.0, fps: float = 30.0, *, seed: int = 0,
 
 
 # ---------------------------------------------------------------------------------------- cleaning
-def _running_median(x: np.ndarray, window: int, causal: bool) -> np.ndarray:
-    if not causal:
-        return median_filter(x, size=(window,) + (1,) * (x.ndim - 1), mode="nearest")
-    pad = np.concatenate([np.repeat(x[:1], window - 1, axis=0), x], axis=0)
-    win = np.lib.stride_tricks.sliding_window_view(pad, window, axis=0)
-    return np.median(win, axis=-1)
-
-
 def detect_bad(skel: Skeleton, *, window: int = 9, k: float = 4.0, floor: float = 0.03,
-               inferred_floor: float = 0.015, causal: bool = False) -> np.ndarray:
-    """(N, J) mask of samples not to trust: not tracked, or a Hampel outlier (distance from the
-    running median over ``window`` frames above ``max(k * 1.4826 * MAD, floor)`` metres; a tighter
-    floor for *inferred* samples, which Kinect guesses during occlusion). ``causal=True`` uses
-    trailing windows (only past frames), as a live system must."""
+               inferred_floor: float = 0.015, causal: bool = False, max_speed: float = 5.0) -> np.ndarray:
+    """(N, J) mask of samples not to trust.
+
+    Offline: not tracked, or a Hampel outlier (distance from the running median over ``window``
+    frames above ``max(k * 1.4826 * MAD, floor)`` metres; a tighter floor for *inferred* samples,
+    which Kinect guesses during occlusion).
+    Causal (``causal=True``, what a live system can do with past frames only): not tracked, or a
+    jump from the last trusted sample faster than ``max_speed`` [m/s] (a centred median cannot be
+    computed live, and a trailing one lags fast but real motion).
+    """
     bad = skel.state <= NOT_TRACKED
+    if causal:
+        out = bad.copy()
+        last_p = skel.positions[0].copy()
+        last_t = np.full(skel.positions.shape[1], skel.t[0])
+        have = ~bad[0]
+        for i in range(1, skel.n):
+            dt = np.maximum(skel.t[i] - last_t, 1e-3)
+            jump = np.linalg.norm(skel.positions[i] - last_p, axis=1) / dt > max_speed
+            out[i] |= have & jump
+            ok = ~out[i]
+            last_p[ok], last_t[ok] = skel.positions[i, ok], skel.t[i]
+            have |= ok
+        return out
     P = skel.positions.copy()
     P[bad] = np.nan
     # fill NaNs with the nearest good sample so the median is not dragged to the origin
@@ -389,9 +399,9 @@ def detect_bad(skel: Skeleton, *, window: int = 9, k: float = 4.0, floor: float 
         first = int(np.argmax(good))
         idx[idx < 0] = first
         P[:, j] = P[idx, j]
-    med = _running_median(P, window, causal)
+    med = median_filter(P, size=(window, 1, 1), mode="nearest")
     dev = np.linalg.norm(P - med, axis=2)
-    mad = _running_median(dev, window, causal)
+    mad = median_filter(dev, size=(window, 1), mode="nearest")
     thr = np.maximum(k * 1.4826 * mad, np.where(skel.state == INFERRED, inferred_floor, floor))
     return bad | (dev > thr)
 
