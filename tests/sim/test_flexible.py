@@ -110,3 +110,36 @@ def test_bad_input(lrmate):
         flex.step(np.zeros(3))
     with pytest.raises(Exception):
         FlexibleJointParams.lrmate(stiffness=-1.0).checked(6)
+
+
+def test_joint_controller_on_the_flexible_arm(lrmate):
+    """Fig. 2.3 controller on motor encoders: stiff joints track like the rigid arm; soft joints
+    leave the links sagging by K^-1 G(q) (the motor cannot see the spring wind-up)."""
+    T = 1.5
+    t = np.arange(0.0, T, 1e-3)
+    s, sd = 0.5 - 0.5 * np.cos(np.pi * t / T), 0.5 * np.pi / T * np.sin(np.pi * t / T)
+    sdd = 0.5 * (np.pi / T) ** 2 * np.cos(np.pi * t / T)
+    dq = np.array([1.0, 0.5, 0.4, 1.0, 0.8, 1.5])
+    for params, bound in ((FlexibleJointParams.lrmate(stiffness=1e8, damping=1e3), 2e-5),
+                          (FlexibleJointParams.lrmate(), None)):
+        flex = FlexibleJointModel(lrmate, params)
+        ctl = flex.controller()
+        flex.reset(Q0)
+        err = []
+        for k in range(len(t)):
+            q_ref = Q0 + s[k] * dq
+            err.append(flex.q - q_ref)
+            flex.track(ctl, q_ref, sd[k] * dq, sdd[k] * dq)
+        err = np.array(err)
+        q_end = Q0 + dq
+        for _ in range(1000):
+            flex.track(ctl, q_end)
+        if bound is not None:
+            assert np.abs(err).max() < bound  # measured 7.6e-6
+        else:
+            sag = -lrmate.gravity(q_end) / params.stiffness
+            np.testing.assert_allclose(flex.q - q_end, sag, atol=2e-6)
+            assert np.abs(sag).max() > 1e-4
+            np.testing.assert_allclose(flex.theta, q_end, atol=1e-6)
+    with pytest.raises(Exception):
+        flex.track(ctl, q_end, measure="elbow")

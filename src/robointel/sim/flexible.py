@@ -179,6 +179,38 @@ class FlexibleJointModel:
         if not (np.all(np.isfinite(self.q)) and np.all(np.isfinite(self.theta))):
             raise SafetyStop("the flexible-joint simulation diverged (non-finite state); check the parameters")
 
+    def controller(self, **kwargs):
+        """A Fig. 2.3 :class:`~robointel.sim.JointController` for this arm: feed-forward and gain
+        schedule from the rigid limit (M(q) + J, RNEA with the rotor inertia; keyword arguments go to
+        the controller). The URDF friction compensation is off (this model has motor friction B)."""
+        from robointel.sim.controller import JointController
+
+        rigid = self.rigid_model()
+        kwargs.setdefault("friction_compensation", False)
+        return JointController(self.robot, dt=self.dt, model=rigid, gain_model=rigid, **kwargs)
+
+    def track(self, controller, q_ref, qd_ref=None, qdd_ref=None, *, measure: str = "motor") -> np.ndarray:
+        """One control period of ``controller`` (a :class:`~robointel.sim.JointController`) on this
+        arm: it measures the motor encoders (``measure="motor"``, theta, as a real drive does) or the
+        links (``"link"``, q), its joint torque is sent as tau_m = tau / N. Returns tau (n,).
+
+        Raises:
+            ShapeError, NotFinite: bad references.
+        """
+        z = np.zeros(self.n)
+        q_ref = as_array(q_ref, "q_ref", (self.n,))
+        qd_ref = z if qd_ref is None else as_array(qd_ref, "qd_ref", (self.n,))
+        qdd_ref = z if qdd_ref is None else as_array(qdd_ref, "qdd_ref", (self.n,))
+        if measure == "motor":
+            pos, vel = self.theta, self.thetad
+        elif measure == "link":
+            pos, vel = self.q, self.qd
+        else:
+            raise InvalidInput(f"measure must be 'motor' or 'link', got {measure!r}", value=measure)
+        tau = controller.compute(pos, vel, q_ref, qd_ref, qdd_ref)
+        self.step(tau / self._N)
+        return tau
+
     def simulate(self, tau_m_fn, duration: float) -> dict:
         """Run for ``duration`` s calling ``tau_m_fn(model) -> tau_m`` every ``dt``; returns arrays
         ``t`` (N,), ``q``, ``qd``, ``theta``, ``thetad``, ``tau_m`` (N, n) sampled before each step."""
