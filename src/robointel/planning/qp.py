@@ -138,8 +138,6 @@ class DenseQP:
         kw = dict(self.settings)
         if self._lam is not None and self._lam.shape[0] == A.shape[0]:
             kw["dual_start"] = self._lam
-        elif x0 is not None:
-            kw["primal_start"] = np.asarray(x0, float)
         x, _fval, flag, info = daqp.solve(np.ascontiguousarray(P), np.asarray(q, float),
                                           np.ascontiguousarray(A), u, l, np.zeros(A.shape[0], dtype=np.intc), **kw)
         x = np.asarray(x, float)

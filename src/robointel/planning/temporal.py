@@ -119,7 +119,7 @@ def _knot_ratios(t: np.ndarray, path: np.ndarray, vmax: np.ndarray, amax: np.nda
 
 
 def _solve_tau(dx: np.ndarray, vmax: np.ndarray, amax_k: np.ndarray, vscale: np.ndarray, tau0: np.ndarray,
-               w3: float, w4: float, eps: float, max_iter: int, qp) -> CFSResult:
+               w3: float, w4: float, eps: float, max_iter: int, qp, trust: float | None = None) -> CFSResult:
     """One CFS solve of (7.7)-(7.9) with per-knot acceleration limits amax_k (N+1, n) and per-interval
     velocity scale factors; ``tau0`` must be feasible."""
     N, n = dx.shape
@@ -166,12 +166,12 @@ def _solve_tau(dx: np.ndarray, vmax: np.ndarray, amax_k: np.ndarray, vscale: np.
         Hd[rows, kk2 + 1] = mu
         cons.append(NonlinearConstraint(fun, jac, kind="general", hess_diag=Hd, name="acceleration (7.8)"))
     return cfs(H, f, constraints=cons, A=np.eye(N), l=lb, u=ub, z0=tau0, eps=eps, max_iter=max_iter,
-               tol=1e-9, max_cuts=2, qp=qp)
+               tol=1e-9, max_cuts=2, qp=qp, trust=None if trust is None else trust * h)
 
 
 def temporal_optimize(path, vmax, amax, *, dt: float | None = None, w3: float = 1.0, w4: float = 1.0,
-                      eps: float = 1e-5, max_iter: int = 30, refine: int = 3, upsample: int = 2,
-                      qp: DenseQP | SparseQP | None = None) -> TemporalResult:
+                      eps: float = 1e-5, max_iter: int = 30, refine: int = 2, upsample: int = 1,
+                      trust: float | None = None, qp: DenseQP | SparseQP | None = None) -> TemporalResult:
     """Solve (7.7)-(7.9) by CFS for one segment and return its spline trajectory.
 
     After each CFS solve the spline through the re-timed knots is compared with the limits; knots
@@ -191,6 +191,9 @@ def temporal_optimize(path, vmax, amax, *, dt: float | None = None, w3: float = 
             geometric spline (path parameter uniform over the input points; the input points are
             kept) before re-timing: finer knots bring the discrete model (7.8) closer to the
             executed spline.
+        trust: ``None``: the curved sets (7.6) are handled by tangent cuts and an exact pull-back;
+            a number: by the polyhedral inner approximation on a trust box of that fraction of the
+            time step (one QP per iteration, see :func:`robointel.planning.cfs.cfs`).
         qp: QP solver (default: a fresh :class:`DenseQP`).
 
     Raises:
@@ -220,7 +223,7 @@ def temporal_optimize(path, vmax, amax, *, dt: float | None = None, w3: float = 
     tau_start = tau0
     best = None
     for _round in range(refine + 1):
-        res = _solve_tau(dx, vmax, amax[None] * sig_a[:, None], sig_v, tau_start, w3, w4, eps, max_iter, qp)
+        res = _solve_tau(dx, vmax, amax[None] * sig_a[:, None], sig_v, tau_start, w3, w4, eps, max_iter, qp, trust)
         tau = np.maximum(res.z, 1e-6)
         t = np.concatenate([[0.0], np.cumsum(tau)])
         ra, rv = _knot_ratios(t, path, vmax, amax)

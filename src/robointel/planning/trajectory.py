@@ -32,7 +32,7 @@ import scipy.sparse as sp
 from robointel._validate import as_array, check_limits
 from robointel.errors import CollisionAtStart, InfeasibleProblem, InvalidInput, LimitViolation
 from robointel.geometry import sphere_distances_batch
-from robointel.planning.qp import INF, SparseQP
+from robointel.planning.qp import INF, DenseQP, SparseQP
 
 
 @dataclass
@@ -125,10 +125,12 @@ class TrajectoryPlanner:
         dt: fixed time step (s).
         vmax, amax: (n,) velocity / acceleration limits (default: the robot's).
         settings: :class:`PlannerSettings`.
+        solver: ``"daqp"`` (dense active set with lazy limit rows, default) or ``"osqp"``
+            (sparse ADMM, pattern fixed, updated in place).
     """
 
     def __init__(self, robot, obstacles=(), *, N: int, dt: float, vmax=None, amax=None,
-                 settings: PlannerSettings | None = None) -> None:
+                 settings: PlannerSettings | None = None, solver: str = "daqp") -> None:
         self.robot = robot
         self.n = n = robot.nq
         if int(N) < 2:
@@ -143,8 +145,14 @@ class TrajectoryPlanner:
             raise LimitViolation("velocity and acceleration limits must be positive", value=(self.vmax, self.amax))
         self.set_obstacles(obstacles)
         self._build()
-        self.qp = SparseQP(eps_abs=1e-5, eps_rel=1e-5, polishing=False, max_iter=4000)
+        self.solver = solver
+        if solver not in ("daqp", "osqp"):
+            raise InvalidInput(f"solver must be 'daqp' or 'osqp', got {solver!r}", value=solver)
+        self.qp = SparseQP(eps_abs=1e-5, eps_rel=1e-5, polishing=False, max_iter=20000)
+        self._dense = DenseQP()
+        self._Pz_dense = None
         self._qp_ready = False
+        self.qp_stats = {"osqp": 0, "daqp": 0}
 
     # ------------------------------------------------------------------ set-up
     def set_obstacles(self, obstacles) -> None:
@@ -233,8 +241,21 @@ class TrajectoryPlanner:
             if key is not None:
                 self._pos[key] = where[n_before + e]
         self._m_all_lin = m_lin
+        always = np.zeros(m, dtype=bool)
+        always[lin.shape[0]:] = True  # slack bounds and clearance rows
+        self._always = always
+        # a limit row joins the working set when the reference is within this distance of its bound
+        reach = np.r_[np.full(nv, 0.2), np.tile(self.vmax * self.dt, N) * 0.5,
+                      np.tile(self.amax * self.dt ** 2, N - 1) * 0.5, np.zeros(m - lin.shape[0])]
+        self._reach = reach
         # cost over z: the x block, a tiny ridge on the slacks (their linear weight is set per solve)
         self.P_z = sp.block_diag([self.P, sp.eye(nS) * 1.0], format="csc")
+
+    def reset_warm_start(self) -> None:
+        """Forget the QP solvers' previous solutions (for cold-start timings)."""
+        self._dense = DenseQP()
+        self.qp = SparseQP(**{k: v for k, v in self.qp.settings.items()})
+        self._qp_ready = False
 
     # ------------------------------------------------------------------ pieces
     def _sample_configs(self, X: np.ndarray) -> np.ndarray:
@@ -360,12 +381,7 @@ class TrajectoryPlanner:
             l = np.r_[lo_lin, np.zeros(nS), lo_c]
             u = np.r_[up_lin, np.full(nS, smax), up_coll]
             z0 = np.r_[X[1:N].ravel(), np.zeros(nS)]
-            if not self._qp_ready:
-                self.A.data = data
-                sol = self.qp.solve(self.P_z, qz, self.A, l, u, x0=z0)
-                self._qp_ready = True
-            else:
-                sol = self.qp.update(q=qz, l=l, u=u, Ax=data, x0=z0)
+            sol = self._solve_qp(qz, l, u, data, z0)
             if not sol.solved:
                 status = "qp_failed"
                 break
@@ -402,6 +418,47 @@ class TrajectoryPlanner:
         return SegmentPlan(path=X, iterations=it, costs=costs, status=status, feasible=bool(feas),
                            min_distance=float(dmin), seconds=time.perf_counter() - t0, blocked=bool(blocked),
                            iterates=iterates)
+
+    def _solve_qp(self, qz, l, u, data, z0):
+        """Solve one CFS QP.
+
+        ``solver="daqp"`` (default): DAQP (dual active set, dense, exact) on a working set of rows
+        -- every clearance row and slack bound, plus the limit rows within reach of the reference
+        -- with violated limit rows added and the QP re-solved until none is violated (lazy
+        constraint generation; usually one round, since the joint limits are rarely active).
+        ``solver="osqp"``: the whole QP on OSQP, pattern fixed, updated in place, warm-started.
+        """
+        if self.solver == "osqp":
+            if not self._qp_ready:
+                self.A.data = data
+                sol = self.qp.solve(self.P_z, qz, self.A, l, u, x0=z0)
+                self._qp_ready = True
+            else:
+                sol = self.qp.update(q=qz, l=l, u=u, Ax=data, x0=z0)
+            self.qp_stats["osqp"] += 1
+            return sol
+        A = self.A.copy()
+        A.data = data
+        Ad = A.toarray()
+        if self._Pz_dense is None:
+            self._Pz_dense = self.P_z.toarray()
+        finite = (l > -INF / 2) | (u < INF / 2)
+        Az = Ad @ z0
+        span = np.where(np.isfinite(u - l), u - l, np.inf)
+        near = (Az - l < 0.5 * span + 1e-9) & (Az - l < self._reach) | (u - Az < self._reach)
+        work = finite & (self._always | near)
+        sol = None
+        for _ in range(8):
+            sol = self._dense.solve(self._Pz_dense, qz, Ad[work], l[work], u[work], x0=z0)
+            self.qp_stats["daqp"] += 1
+            if not sol.solved:
+                return sol
+            Ax = Ad @ sol.x
+            viol = finite & ~work & ((Ax < l - 1e-7) | (Ax > u + 1e-7))
+            if not np.any(viol):
+                return sol
+            work |= viol
+        return sol
 
     def _q_full(self, Xr: np.ndarray) -> np.ndarray:
         """Linear term over all knots: -2 w1 Q x^r on interior knots, 0 at the fixed ends."""
