@@ -91,8 +91,8 @@ def _sym_residual(A: np.ndarray, B: np.ndarray, treeB: cKDTree) -> float:
     return 0.5 * (float(da.mean()) + float(db.mean()))
 
 
-def fit_template(target, template: Template, *, n_points: int = 300, yaw_steps: int = 12, beta: float = 2.0,
-                 lmbda: float = 50.0, w: float = 0.05, nonrigid: bool = True, max_iterations: int = 60,
+def fit_template(target, template: Template, *, n_points: int = 200, yaw_steps: int = 12, beta: float = 2.0,
+                 lmbda: float = 50.0, w: float = 0.05, nonrigid: bool = True, max_iterations: int = 40,
                  tolerance: float = 1e-4) -> Fit:
     """Fit ``template`` to ``target`` (n, 3): yaw search, rigid CPD (6.8)-(6.10), non-rigid CPD
     (6.11)-(6.13) with ``beta``, ``lmbda``; return the warp and the residual (6.17)-(6.19)."""
@@ -115,7 +115,7 @@ def fit_template(target, template: Template, *, n_points: int = 300, yaw_steps: 
             best = (r, R)
     init = _Init(sc * best[1], cx - sc * best[1] @ cy)
     Y0 = init(Ys)
-    rig = cpd_rigid(Xs, Y0, w=w, tolerance=1e-6, max_iterations=max_iterations)
+    rig = cpd_rigid(Xs, Y0, w=w, tolerance=1e-3, max_iterations=max_iterations, method="fast")
     warp = ComposedWarp(init, rig.warp)
     warped = rig.TY
     nr = None

@@ -62,7 +62,7 @@ class GraspPlanner:
     """
 
     def __init__(self, templates: list[Template], *, gripper: ParallelGripper = ParallelGripper(), robot="lrmate",
-                 base_pose: np.ndarray | None = None, table_z: float = 0.0, n_points: int = 300,
+                 base_pose: np.ndarray | None = None, table_z: float = 0.0, n_points: int = 200,
                  q_ref=None, local_radius: float = 0.04) -> None:
         if not templates:
             raise InvalidInput("GraspPlanner needs at least one template", value=templates)
@@ -90,7 +90,7 @@ class GraspPlanner:
             return h
         Wl = fit.warp(local)
         try:
-            rr = cpd_rigid(Xl, Wl, scale=False, w=0.1, tolerance=1e-6, max_iterations=50)
+            rr = cpd_rigid(Xl, Wl, scale=False, w=0.1, tolerance=1e-3, max_iterations=30, method="fast")
         except RobointelError:
             return h
         ang = np.arccos(np.clip((np.trace(rr.warp.R) - 1) / 2, -1, 1))

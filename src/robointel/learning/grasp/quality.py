@@ -127,7 +127,8 @@ def grasp_map(contacts: np.ndarray, normals: np.ndarray, centre: np.ndarray, *, 
     contacts = np.asarray(contacts, float)
     normals = np.asarray(normals, float)
     L = length or max(0.5 * float(np.linalg.norm(contacts[0] - contacts[1])), 1e-3)
-    cols = []
+    ang = 2 * np.pi * np.arange(edges) / edges
+    blocks = []
     for c, n in zip(contacts, normals):
         f_n = -n / np.linalg.norm(n)
         t1 = np.cross(f_n, [1.0, 0, 0])
@@ -135,14 +136,11 @@ def grasp_map(contacts: np.ndarray, normals: np.ndarray, centre: np.ndarray, *, 
             t1 = np.cross(f_n, [0, 1.0, 0])
         t1 /= np.linalg.norm(t1)
         t2 = np.cross(f_n, t1)
+        F = (f_n + mu * (np.cos(ang)[:, None] * t1 + np.sin(ang)[:, None] * t2)) / np.sqrt(1 + mu * mu)
         r = (c - centre) / L
-        for k in range(edges):
-            a = 2 * np.pi * k / edges
-            f = (f_n + mu * (np.cos(a) * t1 + np.sin(a) * t2)) / np.sqrt(1 + mu * mu)
-            cols.append(np.r_[f, np.cross(r, f)])
-        for s in (1.0, -1.0):
-            cols.append(np.r_[np.zeros(3), s * mu_t * f_n])
-    return np.array(cols).T
+        blocks.append(np.c_[F, np.cross(r, F)])
+        blocks.append(np.c_[np.zeros((2, 3)), np.outer([1.0, -1.0], mu_t * f_n)])
+    return np.vstack(blocks).T
 
 
 def isotropy(G: np.ndarray) -> float:

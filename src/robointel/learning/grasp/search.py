@@ -61,17 +61,19 @@ def orientation_search(grasp: Grasp, cloud, robot=None, *, gripper: ParallelGrip
     angles = np.radians(np.arange(-90, 91, 10)) if angles is None else np.asarray(angles, float)
     Tb_inv = np.linalg.inv(base_pose) if base_pose is not None else np.eye(4)
     rows, best = [], None
+    cache: dict = {}
     for a in angles:
         g = grasp.rotated_about_axis(float(a))
         if table_z is not None:  # raise the grasp until the fingertips clear the table
-            low = min((c - s / 2 * np.sign(g.rotation[2])) @ g.rotation[2] for c, s in gripper.boxes())
-            low = min(low, 0.0)
             tips = g.centre[2] + min(((np.array([sx, sy, sz]) * s / 2 + c) @ g.rotation[2])
                                      for c, s in gripper.boxes()[:2] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1))
             deficit = table_z + 0.003 - tips
             if deficit > 0:
                 g = Grasp(g.centre + np.array([0, 0, deficit]), g.rotation, g.width, g.name)
-        gq = grasp_quality(P, g, gripper=gripper, tree=tree)
+        key = tuple(np.round(g.centre, 6))
+        if key not in cache:  # turning about the closing axis leaves the contacts unchanged
+            cache[key] = grasp_quality(P, g, gripper=gripper, tree=tree)
+        gq = cache[key]
         if gq.grasp is not None:
             g = Grasp(gq.grasp.centre, g.rotation, gq.width, g.name)
         col = gripper.collides(g, P, table_z=table_z)
