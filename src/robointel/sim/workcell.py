@@ -176,7 +176,8 @@ class Workcell:
             schedule always includes it).
         armature: optional (n,) reflected rotor inertia (kg m^2) in MuJoCo and in the controller.
         self_collision: robot-robot contacts in MuJoCo (off by default, see ``mjcf.build_spec``).
-        q0: initial configuration (default: zeros clipped into the limits).
+        q0: initial configuration, also the default of :meth:`reset` (default: zeros clipped into
+            the limits).
     """
 
     def __init__(self, robot=None, obstacles: Sequence[Any] = (), objects: Sequence[SimObject] = (),
@@ -217,7 +218,8 @@ class Workcell:
         self.controller = JointController(robot, gains, bandwidth_hz=bandwidth_hz, dt=self.control_dt, model=pin_model,
                                           gain_model=gain_model)
         self._wrench: tuple[int, np.ndarray, np.ndarray, np.ndarray] | None = None
-        self.reset(q0)
+        self._q0 = None if q0 is None else self.robot.check_q(q0, "q0", limits=True).copy()
+        self.reset()
 
     # ------------------------------------------------------------------ model
     def _build(self) -> None:
@@ -250,7 +252,7 @@ class Workcell:
         self._body_names = [m.body(b).name for b in range(m.nbody)]
         self._obstacle_geoms = np.array([g for g in range(m.ngeom) if self._geom_names[g].startswith(OBSTACLE_PREFIX)],
                                         dtype=int)
-        self._robot_geoms = np.flatnonzero(self._geom_robot & (m.geom_contype | m.geom_conaffinity > 0))
+        self._robot_geoms = np.flatnonzero(self._geom_robot & ((m.geom_contype | m.geom_conaffinity) > 0))
         self._mocap = {nm: int(m.body_mocapid[m.body(OBSTACLE_PREFIX + nm).id]) for nm in self.info["obstacles"]}
         self._tool_id = m.body(TOOL_BODY).id
         if self._has_ft:
@@ -279,14 +281,14 @@ class Workcell:
     # ------------------------------------------------------------------ state
     def reset(self, q=None, qd=None) -> None:
         """Reset time, objects and obstacles to their initial poses and the robot to ``q``
-        (default zeros clipped into the limits) at velocity ``qd`` (default 0); clear the
+        (default ``q0``, else zeros clipped into the limits) at velocity ``qd`` (default 0); clear the
         controller's integral, the applied wrench and hold at ``q``.
 
         Raises:
             ShapeError, NotFinite, LimitViolation: bad ``q``/``qd``.
         """
         if q is None:
-            q = np.clip(np.zeros(self.n), self.robot.lower, self.robot.upper)
+            q = self._q0 if self._q0 is not None else np.clip(np.zeros(self.n), self.robot.lower, self.robot.upper)
         q = self.robot.check_q(q, "q", limits=True)
         qd = np.zeros(self.n) if qd is None else self.robot.check_q(qd, "qd")
         mujoco.mj_resetData(self.model, self.data)
@@ -694,6 +696,7 @@ class Workcell:
         its name."""
         shape_geoms(shape)  # validate first
         state = self._save_state()
+        wrench = None if self._wrench is None else (self._body_names[self._wrench[0]],) + self._wrench[1:]
         self._obstacles.append(shape)
         try:
             self._build()
@@ -703,6 +706,8 @@ class Workcell:
             self._restore_state(state)
             raise
         self._restore_state(state)
+        if wrench is not None:
+            self._wrench = (self._body_id(wrench[0]),) + wrench[1:]
         return self.info["obstacles"][-1]
 
     def set_obstacle_pose(self, name: str, position, rotation=None) -> None:
