@@ -123,6 +123,12 @@ def test_render_png_or_clear_error(lrmate, tmp_path):
     img = wc.render(tmp_path / "cell.png", width=160, height=120)
     assert img.shape == (120, 160, 3) and img.std() > 10
     assert (tmp_path / "cell.png").stat().st_size > 1000
+    qs = [np.zeros(6), np.array([0.5, 0.3, 0.0, 0.0, -0.5, 0.0]), np.array([-0.5, 0.6, 0.2, 0.0, -0.9, 0.0])]
+    strip = wc.render_frames(qs, tmp_path / "strip.png", width=80, height=60)
+    assert strip.shape == (60, 240, 3)
+    assert np.abs(strip[:, :80].astype(int) - strip[:, 80:160]).mean() > 1  # the arm moved between frames
+    with pytest.raises(InvalidInput):
+        wc.render_frames([np.zeros(4)])
 
 
 def test_tool_contact_force_is_felt_by_the_sensor(lrmate):

@@ -751,11 +751,19 @@ class Workcell:
         """Render the scene offscreen to an (h, w, 3) uint8 image, saved as PNG when ``path``.
 
         Raises:
-            SafetyStop: never; RobointelError with the reason when no offscreen OpenGL is available.
+            RobointelError: no offscreen OpenGL (EGL/OSMesa) available, with the reason.
         """
         from robointel.sim.render import render
 
         return render(self, path, width=width, height=height, camera=camera)
+
+    def render_frames(self, qs, path=None, *, width: int = 480, height: int = 360, camera: dict | None = None,
+                      columns: int | None = None):
+        """Render robot configurations ``qs`` ((k, n) or full qpos vectors) into one montage
+        image (see :func:`robointel.sim.render.render_frames`)."""
+        from robointel.sim.render import render_frames
+
+        return render_frames(self, qs, path, width=width, height=height, camera=camera, columns=columns)
 
     def __repr__(self) -> str:
         return (f"Workcell({self.robot.name!r}, obstacles={self.obstacle_names}, objects={self.info['objects']}, "
