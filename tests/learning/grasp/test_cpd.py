@@ -29,12 +29,12 @@ def test_nonrigid_matches_pycpd(shared_data, name):
 @pytest.mark.parametrize("name", ["fish", "bunny"])
 def test_rigid_affine_match_pycpd(shared_data, name):
     X, Y = _pair(shared_data, name)
-    TY, _ = pycpd.RigidRegistration(X=X, Y=Y).register()
-    r = cpd_rigid(X, Y, normalize=False)
+    TY, _ = pycpd.RigidRegistration(X=X, Y=Y, max_iterations=25).register()
+    r = cpd_rigid(X, Y, normalize=False, max_iterations=25)
     assert np.abs(r.TY - TY).max() < 1e-6
     assert np.isclose(np.linalg.det(r.warp.R), 1.0)
-    TY, _ = pycpd.AffineRegistration(X=X, Y=Y).register()
-    a = cpd_affine(X, Y, normalize=False)
+    TY, _ = pycpd.AffineRegistration(X=X, Y=Y, max_iterations=25).register()
+    a = cpd_affine(X, Y, normalize=False, max_iterations=25)
     assert np.abs(a.TY - TY).max() < 1e-6
 
 
@@ -51,8 +51,8 @@ def test_rigid_recovers_known_motion_any_units():
 
 
 def test_lowrank_close_to_exact_and_warp_jacobian(shared_data):
-    X = np.loadtxt(shared_data("cpd", "bunny-x.txt"))[::10]
-    Y = np.loadtxt(shared_data("cpd", "bunny-y.txt"))[::10]
+    X = np.loadtxt(shared_data("cpd", "bunny-x.txt"))[::16]
+    Y = np.loadtxt(shared_data("cpd", "bunny-y.txt"))[::16]
     ex = cpd_nonrigid(X, Y, beta=2.0, lmbda=50.0, normalize=False, method="exact", max_iterations=20, tolerance=0)
     lr = cpd_nonrigid(X, Y, beta=2.0, lmbda=50.0, normalize=False, method="lowrank", max_iterations=20, tolerance=0)
     assert lr.iterations == ex.iterations == 20

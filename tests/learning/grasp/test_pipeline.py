@@ -1,0 +1,83 @@
+"""Grasp database, simulated perception, YCB/toy-arm objects and one MuJoCo lift-and-shake trial."""
+import mujoco
+import numpy as np
+import pytest
+
+from robointel.errors import DataMissing, InvalidInput
+from robointel.io.grasp_db import GraspDatabase
+from robointel.learning.grasp import (GraspPlanner, Placement, Template, default_cameras, depth_image, grasp_trial,
+                                      perceive, primitive_object, random_placements, sample_points, scene_xml,
+                                      split_convex, taught_grasps, toy_arm, voxel_downsample, ycb_object)
+
+
+def test_grasp_db_roundtrip(tmp_path):
+    db = GraspDatabase(tmp_path / "g.h5")
+    objs = [primitive_object("cup", 1), primitive_object("box", 2)]
+    for o in objs:
+        db.add(Template(o.name, o.category, sample_points(o, 100, 0), taught_grasps(o)), source="primitive")
+    assert db.names() == [o.name for o in objs]
+    t = db.load(objs[0].name)
+    assert t.category == "cup" and t.points.shape == (100, 3)
+    ref = taught_grasps(objs[0])
+    assert [g.name for g in t.grasps] == [g.name for g in ref]
+    assert np.allclose(t.grasps[1].rotation, ref[1].rotation)
+    assert db.gripper().max_width == pytest.approx(0.048)
+    with pytest.raises(InvalidInput):
+        db.add(t)
+    with pytest.raises(DataMissing):
+        GraspDatabase(tmp_path / "none.h5").names()
+
+
+def test_voxel_downsample_5mm():
+    rng = np.random.default_rng(0)
+    P = rng.uniform(0, 0.05, size=(5000, 3))
+    V = voxel_downsample(P, 0.005)
+    assert len(V) <= 1000 and len(V) > 900
+    key = np.floor(V / 0.005)
+    assert len(np.unique(key, axis=0)) == len(V)
+
+
+def test_perception_finds_each_object():
+    objs = [primitive_object("cup", 1), primitive_object("box", 2), primitive_object("ball", 3)]
+    pl = random_placements(objs, 4)
+    m0 = mujoco.MjModel.from_xml_string(scene_xml([]))
+    d0 = mujoco.MjData(m0)
+    mujoco.mj_forward(m0, d0)
+    cams = default_cameras()
+    bgs = [depth_image(m0, d0, c, 0) for c in cams]
+    m = mujoco.MjModel.from_xml_string(scene_xml(pl))
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    clouds = perceive(m, d, cams, bgs, rng=1)
+    assert len(clouds) == 3
+    centres = np.array([c.mean(0)[:2] for c in clouds])
+    for p in pl:
+        assert np.min(np.linalg.norm(centres - [p.x, p.y], axis=1)) < 0.03
+    for c in clouds:  # on the 5 mm voxel grid: no two points closer than ~ a voxel apart on average
+        assert c[:, 2].min() > 0.0
+
+
+def test_ycb_and_toy_arm_objects(shared_data):
+    shared_data("objects", "ycb", "065-a_cups", "mesh.ply")
+    cup = ycb_object("065-a_cups")
+    assert cup.category == "cup" and len(cup.pieces) > 10
+    assert abs(cup.mesh.bounds[0, 2]) < 1e-9
+    assert all(p.is_convex for p in cup.pieces[:5])
+    a, b = toy_arm(rng=1), toy_arm(rng=2)
+    assert a.category == "toy_arm" and len(a.pieces) >= 6
+    assert 0.1 < a.height < 0.3
+    assert not np.allclose(a.mesh.extents, b.mesh.extents)  # different joint angles
+
+
+def test_lift_and_shake_trial_holds_a_box():
+    tmpl_obj = primitive_object("box", 10)
+    tmpl = Template("box_t", "box", sample_points(tmpl_obj, 600, 0), taught_grasps(tmpl_obj))
+    ball = primitive_object("ball", 11)
+    tball = Template("ball_t", "ball", sample_points(ball, 600, 0), taught_grasps(ball))
+    planner = GraspPlanner([tmpl, tball])
+    target = primitive_object("box", 12)
+    res = grasp_trial(target, Placement(target, 0.5, 0.05, 0.6), planner, rng=0)
+    assert res.category == "box"
+    assert res.plan.search.feasible
+    assert res.success, res.reason
+    assert res.final_height > 0.08
