@@ -70,3 +70,27 @@ def test_imitation_recording_in_mujoco(lrmate, shared_data):
     assert run.plan.reachable.all()
     assert run.rms.max() < 0.02           # joints follow the per-frame IK targets
     assert run.tcp_rms < 0.01             # the TCP follows the scaled hand within 1 cm
+
+
+def test_cli_imitate_writes_plots(tmp_path):
+    from typer.testing import CliRunner
+
+    from robointel.cli import app
+
+    res = CliRunner().invoke(app, ["imitate", "synthetic", "--scara", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "lrmate_imitation.png").stat().st_size > 10_000
+    assert (tmp_path / "scara_imitation.png").stat().st_size > 10_000
+    assert "0.153" in res.output  # the dissertation's figure printed beside ours
+    bad = CliRunner().invoke(app, ["imitate", str(tmp_path / "missing.csv")])
+    assert bad.exit_code == 2 and "error" in bad.output
+
+
+def test_demo_stage_runs_without_shared_data(tmp_path, monkeypatch):
+    monkeypatch.setenv("ROBOINTEL_DATA", str(tmp_path / "nowhere"))
+    from robointel.commands import teach
+    from robointel.report.demo import run_demo
+
+    html = run_demo([teach.demo_stage], tmp_path, quick=True).read_text()
+    assert "Imitation from human motion" in html and "synthetic" in html
+    assert "0.153 / 0.185" in html and html.count("data:image/png;base64") == 2

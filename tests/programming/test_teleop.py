@@ -71,3 +71,24 @@ def test_replay_reaches_waypoints_headless(app):
         assert len(errs) == 2 and max(errs) < 2e-3
     finally:
         app.controller.stop()
+
+
+def test_cli_teleop_serves_and_refuses_remote_without_token():
+    import socket
+
+    from typer.testing import CliRunner
+
+    from robointel.cli import app
+
+    ports = []
+    for _ in range(2):
+        s = socket.socket()
+        s.bind(("127.0.0.1", 0))
+        ports.append(s.getsockname()[1])
+        s.close()
+    res = CliRunner().invoke(app, ["teleop", "--port", str(ports[0]), "--stream-port", str(ports[1]),
+                                   "--duration", "0.5", "--program", "/tmp/never-written.yaml"])
+    assert res.exit_code == 0, res.output
+    assert f"http://127.0.0.1:{ports[0]}" in res.output and f"ws://127.0.0.1:{ports[1]}" in res.output
+    res = CliRunner().invoke(app, ["teleop", "--host", "0.0.0.0", "--duration", "0.1"])
+    assert res.exit_code == 2 and "token" in res.output

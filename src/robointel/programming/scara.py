@@ -196,13 +196,14 @@ class ScaraResult:
     source: str = ""
 
 
-def human_reference(skel: Skeleton, side: str | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def human_reference(skel: Skeleton, side: str | None = None, *,
+                    live_cutoff_hz: float = 12.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t (N,), true angles (N, 2) from the zero-phase cleaned skeleton, measured angles (N, 2) from
     the raw frames as a live system sees them: dropouts held, causal filter)."""
     side = side or skel.active_side()
     joints = ["SpineBase", *[f"{j}{'Right' if side == 'right' else 'Left'}" for j in ("Shoulder", "Elbow", "Hand")]]
     truth = clean(skel, joints=joints)
-    live = clean(skel, joints=joints, causal=True, cutoff_hz=min(12.0, 0.45 * skel.rate))
+    live = clean(skel, joints=joints, causal=True, cutoff_hz=min(live_cutoff_hz, 0.45 * skel.rate))
     normal = arm_plane(truth, side)
     q_true, q_live = arm_angles(truth, side, normal=normal), arm_angles(live, side, normal=normal)
     # the SCARA base has no 'down': put the recording's mean shoulder angle at the middle of J1's
