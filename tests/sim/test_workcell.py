@@ -213,3 +213,35 @@ def test_log_roundtrip_and_trajectory_object(wc, tmp_path):
     np.testing.assert_array_equal(back.q, log.q)
     np.testing.assert_array_equal(back.ft, log.ft)
     assert back.joint_names == log.joint_names and back.summary() == log.summary()
+
+
+def test_snapshot_restore_replays_exactly(wc):
+    wc.reset(Q0)
+    wc.apply_wrench([5.0, 0.0, -3.0])
+    for _ in range(100):
+        wc.command_velocity(np.full(6, 0.2))
+    snap = wc.snapshot()
+    runs = []
+    for _ in range(2):
+        wc.restore(snap)
+        for _ in range(200):
+            wc.command_velocity(np.full(6, -0.1))
+        runs.append((wc.q, wc.qd, wc.time, wc.ft_reading()))
+    np.testing.assert_array_equal(runs[0][0], runs[1][0])
+    np.testing.assert_array_equal(runs[0][1], runs[1][1])
+    np.testing.assert_array_equal(runs[0][3], runs[1][3])
+    assert runs[0][2] == runs[1][2]
+    wc.clear_wrench()
+    other = Workcell(wc.robot, obstacles=[Sphere(np.array([1.0, 1.0, 1.0]), 0.1)])
+    with pytest.raises(InvalidInput):
+        other.restore(snap)
+
+
+def test_log_reports_saturation_and_velocity_ratio(lrmate):
+    wc = Workcell(lrmate)
+    t, q, qd, qdd = smooth_trajectory(Q0, Q0 + np.array([2.5, 0, 0, 0, 0, 0]), T=0.35, n=36)
+    log = wc.run_trajectory(t, q, qd, qdd)
+    assert log.velocity_ratio(lrmate)[0] == pytest.approx(np.pi * 2.5 / 2 / 0.35 / lrmate.velocity_limit[0])
+    assert log.velocity_ratio(lrmate)[0] > 1  # too fast for J1
+    assert log.saturation_fraction[0] > 0  # 100 rad/s^2 on J1 needs more than its 150 N m
+    assert np.all(np.abs(log.tau[:, 0]) <= 150.0)

@@ -121,6 +121,17 @@ class TrackingLog:
         return bool(np.any(self.contacts > 0)) or self.min_distance < 0
 
     @property
+    def saturation_fraction(self) -> np.ndarray:
+        """Fraction of control periods each joint's torque was at its effort limit, (n,)."""
+        if self.saturated is None or len(self.saturated) == 0:
+            return np.zeros(self.q.shape[1])
+        return self.saturated.mean(axis=0)
+
+    def velocity_ratio(self, robot) -> np.ndarray:
+        """max_t |qd_ref| / velocity limit per joint, (n,): > 1 means the reference was too fast."""
+        return np.max(np.abs(self.qd_ref), axis=0) / robot.velocity_limit
+
+    @property
     def duration(self) -> float:
         return float(self.t[-1] - self.t[0]) if len(self.t) else 0.0
 
@@ -724,6 +735,40 @@ class Workcell:
             mujoco.mju_mat2Quat(self.data.mocap_quat[i], R.reshape(9))
         mujoco.mj_kinematics(self.model, self.data)
         mujoco.mj_collision(self.model, self.data)
+
+    def snapshot(self) -> dict:
+        """The full simulation state (MuJoCo state, controller integral, hold reference, applied
+        wrench, grasps) for :meth:`restore` (e.g. to roll out alternatives from one state)."""
+        s = self._save_state()
+        s["act"] = self.data.act.copy()
+        s["qacc_warmstart"] = self.data.qacc_warmstart.copy()
+        c = self.controller
+        s["controller"] = (c.integral.copy(), c.saturated.copy(), c.last_tau.copy())
+        s["hold"] = tuple(x.copy() for x in self._hold)
+        s["wrench"] = None if self._wrench is None else (self._wrench[0],) + tuple(x.copy() for x in self._wrench[1:])
+        s["nbody"] = self.model.nbody
+        return s
+
+    def restore(self, snapshot: dict) -> None:
+        """Return to a :meth:`snapshot` of this workcell (same scene).
+
+        Raises:
+            InvalidInput: the snapshot is from another scene.
+        """
+        if not isinstance(snapshot, dict) or snapshot.get("nbody") != self.model.nbody \
+                or snapshot["qpos"].shape != self.data.qpos.shape:
+            raise InvalidInput("the snapshot does not belong to this workcell's scene", value=None)
+        self._restore_state(snapshot)
+        self.data.act[:] = snapshot["act"]
+        self.data.qacc_warmstart[:] = snapshot["qacc_warmstart"]
+        c = self.controller
+        c.integral[:], c.saturated[:], c.last_tau = (snapshot["controller"][0], snapshot["controller"][1],
+                                                     snapshot["controller"][2].copy())
+        self._hold = tuple(x.copy() for x in snapshot["hold"])
+        self._wrench = snapshot["wrench"]
+        self.data.xfrc_applied[:] = 0
+        if self._wrench is not None:
+            self._apply_wrench_now()
 
     def _save_state(self) -> dict:
         d = self.data
