@@ -47,3 +47,35 @@ def test_unexciting_poses_rejected():
         identify_ft(np.zeros((10, 6)), R)
     with pytest.raises(InvalidInput):
         identify_ft(np.zeros((2, 6)), R[:2])
+
+
+def test_identification_in_mujoco_with_bias_and_noise():
+    """Fig. 3.10: a 0.8 kg tool with an offset CoM on the simulated sensor, with bias and noise:
+    mass and CoM within 1%, and compensated readings in new poses at the noise level."""
+    from robointel.programming.ft_identification import calibrate_in_workcell
+    from robointel.sim import FTSensor, Payload, Workcell
+
+    noise = np.array([0.2, 0.2, 0.2, 0.01, 0.01, 0.01])
+    bias = np.array([3.0, -2.0, 5.0, 0.2, -0.1, 0.05])
+    com = np.array([0.05, 0.01, -0.02])
+    wc = Workcell(ft_sensor=FTSensor(bias=bias, noise_std=noise, seed=1), payload=Payload(mass=0.8, com=com))
+    q0 = np.array([0.0, 0.1, -0.1, 0.0, -1.2, 0.0])
+    cal = calibrate_in_workcell(wc, q0, poses=12, settle=0.2, average=20)
+    assert abs(cal.mass - 0.8) / 0.8 < 0.01
+    assert np.linalg.norm(cal.com - com) / np.linalg.norm(com) < 0.01
+    np.testing.assert_allclose(cal.force_bias, bias[:3], atol=0.05)
+    np.testing.assert_allclose(cal.torque_bias, bias[3:], atol=0.005)
+    # live compensation in new poses: residuals are the sensor noise
+    rng = np.random.default_rng(7)
+    res = []
+    for _ in range(4):
+        q = q0.copy()
+        q[3:] += rng.uniform(-1.0, 1.0, 3)
+        wc.reset(q)
+        wc.hold(0.2)
+        for _ in range(50):
+            wc.hold(0.001)
+            res.append(cal.compensate(wc.ft_reading(), wc.sensor_pose()[:3, :3]))
+    res = np.array(res)
+    assert np.all(np.abs(res.mean(0)) < 3 * noise)
+    np.testing.assert_allclose(res.std(0), noise, rtol=0.35)

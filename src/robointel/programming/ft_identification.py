@@ -27,7 +27,7 @@ import numpy as np
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
 
-__all__ = ["FTCalibration", "GRAVITY", "identify_ft", "skew"]
+__all__ = ["FTCalibration", "GRAVITY", "calibrate_in_workcell", "identify_ft", "skew"]
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
 
@@ -132,3 +132,36 @@ def identify_ft(wrenches, rotations, *, gravity=GRAVITY) -> FTCalibration:
     return FTCalibration(mass=m, com=r, force_bias=fB, torque_bias=tB,
                          force_rms=float(np.sqrt(np.mean(rf ** 2))), torque_rms=float(np.sqrt(np.mean(rt ** 2))),
                          gravity=g.copy())
+
+
+def calibrate_in_workcell(wc, q0, *, poses: int = 12, settle: float = 0.25, average: int = 50,
+                          spread: float = 1.2, seed: int = 0) -> FTCalibration:
+    """Identify payload and F/T biases on a (simulated) robot (3.14)-(3.19).
+
+    Holds the robot still in ``poses`` wrist orientations around ``q0`` (J4-J6 offset uniformly
+    within +-``spread`` rad), averages ``average`` readings in each after ``settle`` seconds, and fits
+    :func:`identify_ft`. Leaves the robot holding the last pose.
+
+    Args:
+        wc: a :class:`robointel.sim.Workcell` with an F/T sensor (payload, bias and noise as built).
+        q0: (n,) central configuration, rad.
+    """
+    robot = wc.robot
+    q0 = robot.check_q(q0, "q0")
+    if poses < 3 or average < 1:
+        raise InvalidInput("need poses >= 3 and average >= 1", value=(poses, average))
+    rng = np.random.default_rng(seed)
+    W, R = [], []
+    for _ in range(poses):
+        q = q0.copy()
+        q[3:6] += rng.uniform(-spread, spread, 3)
+        q = np.clip(q, robot.lower, robot.upper)
+        wc.reset(q)
+        wc.hold(settle)
+        acc = np.zeros(6)
+        for _ in range(average):
+            wc.hold(0.001)
+            acc += wc.ft_reading()
+        W.append(acc / average)
+        R.append(wc.sensor_pose()[:3, :3])
+    return identify_ft(np.array(W), np.array(R))

@@ -35,6 +35,7 @@ import numpy as np
 from robointel.errors import InvalidInput
 from robointel.geometry import Cylinder
 from robointel.programming.guidance import GuidanceConfig, GuidanceController
+from robointel.programming.ft_identification import calibrate_in_workcell
 from robointel.programming.keypoints import blended_trajectory
 
 __all__ = ["BASE_HEIGHT", "OBSTACLE_RADIUS", "SCENARIOS", "Scenario", "ScenarioResult", "SimulatedOperator",
@@ -63,9 +64,10 @@ class Scenario:
         number: 1, 2 or 3 (Table 4.1).
         name: short description.
         obstacle: the cylinder, robot root frame.
-        waypoints: (K, 3) intended TCP path (root frame, m), start first.
+        waypoints: (3, 3) intended TCP path (root frame, m): start, a point beyond the obstacle
+            (the operator pushes toward it), and the point the operator retreats to.
         speed: operator's intended speed along the path, m/s.
-        dwell: time the operator keeps pushing toward the last waypoint, s.
+        dwell: time the operator keeps pushing toward the second waypoint, s.
         on_purpose: the operator deliberately pushes into the obstacle.
     """
 
@@ -74,15 +76,15 @@ class Scenario:
     obstacle: Cylinder
     waypoints: np.ndarray
     speed: float = 0.12
-    dwell: float = 1.5
+    dwell: float = 1.0
     on_purpose: bool = False
 
 
 # intended TCP paths (robot root frame, tool pointing down); each would hit the obstacle
-_PATHS = {
-    1: ([0.35, -0.30, 0.65], [0.62, 0.10, 0.20]),   # down and forward: forearm/wrist over the low bar
-    2: ([0.60, -0.15, 0.55], [0.68, 0.15, 0.80]),   # up under the high bar: wrist pushed into it
-    3: ([0.45, -0.30, 0.45], [0.05, 0.60, 0.45]),   # swing left: the arm sweeps into the pillar
+_PATHS = {  # start, beyond the obstacle, retreat
+    1: ([0.35, -0.30, 0.65], [0.62, 0.10, 0.20], [0.45, 0.0, 0.50]),   # down and forward over the low bar
+    2: ([0.60, -0.15, 0.55], [0.68, 0.15, 0.80], [0.55, 0.05, 0.60]),   # up under the high bar, into it
+    3: ([0.45, -0.30, 0.45], [0.05, 0.60, 0.45], [0.40, 0.10, 0.50]),   # swing left into the pillar
 }
 
 
@@ -101,30 +103,62 @@ SCENARIOS = (1, 2, 3)
 class SimulatedOperator:
     """A human hand as a saturated spring-damper pulling the handle along an intended path.
 
+    The target moves from ``waypoints[0]`` to ``waypoints[1]`` (blended line segments), stays
+    there for ``dwell`` seconds (the hand keeps pushing) and, with a third waypoint, then moves
+    back to it (the operator retreats).
+
     Attributes:
-        waypoints: (K, 3) path, m. speed: along it, m/s.
+        waypoints: (2 or 3, 3) path, m. speed: along it, m/s. dwell: pause at waypoints[1], s.
         stiffness: K_h, N/m. damping: B_h, N s/m. max_force: saturation, N.
         rot_stiffness: how the hand resists tool rotation, N m/rad.
     """
 
     waypoints: np.ndarray
     speed: float = 0.12
+    dwell: float = 1.0
     stiffness: float = 250.0
     damping: float = 5.0
     max_force: float = 30.0
     rot_stiffness: float = 2.0
 
     def __post_init__(self) -> None:
-        self.path = blended_trajectory(self.waypoints, speed=self.speed, blend_time=0.5, kind="quintic")
+        P = np.asarray(self.waypoints, float)
+        if P.ndim != 2 or P.shape[1] != 3 or not 2 <= len(P) <= 3:
+            raise InvalidInput("waypoints must be (2, 3) or (3, 3)", value=self.waypoints)
+        self.waypoints = P
+        self.legs = [blended_trajectory(P[:2], speed=self.speed, blend_time=0.5, kind="quintic")]
+        if len(P) == 3:
+            self.legs.append(blended_trajectory(P[1:], speed=self.speed, blend_time=0.5, kind="quintic"))
+
+    @property
+    def duration(self) -> float:
+        """Time until the target comes to rest at the end of the path, s."""
+        return sum(leg.duration for leg in self.legs) + self.dwell
 
     def target(self, t: float) -> np.ndarray:
-        return self.path(t)[0][0]
+        """Target point (3,) at time t, s."""
+        return self.targets(np.array([float(t)]))[0]
 
-    def wrench(self, t: float, T_tcp: np.ndarray, v_tcp: np.ndarray, R_hold: np.ndarray) -> np.ndarray:
-        """Hand wrench [f; tau] (6,) on the handle, world axes, about the TCP."""
+    def targets(self, t) -> np.ndarray:
+        """Target points (M, 3) at times t (M,), s."""
+        t = np.asarray(t, float)
+        T1 = self.legs[0].duration
+        out = self.legs[0](t)[0]
+        if len(self.legs) == 2:
+            late = t > T1 + self.dwell
+            out[(t > T1) & ~late] = self.waypoints[1]
+            if late.any():
+                out[late] = self.legs[1](t[late] - T1 - self.dwell)[0]
+        return out
+
+    def wrench(self, t: float, T_tcp: np.ndarray, v_tcp: np.ndarray, R_hold: np.ndarray,
+               target: np.ndarray | None = None) -> np.ndarray:
+        """Hand wrench [f; tau] (6,) on the handle, world axes, about the TCP (``target``: the
+        precomputed :meth:`target` at t)."""
         import pinocchio as pin
 
-        f = self.stiffness * (self.target(t) - T_tcp[:3, 3]) - self.damping * v_tcp
+        p = self.target(t) if target is None else target
+        f = self.stiffness * (p - T_tcp[:3, 3]) - self.damping * v_tcp
         nf = np.linalg.norm(f)
         if nf > self.max_force:
             f *= self.max_force / nf
@@ -176,15 +210,17 @@ class ScenarioResult:
         dev = self.deviation
         act = self.active > 0
         td = self.true_distance[np.isfinite(self.true_distance)]
-        dmin = float(np.min(td)) if td.size else float(np.min(self.distance))
+        dmin = float(np.min(td)) if td.size else float(np.nanmin(self.distance))
         return {
             "min_distance_m": dmin,
-            "min_sphere_distance_m": float(np.min(self.distance)),
+            "min_sphere_distance_m": float(np.nanmin(self.distance)),
+            "held_steps": int(np.sum(self.held)),
             "max_penetration_m": float(max(0.0, -dmin)),
             "robot_obstacle_contacts": int(self.contacts),
             "mean_velocity_deviation": float(np.mean(dev)),
             "max_velocity_deviation": float(np.max(dev)),
             "mean_velocity_deviation_active": float(np.mean(dev[act])) if act.any() else 0.0,
+            "mean_angular_deviation": float(np.mean(np.linalg.norm(self.v_cmd[:, 3:] - self.v_lead[:, 3:], axis=1))),
             "min_approach_rate_active": float(np.min(self.approach_rate[act])) if act.any() else 0.0,
             "active_fraction": float(np.mean(act)),
             "step_us_median": float(np.median(self.step_us)),
@@ -210,7 +246,7 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
     Args:
         number: 1, 2, 3 (Table 4.1).
         method: "qp", "equality", "repulsive" or "nullspace".
-        duration: simulated seconds (default: the operator's path plus its dwell).
+        duration: simulated seconds (default: the operator's whole path plus 0.5 s).
         physics: True: MuJoCo workcell with the F/T sensor in the loop; False: kinematic
             integration of the command (q += qd dt), hand wrench fed to the controller directly.
         config: controller configuration (its ``method`` is replaced by ``method``).
@@ -227,10 +263,10 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
     robot = robot or Robot.load("lrmate200id7l")
     cfg = replace(config or GuidanceConfig(), method=method)
     ctl = GuidanceController(robot, [sc.obstacle], cfg)
-    op = SimulatedOperator(sc.waypoints, speed=sc.speed)
+    op = SimulatedOperator(sc.waypoints, speed=sc.speed, dwell=sc.dwell)
     q0 = _start_configuration(robot, sc.waypoints[0])
     R_hold = robot.fk(q0)[:3, :3]
-    T_end = op.path.duration + sc.dwell if duration is None else float(duration)
+    T_end = op.duration + 0.5 if duration is None else float(duration)
     N = int(round(T_end / 0.001))
     n = robot.nq
     log = {k: np.zeros((N, w)) for k, w in (("q", n), ("tcp", 3), ("target", 3), ("v_lead", 6), ("v_cmd", 6))}
@@ -249,7 +285,7 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
                         seed=seed)
         wc = Workcell(robot, obstacles=[sc.obstacle], ft_sensor=sens, payload=payload, q0=q0)
         if identify:
-            cal = calibrate_payload(wc, q0)
+            cal = calibrate_in_workcell(wc, q0)
             extra["identified_mass"] = cal.mass
             extra["identified_com"] = cal.com.tolist()
         else:
@@ -262,13 +298,15 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
     q = q0.copy()
     qd_prev = np.zeros(n)
     t0 = wc.time if wc is not None else 0.0
+    targets = op.targets(np.arange(N) * 0.001)
+    log["target"][:] = targets
     for i in range(N):
         t = i * 0.001
         if wc is not None:
             q = wc.q
         T = robot.fk(q)
-        v_tcp = robot.jacobian(q)[:3] @ (wc.qd if wc is not None else qd_prev)
-        hand = op.wrench(t, T, v_tcp, R_hold)
+        v_tcp = ctl.tcp_jacobian(q)[:3] @ (wc.qd if wc is not None else qd_prev)
+        hand = op.wrench(t, T, v_tcp, R_hold, targets[i])
         if wc is not None:
             wc.apply_wrench(hand[:3], hand[3:], point=T[:3, 3])
             raw = wc.ft_reading()
@@ -277,7 +315,10 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
             w_world = np.concatenate([Rs @ ext[:3], Rs @ ext[3:]])
             # torque about the TCP (the sensor origin is the flange; TCP = flange + tool offset)
             r = T[:3, 3] - wc.sensor_pose()[:3, 3]
-            w_world[3:] -= np.cross(r, w_world[:3])
+            fx, fy, fz = w_world[:3]
+            w_world[3] -= r[1] * fz - r[2] * fy
+            w_world[4] -= r[2] * fx - r[0] * fz
+            w_world[5] -= r[0] * fy - r[1] * fx
         else:
             w_world = hand
         c0 = time.perf_counter()
@@ -292,7 +333,7 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
         else:
             q = np.clip(q + s.qd * 0.001, robot.lower, robot.upper)
             qd_prev = s.qd
-        log["q"][i], log["tcp"][i], log["target"][i] = q, T[:3, 3], op.target(t)
+        log["q"][i], log["tcp"][i] = q, T[:3, 3]
         log["v_lead"][i], log["v_cmd"][i] = s.v_lead, s.v_cmd
         dist[i], rate[i], lam[i], act[i], held[i] = s.distance, s.approach_rate, s.weight, s.active, s.held
         if progress is not None and i % 250 == 0:
@@ -310,33 +351,6 @@ def _obstacle_contacts(wc) -> int:
     if d.ncon == 0:
         return 0
     return sum(1 for c in wc.contacts() if c.kind == "obstacle" and c.distance < 0)
-
-
-def calibrate_payload(wc, q0, *, poses: int = 12, settle: float = 0.25, average: int = 50, seed: int = 0):
-    """Identify payload and F/T biases in the workcell (3.14)-(3.19): hold the robot still in
-    ``poses`` wrist orientations around ``q0``, average ``average`` readings each, fit.
-
-    Returns:
-        :class:`robointel.programming.ft_identification.FTCalibration`.
-    """
-    from robointel.programming.ft_identification import identify_ft
-
-    rng = np.random.default_rng(seed)
-    robot = wc.robot
-    W, R = [], []
-    for k in range(poses):
-        q = q0.copy()
-        q[3:] += rng.uniform(-1.2, 1.2, 3)
-        q = np.clip(q, robot.lower, robot.upper)
-        wc.reset(q)
-        wc.hold(settle)
-        acc = np.zeros(6)
-        for _ in range(average):
-            wc.hold(0.001)
-            acc += wc.ft_reading()
-        W.append(acc / average)
-        R.append(wc.sensor_pose()[:3, :3])
-    return identify_ft(np.array(W), np.array(R))
 
 
 def plot_scenario(result: ScenarioResult, path, *, d0: float = 0.15) -> Path:
