@@ -239,9 +239,10 @@ def test_snapshot_restore_replays_exactly(wc):
 
 def test_log_reports_saturation_and_velocity_ratio(lrmate):
     wc = Workcell(lrmate)
-    t, q, qd, qdd = smooth_trajectory(Q0, Q0 + np.array([2.5, 0, 0, 0, 0, 0]), T=0.35, n=36)
+    stretched = np.array([-1.2, 1.0, 0.3, 0.0, 0.0, 0.0])  # J1 inertia 2.3 kg m^2
+    t, q, qd, qdd = smooth_trajectory(stretched, stretched + np.array([2.5, 0, 0, 0, 0, 0]), T=0.35, n=36)
     log = wc.run_trajectory(t, q, qd, qdd)
     assert log.velocity_ratio(lrmate)[0] == pytest.approx(np.pi * 2.5 / 2 / 0.35 / lrmate.velocity_limit[0])
     assert log.velocity_ratio(lrmate)[0] > 1  # too fast for J1
-    assert log.saturation_fraction[0] > 0  # 100 rad/s^2 on J1 needs more than its 150 N m
+    assert log.saturation_fraction[0] > 0  # 100 rad/s^2 x 2.3 kg m^2 is more than J1's 150 N m
     assert np.all(np.abs(log.tau[:, 0]) <= 150.0)
