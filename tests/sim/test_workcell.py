@@ -70,6 +70,9 @@ def test_ft_sensor_reads_payload_weight_and_moment(lrmate):
     wc = Workcell(lrmate, payload=Payload(m, com))
     q = np.array([0.3, 0.2, -0.1, 0.5, -0.7, 1.0])
     wc.reset(q)
+    R = lrmate.frame_pose(q, "flange")[:3, :3]
+    f = R.T @ np.array([0.0, 0.0, -m * G])
+    np.testing.assert_allclose(wc.ft_reading(), np.r_[f, np.cross(com, f)], atol=1e-9)  # right after reset
     wc.hold(1.0)
     R = lrmate.frame_pose(wc.q, "flange")[:3, :3]
     f = R.T @ np.array([0.0, 0.0, -m * G])

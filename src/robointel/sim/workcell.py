@@ -305,8 +305,10 @@ class Workcell:
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[self._qadr] = q
         self.data.qvel[self._vadr] = qd
-        mujoco.mj_forward(self.model, self.data)
         self.controller.reset()
+        # start with the holding (feed-forward) torque so that sensors read a robot at rest
+        self.data.ctrl[self._aid] = self.controller.feedforward_torque(q, qd, np.zeros(self.n))
+        mujoco.mj_forward(self.model, self.data)
         self._wrench = None
         self.data.xfrc_applied[:] = 0
         self._hold = (q.copy(), np.zeros(self.n), np.zeros(self.n))
