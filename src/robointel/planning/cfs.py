@@ -218,8 +218,8 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
         tol: feasibility tolerance on phi.
         max_cuts: tangent-cut rounds per iteration for the curved sets (cases 1 and 3).
         keep_iterates: keep every iterate on the result (for inspection and tests).
-        qp: the QP solver to use and reuse (warm start across calls): a :class:`SparseQP` (OSQP,
-            default) or a :class:`DenseQP` (DAQP, for small dense problems).
+        qp: the QP solver to use and reuse (warm start across calls): a :class:`SparseQP` (OSQP;
+            default above 200 variables) or a :class:`DenseQP` (DAQP; default for small problems).
         trust: for case-3 constraints, instead of cuts use a polyhedral inner approximation of
             (7.6) on a trust box ``|z - z_r| <= rho`` (scalar or (n,) initial radius); the radius
             follows the step length (twice the last step, at most the initial radius). One QP of
@@ -256,7 +256,7 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
             i = int(np.flatnonzero(l_lin > u_lin)[0])
             raise InfeasibleProblem(f"linear constraint {i}: lower bound {l_lin[i]} > upper bound {u_lin[i]}",
                                     value=i)
-    qp = qp or SparseQP()
+    qp = qp or (DenseQP() if n <= 200 else SparseQP())
 
     def cost(x):
         return float(0.5 * x @ (Hs @ x) + f @ x)

@@ -127,11 +127,13 @@ class DenseQP:
         self._lam = None
         self.setups = 0
 
-    def solve(self, P, q, A, l, u, *, x0=None) -> QPSolution:
+    def solve(self, P, q, A, l, u, *, x0=None, full_P: bool = False) -> QPSolution:
+        """``full_P=True``: ``P`` is already the full symmetric dense matrix (skip symmetrising)."""
         import daqp
 
         P = P.toarray() if sp.issparse(P) else np.asarray(P, float)
-        P = np.triu(P) + np.triu(P, 1).T  # accept an upper triangle like OSQP
+        if not full_P:
+            P = np.triu(P) + np.triu(P, 1).T  # accept an upper triangle like OSQP
         A = A.toarray() if sp.issparse(A) else np.asarray(A, float)
         l = np.maximum(np.asarray(l, float), -INF)
         u = np.minimum(np.asarray(u, float), INF)

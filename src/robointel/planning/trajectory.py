@@ -52,6 +52,8 @@ class PlannerSettings:
         ftol: ... or when the cost of a feasible iterate fell by less than ``ftol`` (relative).
         max_iter: CFS iteration cap.
         backtracks: step halvings when an iterate leaves the feasible set.
+        reach: clearance rows within this distance of active (m) enter the QP's working set at
+            once; farther ones are added only if the solution violates them.
         elastic: penalty (per metre) on the clearance slacks used while the reference is still in
             collision (the straight line through an obstacle); zero slack once it is clear.
     """
@@ -70,6 +72,7 @@ class PlannerSettings:
     max_iter: int = 30
     backtracks: int = 4
     elastic: float = 1e2
+    reach: float = 0.03
 
     def __post_init__(self) -> None:
         for name in ("d_min", "safety", "margin", "w1", "w2", "eps"):
@@ -151,6 +154,7 @@ class TrajectoryPlanner:
         self.qp = SparseQP(eps_abs=1e-5, eps_rel=1e-5, polishing=False, max_iter=20000)
         self._dense = DenseQP()
         self._Pz_dense = None
+        self._Ad = None
         self._qp_ready = False
         self.qp_stats = {"osqp": 0, "daqp": 0}
 
@@ -242,11 +246,14 @@ class TrajectoryPlanner:
                 self._pos[key] = where[n_before + e]
         self._m_all_lin = m_lin
         always = np.zeros(m, dtype=bool)
-        always[lin.shape[0]:] = True  # slack bounds and clearance rows
+        always[lin.shape[0]:lin.shape[0] + nS] = True  # slack bounds
         self._always = always
+        self._slack_rows = np.arange(lin.shape[0], lin.shape[0] + nS)
         # a limit row joins the working set when the reference is within this distance of its bound
+        # (clearance rows: within st.reach metres of active; the others are added lazily if violated)
         reach = np.r_[np.full(nv, 0.2), np.tile(self.vmax * self.dt, N) * 0.5,
-                      np.tile(self.amax * self.dt ** 2, N - 1) * 0.5, np.zeros(m - lin.shape[0])]
+                      np.tile(self.amax * self.dt ** 2, N - 1) * 0.5, np.zeros(nS),
+                      np.full(nS * K, float(st.reach))]
         self._reach = reach
         # cost over z: the x block, a tiny ridge on the slacks (their linear weight is set per solve)
         self.P_z = sp.block_diag([self.P, sp.eye(nS) * 1.0], format="csc")
@@ -437,28 +444,53 @@ class TrajectoryPlanner:
                 sol = self.qp.update(q=qz, l=l, u=u, Ax=data, x0=z0)
             self.qp_stats["osqp"] += 1
             return sol
-        A = self.A.copy()
-        A.data = data
-        Ad = A.toarray()
+        Ad = self._dense_A(data)
         if self._Pz_dense is None:
-            self._Pz_dense = self.P_z.toarray()
+            P = self.P_z.toarray()
+            self._Pz_dense = np.ascontiguousarray(np.triu(P) + np.triu(P, 1).T)
         finite = (l > -INF / 2) | (u < INF / 2)
         Az = Ad @ z0
         span = np.where(np.isfinite(u - l), u - l, np.inf)
-        near = (Az - l < 0.5 * span + 1e-9) & (Az - l < self._reach) | (u - Az < self._reach)
+        near = ((Az - l < 0.5 * span + 1e-9) & (Az - l < self._reach)) | (u - Az < self._reach)
         work = finite & (self._always | near)
+        # the elastic slacks are fixed at zero once the reference is clear: drop them from the QP
+        elastic = bool(np.any(u[self._slack_rows] > 0))
+        nvar = self.nz if elastic else self.nv
+        if not elastic:
+            work[self._slack_rows] = False
+        P = self._Pz_dense if elastic else self._Pz_dense[: self.nv, : self.nv]
         sol = None
         for _ in range(8):
-            sol = self._dense.solve(self._Pz_dense, qz, Ad[work], l[work], u[work], x0=z0)
+            sol = self._dense.solve(P, qz[:nvar], np.ascontiguousarray(Ad[work, :nvar]), l[work], u[work],
+                                    x0=z0[:nvar], full_P=True)
             self.qp_stats["daqp"] += 1
             if not sol.solved:
                 return sol
-            Ax = Ad @ sol.x
+            x = sol.x if elastic else np.r_[sol.x, np.zeros(self.nz - self.nv)]
+            Ax = Ad @ x
             viol = finite & ~work & ((Ax < l - 1e-7) | (Ax > u + 1e-7))
+            if not elastic:
+                viol[self._slack_rows] = False
             if not np.any(viol):
+                sol.x = x
                 return sol
             work |= viol
+        if sol is not None and not elastic:
+            sol.x = np.r_[sol.x, np.zeros(self.nz - self.nv)]
         return sol
+
+    def _dense_A(self, data: np.ndarray) -> np.ndarray:
+        """The constraint matrix as a dense array, filled in place from CSC ``data``."""
+        if self._Ad is None:
+            A = self.A.copy()
+            self._Ad = A.toarray()
+            coo = self.A.tocoo()
+            # position of each CSC data entry: row/col of data index p
+            cols = np.repeat(np.arange(self.A.shape[1]), np.diff(self.A.indptr))
+            self._data_rc = (self.A.indices.copy(), cols)
+            del coo
+        self._Ad[self._data_rc] = data
+        return self._Ad
 
     def _q_full(self, Xr: np.ndarray) -> np.ndarray:
         """Linear term over all knots: -2 w1 Q x^r on interior knots, 0 at the fixed ends."""
