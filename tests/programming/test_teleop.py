@@ -44,7 +44,12 @@ def test_record_save_load_roundtrip(app, lrmate, tmp_path):
     np.testing.assert_allclose(prog["waypoints"], np.array(app.waypoints))
     import yaml
     doc = yaml.safe_load(path.read_text())
-    np.testing.assert_allclose(doc["waypoints"][1]["position"], [0.40, -0.15, 0.3], atol=1e-9)
+    np.testing.assert_allclose(doc["waypoints"][1]["tcp"]["position"], [0.40, -0.15, 0.3], atol=1e-9)
+    # the planning scene loader (what `robointel plan` reads) accepts it
+    from robointel.io.scene import load_scene
+    scene = load_scene(path)
+    np.testing.assert_allclose(scene.waypoints, np.array(app.waypoints))
+    assert scene.robot.name == "lrmate200id7l" and len(scene.steps) == 1
     app.clear()
     assert app.waypoints == []
     with pytest.raises(InvalidInput):
@@ -53,7 +58,9 @@ def test_record_save_load_roundtrip(app, lrmate, tmp_path):
 
 def test_save_rejects_out_of_limit_waypoint(lrmate, tmp_path):
     with pytest.raises(InvalidInput):
-        save_program(tmp_path / "bad.yaml", lrmate, [np.array([4.0, 0, 0, 0, 0, 0])])
+        save_program(tmp_path / "bad.yaml", lrmate, [np.zeros(6), np.array([4.0, 0, 0, 0, 0, 0])])
+    with pytest.raises(InvalidInput, match="at least 2"):
+        save_program(tmp_path / "one.yaml", lrmate, [np.zeros(6)])
 
 
 def test_page_bind_needs_token(lrmate):
@@ -92,3 +99,16 @@ def test_cli_teleop_serves_and_refuses_remote_without_token():
     assert f"http://127.0.0.1:{ports[0]}" in res.output and f"ws://127.0.0.1:{ports[1]}" in res.output
     res = CliRunner().invoke(app, ["teleop", "--host", "0.0.0.0", "--duration", "0.1"])
     assert res.exit_code == 2 and "token" in res.output
+
+
+def test_saved_program_plans_with_robointel_plan(lrmate, tmp_path):
+    from typer.testing import CliRunner
+
+    from robointel.cli import app
+
+    path = save_program(tmp_path / "prog.yaml", lrmate,
+                        [np.array([0.0, 0.0, 0.0, 0.0, -1.57, 0.0]), np.array([0.5, 0.3, -0.2, 0.0, -1.2, 0.3])])
+    res = CliRunner().invoke(app, ["plan", str(path), "--out", str(tmp_path / "traj.npz"), "--no-plots"])
+    assert res.exit_code == 0, res.output
+    traj = np.load(tmp_path / "traj.npz")
+    np.testing.assert_allclose(traj["q"][-1], [0.5, 0.3, -0.2, 0.0, -1.2, 0.3], atol=1e-6)

@@ -30,6 +30,8 @@ PROGRAM_FORMAT = "robointel-scene/1"
 
 # ----------------------------------------------------------------------------- program files
 def _shape_to_dict(shape) -> dict:
+    if hasattr(shape, "to_dict"):  # robointel.geometry obstacles: the scene format's own dict
+        return shape.to_dict()
     kind = type(shape).__name__.lower()
     d: dict = {"type": kind, "name": getattr(shape, "name", None) or kind}
     for key in ("center", "radius", "a", "b", "size"):
@@ -41,39 +43,48 @@ def _shape_to_dict(shape) -> dict:
     return d
 
 
-def save_program(path, robot, waypoints: Sequence, *, obstacles: Sequence = (), name: str = "teleop program") -> Path:
-    """Write a teleoperated program as a YAML scene: ``robot``, ``obstacles`` (robointel.geometry
-    shapes as dicts), ``waypoints`` (each ``{name, q [rad], position [m], quaternion [w, x, y, z]}``,
-    the TCP pose from FK), ``units``. Returns the path.
+def save_program(path, robot, waypoints: Sequence, *, obstacles: Sequence = (), name: str = "teleop_program",
+                 speed_scale: float = 0.3, steps: int = 19) -> Path:
+    """Write a teleoperated program as a planning scene (``robointel.io.scene`` YAML, loadable by
+    ``robointel plan``): ``robot``, ``obstacles`` (robointel.geometry dicts), stop-by ``waypoints``
+    (each ``{name, q [rad], tcp: {position [m], quaternion [w, x, y, z]}}``, the TCP pose from FK),
+    ``steps`` per segment, ``limits`` (``speed_scale`` of the robot's), and an ``operational_time``
+    long enough for the largest joint move of each segment at that speed. Returns the path.
 
     Raises:
-        InvalidInput: no waypoints, or a waypoint of the wrong size / outside the joint limits.
+        InvalidInput: fewer than 2 waypoints, or a waypoint of the wrong size / outside the limits.
     """
     import yaml
     from scipy.spatial.transform import Rotation
 
-    if len(waypoints) == 0:
-        raise InvalidInput("the program has no waypoints; record at least one before saving")
+    if len(waypoints) < 2:
+        raise InvalidInput(f"the program has {len(waypoints)} waypoint(s); record at least 2 (start and goal) "
+                           "for a plannable program")
     wps = []
     for i, q in enumerate(waypoints):
         q = robot.check_q(q, f"waypoints[{i}]", limits=True)
         T = robot.fk(q)
         x, y, z, w = Rotation.from_matrix(T[:3, :3]).as_quat()
-        wps.append({"name": f"wp{i}", "q": [float(v) for v in q], "position": [float(v) for v in T[:3, 3]],
-                    "quaternion": [float(w), float(x), float(y), float(z)]})
-    doc = {"format": PROGRAM_FORMAT, "name": name, "robot": robot.name,
-           "units": {"length": "m", "angle": "rad"}, "joint_names": list(robot.joint_names),
-           "obstacles": [_shape_to_dict(o) for o in obstacles], "waypoints": wps,
-           "source": "robointel teleop (browser)"}
+        wps.append({"name": f"wp{i}", "q": [float(v) for v in q],
+                    "tcp": {"position": [float(v) for v in T[:3, 3]],
+                            "quaternion": [float(w), float(x), float(y), float(z)]}})
+    W = np.array([w["q"] for w in wps])
+    seg = [max(1.0, 2.0 * float(np.max(np.abs(b - a) / (speed_scale * robot.velocity_limit))))
+           for a, b in zip(W[:-1], W[1:])]
+    doc = {"name": name, "description": f"taught by browser teleoperation ({PROGRAM_FORMAT})",
+           "robot": robot.name, "operational_time": round(float(sum(seg)), 3), "steps": int(steps),
+           "d_min": 0.05, "limits": {"velocity_scale": speed_scale, "acceleration_scale": speed_scale},
+           "obstacles": [_shape_to_dict(o) for o in obstacles], "waypoints": wps}
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    path.write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
     return path
 
 
 def load_program(path) -> dict:
-    """Read a program written by :func:`save_program`: a dict with ``robot``, ``obstacles`` (dicts),
-    ``waypoints`` (an (m, n) array of joint positions) and ``names``.
+    """Read the waypoints of a program written by :func:`save_program` (or any planning scene whose
+    waypoints give ``q``): a dict with ``robot``, ``obstacles`` (dicts), ``waypoints`` (an (m, n)
+    array of joint positions) and ``names``. ``robointel.io.scene.load_scene`` reads the full scene.
 
     Raises:
         InvalidInput: not a program/scene file or malformed waypoints.
@@ -197,7 +208,7 @@ class TeleopApp:
 
     def save(self, path=None) -> Path:
         p = save_program(path or self.program_path, self.robot, self.waypoints, obstacles=self.obstacles)
-        self._status(f"saved {len(self.waypoints)} waypoints to {p}")
+        self._status(f"saved {len(self.waypoints)} waypoints to {p} (robointel plan {p})")
         return p
 
     def replay(self, *, timeout_per_waypoint: float = 10.0, dwell: float = 0.2) -> list[float]:
