@@ -128,6 +128,8 @@ def main() -> None:
         "tracking_rms_unmodelled_2kg_payload_rad": log_pl.rms_error.tolist(),
         "tracking_tcp_max_unmodelled_2kg_payload_m": float(log_pl.tcp_error(robot).max()),
         "flexible_step_us": flex_us,
+        "flexible_resonance_hz_at_q0": flex.resonance_frequencies(q0).tolist(),
+        "flexible_gravity_sag_rad_at_q0": (-robot.gravity(q0) / flex.params.stiffness).tolist(),
         "pinocchio_vs_mujoco": model_agreement(robot),
     }
     if args.json:

@@ -9,7 +9,15 @@ F/T sensor: the site ``"ft_sensor"`` at the flange, axes = the flange frame
 :meth:`Workcell.ft_reading` returns the wrench [f; m] **exerted by the tool (and whatever acts on
 it: payload weight, the human's hand, contacts) on the sensor**, in the sensor frame, torque about
 the sensor origin. A payload of mass m with its CoM at r (sensor frame) at rest reads
-f = m g_s and m = r x (m g_s), with g_s gravity in the sensor frame.
+f = m g_s and m = r x (m g_s), with g_s gravity in the sensor frame. Readings come from MuJoCo's
+``force``/``torque`` sensors (the interaction wrench between the tool body and the flange, with the
+sign flipped) computed at the start of the last physics step: one step (1 ms) of latency.
+Bias and white noise are added in Python (:class:`FTSensor`, or per call).
+
+Faults: bad commands raise ``robointel.errors`` (ShapeError, NotFinite, LimitViolation) before
+anything is applied, and the controller keeps holding the last valid reference; if MuJoCo ever
+diverges, the robot is put back at rest where it was and :class:`~robointel.errors.SafetyStop`
+is raised.
 """
 from __future__ import annotations
 
