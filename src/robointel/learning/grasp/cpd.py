@@ -41,7 +41,7 @@ from robointel.errors import InvalidInput, ShapeError, SolverFailure
 
 __all__ = [
     "RigidWarp", "AffineWarp", "NonrigidWarp", "CPDResult", "cpd_rigid", "cpd_affine", "cpd_nonrigid",
-    "register", "mean_nn_residual", "farthest_point_sample",
+    "register", "mean_nn_residual", "farthest_point_sample", "single_thread_blas",
 ]
 
 
@@ -160,6 +160,18 @@ class CPDResult:
 # helpers
 
 
+def single_thread_blas():
+    """Context manager limiting BLAS to one thread. The fast variants issue many small, thin GEMMs
+    for which OpenBLAS' thread start-up and spinning cost 10-100x the arithmetic on a shared machine."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - threadpoolctl ships with scikit-learn
+        import contextlib
+
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
+
+
 def _sqdist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """|a_i - b_j|^2 (I, J) computed with per-dimension differences (no cancellation)."""
     d2 = np.zeros((a.shape[0], b.shape[0]), dtype=np.result_type(a, b))
@@ -250,7 +262,7 @@ def _estep_fast(X32, xx32, TY, sigma2, w):
         Bj = B[j:j + blk]
         nb = Bj.shape[0]
         K = A @ Bj.T  # -|y - x|^2 / (2 sigma2)
-        np.minimum(K, 0.0, out=K)
+        np.clip(K, -80.0, 0.0, out=K)  # exp(-80) ~ 2e-35 stays a normal float32 (denormals are slow)
         np.exp(K, out=K)
         ksum = K.sum(axis=0).astype(np.float64)
         den = np.maximum(ksum, np.finfo(np.float32).eps) + c
@@ -327,7 +339,7 @@ def _nystrom(Y: np.ndarray, beta: float, rank_tol: float, max_rank: int | None):
 # rigid and affine (pycpd's update rules, column-vector warps on output)
 
 
-def cpd_rigid(X, Y, *, w: float = 0.0, tolerance: float = 1e-3, max_iterations: int = 100,
+def _cpd_rigid(X, Y, *, w: float = 0.0, tolerance: float = 1e-3, max_iterations: int = 100,
               sigma2: float | None = None, scale: bool = True, normalize: bool = True,
               method: str = "exact") -> CPDResult:
     """Rigid CPD (6.8)-(6.10): find ``s, R, t`` so that ``s R y + t`` matches the target.
@@ -471,7 +483,7 @@ def cpd_affine(X, Y, *, w: float = 0.0, tolerance: float = 1e-3, max_iterations:
 # non-rigid
 
 
-def cpd_nonrigid(X, Y, *, beta: float = 2.0, lmbda: float = 2.0, w: float = 0.0, tolerance: float = 1e-3,
+def _cpd_nonrigid(X, Y, *, beta: float = 2.0, lmbda: float = 2.0, w: float = 0.0, tolerance: float = 1e-3,
                  max_iterations: int = 100, sigma2: float | None = None, normalize: bool = True,
                  method: str = "fast", rank_tol: float = 1e-8, max_rank: int | None = None,
                  max_points: int = 2500) -> CPDResult:
@@ -568,6 +580,25 @@ def cpd_nonrigid(X, Y, *, beta: float = 2.0, lmbda: float = 2.0, w: float = 0.0,
     warp = NonrigidWarp(centres, coef, float(beta), my, sy, mx, sx)
     TYout = warp(Yfull) if Yfull is not None else TY * sx + mx
     return CPDResult("nonrigid", warp, TYout, float(s2), it, bool(converged), P1, method, rank)
+
+
+def cpd_rigid(X, Y, **kwargs) -> CPDResult:
+    return _threaded(_cpd_rigid, X, Y, kwargs.get("method", "exact") != "exact", **kwargs)
+
+
+def cpd_nonrigid(X, Y, **kwargs) -> CPDResult:
+    return _threaded(_cpd_nonrigid, X, Y, kwargs.get("method", "fast") != "exact", **kwargs)
+
+
+cpd_rigid.__doc__ = _cpd_rigid.__doc__
+cpd_nonrigid.__doc__ = _cpd_nonrigid.__doc__
+
+
+def _threaded(fn, X, Y, single: bool, **kwargs):
+    if not single:
+        return fn(X, Y, **kwargs)
+    with single_thread_blas():
+        return fn(X, Y, **kwargs)
 
 
 def register(X, Y, kind: str = "nonrigid", **kwargs) -> CPDResult:

@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 
 from robointel.errors import IKFailure, InvalidInput, RobointelError
 from robointel.learning.grasp.classify import Classification, ComposedWarp, Template, classify
-from robointel.learning.grasp.cpd import cpd_rigid
+from robointel.learning.grasp.cpd import cpd_rigid, single_thread_blas
 from robointel.learning.grasp.objects import ObjectModel
 from robointel.learning.grasp.perception import default_cameras, depth_image, perceive
 from robointel.learning.grasp.quality import ParallelGripper
@@ -100,6 +100,10 @@ class GraspPlanner:
 
     def plan(self, cloud) -> GraspPlan:
         """Plan a grasp on ``cloud`` (n, 3) in the world frame."""
+        with single_thread_blas():
+            return self._plan(cloud)
+
+    def _plan(self, cloud) -> GraspPlan:
         t0 = time.perf_counter()
         cls = classify(cloud, self.templates, n_points=self.n_points)
         t1 = time.perf_counter()
