@@ -10,8 +10,11 @@ Usage: python benchmarks/guidance.py [--json] [--quick] [--steps N]
    ``Configuration.update`` + ``FrameTask`` target + ``solve_ik`` (DAQP) with
    ``ConfigurationLimit``, ``VelocityLimit`` and ``CollisionAvoidanceLimit`` (robot link geoms vs
    the cylinders, 0.15 m detection distance). Blocks of both alternate to share the machine's
-   load fairly; wall-clock medians and p99, and our per-step CPU time (``thread_time``, which
-   excludes preemption by other processes).
+   load fairly: the same states are replayed in 5 alternating rounds. Reported: wall-clock median
+   and p99 over all steps, our per-step CPU time (``thread_time``: excludes preemption, not cache
+   interference), and the p99 over states of each state's least disturbed round (an estimate of
+   the p99 on an unloaded machine; the raw p99 on a shared 2-core machine is dominated by
+   preemption).
 2. Scenarios I-III in the MuJoCo workcell (F/T sensor with bias and noise in the loop, payload
    identified first), for each method: minimum robot-obstacle distance on the collision geometry
    (MuJoCo ``mj_geomDistance``), max penetration, mean/max ||V_cmd - V_lead||, the approach rate
@@ -22,6 +25,7 @@ from __future__ import annotations
 import argparse
 import gc
 import json
+import os
 import sys
 import time
 
@@ -48,20 +52,17 @@ def record_states(robot, per_scenario: int) -> tuple[np.ndarray, np.ndarray]:
     return np.array(Q), np.array(W)
 
 
-def time_ours(robot, obstacles, Q, W) -> tuple[list, list]:
-    from robointel.programming.guidance import GuidanceConfig, GuidanceController
-
-    ctl = GuidanceController(robot, obstacles, GuidanceConfig(method="qp", spike_force=1e9, spike_torque=1e9))
-    for i in range(200):  # warm-up (numba, caches)
-        ctl.step(Q[i % len(Q)], W[i % len(W)])
-    wall, cpu = [], []
+def time_ours(ctl, Q, W) -> tuple[np.ndarray, np.ndarray]:
+    """Wall and CPU (thread) time per step, microseconds."""
+    wall, cpu = np.empty(len(Q)), np.empty(len(Q))
     pc, tt = time.perf_counter_ns, time.thread_time_ns
-    for q, w in zip(Q, W):
+    ctl.reset()
+    for i, (q, w) in enumerate(zip(Q, W)):
         c0, t0 = tt(), pc()
         ctl.step(q, w)
         t1, c1 = pc(), tt()
-        wall.append((t1 - t0) / 1e3)
-        cpu.append((c1 - c0) / 1e3)
+        wall[i] = (t1 - t0) / 1e3
+        cpu[i] = (c1 - c0) / 1e3
     return wall, cpu
 
 
@@ -99,16 +100,14 @@ class MinkStep:
         return mink.solve_ik(self.config, [self.task], dt, "daqp", damping=1e-6, limits=self.limits)
 
 
-def time_mink(ms: MinkStep, Q, W, gains) -> list:
-    wall = []
+def time_mink(ms: "MinkStep", Q, W, gain: float) -> np.ndarray:
+    wall = np.empty(len(Q))
     pc = time.perf_counter_ns
-    for q, w in zip(Q[:200], W[:200]):
-        ms.step(q, 0.07 * w)
-    for q, w in zip(Q, W):
-        v = gains.translational * w
+    for i, (q, w) in enumerate(zip(Q, W)):
+        v = gain * w
         t0 = pc()
         ms.step(q, v)
-        wall.append((pc() - t0) / 1e3)
+        wall[i] = (pc() - t0) / 1e3
     return wall
 
 
@@ -117,10 +116,11 @@ def main() -> None:
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     ap.add_argument("--quick", action="store_true", help="fewer steps, QP and repulsive only")
     ap.add_argument("--steps", type=int, default=None, help="timed control steps per method")
+    ap.add_argument("--timing-only", action="store_true", help="skip the MuJoCo scenarios")
     args = ap.parse_args()
 
     from robointel.programming.compliance import ComplianceGains
-    from robointel.programming.guidance import METHODS
+    from robointel.programming.guidance import METHODS, GuidanceConfig, GuidanceController
     from robointel.programming.scenarios import run_scenario, table_4_1_obstacles
     from robointel.robot import Robot
 
@@ -131,36 +131,50 @@ def main() -> None:
 
     log("recording states ...")
     Q, W = record_states(robot, per_scenario=max(100, n_steps // 3))
+    ctl = GuidanceController(robot, obstacles, GuidanceConfig(method="qp", spike_force=1e9, spike_torque=1e9))
     ms = MinkStep(robot, obstacles)
+    for q, w in zip(Q[:200], W[:200]):  # warm-up (numba, caches)
+        ctl.step(q, w)
+        ms.step(q, 0.07 * w)
     rounds = 5
     ours_wall, ours_cpu, mink_wall = [], [], []
     gc_was = gc.isenabled()
     gc.disable()
     try:
-        for r in range(rounds):  # alternate blocks
-            sl = slice(r * len(Q) // rounds, (r + 1) * len(Q) // rounds)
-            w, c = time_ours(robot, obstacles, Q[sl], W[sl])
-            ours_wall += w
-            ours_cpu += c
-            mink_wall += time_mink(ms, Q[sl], W[sl], ComplianceGains())
+        for _ in range(rounds):  # alternate whole replays of the same states
+            w, c = time_ours(ctl, Q, W)
+            ours_wall.append(w)
+            ours_cpu.append(c)
+            mink_wall.append(time_mink(ms, Q, W, ComplianceGains().translational))
     finally:
         if gc_was:
             gc.enable()
+    ours_wall, ours_cpu, mink_wall = np.array(ours_wall), np.array(ours_cpu), np.array(mink_wall)
+    best, mbest = ours_wall.min(0), mink_wall.min(0)  # per state, least disturbed of the rounds
     out = {
         "step_us_median": float(np.median(ours_wall)),
         "step_us_p99": float(np.percentile(ours_wall, 99)),
         "step_cpu_us_median": float(np.median(ours_cpu)),
         "step_cpu_us_p99": float(np.percentile(ours_cpu, 99)),
+        "step_us_p99_least_disturbed": float(np.percentile(best, 99)),
         "mink_step_us_median": float(np.median(mink_wall)),
         "mink_step_us_p99": float(np.percentile(mink_wall, 99)),
-        "timed_steps": len(ours_wall),
+        "mink_step_us_p99_least_disturbed": float(np.percentile(mbest, 99)),
+        "timed_steps": int(ours_wall.size),
+        "states": len(Q),
+        "rounds": rounds,
         "obstacles": len(obstacles),
         "mink_geom_pairs": ms.n_pairs,
+        "load_average_1min": float(os.getloadavg()[0]),
+        "cpus": os.cpu_count(),
     }
     out["mink_over_ours_median"] = out["mink_step_us_median"] / out["step_us_median"]
     log(f"step: ours {out['step_us_median']:.1f} us median, {out['step_us_p99']:.1f} us p99 "
         f"(cpu {out['step_cpu_us_median']:.1f}/{out['step_cpu_us_p99']:.1f}); mink {out['mink_step_us_median']:.1f} us")
 
+    if args.timing_only:
+        print(json.dumps(out, indent=1))
+        return
     methods = ("qp", "repulsive") if args.quick else METHODS
     for s in (1, 2, 3):
         per = {}
@@ -180,6 +194,7 @@ def main() -> None:
     out["targets"] = {
         "step_median_le_100us": out["step_us_median"] <= 100.0,
         "step_p99_le_250us": out["step_us_p99"] <= 250.0,
+        "step_p99_least_disturbed_le_250us": out["step_us_p99_least_disturbed"] <= 250.0,
         "faster_than_mink": out["step_us_median"] < out["mink_step_us_median"],
         "qp_no_penetration": all(out[f"scenario_{s}"]["max_penetration_m"] == 0.0 for s in (1, 2, 3)),
         "qp_less_deviation_than_repulsive": all(

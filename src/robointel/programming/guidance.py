@@ -39,6 +39,7 @@ command stays bounded.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import daqp
@@ -225,6 +226,8 @@ class GuidanceController:
         self._H, self._f, self._lb, self._ub = np.empty((n, n)), np.empty(n), np.empty(n), np.empty(n)
         self._A0, self._z0 = np.zeros((0, n)), np.zeros(0)
         self._dk, self._dh, self._rows, self._G = np.empty(K), np.empty(K), np.empty(K, np.int64), np.empty((K, n))
+        self._A, self._z, self._inf = np.empty((K, n)), np.zeros(K), np.full(K, _INF)
+        self._bu, self._bl = np.empty(n + K), np.empty(n + K)
         self._qp_par = np.array([c.damping, c.singular_epsilon ** 2, c.singular_damping ** 2, c.limit_gain])
         g = c.gains
         self._lead_par = np.array([g.force_deadband, g.torque_deadband, g.translational, g.rotational,
@@ -244,6 +247,7 @@ class GuidanceController:
         self._why = ""
         self.last_step: GuidanceStep | None = None
         #: (H, f, A, lb, ub, solution) of the last QP with active obstacle rows, for inspection
+        #: (views of work arrays: valid until the next step)
         self.last_qp: tuple | None = None
 
     # ------------------------------------------------------------------ pieces
@@ -277,9 +281,10 @@ class GuidanceController:
         return J
 
     def _solve(self, H, f, A, lb, ub, bl, bu, equality: bool) -> np.ndarray:
-        k = A.shape[0]
-        x, _, flag, _ = daqp.solve(H, f, A, np.concatenate([ub, bu]), np.concatenate([lb, bl]),
-                                   self._sense(k, equality))
+        k, n = A.shape[0], self.n
+        BU, BL = self._bu[:n + k], self._bl[:n + k]
+        BU[:n], BU[n:], BL[:n], BL[n:] = ub, bu, lb, bl
+        x, _, flag, _ = daqp.solve(H, f, A, BU, BL, self._sense(k, equality))
         if flag != 1:
             # cannot happen for a feasible strictly convex QP; never pass garbage on
             raise SolverFailure(f"DAQP returned exit flag {flag} on the guidance QP", value=flag)
@@ -339,25 +344,26 @@ class GuidanceController:
             kmin = int(np.argmin(dk))
             dmin = float(dhard.min())
             u = sd.normals[rows[kmin], kmin]
-            act = dk < c.d0
-            nact = int(act.sum())
             method = c.method
+            eq = method == "equality"
+            A = self._A
+            nact, feasible = _active_rows(dk, G, c.d0, qd_free, A)
             if method in ("qp", "equality"):
-                lam = float(blend_weight(dk[kmin], c.d0, c.alpha))
+                lam = _blend_scalar(float(dk[kmin]), c.d0, c.alpha)
                 if nact == 0:
                     qd = qd_free
                 else:
-                    A = G[act]
-                    eq = method == "equality"
-                    if not eq and np.all(A @ qd_free >= 0.0):
+                    A = A[:nact]
+                    if feasible and not eq:
                         qd_av = qd_free  # unconstrained optimum is feasible: it is the QP's optimum
                     else:
-                        z = np.zeros(nact)
-                        qd_av = self._solve(H, f, A, lb, ub, z, z if eq else np.full(nact, _INF), eq)
-                    self.last_qp = (H.copy(), f.copy(), A, lb.copy(), ub.copy(), qd_av)
+                        z = self._z[:nact]
+                        qd_av = self._solve(H, f, A, lb, ub, z, z if eq else self._inf[:nact], eq)
+                    self.last_qp = (H, f, A, lb, ub, qd_av)
                     qd = lam * qd_av + (1.0 - lam) * qd_free
             else:
-                lam = float(blend_weight(dk[kmin], c.d0, c.alpha)) if nact else 0.0
+                act = dk < c.d0
+                lam = _blend_scalar(float(dk[kmin]), c.d0, c.alpha) if nact else 0.0
                 qd = self._baseline(q, V, J, sd, rows, dhard, act, qd_free, lb, ub)
             rate = float(G[kmin] @ qd)
         Vc = J @ qd
@@ -410,6 +416,31 @@ class GuidanceController:
             elif (qd[i] > 0 and ub[i] <= 0) or (qd[i] < 0 and lb[i] >= 0):
                 s = 0.0
         return qd * s
+
+
+def _blend_scalar(d: float, d0: float, alpha: float) -> float:
+    """:func:`blend_weight` for one float (no numpy overhead in the 1 kHz loop)."""
+    x = min(alpha * (2.0 * d / d0 - 1.0), 700.0)
+    return min(1.0, max(0.0, (1.0 + math.exp(-alpha)) / (1.0 + math.exp(x))))
+
+
+@njit(cache=True)
+def _active_rows(dk, G, d0, x, A):  # pragma: no cover - compiled
+    """Copy the rows G[k] of obstacles with dk[k] < d0 into A[:nact]; return nact and whether x
+    satisfies all of them (A x >= 0)."""
+    K, n = G.shape
+    nact = 0
+    feasible = True
+    for k in range(K):
+        if dk[k] < d0:
+            s = 0.0
+            for j in range(n):
+                A[nact, j] = G[k, j]
+                s += G[k, j] * x[j]
+            if s < 0.0:
+                feasible = False
+            nact += 1
+    return nact, feasible
 
 
 @njit(cache=True)
