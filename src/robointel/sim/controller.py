@@ -218,7 +218,7 @@ def model_with_payload(robot, payload) -> pin.Model:
     if payload is None:
         return model
     m, com, inertia = payload.checked()
-    fr = model.frames[robot._flange_id]
+    fr = model.frames[model.getFrameId(robot.flange_frame)]
     pl = fr.placement  # flange in its parent joint frame
     c = pl.rotation @ com + pl.translation
     I = pl.rotation @ inertia @ pl.rotation.T

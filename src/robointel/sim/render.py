@@ -98,7 +98,7 @@ def render_frames(workcell, qpos, path=None, *, width: int = 480, height: int = 
             full.append(x)
         elif x.shape == (workcell.n,):
             y = d.qpos.copy()
-            y[workcell._qadr] = x
+            y[workcell.qpos_index] = x
             full.append(y)
         else:
             raise InvalidInput(f"each state must be (nq,) = ({workcell.model.nq},) or (n,) = ({workcell.n},), "

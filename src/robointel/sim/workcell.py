@@ -339,6 +339,11 @@ class Workcell:
         return float(self.data.time)
 
     @property
+    def qpos_index(self):
+        """Where the robot's joints sit in MuJoCo's ``qpos`` (a slice or an index array)."""
+        return self._qadr
+
+    @property
     def hold_reference(self) -> np.ndarray:
         """The joint position the controller holds when no valid command arrives, (n,) rad."""
         return self._hold[0].copy()
