@@ -6,6 +6,7 @@ import pytest
 
 from robointel.errors import InfeasibleProblem, InvalidInput
 from robointel.planning.cfs import NonlinearConstraint, cfs
+from robointel.planning.qp import DenseQP, SparseQP
 from robointel.planning.sqp import slsqp
 
 
@@ -42,13 +43,15 @@ CASES = {
 }
 
 
+@pytest.mark.parametrize("solver", ["daqp", "osqp"])
 @pytest.mark.parametrize("case", sorted(CASES))
-def test_cfs_agrees_with_slsqp_and_iterates_feasible(case):
+def test_cfs_agrees_with_slsqp_and_iterates_feasible(case, solver):
     cons, goal, z0 = CASES[case]
     H, f = goal_cost(goal)
     z0 = np.array(z0)
     assert all(np.all(c.fun(z0) >= 0) for c in cons)
-    res = cfs(H, f, constraints=cons, z0=z0, eps=1e-8, max_iter=200, keep_iterates=True)
+    qp = DenseQP() if solver == "daqp" else SparseQP(eps_abs=1e-9, eps_rel=1e-9)
+    res = cfs(H, f, constraints=cons, z0=z0, eps=1e-8, max_iter=200, keep_iterates=True, qp=qp)
     ref = slsqp(H, f, constraints=cons, z0=z0, tol=1e-12)
     assert res.status == "converged" and res.feasible
     assert ref.success

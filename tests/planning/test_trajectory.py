@@ -80,3 +80,22 @@ def test_bad_waypoints_and_nan(lrmate, box):
         pl.check_waypoints(np.array([START, bad]))
     with pytest.raises(NotFinite):
         pl.plan_segment(np.full(6, np.nan), GOAL)
+
+
+def test_capped_cfs_returns_best_feasible_with_status(lrmate, box):
+    pl = TrajectoryPlanner(lrmate, box, N=19, dt=15 / 95, settings=PlannerSettings(max_iter=4))
+    res = pl.plan_segment(START, GOAL, keep_iterates=True)
+    assert res.status == "max_iter"
+    feas = [(pl._cost(X, np.linspace(START, GOAL, 20)), X) for X in res.iterates
+            if pl.distances(X).d.min() >= pl.settings.d_min - 1e-9]
+    assert res.feasible and feas
+    best = min(feas, key=lambda c: c[0])
+    np.testing.assert_allclose(res.path, best[1])
+
+
+def test_impossible_limits_raise_with_reason(lrmate):
+    from robointel.errors import InfeasibleProblem
+
+    pl = TrajectoryPlanner(lrmate, [], N=5, dt=0.01)
+    with pytest.raises(InfeasibleProblem, match="impossible limits: joint_1"):
+        pl.plan_segment(START, GOAL)

@@ -233,18 +233,18 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
         InfeasibleProblem: the first QP is infeasible (contradictory linear constraints).
     """
     t0 = time.perf_counter()
-    Hs = sp.csc_matrix(H)
+    Hs = sp.csc_matrix(H) if sp.issparse(H) else np.asarray(H, float)
     n = Hs.shape[0]
-    if Hs.shape != (n, n):
+    if Hs.ndim != 2 or Hs.shape != (n, n):
         raise InvalidInput(f"H must be square, got {Hs.shape}", value=Hs.shape)
-    if not np.all(np.isfinite(Hs.data)):
+    if not np.all(np.isfinite(Hs.data if sp.issparse(Hs) else Hs)):
         raise InvalidInput("H contains NaN or inf", value=H)
     f = as_array(f, "f", (n,))
     z = as_array(z0 if z0 is not None else np.zeros(n), "z0", (n,)).copy()
     if A is None:
-        A_lin, l_lin, u_lin = sp.csc_matrix((0, n)), np.zeros(0), np.zeros(0)
+        A_lin, l_lin, u_lin = np.zeros((0, n)), np.zeros(0), np.zeros(0)
     else:
-        A_lin = sp.csc_matrix(A)
+        A_lin = sp.csc_matrix(A) if sp.issparse(A) else np.atleast_2d(np.asarray(A, float))
         if A_lin.shape[1] != n:
             raise InvalidInput(f"A must have {n} columns, got {A_lin.shape}", value=A_lin.shape)
         m = A_lin.shape[0]
@@ -286,16 +286,20 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
     best, best_cost = (z.copy(), costs[0]) if feasible(z) else (None, np.inf)
     status, it, qp_iters = "max_iter", 0, 0
     dense = isinstance(qp, DenseQP)
-    Hup = Hs.toarray() if dense else sp.triu(Hs, format="csc")
-    A_dense = A_lin.toarray() if dense else None
+    if dense:
+        Hup = Hs.toarray() if sp.issparse(Hs) else Hs
+        Hup = 0.5 * (Hup + Hup.T)
+    else:
+        Hup = sp.triu(sp.csc_matrix(Hs), format="csc")
+    A_dense = (A_lin.toarray() if sp.issparse(A_lin) else A_lin) if dense else None
+    qp_kw = {"full_P": True} if dense else {}
     use_trust = trust is not None and any(c.kind == "general" for c in constraints)
     if use_trust:
         rho0 = np.broadcast_to(np.asarray(trust, float), (n,)).copy()
         if np.any(rho0 <= 0) or not np.all(np.isfinite(rho0)):
             raise InvalidInput("trust radius must be positive and finite", value=trust)
         kappa = 1.0
-        A_box = sp.eye(n, format="csc")
-        A_lin_all = sp.vstack([A_lin, A_box], format="csc")
+        A_lin_all = sp.vstack([sp.csc_matrix(A_lin), sp.eye(n, format="csc")], format="csc")
         A_dense = A_lin_all.toarray() if dense else None
     for it in range(1, max_iter + 1):
         sets = [_ConvexSet(c, z, tol) for c in constraints]
@@ -318,7 +322,7 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
                 Ablk = sp.vstack([A_cur] + [sp.csc_matrix(G) for G in G_rows + cuts_G], format="csc")
             lo = np.concatenate([l_cur] + h_rows + cuts_h)
             up = np.concatenate([u_cur] + [np.full(len(h), INF) for h in h_rows + cuts_h])
-            sol = qp.solve(Hup, f, Ablk, lo, up, x0=z)
+            sol = qp.solve(Hup, f, Ablk, lo, up, x0=z, **qp_kw)
             qp_iters += sol.iterations
             if not sol.solved:
                 break

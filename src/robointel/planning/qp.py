@@ -126,6 +126,7 @@ class DenseQP:
         self.settings.update(settings)
         self._lam = None
         self.setups = 0
+        self.primal_start = True
 
     def solve(self, P, q, A, l, u, *, x0=None, full_P: bool = False) -> QPSolution:
         """``full_P=True``: ``P`` is already the full symmetric dense matrix (skip symmetrising)."""
@@ -140,6 +141,8 @@ class DenseQP:
         kw = dict(self.settings)
         if self._lam is not None and self._lam.shape[0] == A.shape[0]:
             kw["dual_start"] = self._lam
+        elif x0 is not None and self.primal_start:
+            kw["primal_start"] = np.asarray(x0, float)
         x, _fval, flag, info = daqp.solve(np.ascontiguousarray(P), np.asarray(q, float),
                                           np.ascontiguousarray(A), u, l, np.zeros(A.shape[0], dtype=np.intc), **kw)
         x = np.asarray(x, float)

@@ -34,6 +34,9 @@ from robointel.io.trajectory import Trajectory
 from robointel.planning.cfs import CFSResult, NonlinearConstraint, cfs
 from robointel.planning.qp import DenseQP, SparseQP
 
+#: tangent-cut rounds per CFS iteration for the curved acceleration sets (7.6)
+MAX_CUTS = 2
+
 
 @dataclass
 class TemporalResult:
@@ -166,11 +169,11 @@ def _solve_tau(dx: np.ndarray, vmax: np.ndarray, amax_k: np.ndarray, vscale: np.
         Hd[rows, kk2 + 1] = mu
         cons.append(NonlinearConstraint(fun, jac, kind="general", hess_diag=Hd, name="acceleration (7.8)"))
     return cfs(H, f, constraints=cons, A=np.eye(N), l=lb, u=ub, z0=tau0, eps=eps, max_iter=max_iter,
-               tol=1e-9, max_cuts=2, qp=qp, trust=None if trust is None else trust * h)
+               tol=1e-9, max_cuts=MAX_CUTS, qp=qp, trust=None if trust is None else trust * h)
 
 
 def temporal_optimize(path, vmax, amax, *, dt: float | None = None, w3: float = 1.0, w4: float = 1.0,
-                      eps: float = 1e-5, max_iter: int = 30, refine: int = 2, upsample: int = 1,
+                      eps: float = 1e-4, max_iter: int = 30, refine: int = 2, upsample: int = 1,
                       trust: float | None = None, qp: DenseQP | SparseQP | None = None) -> TemporalResult:
     """Solve (7.7)-(7.9) by CFS for one segment and return its spline trajectory.
 

@@ -362,6 +362,14 @@ class TrajectoryPlanner:
         n, N, st = self.n, self.N, self.settings
         x0 = as_array(start, "start", (n,))
         xN = as_array(goal, "goal", (n,))
+        need = np.abs(xN - x0) / (N * self.dt)
+        over = np.flatnonzero(need > self.vmax * (1 + 1e-9))
+        if over.size:
+            j = int(over[0])
+            raise InfeasibleProblem(
+                f"impossible limits: {self.robot.joint_names[j]} must move {abs(xN[j] - x0[j]):.3f} rad in "
+                f"{N} steps of {self.dt:.4f} s, i.e. at least {need[j]:.3f} rad/s, above its velocity limit "
+                f"{self.vmax[j]:.3f} rad/s; use more steps, a larger dt or a higher limit", value=need)
         Xr = straight_reference(x0, xN, N) if reference is None else as_array(reference, "reference", (N + 1, n))
         X = Xr.copy() if init is None else as_array(init, "init", (N + 1, n)).copy()
         X[0], X[N] = x0, xN
