@@ -241,3 +241,17 @@ def test_command_bounded_near_singularities(lrmate, joint, value):
         # ||dq|| <= ||W^1/2 V|| / (2 lambda)
         Vw = np.sqrt(np.r_[1, 1, 1, [c.rot_weight] * 3]) * s.v_lead
         assert np.linalg.norm(s.qd) <= np.linalg.norm(Vw) / (2 * np.sqrt(c.singular_damping ** 2 * 0.99)) + 1e-6
+
+
+def test_resume_after_fault_ramps_up(lrmate):
+    """After a hold the filtered lead restarts from rest: no velocity step when motion resumes."""
+    ctl = GuidanceController(lrmate, [], GuidanceConfig(recover_samples=3, filter_hz=4.0))
+    w = np.array([10.0, 0, 0, 0, 0, 0])
+    for _ in range(2000):
+        steady = ctl.step(Q0, w)
+    ctl.step(Q0, [np.nan] * 6)
+    out = [ctl.step(Q0, w) for _ in range(10)]
+    first = next(s for s in out if not s.held)
+    assert np.linalg.norm(first.qd) < 0.05 * np.linalg.norm(steady.qd)
+    speeds = [np.linalg.norm(s.qd) for s in out]
+    assert np.all(np.diff(speeds) >= -1e-12)

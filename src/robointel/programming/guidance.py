@@ -241,8 +241,7 @@ class GuidanceController:
         """Forget the last sample and any fault."""
         self._lastw = np.zeros(6)  # last good wrench
         self._has_last = False
-        self._wf = np.zeros(6)  # filtered wrench
-        self._first = True
+        self._wf = np.zeros(6)  # filtered wrench (starts from rest)
         self._hold = 0  # good samples still needed
         self._why = ""
         self.last_step: GuidanceStep | None = None
@@ -316,7 +315,7 @@ class GuidanceController:
                    f"F/T spike ({a:.1f} N / {b:.2f} N m in one sample)")
             self._hold = c.recover_samples + 1
             self._why = why
-            self._first = True  # restart the filter from the first good sample
+            self._wf[:] = 0.0  # resume from rest: the filter ramps the command up again
             return self._fault(why, q, w)
         self._lastw[:] = w
         self._has_last = True
@@ -325,8 +324,7 @@ class GuidanceController:
             if self._hold > 0:
                 return self._fault(f"recovering after: {self._why}", q, w)
         V = np.empty(6)
-        _filter_lead(w, self._wf, self._beta, self._first, self._lead_par, V)
-        self._first = False
+        _filter_lead(w, self._wf, self._beta, False, self._lead_par, V)
         J = self.tcp_jacobian(q)
         H, f, lb, ub, qd_free = self._H, self._f, self._lb, self._ub, np.empty(n)
         inside = _qp_terms(J, self._W, V, self._qp_par, q, self._lower, self._upper, self._vmax, H, f, lb, ub, qd_free)
