@@ -72,3 +72,26 @@ def test_urdf_parameters_carried_over():
     np.testing.assert_allclose(wc.body_pose("base_link"), np.eye(4), atol=1e-15)
     top = m.geom_pos[m.geom("table").id][2] + m.geom_size[m.geom("table").id][2]
     assert abs(top) < 1e-15
+
+
+def test_payload_model_matches_mujoco():
+    """model_with_payload (the controller's feed-forward model) = MuJoCo's arm + tool body."""
+    import pinocchio as pin
+
+    from robointel.sim import Payload, model_with_payload
+
+    robot = Robot.load("lrmate200id7l")
+    inertia = np.array([[0.004, 0.0005, 0.0], [0.0005, 0.006, 0.0002], [0.0, 0.0002, 0.005]])
+    payload = Payload(2.5, (0.07, -0.01, 0.03), inertia=inertia)
+    model, _ = build_model(robot, table=False, payload=payload)
+    pm = model_with_payload(robot, payload)
+    pd = pm.createData()
+    rng = np.random.default_rng(5)
+    M = np.zeros((6, 6))
+    for q in robot.random_configuration(rng, 20):
+        qd = rng.uniform(-2, 2, 6)
+        d = _state(model, robot, q, qd)
+        mujoco.mj_fullM(model, d, M)
+        Mp = pin.crba(pm, pd, q)
+        np.testing.assert_allclose(M, np.triu(Mp) + np.triu(Mp, 1).T, atol=1e-10)
+        np.testing.assert_allclose(d.qfrc_bias[:6], pin.nonLinearEffects(pm, pd, q, qd), atol=1e-10)

@@ -199,7 +199,11 @@ def _pid(q, qd, q_ref, qd_ref, ff, viscous, coulomb, friction, kp, ki, kd, i_lim
 
 
 def max_inertia(model: pin.Model, samples: int = 64, seed: int = 0) -> np.ndarray:
-    """Largest diagonal entry of M(q) per joint over random configurations within the limits."""
+    """Largest diagonal entry of M(q) per joint over random configurations within the limits.
+
+    For fixed gains (``PIDGains.from_inertia(max_inertia(model))``); note that fixed gains sized
+    for the largest inertia can destabilise the discrete loop where the inertia is small (see the
+    module doc), which the default scheduled gains avoid."""
     data = model.createData()
     rng = np.random.default_rng(seed)
     lo = np.where(np.isfinite(model.lowerPositionLimit), model.lowerPositionLimit, -np.pi)
