@@ -46,6 +46,7 @@ that asked for ``"ack": true``;
 from __future__ import annotations
 
 import asyncio
+import atexit
 import hmac
 import ipaddress
 import json
@@ -53,6 +54,7 @@ import math
 import socket
 import threading
 import time
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,6 +63,16 @@ from robointel.errors import IKFailure, InvalidInput
 
 PROTOCOL_VERSION = 1
 MAX_MESSAGE_BYTES = 64 * 1024
+_LIVE: "weakref.WeakSet[StreamingController]" = weakref.WeakSet()
+
+
+@atexit.register
+def _release_generators() -> None:
+    """Drop the ruckig objects of controllers still alive at exit (e.g. held by a web server's
+    callbacks) before the extension module is torn down."""
+    for c in list(_LIVE):
+        c._running = False
+        c.otg = c.inp = c.out = None
 
 
 def is_loopback(host: str) -> bool:
@@ -185,6 +197,7 @@ class StreamingController:
         self._running = False
         self.steps = 0
         self.overruns = 0
+        _LIVE.add(self)
 
     # ------------------------------------------------------------------ validation
     def validate(self, msg) -> tuple[str, object]:
