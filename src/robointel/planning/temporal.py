@@ -36,6 +36,8 @@ from robointel.planning.qp import DenseQP, SparseQP
 
 #: tangent-cut rounds per CFS iteration for the curved acceleration sets (7.6)
 MAX_CUTS = 2
+#: ridge on tau (times w3 / tau_max) making the cost strictly convex; it only favours shorter steps
+RIDGE = 1e-2
 
 
 @dataclass
@@ -133,7 +135,7 @@ def _solve_tau(dx: np.ndarray, vmax: np.ndarray, amax_k: np.ndarray, vscale: np.
     h = float(np.max(tau0))
     ub = np.full(N, h)
     D = np.diff(np.eye(N), axis=0)
-    H = w4 * D.T @ D + 1e-6 * w3 / h * np.eye(N)
+    H = w4 * D.T @ D + RIDGE * w3 / h * np.eye(N)
     f = np.full(N, w3)
     cons = []
     if N >= 2:
