@@ -8,8 +8,8 @@ completion). From a few labelled demonstrations we learn, per action ``a``:
 - a window ``W_t = [x_{t-w/2}, ..., x_{t+w/2-1}]`` of ``w`` samples around each time t (5.8);
 - a reference window ``R_a`` (the mean training window of action ``a``) onto which every window is
   DTW-aligned, so each window is brought to the trained action's time base (5.9)-(5.10);
-- a soft-margin SVM (scikit-learn ``SVC``, RBF kernel, penalty C) separating action ``a`` from the
-  others on the aligned windows (5.11).
+- a soft-margin SVM (scikit-learn ``SVC``, RBF kernel, penalty C) on the windows aligned to every
+  action's reference, one-vs-rest decision value per action (5.11).
 
 For a new demonstration the score map ``S[a, t]`` is the SVM decision value of every window (5.12) and
 the split points are the ordered segmentation maximising the summed scores (5.13), found by dynamic
@@ -29,9 +29,12 @@ from robointel.learning.demonstration import Demonstration
 
 
 def demo_features(demo: Demonstration, *, smooth: int = 5) -> np.ndarray:
-    """Per-sample features (5.7) of a demonstration: vec(T) (12), wrench (6), tool linear velocity (3)
-    from smoothed finite differences. Returns (N, 21)."""
+    """Per-sample features (5.7) of a demonstration: vec(T) (12) with the position expressed in the
+    task frame (relative to the demonstration's final tool position, where the task completes),
+    wrench (6), tool linear velocity (3) and angular velocity (3) from smoothed finite differences.
+    Returns (N, 24)."""
     f = demo.features(wrench=True)
+    f[:, 9:12] -= demo.position[-1]
     p = demo.position
     if smooth > 1:
         k = np.ones(smooth) / smooth
@@ -39,7 +42,11 @@ def demo_features(demo: Demonstration, *, smooth: int = 5) -> np.ndarray:
         pp = np.pad(p, ((pad, smooth - 1 - pad), (0, 0)), mode="edge")
         p = np.stack([np.convolve(pp[:, i], k, mode="valid") for i in range(3)], 1)
     v = np.gradient(p, demo.t, axis=0)
-    return np.concatenate([f, v], axis=1)
+    R = demo.pose[:, :3, :3]
+    dR = np.gradient(R, demo.t, axis=0)
+    W = np.einsum("nij,nkj->nik", dR, R)  # dR R^T, skew-symmetric
+    w = 0.5 * np.stack([W[:, 2, 1] - W[:, 1, 2], W[:, 0, 2] - W[:, 2, 0], W[:, 1, 0] - W[:, 0, 1]], 1)
+    return np.concatenate([f, v, w], axis=1)
 
 
 @numba.njit(cache=True)
@@ -193,6 +200,9 @@ class ActionSegmenter:
         idx = np.linspace(0, self.window - 1, self.resample).round().astype(int)
         return A[:, idx].reshape(len(centers), -1)
 
+    def _descriptor_all(self, Xs, centers):
+        return np.concatenate([self._descriptors(Xs, centers, a) for a in range(self.n_actions_)], axis=1)
+
     def fit(self, series: Sequence, labels: Sequence) -> "ActionSegmenter":
         """Train on labelled demonstrations: ``series`` list of (N_i, F) features, ``labels`` list of
         (N_i,) action indices 0..A-1 appearing in order.
@@ -238,22 +248,21 @@ class ActionSegmenter:
         keep = np.arange(len(y))
         if len(keep) > self.max_train_windows:
             keep = np.sort(rng.choice(len(y), self.max_train_windows, replace=False))
-        self.svms_ = []
-        for a in range(self.n_actions_):
-            D = np.concatenate([self._descriptors(z, c, a) for z, c in wins])[keep]
-            svm = SVC(C=self.C, gamma=self.gamma, kernel="rbf", class_weight="balanced")
-            svm.fit(D, (y[keep] == a).astype(int))
-            self.svms_.append(svm)
+        # one soft-margin SVM over the windows aligned to every action's reference: its one-vs-rest
+        # decision values are comparable across actions (separately trained binary SVMs are not)
+        D = np.concatenate([self._descriptor_all(z, c) for z, c in wins])[keep]
+        self.svm_ = SVC(C=self.C, gamma=self.gamma, kernel="rbf", class_weight="balanced",
+                        decision_function_shape="ovr").fit(D, y[keep])
         return self
 
     def score_map(self, X) -> tuple[np.ndarray, np.ndarray]:
         """Score map (5.12): (A, n_windows) SVM decision values and the window centres (n_windows,)."""
-        if not hasattr(self, "svms_"):
+        if not hasattr(self, "svm_"):
             raise InvalidInput("the segmenter is not fitted; call fit first")
         X = self._check_series(X, "X")
         z = np.ascontiguousarray((X - self.mean_) / self.scale_)
         c = np.arange(0, z.shape[0], self.stride)
-        S = np.stack([self.svms_[a].decision_function(self._descriptors(z, c, a)) for a in range(self.n_actions_)])
+        S = self.svm_.decision_function(self._descriptor_all(z, c)).T
         return S, c
 
     def predict(self, X) -> Decomposition:

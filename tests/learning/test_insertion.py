@@ -1,0 +1,49 @@
+import numpy as np
+import pytest
+
+from robointel.errors import InvalidInput
+from robointel.learning.insertion import (PHASES, HDDScene, InsertionSkill, PegHole, demonstrate, press_test,
+                                          tool_velocities)
+
+
+@pytest.fixture(scope="module")
+def task():
+    return PegHole()
+
+
+def test_tight_fit_settings(task):
+    assert task.clearance <= 40e-6
+    assert task.contact.solimp[2] < 0.5 * task.clearance and task.contact.margin == 0.0
+    scene = HDDScene(task)
+    m = scene.model
+    assert m.opt.timestep <= 1e-3 and m.opt.cone == 1  # elliptic
+    walls = [g for g in range(m.ngeom) if (m.geom(g).name or "").startswith("hole/")]
+    assert np.all(m.geom_margin[walls] == 0) and np.all(m.geom_solref[walls, 0] <= 0.002)
+    with pytest.raises(InvalidInput):
+        PegHole(clearance=5e-6)  # impedance width not below the radial gap
+
+
+def test_physics_is_honest_interference_does_not_go_in(task):
+    ok = press_test(task, force=50.0)
+    assert ok.inserted and ok.max_penetration < 0.5 * task.clearance
+    for interference in (20e-6, 100e-6):
+        bad = press_test(task, interference=interference, force=300.0)
+        assert not bad.inserted and bad.height > 0.01  # stuck at the rim, 300 N pushing
+        assert bad.axial_force > 250.0
+
+
+def test_demonstration_phases_and_skill(task):
+    rng = np.random.default_rng(3)
+    scene = HDDScene(task)
+    demos = [demonstrate(task, rng, scene=scene)]
+    for d in demos:
+        assert d.action_names == PHASES
+        assert np.all(np.diff(d.labels) >= 0) and set(np.unique(d.labels)) == {0, 1, 2, 3}
+        np.testing.assert_allclose(np.diff(d.t), 0.01, atol=1e-9)
+        np.testing.assert_allclose(d.phase_times(), d.meta["phase_times"], atol=0.011)
+        tw = tool_velocities(d)
+        ins = d.labels == PHASES.index("insertion")
+        assert np.median(tw[ins, 2]) > 0.002  # moves into the hole along the tool axis
+    skill = InsertionSkill(4).fit(demos)
+    out = skill.predict(np.zeros(6))
+    assert out.shape == (5,) and np.all(np.isfinite(out)) and out[2] > 0
