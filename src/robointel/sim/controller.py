@@ -124,6 +124,9 @@ class JointController:
         self.feedforward = feedforward
         self.friction_compensation = friction_compensation
         self.reset()
+        q0 = np.clip(np.zeros(self.n), robot.lower, robot.upper)
+        self.compute(q0, np.zeros(self.n), q0, np.zeros(self.n), np.zeros(self.n))  # load the numba kernels now
+        self.reset()
 
     def reset(self) -> None:
         """Clear the integral state."""

@@ -26,6 +26,7 @@ from typing import Any, Sequence
 
 import mujoco
 import numpy as np
+from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
 from robointel._validate import as_array, check_limits
 from robointel.errors import InvalidInput, NotFinite, SafetyStop, ShapeError
@@ -465,8 +466,6 @@ class Workcell:
         Raises:
             ShapeError, NotFinite, LimitViolation, InvalidInput: bad trajectory (nothing runs).
         """
-        from scipy.interpolate import CubicHermiteSpline, CubicSpline
-
         if q is None and hasattr(t, "t") and hasattr(t, "q"):
             t, q, qd, qdd = t.t, t.q, getattr(t, "qd", None), getattr(t, "qdd", None)
         if q is None:
