@@ -66,6 +66,9 @@ def test_latency_shows_and_tracking_is_tight(scara):
     assert r1.tracking_rms.max() < 0.01              # the controller follows what it receives
     rc = simulate_scara(sk, robot=scara, latency=0.1, compensate=True)
     assert rc.rms.mean() < r1.rms.mean()             # prediction recovers part of the delay
+    ro = simulate_scara(sk, robot=scara, offline=True)
+    assert ro.offline and ro.rms.max() < 0.02        # a stored recording, no latency: tight imitation
+    assert ro.rms.mean() < rc.rms.mean()
 
 
 def test_recording_runs(scara, shared_data):

@@ -194,6 +194,7 @@ class ScaraResult:
     latency: float
     compensated: bool
     source: str = ""
+    offline: bool = False
 
 
 def human_reference(skel: Skeleton, side: str | None = None, *,
@@ -215,7 +216,7 @@ def human_reference(skel: Skeleton, side: str | None = None, *,
 def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensate: bool = False,
                    side: str | None = None, dt: float = 0.001, controller: ComputedTorqueLQ | None = None,
                    workcell=None, predictor_psd: float = 10.0, max_accel=(60.0, 120.0),
-                   jerk_factor: float = 20.0, follow_gain: float = 12.0) -> ScaraResult:
+                   jerk_factor: float = 20.0, follow_gain: float = 12.0, offline: bool = False) -> ScaraResult:
     """Simulate dynamic imitation of a recording on the SCARA in MuJoCo at 1/dt Hz.
 
     Frames captured at t_k reach the controller at t_k + ``latency``. The reference at time t is the
@@ -233,6 +234,9 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
         max_accel: (2,) acceleration limit of the reference [rad/s^2] (what the torque limits can
             deliver); jerk limit = ``jerk_factor`` * max_accel; the reference follows the estimate
             with :class:`~robointel.programming.imitation.LimitedFollower` (``follow_gain`` [1/s]).
+        offline: replay of a stored recording, known in advance: the reference is the cleaned
+            recording itself at time t (no sensor in the loop, so no latency to compensate); what
+            remains is the robot's own limits and tracking. ``latency``/``compensate`` are ignored.
 
     Returns:
         :class:`ScaraResult`.
@@ -254,7 +258,9 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
         workcell = Workcell(robot, table=False, ft_sensor=False, timestep=dt)
     M = int(np.floor(t_h[-1] / dt)) + 1
     t = np.arange(M) * dt
-    truth = CubicSpline(t_h, q_true, axis=0)(t)
+    spline = CubicSpline(t_h, q_true, axis=0)
+    truth = spline(t)
+    truth_d = spline(t, 1)
     kf = KalmanPredictor(2, accel_psd=predictor_psd)
     from robointel.programming.imitation import LimitedFollower
 
@@ -275,8 +281,11 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
             if nxt > 0:
                 kf.update(t_h[nxt], q_meas[nxt])
             nxt += 1
-        tq = t[k] if compensate else max(t[k] - latency, t_h[0])
-        raw, rate = kf.predict(min(tq, kf.t + 0.5))  # never extrapolate more than 0.5 s
+        if offline:
+            raw, rate = truth[k], truth_d[k]
+        else:
+            tq = t[k] if compensate else max(t[k] - latency, t_h[0])
+            raw, rate = kf.predict(min(tq, kf.t + 0.5))  # never extrapolate more than 0.5 s
         q_r, qd_r, qdd_r = follow.step(np.clip(raw, robot.lower, robot.upper), rate)
         q, qd = workcell.q, workcell.qd
         tau = ctrl.torque(q, qd, q_r, qd_r, qdd_r)
@@ -286,7 +295,8 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
     rms = np.sqrt(np.mean(err ** 2, axis=0))
     trk = np.sqrt(np.mean((q_log - ref_log) ** 2, axis=0))
     sat = float(np.mean(np.any(np.abs(tau_log) >= robot.effort_limit - 1e-9, axis=1)))
-    return ScaraResult(t, q_log, truth, ref_log, tau_log, rms, trk, sat, latency, compensate, skel.source)
+    return ScaraResult(t, q_log, truth, ref_log, tau_log, rms, trk, sat, 0.0 if offline else latency,
+                       compensate and not offline, skel.source, offline)
 
 
 def plot_scara(results: list[ScaraResult], path) -> None:
@@ -304,12 +314,14 @@ def plot_scara(results: list[ScaraResult], path) -> None:
             ax.plot(r.t, r.q_ref[:, j], "C1--", lw=0.8, label="reference (received)")
             ax.plot(r.t, r.q[:, j], "C0-", lw=1.0, label="SCARA (MuJoCo)")
             ax.set_ylabel(f"q{j + 1} [rad]")
-            ax.set_title(f"{'with' if r.compensated else 'without'} delay compensation: q{j + 1} RMS "
-                         f"{r.rms[j]:.3f} rad", fontsize=9)
+            mode = ("offline replay (no latency)" if r.offline else
+                    "with delay compensation" if r.compensated else "without delay compensation")
+            ax.set_title(f"{mode}: q{j + 1} RMS {r.rms[j]:.3f} rad", fontsize=9)
             if j == 1:
                 ax.set_xlabel("t [s]")
         axes[0, c].legend(fontsize=7, loc="best")
-    fig.suptitle(f"Dynamic imitation on the 2-link SCARA, latency {results[0].latency:.2f} s: {results[0].source}",
+    fig.suptitle(f"Dynamic imitation on the 2-link SCARA (computed torque + LQ), live latency "
+                 f"{max(r.latency for r in results):.2f} s: {results[0].source}",
                  fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
