@@ -211,3 +211,29 @@ def test_grasp_carries_an_object_and_release_drops_it(lrmate):
     assert wc.grasped() == [] and wc.body_pose("cube")[2, 3] == pytest.approx(0.025, abs=2e-3)
     with pytest.raises(InvalidInput):
         wc.grasp("nothing")
+
+
+def test_bad_scene_input_raises_named_errors(lrmate):
+    with pytest.raises(InvalidInput, match="payload mass"):
+        Workcell(lrmate, payload=Payload(-1.0))
+    with pytest.raises(InvalidInput, match="positive definite"):
+        Workcell(lrmate, payload=Payload(1.0, inertia=-np.eye(3)))
+    with pytest.raises(InvalidInput, match="mass"):
+        Workcell(lrmate, objects=[SimObject("a", Sphere(np.array([0.5, 0, 0.1]), 0.02), 0.0)])
+    with pytest.raises(InvalidInput, match="SimObject"):
+        Workcell(lrmate, objects=[Sphere(np.array([0.5, 0, 0.1]), 0.02)])
+    with pytest.raises(InvalidInput, match="mesh"):
+        Workcell(lrmate, objects=[SimObject("a", "/no/such/mesh.stl", 0.1)])
+    with pytest.raises(InvalidInput, match="duplicate"):
+        Workcell(lrmate, objects=[SimObject("a", Sphere(np.array([0.5, 0, 0.1]), 0.02), 0.1)] * 2)
+    with pytest.raises(InvalidInput, match="timestep"):
+        Workcell(lrmate, timestep=float("nan"))
+    with pytest.raises(InvalidInput):
+        Workcell(lrmate, armature=np.full(6, -1.0))
+    wc = Workcell(lrmate, ft_sensor=False)
+    with pytest.raises(InvalidInput, match="no F/T sensor"):
+        wc.ft_reading()
+    with pytest.raises(InvalidInput):
+        wc.apply_wrench([0, 0, np.nan])
+    with pytest.raises(InvalidInput):
+        wc.apply_wrench([0, 0, 1.0], body="nowhere")
