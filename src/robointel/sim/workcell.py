@@ -355,14 +355,23 @@ class Workcell:
 
     # ------------------------------------------------------------------ stepping
     def step(self, tau) -> None:
-        """One physics step with joint torques ``tau`` (n,) N m (clipped to the effort limits).
+        """One physics step with joint torques ``tau`` (n,) N m (clipped to the effort limits),
+        bypassing the joint controller (for your own torque controller). :meth:`hold` afterwards
+        holds the position the robot had at the last step.
 
         Raises:
-            ShapeError, NotFinite: bad ``tau`` (nothing is applied, the state is unchanged).
+            ShapeError, NotFinite: bad ``tau`` (nothing is applied, the state is unchanged; the
+                joint controller takes over holding with :meth:`hold`).
             SafetyStop: the simulation became unstable; the robot is put back at rest where it was.
         """
-        tau = as_array(tau, "tau", (self.n,))
-        self._q_safe, self._t_safe = self.data.qpos[self._qadr].copy(), self.data.time
+        q = self.data.qpos[self._qadr].copy()
+        try:
+            tau = as_array(tau, "tau", (self.n,))
+        except (ShapeError, NotFinite):
+            self._hold = (q, np.zeros(self.n), np.zeros(self.n))
+            raise
+        self._q_safe, self._t_safe = q, self.data.time
+        self._hold = (q, self._zero, self._zero)
         self._physics_step(tau)
 
     def _physics_step(self, tau: np.ndarray, check: bool = True) -> None:
