@@ -79,3 +79,26 @@ def test_joint_velocity_reference_tracks(lrmate):
     err = np.array([np.linalg.norm(lrmate.fk(q)[:3, 3] - p) for q, p in zip(Q[::10], pd[::10])])
     assert err.max() < 2e-3
     np.testing.assert_allclose(lrmate.fk(Q[-1])[:3, :3], lrmate.fk(q0)[:3, :3], atol=1e-3)
+
+
+def test_reproduce_path_with_orientations(lrmate):
+    """A guided path (kinematic) whose tool turns: the reproduction passes the key points with
+    their orientations and stays within the tolerance of the guided path."""
+    from scipy.spatial.transform import Rotation
+
+    from robointel.programming.keypoints import orientation_reference, reproduce_path
+
+    q0 = np.array([0.0, 0.1, -0.2, 0.0, -1.2, 0.0])
+    T0 = lrmate.fk(q0)
+    t = np.linspace(0, 3, 1501)
+    s = np.clip(t / 1.5, 0, 1)
+    s2 = np.clip(t / 1.5 - 1, 0, 1)
+    P = T0[:3, 3] + np.outer(s, [0.12, 0, 0]) + np.outer(s2, [0, 0.1, 0])
+    R = np.array([T0[:3, :3] @ Rotation.from_rotvec([0, 0, 0.4 * a]).as_matrix() for a in s2])
+    rep = reproduce_path(lrmate, t, P, q0, rotations=R, tolerance=0.005, speed=0.1, blend_time=0.3)
+    assert len(rep.keypoints) == 3
+    assert rep.path_error < 0.006
+    Rd = orientation_reference(rep.trajectory, R[rep.keypoints], [0.0, rep.trajectory.duration])
+    np.testing.assert_allclose(Rd[-1], R[-1], atol=1e-9)
+    np.testing.assert_allclose(lrmate.fk(rep.q[-1])[:3, :3], R[-1], atol=2e-3)
+    np.testing.assert_allclose(lrmate.fk(rep.q[-1])[:3, 3], P[-1], atol=1e-3)

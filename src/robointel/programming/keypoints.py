@@ -20,8 +20,9 @@ from robointel._validate import as_array
 from robointel.errors import InvalidInput
 from robointel.programming.compliance import damped_pinv
 
-__all__ = ["BlendedTrajectory", "blended_trajectory", "extract_keypoints", "joint_velocity_reference",
-           "rdp_indices"]
+__all__ = ["BlendedTrajectory", "Reproduction", "blended_trajectory", "extract_keypoints",
+           "joint_velocity_reference", "orientation_reference", "plot_reproduction", "rdp_indices",
+           "reproduce_path"]
 
 
 def rdp_indices(points: np.ndarray, tolerance: float) -> np.ndarray:
@@ -192,17 +193,35 @@ def blended_trajectory(points, *, speed: float = 0.1, blend_time: float = 0.4,
     return BlendedTrajectory(points=P.copy(), times=times, blend=tau, velocities=V, kind=kind)
 
 
-def joint_velocity_reference(robot, q0, trajectory: BlendedTrajectory, *, dt: float = 0.001,
+def orientation_reference(trajectory: BlendedTrajectory, rotations, t) -> np.ndarray:
+    """Tool orientation reference (M, 3, 3) at times t (M,): slerp between the key points'
+    orientations ``rotations`` (K, 3, 3), eased (smoothstep) so it rests at each key point."""
+    from scipy.spatial.transform import Rotation, Slerp
+
+    R = as_array(rotations, "rotations", (len(trajectory.points), 3, 3))
+    knots = trajectory.times.copy()
+    knots[0], knots[-1] = 0.0, trajectory.duration
+    t = np.clip(np.asarray(t, float), 0.0, trajectory.duration)
+    k = np.clip(np.searchsorted(knots, t, side="right") - 1, 0, len(knots) - 2)
+    s = (t - knots[k]) / (knots[k + 1] - knots[k])
+    tau = knots[k] + (knots[k + 1] - knots[k]) * (3 * s ** 2 - 2 * s ** 3)
+    return Slerp(knots, Rotation.from_matrix(R))(tau).as_matrix()
+
+
+def joint_velocity_reference(robot, q0, trajectory: BlendedTrajectory, *, rotations=None, dt: float = 0.001,
                              gain: float = 20.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Joint velocity reference that makes the TCP follow ``trajectory`` (Fig. 3.12).
 
-    Resolved-rate control with position feedback, holding the start orientation:
-    dq = J^#(q) [v_d + K (p_d - p); K log(R_0 R^T)], integrated with step ``dt``.
+    Resolved-rate control with feedback, dq = J^#(q) [v_d + K (p_d - p); w_d + K log(R_d R^T)],
+    integrated with step ``dt``. The orientation R_d is the start orientation, or with
+    ``rotations`` (K, 3, 3) the key points' orientations interpolated by
+    :func:`orientation_reference`.
 
     Args:
         robot: :class:`robointel.robot.Robot`.
         q0: (n,) start configuration; its TCP should be at the trajectory's first point.
         trajectory: from :func:`blended_trajectory`.
+        rotations: optional key-point tool orientations.
         dt: sample time, s.
         gain: position/orientation feedback gain K, 1/s.
 
@@ -214,16 +233,118 @@ def joint_velocity_reference(robot, q0, trajectory: BlendedTrajectory, *, dt: fl
     q = robot.check_q(q0).copy()
     t = np.arange(0.0, trajectory.duration + dt / 2, dt)
     pd, vd, _ = trajectory(t)
-    R0 = robot.fk(q)[:3, :3]
+    if rotations is None:
+        Rd = np.repeat(robot.fk(q)[:3, :3][None], len(t), 0)
+        wd = np.zeros((len(t), 3))
+    else:
+        Rd = orientation_reference(trajectory, rotations, t)
+        wd = np.zeros((len(t), 3))
+        wd[:-1] = np.array([pin.log3(b @ a.T) for a, b in zip(Rd[:-1], Rd[1:])]) / dt
     Q = np.empty((len(t), robot.nq))
     dQ = np.empty_like(Q)
     for i in range(len(t)):
         T = robot.fk(q)
         e_p = pd[i] - T[:3, 3]
-        e_r = pin.log3(R0 @ T[:3, :3].T)
-        V = np.r_[vd[i] + gain * e_p, gain * e_r]
+        e_r = pin.log3(Rd[i] @ T[:3, :3].T)
+        V = np.r_[vd[i] + gain * e_p, wd[i] + gain * e_r]
         dq = damped_pinv(robot.jacobian(q)) @ V
         dq = np.clip(dq, -robot.velocity_limit, robot.velocity_limit)
         Q[i], dQ[i] = q, dq
         q = q + dq * dt
     return t, Q, dQ
+
+
+@dataclass
+class Reproduction:
+    """A guided path reproduced from its key points (Figs. 3.11-3.12).
+
+    Attributes:
+        keypoints: indices into the guided path. trajectory: the blended Cartesian trajectory.
+        t: (M,) s. q: (M, n) joint reference, rad. qd: (M, n) joint velocity reference, rad/s.
+        path_error: largest distance (m) from the reproduced TCP path to the guided polyline.
+    """
+
+    keypoints: np.ndarray
+    trajectory: BlendedTrajectory
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    path_error: float
+
+
+def _polyline_distance(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """Distance of each point (M, 3) to a polyline (N, 3)."""
+    a, b = poly[:-1], poly[1:]
+    ab = b - a
+    L2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18)
+    best = np.full(len(points), np.inf)
+    for s in range(0, len(points), 256):
+        p = points[s:s + 256, None, :]
+        u = np.clip(np.einsum("mij,ij->mi", p - a[None], ab) / L2, 0.0, 1.0)
+        d = np.linalg.norm(p - (a[None] + u[..., None] * ab[None]), axis=2)
+        best[s:s + 256] = d.min(1)
+    return best
+
+
+def reproduce_path(robot, t, positions, q0, *, rotations=None, tolerance: float = 0.01, speed: float = 0.1,
+                   blend_time: float = 0.4, kind: str = "quintic", dt: float = 0.001, **keypoint_args) -> Reproduction:
+    """Key points of a guided TCP path -> blended trajectory -> joint velocity reference.
+
+    Args:
+        robot: :class:`robointel.robot.Robot`.
+        t: (N,) times of the guided path, s. positions: (N, 3) TCP positions, m.
+        q0: (n,) configuration at the path's start (its TCP at positions[0]).
+        rotations: optional (N, 3, 3) tool orientations along the guided path; the reproduction
+            then passes the key points with their orientations (else it holds the start one).
+        tolerance, keypoint_args: passed to :func:`extract_keypoints`.
+        speed, blend_time, kind: passed to :func:`blended_trajectory`.
+        dt: sample time of the joint reference, s.
+    """
+    P = as_array(positions, "positions", (None, 3))
+    k = extract_keypoints(t, P, tolerance=tolerance, **keypoint_args)
+    tr = blended_trajectory(P[k], speed=speed, blend_time=blend_time, kind=kind)
+    Rk = None if rotations is None else as_array(rotations, "rotations", (len(P), 3, 3))[k]
+    tt, Q, dQ = joint_velocity_reference(robot, q0, tr, rotations=Rk, dt=dt)
+    tcp = np.array([robot.fk(q)[:3, 3] for q in Q[::10]])
+    err = float(_polyline_distance(tcp, P[np.r_[0:len(P):5, len(P) - 1]]).max())
+    return Reproduction(k, tr, tt, Q, dQ, err)
+
+
+def plot_reproduction(guided: np.ndarray, rep: Reproduction, path, *, executed: np.ndarray | None = None):
+    """Guided path, key points and reproduced path (Fig. 3.11) beside the joint velocity
+    reference (Fig. 3.12). ``guided`` (N, 3) and ``executed`` (M, 3) are TCP positions, m.
+    Returns the PNG path."""
+    from pathlib import Path
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    guided = np.asarray(guided, float)
+    fig, ax = plt.subplots(1, 2, figsize=(10, 4))
+    # the plane of largest spread of the guided path
+    ax0, ax1 = np.argsort(np.ptp(guided, axis=0))[::-1][:2]
+    names = "xyz"
+    ax[0].plot(guided[:, ax0], guided[:, ax1], c="0.6", lw=3, label="guided")
+    p, _, _ = rep.trajectory(rep.t)
+    ax[0].plot(p[:, ax0], p[:, ax1], c="C0", label="reproduced (reference)")
+    if executed is not None:
+        ax[0].plot(executed[:, ax0], executed[:, ax1], "--", c="C1", label="executed (MuJoCo)")
+    kp = guided[rep.keypoints]
+    ax[0].plot(kp[:, ax0], kp[:, ax1], "o", c="C3", label="key points")
+    ax[0].set_xlabel(f"{names[ax0]} [m]")
+    ax[0].set_ylabel(f"{names[ax1]} [m]")
+    ax[0].axis("equal")
+    ax[0].legend(fontsize=7)
+    ax[0].set_title(f"{len(rep.keypoints)} key points, path error {rep.path_error * 1e3:.1f} mm", fontsize=9)
+    ax[1].plot(rep.t, rep.qd)
+    ax[1].set_xlabel("time [s]")
+    ax[1].set_ylabel("joint velocity reference [rad/s]")
+    ax[1].legend([f"J{i + 1}" for i in range(rep.qd.shape[1])], fontsize=7, ncol=2)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path

@@ -179,6 +179,7 @@ class ScenarioResult:
         approach_rate: (T,) u_rep^T J_rep qd, the closest point's speed away from the obstacle.
         weight: (T,) blend weight lambda. active: (T,) obstacles inside d0. held: (T,) bool.
         step_us: (T,) controller step wall time, microseconds.
+        step_cpu_us: (T,) the same step's CPU (thread) time, microseconds: excludes preemption.
     """
 
     scenario: int
@@ -199,6 +200,7 @@ class ScenarioResult:
     physics: bool = True
     contacts: int = 0
     extra: dict = field(default_factory=dict)
+    step_cpu_us: np.ndarray | None = None
 
     @property
     def deviation(self) -> np.ndarray:
@@ -225,6 +227,8 @@ class ScenarioResult:
             "active_fraction": float(np.mean(act)),
             "step_us_median": float(np.median(self.step_us)),
             "step_us_p99": float(np.percentile(self.step_us, 99)),
+            "step_cpu_us_median": float(np.median(self.step_cpu_us)) if self.step_cpu_us is not None else float("nan"),
+            "step_cpu_us_p99": float(np.percentile(self.step_cpu_us, 99)) if self.step_cpu_us is not None else float("nan"),
             "duration_s": float(self.t[-1] - self.t[0]) if len(self.t) else 0.0,
         }
 
@@ -272,6 +276,7 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
     log = {k: np.zeros((N, w)) for k, w in (("q", n), ("tcp", 3), ("target", 3), ("v_lead", 6), ("v_cmd", 6))}
     dist, tdist, rate, lam, act, held, us = (np.full(N, np.nan), np.full(N, np.nan), np.zeros(N), np.zeros(N),
                                              np.zeros(N, int), np.zeros(N, bool), np.zeros(N))
+    cpu = np.zeros(N)
     contacts = 0
     extra: dict = {}
     wc = cal = None
@@ -321,9 +326,10 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
             w_world[5] -= r[0] * fy - r[1] * fx
         else:
             w_world = hand
-        c0 = time.perf_counter()
+        k0, c0 = time.thread_time_ns(), time.perf_counter_ns()
         s = ctl.step(q, w_world)
-        us[i] = (time.perf_counter() - c0) * 1e6
+        c1, k1 = time.perf_counter_ns(), time.thread_time_ns()
+        us[i], cpu[i] = (c1 - c0) / 1e3, (k1 - k0) / 1e3
         if wc is not None:
             wc.command_velocity(s.qd)
             ncon = _obstacle_contacts(wc)
@@ -343,7 +349,7 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
     tdist[tdist >= 0.3] = np.nan  # beyond distmax: not evaluated
     return ScenarioResult(number, method, t0 + np.arange(N) * 0.001, log["q"], log["tcp"], log["target"], dist, tdist,
                           log["v_lead"], log["v_cmd"], rate, lam, act, held, us, physics=physics, contacts=contacts,
-                          extra=extra)
+                          extra=extra, step_cpu_us=cpu)
 
 
 def _obstacle_contacts(wc) -> int:
