@@ -52,6 +52,8 @@ class PlannerSettings:
         ftol: ... or when the cost of a feasible iterate fell by less than ``ftol`` (relative).
         max_iter: CFS iteration cap.
         backtracks: step halvings when an iterate leaves the feasible set.
+        merit: while the reference is in collision, halve steps that increase the exact-penalty
+            merit (cost + elastic * clearance shortfall).
         reach: clearance rows within this distance of active (m) enter the QP's working set at
             once; farther ones are added only if the solution violates them.
         elastic: penalty (per metre) on the clearance slacks used while the reference is still in
@@ -73,6 +75,7 @@ class PlannerSettings:
     backtracks: int = 4
     elastic: float = 1e2
     reach: float = 0.03
+    merit: bool = True
 
     def __post_init__(self) -> None:
         for name in ("d_min", "safety", "margin", "w1", "w2", "eps"):
@@ -403,13 +406,17 @@ class TrajectoryPlanner:
             Znew = sol.x[: self.nv].reshape(N - 1, n)
             Xnew = X.copy()
             beta = 1.0
+            merit0 = None if feas or not st.merit else self._merit(X, Xr, D, d_req)
             for _ in range(st.backtracks + 1):
                 Xnew[1:N] = X[1:N] + beta * (Znew - X[1:N])
                 Xnew[1:N] = np.clip(Xnew[1:N], self.robot.lower, self.robot.upper)
                 Dn = self.distances(Xnew)
                 dn = float(Dn.d.min()) if Dn is not None else np.inf
-                if dn >= st.d_min - 1e-9 or not feas:
-                    break
+                if feas:
+                    if dn >= st.d_min - 1e-9:  # CFS: stay in the feasible set
+                        break
+                elif merit0 is None or dn >= st.d_min - 1e-9 or self._merit(Xnew, Xr, Dn, d_req) <= merit0:
+                    break  # elastic phase: the exact penalty merit must not grow
                 beta *= 0.5
             step = float(np.max(np.abs(Xnew - X)))
             prev_feas = feas
@@ -505,6 +512,14 @@ class TrajectoryPlanner:
         w = np.zeros_like(Xr)
         w[1:-1] = Xr[1:-1] * self._Qw[None]
         return -2 * self.settings.w1 * w.ravel()
+
+    def _merit(self, X: np.ndarray, Xr: np.ndarray, D, d_req: float) -> float:
+        """Exact-penalty merit of the elastic phase: J + elastic * sum over samples of the clearance
+        shortfall (the QP's slack objective evaluated with the true distances)."""
+        if D is None:
+            return self._cost(X, Xr)
+        short = np.maximum(d_req - D.d.reshape(len(self.samples), -1).min(axis=1), 0.0)
+        return self._cost(X, Xr) + self.settings.elastic * float(short.sum())
 
     def _cost(self, X: np.ndarray, Xr: np.ndarray) -> float:
         """J of (7.1) at the knots X (constant terms included)."""
