@@ -255,3 +255,15 @@ def test_resume_after_fault_ramps_up(lrmate):
     assert np.linalg.norm(first.qd) < 0.05 * np.linalg.norm(steady.qd)
     speeds = [np.linalg.norm(s.qd) for s in out]
     assert np.all(np.diff(speeds) >= -1e-12)
+
+
+def test_solver_failure_holds(lrmate, monkeypatch):
+    """If DAQP ever reports no optimum, the command is zero and the status says why."""
+    import robointel.programming.guidance as G
+
+    T = lrmate.fk(Q0)
+    obs = [Sphere(T[:3, 3] + [0.0, 0.0, -0.12], 0.03)]
+    ctl = GuidanceController(lrmate, obs, GuidanceConfig(filter_hz=0))
+    monkeypatch.setattr(G.daqp, "solve", lambda *a, **k: (np.full(6, np.nan), 0.0, -3, {}))
+    s = ctl.step(Q0, [0, 0, -30.0, 0, 0, 0])
+    assert s.held and np.all(s.qd == 0) and "solver" in s.status

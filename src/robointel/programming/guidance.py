@@ -48,7 +48,7 @@ import pinocchio as pin
 from numba import njit
 
 from robointel._validate import as_array
-from robointel.errors import InvalidInput, SafetyStop, ShapeError, SolverFailure
+from robointel.errors import InvalidInput, SafetyStop, ShapeError
 from robointel.geometry.distance import ObstacleSet, sphere_distances
 from robointel.programming.compliance import ComplianceGains
 
@@ -166,7 +166,9 @@ class GuidanceStep:
         distance: smallest sphere-obstacle distance, m (inf without obstacles).
         obstacle: index of the closest obstacle (-1 without obstacles).
         u_rep: (3,) repulsive unit vector at the closest point (from obstacle toward robot).
-        approach_rate: u_rep^T J_rep qd, the closest point's speed along u_rep (m/s; > 0 leaves).
+        approach_rate: d(d_k)/dt = (dd_k/dq) qd for the closest obstacle k, m/s (> 0 leaves): with
+            the hard minimum u_rep^T J_rep qd, the closest point's speed along u_rep; with the smooth
+            minimum (default) the softmax-weighted mean of the nearby control points' speeds.
         weight: the blend weight lambda (4.13) (0 for the baselines far away).
         active: number of obstacles inside d0 (constraint rows of the QP).
         held: True when the controller refused the reading and holds.
@@ -201,7 +203,6 @@ class GuidanceController:
         obstacles: robointel.geometry obstacles in the robot's world frame (``base_link``).
         config: :class:`GuidanceConfig`.
         spheres: collision sphere model (default ``robot.spheres``).
-        dt: control period, s (used by the joint position limit bounds only through ``limit_gain``).
     """
 
     def __init__(self, robot, obstacles=(), config: GuidanceConfig | None = None, *, spheres=None) -> None:
@@ -216,7 +217,6 @@ class GuidanceController:
         self._tool_p = np.asarray(robot.tool, float)[:3, 3].copy()
         self._has_tool = bool(np.any(self._tool_p != 0.0))
         self._W = np.array([1.0, 1.0, 1.0, c.rot_weight, c.rot_weight, c.rot_weight])
-        self._C = np.array([c.gains.translational] * 3 + [c.gains.rotational] * 3)
         self._vmax = np.asarray(robot.velocity_limit, float) * c.velocity_scale
         self._lower = np.asarray(robot.lower, float)
         self._upper = np.asarray(robot.upper, float)
@@ -244,6 +244,7 @@ class GuidanceController:
         self._wf = np.zeros(6)  # filtered wrench (starts from rest)
         self._hold = 0  # good samples still needed
         self._why = ""
+        self._solver_flag = 1
         self.last_step: GuidanceStep | None = None
         #: (H, f, A, lb, ub, solution) of the last QP with active obstacle rows, for inspection
         #: (views of work arrays: valid until the next step)
@@ -279,14 +280,16 @@ class GuidanceController:
             J[:3] += np.cross(J[3:].T, r).T  # v_tcp = v + w x r
         return J
 
-    def _solve(self, H, f, A, lb, ub, bl, bu, equality: bool) -> np.ndarray:
+    def _solve(self, H, f, A, lb, ub, bl, bu, equality: bool) -> np.ndarray | None:
+        """DAQP on min 1/2 x'Hx + f'x, lb <= x <= ub, bl <= A x <= bu; None if it did not
+        report an optimum (the caller then holds: never pass garbage on)."""
         k, n = A.shape[0], self.n
         BU, BL = self._bu[:n + k], self._bl[:n + k]
         BU[:n], BU[n:], BL[:n], BL[n:] = ub, bu, lb, bl
         x, _, flag, _ = daqp.solve(H, f, A, BU, BL, self._sense(k, equality))
-        if flag != 1:
-            # cannot happen for a feasible strictly convex QP; never pass garbage on
-            raise SolverFailure(f"DAQP returned exit flag {flag} on the guidance QP", value=flag)
+        if flag != 1 or not np.isfinite(x).all():
+            self._solver_flag = int(flag)
+            return None
         return x
 
     # ------------------------------------------------------------------ the loop
@@ -330,6 +333,8 @@ class GuidanceController:
         inside = _qp_terms(J, self._W, V, self._qp_par, q, self._lower, self._upper, self._vmax, H, f, lb, ub, qd_free)
         if not inside:  # free command: least squares within the joint bounds
             qd_free = self._solve(H, f, self._A0, lb, ub, self._z0, self._z0, False)
+            if qd_free is None:
+                return self._fault(f"QP solver failed (DAQP exit flag {self._solver_flag})", q, w)
         # distances of every movable sphere to every obstacle, closest sphere per obstacle
         K = len(self.obstacles)
         if K == 0:
@@ -357,6 +362,8 @@ class GuidanceController:
                     else:
                         z = self._z[:nact]
                         qd_av = self._solve(H, f, A, lb, ub, z, z if eq else self._inf[:nact], eq)
+                        if qd_av is None:
+                            return self._fault(f"QP solver failed (DAQP exit flag {self._solver_flag})", q, w)
                     self.last_qp = (H, f, A, lb, ub, qd_av)
                     qd = lam * qd_av + (1.0 - lam) * qd_free
             else:
