@@ -293,6 +293,7 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
         Hup = sp.triu(sp.csc_matrix(Hs), format="csc")
     A_dense = (A_lin.toarray() if sp.issparse(A_lin) else A_lin) if dense else None
     qp_kw = {"full_P": True} if dense else {}
+    y_base = y_last = None
     use_trust = trust is not None and any(c.kind == "general" for c in constraints)
     if use_trust:
         rho0 = np.broadcast_to(np.asarray(trust, float), (n,)).copy()
@@ -322,11 +323,24 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
                 Ablk = sp.vstack([A_cur] + [sp.csc_matrix(G) for G in G_rows + cuts_G], format="csc")
             lo = np.concatenate([l_cur] + h_rows + cuts_h)
             up = np.concatenate([u_cur] + [np.full(len(h), INF) for h in h_rows + cuts_h])
-            sol = qp.solve(Hup, f, Ablk, lo, up, x0=z, **qp_kw)
+            if dense:
+                m_base = len(l_cur) + sum(len(h) for h in h_rows)
+                y0 = np.zeros(len(lo))
+                if y_base is not None and y_base.size == m_base:
+                    y0[:m_base] = y_base
+                if _round > 0 and y_last is not None:
+                    y0[:y_last.size] = y_last
+                sol = qp.solve(Hup, f, Ablk, lo, up, x0=z, y0=y0, **qp_kw)
+            else:
+                sol = qp.solve(Hup, f, Ablk, lo, up, x0=z, **qp_kw)
             qp_iters += sol.iterations
             if not sol.solved:
                 break
             z_new = sol.x
+            if dense:
+                y_last = sol.y
+                if _round == 0:
+                    y_base = sol.y[:m_base].copy()
             added = False
             for s in sets:
                 if not s.curved_with(use_trust):

@@ -128,8 +128,9 @@ class DenseQP:
         self.setups = 0
         self.primal_start = True
 
-    def solve(self, P, q, A, l, u, *, x0=None, full_P: bool = False) -> QPSolution:
-        """``full_P=True``: ``P`` is already the full symmetric dense matrix (skip symmetrising)."""
+    def solve(self, P, q, A, l, u, *, x0=None, full_P: bool = False, y0=None) -> QPSolution:
+        """``full_P=True``: ``P`` is already the full symmetric dense matrix (skip symmetrising).
+        ``y0``: dual warm start (m,) (its nonzero entries mark the initial active set)."""
         import daqp
 
         P = P.toarray() if sp.issparse(P) else np.asarray(P, float)
@@ -139,7 +140,9 @@ class DenseQP:
         l = np.maximum(np.asarray(l, float), -INF)
         u = np.minimum(np.asarray(u, float), INF)
         kw = dict(self.settings)
-        if self._lam is not None and self._lam.shape[0] == A.shape[0]:
+        if y0 is not None and np.shape(y0) == (A.shape[0],):
+            kw["dual_start"] = np.asarray(y0, float)
+        elif self._lam is not None and self._lam.shape[0] == A.shape[0]:
             kw["dual_start"] = self._lam
         elif x0 is not None and self.primal_start:
             kw["primal_start"] = np.asarray(x0, float)
