@@ -38,6 +38,9 @@ from robointel.planning.qp import DenseQP, SparseQP
 MAX_CUTS = 2
 #: ridge on tau (times w3 / tau_max) making the cost strictly convex; it only favours shorter steps
 RIDGE = 1e-2
+#: limit rescaling between rounds: "tighten" (only where the spline exceeds), "sqrt" (damped),
+#: "both" (also relax where it has slack)
+REFINE_MODE = "tighten"
 
 
 @dataclass
@@ -175,14 +178,16 @@ def _solve_tau(dx: np.ndarray, vmax: np.ndarray, amax_k: np.ndarray, vscale: np.
 
 
 def temporal_optimize(path, vmax, amax, *, dt: float | None = None, w3: float = 1.0, w4: float = 1.0,
-                      eps: float = 1e-4, max_iter: int = 30, refine: int = 2, upsample: int = 1,
+                      eps: float = 1e-4, max_iter: int = 30, refine: int = 6, upsample: int = 1,
                       trust: float | None = None, qp: DenseQP | SparseQP | None = None) -> TemporalResult:
     """Solve (7.7)-(7.9) by CFS for one segment and return its spline trajectory.
 
-    After each CFS solve the spline through the re-timed knots is compared with the limits; knots
-    where the spline's acceleration (or an interval where its velocity) differs from the discrete
-    model get their limit rescaled and CFS is re-run warm-started (``refine`` rounds at most). The
-    shortest result is kept and finally stretched uniformly so that the spline meets the limits.
+    After each CFS solve the spline through the re-timed knots is compared with the limits: at
+    knots where the spline's acceleration exceeds the limit (or intervals where its velocity does)
+    the limit used by (7.8) is tightened by that ratio, and CFS is re-run warm-started from the
+    previous schedule scaled to be feasible (``refine`` rounds at most, stopping once the spline is
+    within 0.5 % of the limits). The shortest result is kept and finally stretched uniformly so
+    that the spline meets the limits exactly on the dense grid.
 
     Args:
         path: (N+1, n) path points (rad), N >= 1; zero velocity at both ends.
@@ -238,8 +243,13 @@ def temporal_optimize(path, vmax, amax, *, dt: float | None = None, w3: float = 
         if s <= 1.005:
             break
         # rescale the limits where the spline and the discrete model disagree, warm start feasibly
-        new_a = np.clip(sig_a / np.maximum(ra, 1e-3), 0.2, 2.0)
-        new_v = np.clip(sig_v / np.maximum(rv, 1e-3), 0.2, 2.0)
+        if REFINE_MODE == "both":
+            new_a = np.clip(sig_a / np.maximum(ra, 1e-3), 0.2, 2.0)
+            new_v = np.clip(sig_v / np.maximum(rv, 1e-3), 0.2, 2.0)
+        else:
+            pw = 1.0 if REFINE_MODE == "tighten" else 0.5
+            new_a = np.clip(sig_a * np.minimum(1.0, 1.0 / np.maximum(ra, 1e-3)) ** pw, 0.2, 2.0)
+            new_v = np.clip(sig_v * np.minimum(1.0, 1.0 / np.maximum(rv, 1e-3)) ** pw, 0.2, 2.0)
         c = float(max(1.0, np.sqrt(np.max(sig_a / new_a)), np.max(sig_v / new_v)))
         sig_a, sig_v = new_a, new_v
         tau_start = tau * c
