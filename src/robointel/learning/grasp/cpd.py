@@ -15,10 +15,11 @@ Variants of the non-rigid solver (``method``):
   agree to ~1e-12 on the fish and bunny pairs). O(M N) memory, O(M^3) per iteration.
 * ``"lowrank"``: G replaced by a Nystrom eigen-decomposition ``U diag(lam) U^T`` (landmarks chosen by
   farthest-point sampling; the number of landmarks grows until the kernel spectrum has decayed below
-  ``rank_tol`` of its largest eigenvalue), W from the Woodbury identity in O(M K^2); the E-step is dense
-  in float32 (SIMD exp); the warp is stored on the landmarks, so applying it to any point costs O(K).
-  Accuracy: relative kernel error ~ ``rank_tol`` plus float32 rounding (~1e-6 relative in P);
-  the registered template differs from the exact one by ~1e-5 of the cloud size.
+  ``rank_tol`` of its largest eigenvalue), W from the Woodbury identity in O(M K^2); the E-step is a
+  fused float32 numba kernel (vectorised polynomial exp, relative error < 2e-7; float32 sums give
+  ~1e-5 relative error in P1 and PX); the warp is stored on the landmarks, so applying it to any
+  point costs O(K). The registered template differs from the exact one by ~1e-5 of the cloud size
+  (5e-6 on the 1k bunny pair).
 * ``"fast"`` (default): ``"lowrank"``, and for clouds larger than ``max_points`` the registration runs on
   farthest-point subsamples of both clouds (at most ``max_points`` each) and the fitted warp, a smooth
   function of space, is then applied to every template point (the down-sample-and-interpolate idea of
@@ -277,6 +278,91 @@ def _estep_fast(X32, xx32, TY, sigma2, w):
     return Pt1, P1, PX, float(P1.sum())
 
 
+@numba.njit(fastmath=True, cache=True)
+def _estep_kernel(x0, x1, x2, y0, y1, y2, inv2s2, c, pt1, s0, s1, s2, s3, kb, ib):  # pragma: no cover - numba
+    """Fused float32 E-step: one pass over targets, the kernel column held in ``kb``.
+
+    exp(-d^2 / (2 sigma2)) is evaluated as 2^t with t = -d^2 log2(e) / (2 sigma2) split into integer
+    and fraction: the fraction by a degree-5 polynomial (relative error < 2e-7), the integer written
+    straight into the float32 exponent bits (``ib`` viewed as float32), so that the loops vectorise.
+    """
+    fb = ib.view(np.float32)
+    N = x0.shape[0]
+    M = y0.shape[0]
+    for m in range(M):
+        s0[m] = 0.0
+        s1[m] = 0.0
+        s2[m] = 0.0
+        s3[m] = 0.0
+    for n in range(N):
+        a0 = x0[n]
+        a1 = x1[n]
+        a2 = x2[n]
+        for m in range(M):
+            d0 = a0 - y0[m]
+            d1 = a1 - y1[m]
+            d2 = a2 - y2[m]
+            t = -(d0 * d0 + d1 * d1 + d2 * d2) * inv2s2 * np.float32(1.4426950408889634)
+            t = max(t, np.float32(-126.0))
+            fl = np.floor(t)
+            f = t - fl
+            kb[m] = np.float32(1.0) + f * (np.float32(0.6931472) + f * (np.float32(0.2402265) + f * (
+                np.float32(0.05550411) + f * (np.float32(0.009618129) + f * np.float32(0.001333355)))))
+            ib[m] = (np.int32(fl) + np.int32(127)) << 23
+        den = np.float32(0.0)
+        for m in range(M):
+            k = kb[m] * fb[m]
+            kb[m] = k
+            den += k
+        ksum = den
+        if den < np.float32(1.1920929e-07):
+            den = np.float32(1.1920929e-07)
+        inv = np.float32(1.0) / (den + c)
+        pt1[n] = ksum * inv
+        b1 = a0 * inv
+        b2 = a1 * inv
+        b3 = a2 * inv
+        for m in range(M):
+            k = kb[m]
+            s0[m] += k * inv
+            s1[m] += k * b1
+            s2[m] += k * b2
+            s3[m] += k * b3
+
+
+class _FastEstep:
+    """The fast E-step for one target cloud: numba kernel for D <= 3, blocked numpy otherwise."""
+
+    def __init__(self, X: np.ndarray, M: int) -> None:
+        self.N, self.D = X.shape
+        self.M = M
+        self.X32 = X.astype(np.float32)
+        if self.D <= 3:
+            cols = [np.ascontiguousarray(self.X32[:, i]) if i < self.D else np.zeros(self.N, np.float32)
+                    for i in range(3)]
+            self.x = cols
+            self.pt1 = np.empty(self.N, np.float32)
+            self.s = [np.empty(M, np.float32) for _ in range(4)]
+            self.kb = np.empty(M, np.float32)
+            self.ib = np.empty(M, np.int32)
+        else:
+            self.xx32 = np.einsum("ij,ij->i", self.X32, self.X32)
+
+    def __call__(self, TY: np.ndarray, sigma2: float, w: float):
+        """Pt1 (N,), P1 (M,), PX (M, D), Np."""
+        if self.D > 3:
+            return _estep_fast(self.X32, self.xx32, TY, sigma2, w)
+        D, M, N = self.D, self.M, self.N
+        y = [np.ascontiguousarray(TY[:, i], dtype=np.float32) if i < D else np.zeros(M, np.float32)
+             for i in range(3)]
+        c = (2.0 * np.pi * sigma2) ** (D / 2.0) * w / (1.0 - w) * M / N
+        _estep_kernel(*self.x, *y, np.float32(1.0 / (2.0 * sigma2)), np.float32(c), self.pt1, *self.s,
+                      self.kb, self.ib)
+        P1 = self.s[0].astype(np.float64)
+        PX = np.column_stack([si.astype(np.float64) for si in self.s[1:1 + D]])
+        return self.pt1.astype(np.float64), P1, PX, float(P1.sum())
+
+
 @numba.njit(cache=True)
 def _fps(P, k, start):
     n, D = P.shape
@@ -378,14 +464,13 @@ def _cpd_rigid(X, Y, *, w: float = 0.0, tolerance: float = 1e-3, max_iterations:
     q, diff, it, converged = np.inf, np.inf, 0, False
     P1 = np.zeros(M)
     if method == "fast":
-        X32 = Xn.astype(np.float32)
-        xx32 = np.einsum("ij,ij->i", X32, X32)
+        estep = _FastEstep(Xn, Yn.shape[0])
     while it < max_iterations and diff > tolerance:
         if method == "exact":
             P, Pt1, P1, Np = _estep_exact(Xn, TY, s2, w)
             PX = P @ Xn
         else:
-            Pt1, P1, PX, Np = _estep_fast(X32, xx32, TY, s2, w)
+            Pt1, P1, PX, Np = estep(TY, s2, w)
         if Np <= 1e-300:
             raise SolverFailure(f"CPD lost all correspondences at iteration {it} (sigma2 = {s2:.3g}); "
                                 "start from a larger sigma2 or pre-align the clouds", value=s2)
@@ -539,15 +624,14 @@ def _cpd_nonrigid(X, Y, *, beta: float = 2.0, lmbda: float = 2.0, w: float = 0.0
         G = np.exp(-_sqdist(Yn, Yn) / (2 * beta ** 2))
     else:
         U, lam, Z, Lmap = _nystrom(Yn, beta, rank_tol, max_rank)
-        X32 = Xn.astype(np.float32)
-        xx32 = np.einsum("ij,ij->i", X32, X32)
+        estep = _FastEstep(Xn, M)
     xx = np.sum(Xn * Xn, axis=1)
     while it < max_iterations and diff > tolerance:
         if exact:
             P, Pt1, P1, Np = _estep_exact(Xn, TY, s2, w)
             PX = P @ Xn
         else:
-            Pt1, P1, PX, Np = _estep_fast(X32, xx32, TY, s2, w)
+            Pt1, P1, PX, Np = estep(TY, s2, w)
         if Np <= 1e-300:
             raise SolverFailure(f"CPD lost all correspondences at iteration {it} (sigma2 = {s2:.3g}); "
                                 "start from a larger sigma2 or pre-align the clouds", value=s2)

@@ -9,7 +9,7 @@ characteristic length. Quality = isotropy index sigma_min / sigma_max of that 6 
 
 Negative quality marks grasps that cannot work (Table 6.1 of the dissertation, plus a friction check):
 
-* -1 ``off-axis``: no cloud points near the axis on one side of the centre,
+* -1 ``off-axis``: (almost) no cloud points near the axis within the jaws' opening,
 * -2 ``sparse``: too few points around a contact to estimate its normal,
 * -3 ``too wide``: the contacts are farther apart than the gripper opens,
 * -4 ``slip``: a contact normal is outside the friction cone about the closing axis.
@@ -172,12 +172,12 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
     if np.any(near & (np.abs(s) > half) & (np.abs(s) <= half + gripper.finger_thickness)):
         return GraspQuality(TOO_WIDE, "too wide")  # a jaw would land on the object
     near &= np.abs(s) <= half
-    pos = near & (s > 0)
-    neg = near & (s <= 0)
-    if not pos.any() or not neg.any():
+    if np.count_nonzero(near) < 2:
         return GraspQuality(OFF_AXIS, "off-axis")
-    ip = np.flatnonzero(pos)[np.argmax(s[pos])]
-    ineg = np.flatnonzero(neg)[np.argmin(s[neg])]
+    # each jaw, closing from its side, meets the outermost point within the opening
+    idx = np.flatnonzero(near)
+    ip = idx[np.argmax(s[idx])]
+    ineg = idx[np.argmin(s[idx])]
     contacts = P[[ip, ineg]]
     width = float(s[ip] - s[ineg])
     mid = grasp.centre + 0.5 * (s[ip] + s[ineg]) * y
