@@ -41,6 +41,10 @@ RIDGE = 1e-2
 #: limit rescaling between rounds: "tighten" (only where the spline exceeds), "sqrt" (damped),
 #: "both" (also relax where it has slack)
 REFINE_MODE = "tighten"
+#: starting schedule of the first CFS solve: "scaled" (velocity-shaped, see scaled_start) or "uniform"
+START = "uniform"
+#: upper bound of every step = this factor x the largest starting step
+UB_FACTOR = 1.5
 
 
 @dataclass
@@ -51,7 +55,8 @@ class TemporalResult:
         t: (N+1,) knot times, s, starting at 0.
         q, qd, qdd: (N+1, n) positions, velocities, accelerations of the spline at the knots.
         tau: (N,) optimised intervals before the limit stretch, s.
-        tau0: (N,) the feasible starting schedule (uniform), s.
+        tau0: (N,) the feasible starting schedule of the first CFS solve, s (the smallest
+            feasible uniform step; the input's fixed dt is not used as a floor).
         stretch: uniform time factor applied after CFS to meet the limits on a 1 ms grid (>= 1).
         cfs: the CFS result.
         seconds: wall time of the CFS solve, s.
@@ -115,6 +120,21 @@ def limit_stretch(spline: CubicSpline, duration: float, vmax, amax, dt: float = 
     return float(max(1.0, v, np.sqrt(amax_ratio)) * (1 + 1e-7))
 
 
+def scaled_start(dx: np.ndarray, vmax: np.ndarray, amax: np.ndarray, h0: float) -> np.ndarray:
+    """A feasible starting schedule shaped like the path: the velocity-limited steps
+    ``b_k = max_j |dx_kj| / vmax_j`` scaled uniformly by the smallest factor c >= 1 meeting
+    (7.7)-(7.9) (accelerations scale by 1 / c^2); falls back to the uniform step ``h0``."""
+    b = np.maximum(np.max(np.abs(dx) / vmax, axis=1), 1e-3 * h0)
+    v = dx / b[:, None]
+    need = [1.0, float(np.sqrt(np.max(2 * np.abs(dx[0]) / amax) / b[0] ** 2)),
+            float(np.sqrt(np.max(2 * np.abs(dx[-1]) / amax) / b[-1] ** 2))]
+    if len(b) > 1:
+        a = (v[1:] - v[:-1]) / (0.5 * (b[1:] + b[:-1]))[:, None]
+        need.append(float(np.sqrt(np.max(np.abs(a) / amax))))
+    tau = b * max(need) * (1 + 1e-9)
+    return tau if np.all(np.isfinite(tau)) and tau.sum() < h0 * len(b) else np.full(len(b), h0)
+
+
 def _knot_ratios(t: np.ndarray, path: np.ndarray, vmax: np.ndarray, amax: np.ndarray, sub: int = 8):
     """Spline acceleration / limit at each knot (exact: a cubic's acceleration is piecewise linear)
     and the largest velocity / limit inside each interval (sampled)."""
@@ -135,7 +155,7 @@ def _solve_tau(dx: np.ndarray, vmax: np.ndarray, amax_k: np.ndarray, vscale: np.
     lb[0] = max(lb[0], float(np.sqrt(np.max(2 * np.abs(dx[0]) / amax_k[0]))))
     lb[-1] = max(lb[-1], float(np.sqrt(np.max(2 * np.abs(dx[-1]) / amax_k[-1]))))
     tau0 = np.maximum(tau0, lb)
-    h = float(np.max(tau0))
+    h = UB_FACTOR * float(np.max(tau0))
     ub = np.full(N, h)
     D = np.diff(np.eye(N), axis=0)
     H = w4 * D.T @ D + RIDGE * w3 / h * np.eye(N)
@@ -192,8 +212,8 @@ def temporal_optimize(path, vmax, amax, *, dt: float | None = None, w3: float = 
     Args:
         path: (N+1, n) path points (rad), N >= 1; zero velocity at both ends.
         vmax, amax: (n,) or scalar velocity (rad/s) and acceleration (rad/s^2) limits.
-        dt: the fixed time step of the input path (the starting schedule is max(dt, the smallest
-            feasible uniform step)); ``None``: the smallest feasible uniform step.
+        dt: the fixed time step of the input path (only rescaled when up-sampling; the CFS starts
+            from the smallest feasible uniform step).
         w3, w4: weights of total time and of time-step changes.
         eps, max_iter: CFS stopping rule and cap (per solve).
         refine: limit-rescaling rounds.
@@ -226,11 +246,11 @@ def temporal_optimize(path, vmax, amax, *, dt: float | None = None, w3: float = 
         N = path.shape[0] - 1
     dx = np.diff(path, axis=0)
     t0 = time.perf_counter()
-    h0 = feasible_uniform_dt(path, vmax, amax, dt)
-    tau0 = np.full(N, h0)
+    h_min = feasible_uniform_dt(path, vmax, amax, None)  # no floor at the input's dt
+    tau_start = scaled_start(dx, vmax, amax, h_min) if START == "scaled" else np.full(N, h_min)
     sig_a = np.ones(N + 1)
     sig_v = np.ones(N)
-    tau_start = tau0
+    tau_first = tau_start.copy()
     best = None
     for _round in range(refine + 1):
         res = _solve_tau(dx, vmax, amax[None] * sig_a[:, None], sig_v, tau_start, w3, w4, eps, max_iter, qp, trust)
@@ -261,7 +281,7 @@ def temporal_optimize(path, vmax, amax, *, dt: float | None = None, w3: float = 
     if s > 1.0:
         t = t * s
         sp_ = spline_segment(t, path)
-    return TemporalResult(t=t, q=path.copy(), qd=sp_(t, 1), qdd=sp_(t, 2), tau=tau, tau0=tau0, stretch=s,
+    return TemporalResult(t=t, q=path.copy(), qd=sp_(t, 1), qdd=sp_(t, 2), tau=tau, tau0=tau_first, stretch=s,
                           cfs=res, seconds=secs)
 
 
