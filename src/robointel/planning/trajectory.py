@@ -158,6 +158,7 @@ class TrajectoryPlanner:
         self._dense = DenseQP()
         self._Pz_dense = None
         self._Ad = None
+        self._y_full = None
         self._qp_ready = False
         self.qp_stats = {"osqp": 0, "daqp": 0}
 
@@ -264,6 +265,7 @@ class TrajectoryPlanner:
     def reset_warm_start(self) -> None:
         """Forget the QP solvers' previous solutions (for cold-start timings)."""
         self._dense = DenseQP()
+        self._y_full = None
         self.qp = SparseQP(**{k: v for k, v in self.qp.settings.items()})
         self._qp_ready = False
 
@@ -476,11 +478,15 @@ class TrajectoryPlanner:
         P = self._Pz_dense if elastic else self._Pz_dense[: self.nv, : self.nv]
         sol = None
         for _ in range(8):
+            y0 = self._y_full[work] if self._y_full is not None else None
             sol = self._dense.solve(P, qz[:nvar], np.ascontiguousarray(Ad[work, :nvar]), l[work], u[work],
-                                    x0=z0[:nvar], full_P=True)
+                                    x0=z0[:nvar], full_P=True, y0=y0)
             self.qp_stats["daqp"] += 1
+            self.qp_stats["daqp_iterations"] = self.qp_stats.get("daqp_iterations", 0) + sol.iterations
             if not sol.solved:
                 return sol
+            self._y_full = np.zeros(len(l))
+            self._y_full[work] = sol.y
             x = sol.x if elastic else np.r_[sol.x, np.zeros(self.nz - self.nv)]
             Ax = Ad @ x
             viol = finite & ~work & ((Ax < l - 1e-7) | (Ax > u + 1e-7))
