@@ -1,5 +1,6 @@
 """The teleoperation page driven in headless Chromium (Debian's ``chromium``) with Playwright:
-connect, type two hand poses and record them, replay, check the simulated robot reached them,
+connect, drag the gizmo (the hand) with the mouse and record, type a second pose and record, replay,
+check the simulated robot reached them,
 check an unreachable pose is shown and not sent, save the program.
 
 Needs /usr/bin/chromium (or $ROBOINTEL_CHROMIUM). Skips without it, fails when CI=true.
@@ -62,7 +63,8 @@ def test_page_record_replay_save(lrmate, tmp_path):
     profile = tempfile.mkdtemp(prefix="robointel-chromium-")
     try:
         with sync_playwright() as pw:
-            ctx = pw.chromium.launch_persistent_context(profile, executable_path=CHROMIUM, args=ARGS, headless=True)
+            ctx = pw.chromium.launch_persistent_context(profile, executable_path=CHROMIUM, args=ARGS, headless=True,
+                                                         viewport={"width": 800, "height": 500})
             try:
                 page = ctx.new_page()
                 page.set_default_timeout(30000)
@@ -80,13 +82,46 @@ def test_page_record_replay_save(lrmate, tmp_path):
                         box.fill(f"{v:.3f}")
                         box.press("Enter")
 
-                targets = [(0.45, 0.10, 0.55), (0.40, -0.15, 0.45)]
-                for k, p in enumerate(targets):
-                    type_hand(p)
-                    _wait(lambda: app.desired is not None and
-                          np.linalg.norm(lrmate.fk(app.desired)[:3, 3] - np.array(p)) < 1e-6, what=f"IK of {p}")
-                    page.get_by_text("Record waypoint").click()
-                    _wait(lambda: field("Waypoints").input_value() == str(k + 1), what="waypoint count")
+                # 1) drag the gizmo (the operator's hand) along its world-x arrow with the mouse
+                _wait(lambda: len(app.server.get_clients()) > 0, what="browser client")
+                cam = list(app.server.get_clients().values())[0].camera
+                hand0 = np.array(app._hand.position)
+                cam.position = tuple(hand0 + np.array([0.0, -0.8, 0.15]))  # look along +y at the hand
+                cam.look_at = tuple(hand0)
+                time.sleep(1.0)
+                from scipy.spatial.transform import Rotation
+
+                Rc = Rotation.from_quat(np.r_[cam.wxyz[1:], cam.wxyz[0]]).as_matrix()  # OpenCV camera
+                vw = page.viewport_size
+
+                def project(p):
+                    pc = Rc.T @ (np.asarray(p) - np.asarray(cam.position))
+                    f = 0.5 * vw["height"] / np.tan(0.5 * cam.fov)
+                    return 0.5 * vw["width"] + f * pc[0] / pc[2], 0.5 * vw["height"] + f * pc[1] / pc[2]
+
+                grab = project(hand0 + np.array([0.10, 0.0, 0.0]))  # on the arrow along world +x
+                page.mouse.move(*grab)
+                page.mouse.down()
+                for k in range(1, 4):
+                    page.mouse.move(grab[0] + 20 * k, grab[1])
+                page.mouse.up()
+                _wait(lambda: np.array(app._hand.position)[0] > hand0[0] + 0.02, what="gizmo drag")
+                dragged = np.array(app._hand.position)
+                np.testing.assert_allclose(dragged[1:], hand0[1:], atol=1e-6)  # moved along x only
+                _wait(lambda: app.desired is not None and
+                      np.linalg.norm(lrmate.fk(app.desired)[:3, 3] - dragged) < 1e-6, what="IK of the dragged hand")
+                _wait(lambda: np.linalg.norm(lrmate.fk(app.controller.wc.q)[:3, 3] - dragged) < 2e-3,
+                      what="robot follows the hand")
+                page.get_by_text("Record waypoint").click()
+                _wait(lambda: field("Waypoints").input_value() == "1", what="waypoint count")
+
+                # 2) type a second hand pose
+                targets = [tuple(dragged), (0.40, -0.15, 0.45)]
+                type_hand(targets[1])
+                _wait(lambda: np.linalg.norm(lrmate.fk(app.desired)[:3, 3] - np.array(targets[1])) < 1e-6,
+                      what="IK of the typed pose")
+                page.get_by_text("Record waypoint").click()
+                _wait(lambda: field("Waypoints").input_value() == "2", what="waypoint count")
                 recorded = [w.copy() for w in app.waypoints]
                 assert len(recorded) == 2
 
