@@ -161,6 +161,9 @@ def test_page_record_replay_save(lrmate, tmp_path):
                 np.testing.assert_allclose(prog["waypoints"], np.array(recorded))
             finally:
                 ctx.close()
+        # the page is gone: its keep-alive stream stops and the deadman stops the robot
+        _wait(lambda: len(app.server.get_clients()) == 0, what="client gone")
+        _wait(lambda: app.controller.mode == "stopped", what="deadman stop after the page closed")
     finally:
         app.stop()
         shutil.rmtree(profile, ignore_errors=True)

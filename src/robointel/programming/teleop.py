@@ -9,8 +9,8 @@ an unreachable one is shown in red and **not sent**. The hand can also be typed 
 program on the robot, clear it, and save it as a YAML scene (robot, obstacles, waypoints) that
 ``robointel plan`` loads (:func:`save_program` / :func:`load_program`).
 
-While a target is live the page keeps streaming it at ``stream_hz`` so the controller's deadman
-(100 ms) only stops the robot when the page or the link really stalls.
+While a target is live and a page is connected, the app keeps streaming it at ``stream_hz``, so the
+controller's deadman (100 ms) stops the robot when the page closes or its link stalls.
 """
 from __future__ import annotations
 
@@ -386,10 +386,12 @@ class TeleopApp:
             time.sleep(1 / 30)
 
     def _stream_loop(self) -> None:
+        """Keep the live target alive while a browser is connected: when the last page closes
+        (or its link dies) the stream stops and the controller's deadman brings the robot to rest."""
         while self._running:
             with self._lock:
                 q = None if (self.replaying or self.desired is None) else self.desired.copy()
-            if q is not None:
+            if q is not None and self.server is not None and len(self.server.get_clients()) > 0:
                 self._send(q)
             time.sleep(1.0 / self.stream_hz)
 
