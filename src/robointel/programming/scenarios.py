@@ -204,7 +204,9 @@ class ScenarioResult:
 
     @property
     def deviation(self) -> np.ndarray:
-        """||V_cmd - V_lead|| (translation), m/s, (T,)."""
+        """||V_cmd - V_lead|| (translation), m/s, (T,). While the controller holds after an F/T
+        fault, V_cmd = 0 and V_lead is the lead twist of the reading (the operator's intent; NaN
+        for a NaN reading)."""
         return np.linalg.norm(self.v_cmd[:, :3] - self.v_lead[:, :3], axis=1)
 
     def metrics(self) -> dict:
@@ -219,10 +221,10 @@ class ScenarioResult:
             "held_steps": int(np.sum(self.held)),
             "max_penetration_m": float(max(0.0, -dmin)),
             "robot_obstacle_contacts": int(self.contacts),
-            "mean_velocity_deviation": float(np.mean(dev)),
-            "max_velocity_deviation": float(np.max(dev)),
-            "mean_velocity_deviation_active": float(np.mean(dev[act])) if act.any() else 0.0,
-            "mean_angular_deviation": float(np.mean(np.linalg.norm(self.v_cmd[:, 3:] - self.v_lead[:, 3:], axis=1))),
+            "mean_velocity_deviation": float(np.nanmean(dev)),
+            "max_velocity_deviation": float(np.nanmax(dev)),
+            "mean_velocity_deviation_active": float(np.nanmean(dev[act])) if act.any() else 0.0,
+            "mean_angular_deviation": float(np.nanmean(np.linalg.norm(self.v_cmd[:, 3:] - self.v_lead[:, 3:], axis=1))),
             "min_approach_rate_active": float(np.min(self.approach_rate[act])) if act.any() else 0.0,
             "active_fraction": float(np.mean(act)),
             "step_us_median": float(np.median(self.step_us)),
@@ -340,7 +342,11 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
             q = np.clip(q + s.qd * 0.001, robot.lower, robot.upper)
             qd_prev = s.qd
         log["q"][i], log["tcp"][i] = q, T[:3, 3]
-        log["v_lead"][i], log["v_cmd"][i] = s.v_lead, s.v_cmd
+        log["v_cmd"][i] = s.v_cmd
+        if s.held:  # the operator still pushes: their intent is the lead twist of the reading
+            log["v_lead"][i] = ctl.lead_twist(w_world) if np.isfinite(w_world).all() else np.nan
+        else:
+            log["v_lead"][i] = s.v_lead
         dist[i], rate[i], lam[i], act[i], held[i] = s.distance, s.approach_rate, s.weight, s.active, s.held
         if progress is not None and i % 250 == 0:
             progress(i / N)
