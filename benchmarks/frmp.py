@@ -9,8 +9,9 @@ and TOPP-RA (toppra) on the same geometric path with the same velocity/accelerat
 
     python benchmarks/frmp.py [--json] [--quick] [--scene table71]
 
-Times are medians over repeats (CFS, temporal, OMPL) or single runs (SLSQP). The machine is shared
-(2 cores): the load average at the start is reported with the figures.
+Times are wall-clock medians over repeats (CFS, temporal, OMPL) or single runs (SLSQP); ``*_cpu_ms``
+are the process CPU times of the same calls (less sensitive to other jobs on a shared machine).
+The machine is shared (2 cores): the load average at the start is reported with the figures.
 """
 from __future__ import annotations
 
@@ -74,32 +75,40 @@ def main() -> None:
 
     # CFS per segment (cold QP start every repeat)
     cfs_ms = [[] for _ in range(nseg)]
+    cfs_cpu = [[] for _ in range(nseg)]
     cfs_it = [0] * nseg
     for _ in range(reps):
         for i, N in enumerate(scene.steps):
             pl = planners[N]
             pl.reset_warm_start()
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             seg = pl.plan_segment(scene.waypoints[i], scene.waypoints[i + 1])
             cfs_ms[i].append((time.perf_counter() - t0) * 1e3)
+            cfs_cpu[i].append((time.process_time() - c0) * 1e3)
             cfs_it[i] = seg.iterations
     cfs_med = [median(c) for c in cfs_ms]
+    cfs_cpu_med = [median(c) for c in cfs_cpu]
 
     # temporal optimization per segment
     tmp_ms = [[] for _ in range(nseg)]
+    tmp_cpu = [[] for _ in range(nseg)]
     for _ in range(reps):
         for i, seg in enumerate(res.segments):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             temporal_optimize(seg.path, scene.vmax, scene.amax, dt=scene.dt, w3=scene.weights["w3"],
                               w4=scene.weights["w4"])
             tmp_ms[i].append((time.perf_counter() - t0) * 1e3)
+            tmp_cpu[i].append((time.process_time() - c0) * 1e3)
     tmp_med = [median(c) for c in tmp_ms]
+    tmp_cpu_med = [median(c) for c in tmp_cpu]
 
     # SLSQP on the same segment problems (single runs: seconds each)
-    sqp_ms, sqp_it, sqp_ok, sqp_cost, cfs_cost = [], [], [], [], []
+    sqp_ms, sqp_it, sqp_ok, sqp_cost, cfs_cost, sqp_cpu = [], [], [], [], [], []
     for i, N in enumerate(scene.steps):
         pl = planners[N]
+        c0 = time.process_time()
         X, sq = slsqp_segment(pl, scene.waypoints[i], scene.waypoints[i + 1], tol=1e-3, max_iter=300)
+        sqp_cpu.append((time.process_time() - c0) * 1e3)
         sqp_ms.append(sq.seconds * 1e3)
         sqp_it.append(sq.iterations)
         Xr = np.linspace(scene.waypoints[i], scene.waypoints[i + 1], N + 1)
@@ -142,13 +151,13 @@ def main() -> None:
 
     out = {
         "scene": scene.name, "segments": nseg, "steps": scene.steps, "blocked": blocked,
-        "cfs_ms": cfs_med, "cfs_iterations": cfs_it, "cfs_status": [s.status for s in res.segments],
+        "cfs_ms": cfs_med, "cfs_cpu_ms": cfs_cpu_med, "cfs_iterations": cfs_it, "cfs_status": [s.status for s in res.segments],
         "cfs_total_ms": float(sum(cfs_med)),
         "cfs_blocked_max_ms": max(cfs_med[i] for i in bl) if bl else float("nan"),
-        "sqp_ms": sqp_ms, "sqp_iterations": sqp_it, "sqp_success": sqp_ok,
+        "sqp_ms": sqp_ms, "sqp_cpu_ms": sqp_cpu, "sqp_iterations": sqp_it, "sqp_success": sqp_ok,
         "sqp_cost": sqp_cost, "cfs_cost": cfs_cost,
         "speedup_vs_sqp": speedup,
-        "temporal_ms": tmp_med, "temporal_stretch": [t.stretch for t in res.temporal],
+        "temporal_ms": tmp_med, "temporal_cpu_ms": tmp_cpu_med, "temporal_stretch": [t.stretch for t in res.temporal],
         "operational_time_fixed_s": res.operational_time_fixed,
         "operational_time_frmp_s": res.operational_time_frmp,
         "toppra_time_s": toppra_time, "toppra_ms": top_ms,
