@@ -77,8 +77,10 @@ class MinkStep:
 
         self.mink = mink
         model, _ = build_model(robot, obstacles=obstacles, table=False, ft_sensor=False)
-        body = lambda g: mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.geom_bodyid[g])) or ""  # noqa: E731
-        moving = {robot.link_names[i] for i in range(len(robot.link_names)) if robot.link_joint(robot.link_names[i]) > 0}
+        def body(g: int) -> str:
+            return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.geom_bodyid[g])) or ""
+
+        moving = {name for name in robot.link_names if robot.link_joint(name) > 0}
         robot_geoms = [g for g in range(model.ngeom) if body(g) in moving
                        and (model.geom_contype[g] or model.geom_conaffinity[g])]
         obstacle_geoms = [g for g in range(model.ngeom) if body(g).startswith("obstacle/")]
@@ -209,7 +211,8 @@ def main() -> None:
             for m, met in out[f"scenario_{s}"]["methods"].items():
                 print(f"  {m:10s} min dist {met['min_distance_m'] * 1e3:7.1f} mm  penetration "
                       f"{met['max_penetration_m'] * 1e3:5.1f} mm  mean dev {met['mean_velocity_deviation']:.3f} m/s  "
-                      f"max dev {met['max_velocity_deviation']:.3f} m/s  ang dev {met['mean_angular_deviation']:.3f} rad/s")
+                      f"max dev {met['max_velocity_deviation']:.3f} m/s  "
+                      f"ang dev {met['mean_angular_deviation']:.3f} rad/s")
         print(json.dumps({k: v for k, v in out.items() if not k.startswith("scenario_")}, indent=1))
 
 
