@@ -40,7 +40,7 @@ class TrajectoryCheck:
 def check_trajectory(traj: Trajectory, robot, obstacles, vmax, amax, *, dt: float = 0.001,
                      rtol: float = 1e-6) -> TrajectoryCheck:
     """Resample ``traj`` every ``dt`` and check clearance and joint limits."""
-    from robointel.geometry import sphere_distances_batch
+    from robointel.planning.trajectory import sphere_clearances
 
     dense = traj.resample(dt)
     q, qd, qdd = dense.q, dense.qd, dense.qdd
@@ -53,7 +53,7 @@ def check_trajectory(traj: Trajectory, robot, obstacles, vmax, amax, *, dt: floa
     if len(obstacles):
         best = (np.inf, 0, 0, 0)
         for s in range(0, len(q), 4000):
-            D = sphere_distances_batch(robot, q[s:s + 4000], obstacles, movable_only=True)
+            D = sphere_clearances(robot, q[s:s + 4000], obstacles)
             i, j, k = np.unravel_index(int(np.argmin(D.d)), D.d.shape)
             if D.d[i, j, k] < best[0]:
                 best = (float(D.d[i, j, k]), int(D.spheres[j]), k, s + i)

@@ -124,6 +124,46 @@ class SegmentPlan:
     iterates: list[np.ndarray] = field(default_factory=list)
 
 
+@dataclass
+class _Distances:
+    """Sphere/obstacle distances at a batch of configurations (the fields the planner uses of
+    :class:`robointel.geometry.SphereDistances`)."""
+
+    d: np.ndarray
+    grad: np.ndarray
+    spheres: np.ndarray
+
+
+def sphere_clearances(robot, Q: np.ndarray, obstacles) -> _Distances:
+    """Signed distances (4.3) between the movable collision spheres and each obstacle, and their
+    gradients n^T J (4.4), at configurations Q (B, n): d (B, m', k), grad (B, m', k, n), spheres (m',).
+
+    One batched kinematics pass (``robot.spheres.kinematics_batch``) and one call of each
+    obstacle's ``distance`` over all sphere centres; same numbers as
+    :func:`robointel.geometry.sphere_distances_batch` (``movable_only=True``), which is used when
+    the sphere model has no batched kinematics.
+    """
+    sm = robot.spheres
+    obstacles = tuple(obstacles)
+    if not hasattr(sm, "kinematics_batch"):
+        D = sphere_distances_batch(robot, Q, obstacles, movable_only=True)
+        return _Distances(d=D.d, grad=D.grad, spheres=D.spheres)
+    mv = np.flatnonzero(np.asarray(sm.movable, bool))
+    C, J = sm.kinematics_batch(Q)
+    C, J = C[:, mv], J[:, mv]
+    B, m = C.shape[:2]
+    r = np.asarray(sm.radii, float)[mv]
+    k = len(obstacles)
+    d = np.empty((B, m, k))
+    N = np.empty((B, m, k, 3))
+    flat = C.reshape(-1, 3)
+    for j, o in enumerate(obstacles):
+        dj, _, nj = o.distance(flat)
+        d[:, :, j] = dj.reshape(B, m) - r[None]
+        N[:, :, j] = nj.reshape(B, m, 3)
+    return _Distances(d=d, grad=np.einsum("bmki,bmin->bmkn", N, J), spheres=mv)
+
+
 def straight_reference(start: np.ndarray, goal: np.ndarray, N: int) -> np.ndarray:
     """Joint-space straight line x^r, (N+1, n), from ``start`` to ``goal``."""
     s = np.linspace(0.0, 1.0, N + 1)[:, None]
@@ -285,10 +325,15 @@ class TrajectoryPlanner:
         return (1 - a) * X[t] + a * X[t + 1]
 
     def distances(self, X: np.ndarray):
-        """Exact signed distances at all samples: d (S, m', k) and grad (S, m', k, n)."""
+        """Exact signed distances at all samples of the knots X (N+1, n): d (S, m', k) and
+        grad (S, m', k, n) for the m' movable spheres (``spheres`` holds their indices)."""
         if not self.obstacles:
             return None
-        return sphere_distances_batch(self.robot, self._sample_configs(X), self.obstacles, movable_only=True)
+        return self.config_distances(self._sample_configs(X))
+
+    def config_distances(self, Q: np.ndarray):
+        """Sphere/obstacle distances at configurations Q (B, n): see :func:`sphere_clearances`."""
+        return sphere_clearances(self.robot, Q, self.obstacles)
 
     def _linear_bounds(self, x0: np.ndarray, xN: np.ndarray):
         n = self.n
@@ -349,7 +394,7 @@ class TrajectoryPlanner:
             check_limits(w, self.robot.lower, self.robot.upper, self.robot.joint_names, what=label)
         if not self.obstacles:
             return
-        D = sphere_distances_batch(self.robot, W, self.obstacles, movable_only=True)
+        D = self.config_distances(W)
         sm = self.robot.spheres
         for i in range(len(W)):
             j, k = np.unravel_index(int(np.argmin(D.d[i])), D.d[i].shape)
