@@ -2,7 +2,7 @@
 
 Same robot spheres, same obstacles and the same clearance (``d_min + safety``) as the CFS planner:
 a configuration is valid when every movable sphere is at least that far from every obstacle
-(:func:`robointel.geometry.sphere_distances_batch`). Motions are checked by OMPL's discrete motion
+(:func:`robointel.geometry.min_distance`, the compiled minimum over all pairs). Motions are checked by OMPL's discrete motion
 validator at ``resolution`` (fraction of the joint-space extent). ``ompl`` is a dev extra.
 """
 from __future__ import annotations
@@ -39,7 +39,7 @@ def rrtconnect(robot, obstacles, start, goal, *, clearance: float, timeout: floa
         from ompl import util as ou
     except ImportError as exc:  # pragma: no cover - dev extra
         raise RobointelError(f"the OMPL peer needs the 'ompl' package (dev extra): {exc}") from None
-    from robointel.geometry import sphere_distances_batch
+    from robointel.geometry import min_distance
 
     ou.setLogLevel(ou.LogLevel.LOG_NONE)
     if seed is not None:
@@ -54,15 +54,15 @@ def rrtconnect(robot, obstacles, start, goal, *, clearance: float, timeout: floa
     ss = og.SimpleSetup(space)
     obstacles = tuple(obstacles)
     count = [0]
-    q = np.empty((1, n))
+    q = np.empty(n)
 
-    def valid(s) -> bool:
+    def valid(s) -> bool:  # the fastest single-configuration check robointel has (compiled minimum)
         count[0] += 1
         for i in range(n):
-            q[0, i] = s[i]
+            q[i] = s[i]
         if not obstacles:
             return True
-        return bool(sphere_distances_batch(robot, q, obstacles, movable_only=True).d.min() >= clearance)
+        return bool(min_distance(robot, q, obstacles, movable_only=True).distance >= clearance)
 
     ss.setStateValidityChecker(valid)
     si = ss.getSpaceInformation()
