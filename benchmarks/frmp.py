@@ -122,11 +122,16 @@ def main() -> None:
     # OMPL RRTConnect + simplification on the blocked segments, same checker and clearance
     st = planner_settings(scene)
     clearance = st.d_min + st.safety
-    ompl_ms, ompl_solved = [], []
+    ompl_ms, ompl_cpu, ompl_solved = [], [], []
     for i in bl:
-        runs = [rrtconnect(scene.robot, scene.obstacles, scene.waypoints[i], scene.waypoints[i + 1],
-                           clearance=clearance, seed=s) for s in range(reps)]
+        runs, cpus = [], []
+        for s_ in range(reps):
+            c0 = time.process_time()
+            runs.append(rrtconnect(scene.robot, scene.obstacles, scene.waypoints[i], scene.waypoints[i + 1],
+                                   clearance=clearance, seed=s_))
+            cpus.append((time.process_time() - c0) * 1e3)
         ompl_ms.append(median([r.total_ms for r in runs]))
+        ompl_cpu.append(median(cpus))
         ompl_solved.append(int(sum(r.solved for r in runs)))
 
     # TOPP-RA on the same geometric path and limits
@@ -162,8 +167,10 @@ def main() -> None:
         "operational_time_frmp_s": res.operational_time_frmp,
         "toppra_time_s": toppra_time, "toppra_ms": top_ms,
         "duration_ratio_vs_toppra": res.operational_time_frmp / toppra_time,
-        "ompl_ms": ompl_ms, "ompl_solved": ompl_solved,
+        "ompl_ms": ompl_ms, "ompl_cpu_ms": ompl_cpu, "ompl_solved": ompl_solved,
         "cfs_faster_than_ompl": bool(all(cfs_med[i] < o for i, o in zip(bl, ompl_ms))),
+        "cfs_faster_than_ompl_cpu": bool(all(cfs_cpu_med[i] < o for i, o in zip(bl, ompl_cpu))),
+        "cfs_cpu_total_ms": float(sum(cfs_cpu_med)),
         "min_clearance_m": res.check.min_clearance, "d_min_m": scene.d_min,
         "limit_violations": res.check.limit_violations,
         "tracking_rms_rad": ex.rms_error_rad, "tracking_max_rad": ex.max_error_rad,
