@@ -36,13 +36,21 @@ def _objects(source: str, per_category: int = 4, seed: int = 0) -> dict:
     raise typer.BadParameter("source must be 'demo' or 'ycb'")
 
 
-def _templates(objs: dict, db: Path | None = None):
+def _templates(objs: dict, db: Path | None = None, *, sampled: bool = False):
+    """One template per category (its first instance). Taught grasps: written per category for the
+    generated objects; for scans (``sampled=True``) the best top-down grasps sampled on the template's
+    full model stand in for the human demonstration (toy arms keep their written grasps)."""
     from robointel.io.grasp_db import GraspDatabase
-    from robointel.learning.grasp import Template, sample_points, taught_grasps
+    from robointel.learning.grasp import Template, sample_points, sampled_grasps, taught_grasps
 
     if db is not None and Path(db).exists():
         return GraspDatabase(db).load_all()
-    return [Template(lst[0].name, cat, sample_points(lst[0], 800, 0), taught_grasps(lst[0])) for cat, lst in objs.items()]
+    out = []
+    for cat, lst in objs.items():
+        o = lst[0]
+        grasps = sampled_grasps(o) if sampled and cat != "toy_arm" else []
+        out.append(Template(o.name, cat, sample_points(o, 800, 0), grasps or taught_grasps(o)))
+    return out
 
 
 def _static_clouds(placements, rng):
@@ -141,7 +149,7 @@ def teach(out: Path = typer.Option(Path("grasps.h5"), help="grasp database file 
         t = Table(title=f"grasp database {out}")
         for c in ("template", "category", "points", "taught grasps"):
             t.add_column(c)
-        for tm in _templates(objs):
+        for tm in _templates(objs, sampled=source == 'ycb'):
             db.add(tm, source=f"{source}:{tm.name}")
             t.add_row(tm.name, tm.category, str(len(tm.points)), ", ".join(g.name for g in tm.grasps))
         console.print(t)
@@ -164,7 +172,7 @@ def _one_target(source, category, seed, db):
     if not clouds:
         console.print("[red]error:[/red] the cameras saw nothing")
         raise typer.Exit(2)
-    return objs, obj, p, clouds[0], _templates(objs, db)
+    return objs, obj, p, clouds[0], _templates(objs, db, sampled=source == 'ycb')
 
 
 @grasp_app.command("classify")
@@ -228,7 +236,7 @@ def trial(category: str = typer.Option("all", help="a category or 'all'"), n: in
 
     try:
         objs = _objects(source)
-        planner = GraspPlanner(_templates(objs, db))
+        planner = GraspPlanner(_templates(objs, db, sampled=source == 'ycb'))
         rng = np.random.default_rng(seed)
         cats = list(objs) if category == "all" else [category]
         t = Table(title="lift-and-shake trials")

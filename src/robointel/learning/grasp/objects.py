@@ -24,7 +24,7 @@ from robointel.errors import DataMissing, InvalidInput
 from robointel.learning.grasp.transfer import Grasp, grasp_from_axis
 
 __all__ = ["ObjectModel", "YCB_CATEGORIES", "ycb_object", "primitive_object", "toy_arm", "split_convex",
-           "sample_points", "taught_grasps", "demo_objects", "ycb_objects"]
+           "sample_points", "taught_grasps", "sampled_grasps", "demo_objects", "ycb_objects"]
 
 YCB_CATEGORIES: dict[str, list[str]] = {
     "cup": ["065-a_cups", "065-b_cups", "065-c_cups", "065-d_cups", "065-e_cups", "065-f_cups", "065-g_cups",
@@ -279,6 +279,46 @@ def taught_grasps(obj: ObjectModel) -> list[Grasp]:
         return [grasp_from_axis(c, [np.cos(a), np.sin(a), 0], down, wb, f"upper_arm{k}")
                 for k, a in enumerate(np.radians([0, 45, 90, 135]))]
     return [grasp_from_axis([0, 0, 0.5 * h], [1, 0, 0], down, ext[0], "middle")]
+
+
+def sampled_grasps(obj: ObjectModel, n: int = 3, *, gripper=None, samples: int = 400, seed: int = 0,
+                   min_separation: float = 0.02) -> list[Grasp]:
+    """Teach by sampling: the ``n`` best top-down antipodal grasps on the object's full model (a
+    stand-in for a human's demonstration on the template). Candidates pass through a surface point and
+    close along the horizontal part of its normal; they are re-centred between the contacts, scored by
+    (6.20) and must not collide with the object or the table. Distinct grasps are at least
+    ``min_separation`` m apart. Object frame."""
+    from robointel.learning.grasp.quality import ParallelGripper, estimate_normals, grasp_quality
+
+    gripper = gripper or ParallelGripper()
+    rng = np.random.default_rng(seed)
+    P = sample_points(obj, 3000, seed)
+    N = estimate_normals(P, 12)
+    zmin = gripper.tip_depth + 0.004
+    ok = (P[:, 2] > zmin) & (P[:, 2] < obj.height - 0.002) & (np.linalg.norm(N[:, :2], axis=1) > 0.7)
+    cand, ncand = P[ok], N[ok]
+    scored = []
+    for _ in range(samples if len(cand) else 0):
+        i = rng.integers(len(cand))
+        y = np.array([ncand[i, 0], ncand[i, 1], 0.0])
+        y /= np.linalg.norm(y)
+        rel = P - cand[i]
+        sv = rel @ y
+        near = np.linalg.norm(rel - sv[:, None] * y, axis=1) < 0.004
+        # the middle of the whole chord (solid parts) or just inside the surface (thin walls, rims)
+        for centre in (cand[i] + 0.5 * (sv[near].max() + sv[near].min()) * y, cand[i] - 0.002 * y):
+            g = grasp_from_axis(centre, y, [0, 0, -1])
+            q = grasp_quality(P, g, gripper=gripper)
+            if q.quality > 0 and not gripper.collides(q.grasp, P, table_z=0.0):
+                scored.append((q.quality, q.grasp))
+    scored.sort(key=lambda t: -t[0])
+    out: list[Grasp] = []
+    for _, g in scored:
+        if all(np.linalg.norm(g.centre - h.centre) >= min_separation for h in out):
+            out.append(Grasp(g.centre, g.rotation, g.width, f"sampled{len(out)}"))
+        if len(out) == n:
+            break
+    return out
 
 
 def demo_objects(per_category: int = 4, seed: int = 0, *, arms: bool = True) -> dict[str, list[ObjectModel]]:

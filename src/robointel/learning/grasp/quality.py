@@ -43,7 +43,7 @@ class ParallelGripper:
     finger_length: float = 0.045
     finger_breadth: float = 0.018
     finger_thickness: float = 0.008
-    tip_depth: float = 0.008
+    tip_depth: float = 0.005
     palm_height: float = 0.03
     palm_breadth: float = 0.04
     flange_offset: float = 0.07  # flange to palm face along the approach
