@@ -7,7 +7,8 @@ from robointel.learning.grasp.cpd import (AffineWarp, CPDResult, NonrigidWarp, R
                                           cpd_nonrigid, cpd_rigid, farthest_point_sample, mean_nn_residual,
                                           register)
 from robointel.learning.grasp.objects import (YCB_CATEGORIES, ObjectModel, demo_objects, primitive_object,
-                                              sample_points, split_convex, taught_grasps, toy_arm, ycb_object,
+                                              sample_points, sampled_grasps, split_convex, taught_grasps, toy_arm,
+                                              ycb_object,
                                               ycb_objects)
 from robointel.learning.grasp.perception import (DepthCamera, cluster_objects, default_cameras, depth_image,
                                                  foreground_points, perceive, voxel_downsample)
@@ -26,7 +27,7 @@ __all__ = [
     "GraspQuality", "ParallelGripper", "estimate_normals", "grasp_map", "grasp_quality", "isotropy",
     "SearchResult", "orientation_search",
     "YCB_CATEGORIES", "ObjectModel", "demo_objects", "primitive_object", "sample_points", "split_convex",
-    "taught_grasps", "toy_arm", "ycb_object", "ycb_objects",
+    "taught_grasps", "sampled_grasps", "toy_arm", "ycb_object", "ycb_objects",
     "DepthCamera", "cluster_objects", "default_cameras", "depth_image", "foreground_points", "perceive",
     "voxel_downsample", "Placement", "random_placements", "scene_xml",
     "GraspPlan", "GraspPlanner", "TrialResult", "grasp_trial", "lrmate_with_gripper",
