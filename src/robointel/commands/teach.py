@@ -39,7 +39,8 @@ def register(app: typer.Typer) -> None:
                 out: Path = typer.Option(Path("imitation"), help="folder for the plots"),
                 latency: float = typer.Option(0.1, help="Kinect latency for the SCARA run [s]")) -> None:
         """Imitate a recorded human arm: LR Mate kinematic imitation (3.1) in MuJoCo, optionally SCARA
-        computed-torque LQ tracking (3.7)-(3.9) with and without delay compensation; writes plots."""
+        computed-torque LQ tracking (3.7)-(3.9): live with the Kinect latency, with and without delay
+        compensation, and offline replay of the recording; writes plots."""
         from robointel.programming.imitation import kinematic_imitation, plot_imitation, simulate_imitation
         from robointel.robot import Robot
 
