@@ -45,6 +45,8 @@ REFINE_MODE = "tighten"
 START = "uniform"
 #: upper bound of every step = this factor x the largest starting step
 UB_FACTOR = 1.5
+#: refinement stops once the spline is within this fraction of the limits
+REFINE_TOL = 0.005
 
 
 @dataclass
@@ -260,7 +262,7 @@ def temporal_optimize(path, vmax, amax, *, dt: float | None = None, w3: float = 
         s = float(max(1.0, rv.max(), np.sqrt(ra.max())))
         if best is None or t[-1] * s < best[0]:
             best = (t[-1] * s, tau, res)
-        if s <= 1.005:
+        if s <= 1.0 + REFINE_TOL:
             break
         # rescale the limits where the spline and the discrete model disagree, warm start feasibly
         if REFINE_MODE == "both":
