@@ -135,6 +135,10 @@ class PegHole:
                             pos=[cx, cy, ph / 2], rgba=[0.4, 0.4, 0.45, 1], contype=contype, conaffinity=conaffinity)
             self.contact.apply(g)
 
+    def build(self, spec: mujoco.MjSpec) -> None:
+        """Add the task's environment (the hole) to a spec."""
+        self.add_hole(spec)
+
     def pre_insert_pose(self, tool: Tool, height: float = 0.003) -> np.ndarray:
         """Tool pose (4x4) with the tool pointing down on the hole axis, tip ``height`` above the top."""
         T = np.eye(4)
@@ -178,7 +182,7 @@ class HDDScene:
         spec.worldbody.add_geom(name="table", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[1, 1, 0.1],
                                 rgba=[0.55, 0.42, 0.3, 1], contype=2, conaffinity=3)
         spec.worldbody.add_light(name="light", pos=[0.5, -1.0, 2.5], dir=[-0.2, 0.4, -1.0])
-        task.add_hole(spec)
+        task.build(spec)
         h = spec.worldbody.add_body(name="handle", pos=[0, 0, 0.5])
         h.add_freejoint(name="handle")
         h.mass = handle_mass
@@ -193,7 +197,8 @@ class HDDScene:
         self.data = mujoco.MjData(self.model)
         self._hid = self.model.body("handle").id
         self.mass = float(self.model.body_subtreemass[self._hid])
-        self._walls = _wall_ids(self.model)
+        walls = _wall_ids(self.model)
+        self._walls = (int(walls.min()), int(walls.max())) if len(walls) else (-1, -2)
         self._peg = self.model.geom(self.tool.name + "/peg").id
         self.ft = ToolFT(self.model, self.tool)
 
@@ -225,7 +230,7 @@ class HDDScene:
         mujoco.mj_step(self.model, d)
 
     def wall_penetration(self) -> float:
-        return _wall_penetration(self.data, int(self._walls.min()), int(self._walls.max()), self._peg)
+        return _wall_penetration(self.data, self._walls[0], self._walls[1], self._peg)
 
 
 # ------------------------------------------------------------------------------ the person
@@ -289,7 +294,7 @@ def demonstrate(task: PegHole, rng: np.random.Generator, *, scene: HDDScene | No
     T_a, T_r, T_c = rng.uniform(1.3, 2.0), rng.uniform(0.6, 1.0), rng.uniform(0.5, 0.8)
     gamma = rng.uniform(0.8, 1.25)  # speed profile
     pause = (rng.uniform(0.3, 0.7), rng.uniform(0.15, 0.4)) if rng.random() < person.hesitation_prob else None
-    k_f, k_t = rng.uniform(0.8e-3, 1.4e-3), rng.uniform(2.0, 4.0)
+    k_f, k_t = rng.uniform(0.8e-3, 1.4e-3), rng.uniform(3.0, 5.0)
     v_ins, f_lim, tau_lim = rng.uniform(0.006, 0.010), rng.uniform(6.0, 10.0), rng.uniform(0.3, 0.5)
     f_press = rng.uniform(8.0, 15.0)
     tremor_f = rng.uniform(8, 12, 3)
@@ -516,7 +521,7 @@ class RobotPegHole:
         self.tool = tool or self.task.tool(interference=interference)
         self.armature = np.asarray(armature, float)
         spec, info = build_spec(self.robot, table=True, ft_sensor=False, armature=self.armature)
-        self.task.add_hole(spec)
+        self.task.build(spec)
         self.tool.add_to(spec.body("tool"), self.task.contact, R_body_tool=R_FLANGE_TOOL, contype=1, conaffinity=2)
         add_tool_sensors(spec)
         self.spec = spec
@@ -528,7 +533,7 @@ class RobotPegHole:
         self.aid = np.array([m.actuator(n).id for n in self.robot.joint_names])
         self.ft = ToolFT(m, self.tool)
         walls = _wall_ids(m)
-        self._walls = (int(walls.min()), int(walls.max()))
+        self._walls = (int(walls.min()), int(walls.max())) if len(walls) else (-1, -2)
         self._peg = m.geom(self.tool.name + "/peg").id
         I_tool = np.diag([self.tool.mass * (3 * self.tool.radius ** 2 + self.tool.length ** 2) / 12] * 2
                          + [0.5 * self.tool.mass * self.tool.radius ** 2])
@@ -585,7 +590,7 @@ class RobotPegHole:
 
     def run(self, policy: Callable[[np.ndarray], np.ndarray] | None, T_start: np.ndarray, *,
             time_limit: float = 10.0, gains: "AdmittanceGains | None" = None, v_nominal: float = 0.008,
-            f_abort: float = 150.0, skill_dt: float = 0.001, force_noise: float = 0.05,
+            f_abort: float = 150.0, skill_dt: float = 0.01, force_noise: float = 0.05,
             torque_noise: float = 0.002, seed: int = 0) -> TrialResult:
         """One insertion from ``T_start`` (4x4 tool pose).
 
@@ -615,6 +620,7 @@ class RobotPegHole:
         x_0, R_0 = x_c.copy(), R_c.copy()
         v_c, w_c = np.zeros(3), np.zeros(3)
         tw = np.zeros(5)
+        v_s, w_s = np.zeros(3), np.zeros(3)
         w_f = np.zeros(6)
         alpha = 1.0 - np.exp(-2 * np.pi * g.force_filter_hz * dt)
         max_pen, max_force = 0.0, 0.0
@@ -647,22 +653,28 @@ class RobotPegHole:
             else:
                 if k % n_skill == 0:
                     tw = np.asarray(policy(w), float)
-                    x_0 = x_0 + R_c @ np.array([tw[0], tw[1], 0.0]) * skill_dt
-                    x_0 = x_0 + a * (a @ (x_c - x_0))  # no axial spring: the axis is force controlled
-                    R_0 = _exp(R_c @ np.array([tw[3], tw[4], 0.0]) * skill_dt) @ R_0
-                # environment wrench (low-passed) at the compliance centre, world frame
+                    v_s = R_c @ np.array([tw[0], tw[1], 0.0])
+                    w_s = R_c @ np.array([tw[3], tw[4], 0.0])
+                # the skill moves the equilibrium and the commanded pose (velocity feed-forward) ...
+                x_0 = x_0 + v_s * dt
+                x_0 = x_0 + a * (a @ (x_c - x_0))  # no axial spring: the axis is force controlled
+                R_0 = _exp(w_s * dt) @ R_0
+                # ... and the admittance (virtual mass-spring-damper about the compliance centre) adds
+                # the deviation driven by the low-passed environment wrench, world frame
                 w_f += alpha * (w - w_f)
                 f_w = T[:3, :3] @ w_f[:3]
                 t_w = T[:3, :3] @ w_f[3:] - cross(T[:3, 2] * reach, f_w)
                 e = x_0 - x_c
                 e_lat = e - (e @ a) * a
+                dv = v_c - v_s
                 v_ax = a @ v_c
-                F = f_w + g.lateral_stiffness * e_lat - g.lateral_damping * (v_c - v_ax * a) \
+                F = f_w + g.lateral_stiffness * e_lat - g.lateral_damping * (dv - (a @ dv) * a) \
                     + a * g.axial_damping * (float(np.clip(tw[2], -g.max_axial_speed, g.max_axial_speed)) - v_ax)
-                Tq = t_w + g.rot_stiffness * _log(R_0 @ R_c.T) - g.rot_damping * w_c
+                Tq = t_w + g.rot_stiffness * _log(R_0 @ R_c.T) - g.rot_damping * (w_c - w_s)
                 Tq = Tq - (Tq @ a) * a  # no rotation about the tool axis
                 v_c = v_c + F / g.mass * dt
                 w_c = w_c + Tq / g.inertia * dt
+                w_c = w_c - (w_c @ a) * a
             x_c = x_c + v_c * dt
             R_c = _exp(w_c * dt) @ R_c
             # commanded tool pose -> flange twist -> joint reference of the PID servo

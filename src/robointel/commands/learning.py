@@ -1,0 +1,295 @@
+"""Learning commands (Ch. 5): ``robointel learn insertion|grinding`` and the demo's learning stage.
+
+Each command runs demonstrate (scripted person with the HDD in MuJoCo) -> learn (DTW synchronisation,
+Algorithm 1 decomposition, GMM/GMR skill) -> reproduce (the LR Mate with the same tool) and writes
+plots like the dissertation's Figs. 5.10-5.13.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from robointel.report.demo import Figure, StageContext, StageResult
+
+PHASE_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red")
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_synchronised(demos, learned, path: Path) -> Path:
+    """Fig. 5.10: tool height and axial force of the demonstrations before and after DTW."""
+    plt = _plt()
+    fig, ax = plt.subplots(2, 2, figsize=(11, 6), sharey="row")
+    for d, a in zip(demos, learned.aligned):
+        ax[0, 0].plot(d.t, d.position[:, 2] * 1e3, lw=0.7)
+        ax[1, 0].plot(d.t, -d.wrench[:, 2], lw=0.7)
+        tt = np.arange(len(a)) * 0.01
+        ax[0, 1].plot(tt, a[:, 11] * 1e3, lw=0.7)
+        ax[1, 1].plot(tt, -a[:, 14], lw=0.7)
+    ax[0, 0].set_title("raw demonstrations")
+    ax[0, 1].set_title("synchronised to the reference (DTW)")
+    ax[0, 0].set_ylabel("tool z [mm] (raw) / rel. to final [mm]")
+    ax[1, 0].set_ylabel("axial push [N]")
+    for a in ax[1]:
+        a.set_xlabel("t [s]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_decomposed(demos, labels, path: Path, n: int = 6) -> Path:
+    """Fig. 5.11: demonstrations coloured by the decomposed action (ground truth dashed)."""
+    from robointel.learning.insertion import PHASES
+
+    plt = _plt()
+    fig, axes = plt.subplots(min(n, len(demos)), 1, figsize=(10, 1.6 * min(n, len(demos))), sharex=True)
+    axes = np.atleast_1d(axes)
+    for ax, d, lab in zip(axes, demos[-len(axes):], labels[-len(axes):]):
+        v = np.linalg.norm(np.gradient(d.position, d.t, axis=0), axis=1) * 1e3
+        for a in range(len(PHASES)):
+            m = lab == a
+            ax.scatter(d.t[m], v[m], s=2, color=PHASE_COLORS[a], label=PHASES[a])
+        if d.labels is not None:
+            for s in d.phase_times():
+                ax.axvline(s, color="k", ls="--", lw=0.7)
+        ax.set_ylabel("speed [mm/s]")
+    axes[0].legend(markerscale=4, ncol=4, fontsize=8, loc="upper right")
+    axes[0].set_title("decomposed demonstrations (colour: Algorithm 1, dashed: ground truth)")
+    axes[-1].set_xlabel("t [s]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_skill(skill, demo, labels, path: Path) -> Path:
+    """Fig. 5.12: the skill model's corrective velocity against the demonstration's."""
+    from robointel.learning.insertion import POLICY, tool_velocities
+
+    plt = _plt()
+    m = labels == 2
+    tw = tool_velocities(demo)[m]
+    pred = skill.predict(demo.wrench[m])
+    t = demo.t[m]
+    fig, axes = plt.subplots(5, 1, figsize=(9, 8), sharex=True)
+    scale = (1e3, 1e3, 1e3, 1.0, 1.0)
+    units = ("mm/s", "mm/s", "mm/s", "rad/s", "rad/s")
+    for i, ax in enumerate(axes):
+        ax.plot(t, tw[:, i] * scale[i], color="0.5", lw=0.8, label="demonstration")
+        ax.plot(t, pred[:, i] * scale[i], color="tab:red", lw=1.0, label="GMR")
+        ax.set_ylabel(f"{POLICY[i]} [{units[i]}]")
+    axes[0].legend(fontsize=8)
+    axes[0].set_title("skill model (GMR: wrench -> tool velocity) vs the demonstration, insertion phase")
+    axes[-1].set_xlabel("t [s]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_trials(results, baseline, task, path: Path) -> Path:
+    """Tip height of the robot's insertions: skill (solid) and position-only (dashed)."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(9, 4))
+    for r in results:
+        if len(r.t):
+            ax.plot(r.t, (r.tip[:, 2] - task.bottom_z) * 1e3, color="tab:green" if r.success else "tab:red", lw=0.9)
+    for r in baseline:
+        if len(r.t):
+            ax.plot(r.t, (r.tip[:, 2] - task.bottom_z) * 1e3, color="0.5", ls="--", lw=0.8)
+    ax.axhline(1.0, color="k", lw=0.6)
+    ax.axhline(task.depth * 1e3, color="k", lw=0.6, ls=":")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("tip above hole bottom [mm]")
+    ax.set_title(f"LR Mate insertions, clearance {task.clearance * 1e6:.0f} um: skill (green ok / red fail), "
+                 "position-only (grey dashed)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_grinding(plate, skill, res, path: Path) -> Path:
+    """Fig. 5.13: the learned force map and the force along the robot's diagonal path."""
+    plt = _plt()
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4.5))
+    hx, hy = 0.5 * np.array(plate.size)
+    gx, gy = np.meshgrid(np.linspace(-hx, hx, 60), np.linspace(-hy, hy, 60))
+    F = skill.predict(np.c_[gx.ravel(), gy.ravel()]).reshape(gx.shape)
+    im = ax[0].contourf(gx * 1e3, gy * 1e3, F, 20, cmap="viridis")
+    fig.colorbar(im, ax=ax[0], label="pressing force [N]")
+    ax[0].plot(res.xy[:, 0] * 1e3, res.xy[:, 1] * 1e3, "w--", lw=1)
+    ax[0].set_title("learned force map (GMR: position -> force), robot path dashed")
+    ax[0].set_xlabel("x [mm]")
+    ax[0].set_ylabel("y [mm]")
+    s = np.linalg.norm(res.xy - res.xy[0], axis=1) * 1e3
+    ax[1].plot(s, res.intended, "k", lw=1.2, label="demonstrator's intended force")
+    ax[1].plot(s, res.setpoint, "tab:orange", lw=1, label="skill set-point (GMR)")
+    ax[1].plot(s, res.force, "tab:blue", lw=1, label="robot measured force")
+    ax[1].set_xlabel("path length [mm]")
+    ax[1].set_ylabel("force [N]")
+    ax[1].set_title(f"force along the diagonal: RMS error {100 * res.rms_rel:.1f} % of peak")
+    ax[1].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return Path(path)
+
+
+def run_insertion(out: Path, *, demos: int, labelled: int, trials: int, seed: int = 0, progress=None,
+                  save: Path | None = None) -> dict:
+    """demonstrate -> learn -> reproduce; returns figures and plot paths."""
+    from robointel.learning import insertion as I
+    from robointel.learning.rltt import learn_insertion
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    step = progress or (lambda frac, msg: None)
+    task = I.PegHole()
+    rng = np.random.default_rng(seed)
+    scene = I.HDDScene(task)
+    ds = []
+    for i in range(demos):
+        step(0.6 * i / demos, f"demonstration {i + 1}/{demos}")
+        ds.append(I.demonstrate(task, rng, scene=scene, name=f"demo_{i:02d}"))
+    if save is not None:
+        from robointel.io.demonstrations import save_demonstrations
+
+        save_demonstrations(save, ds)
+    step(0.6, "synchronise, decompose, learn")
+    learned = learn_insertion(ds, n_labelled=labelled)
+    cell = I.RobotPegHole(task)
+    starts = I.random_start_errors(np.random.default_rng(seed + 1), trials)
+    res, base = [], []
+    for k, (lat, tilt) in enumerate(starts):
+        step(0.65 + 0.35 * k / max(1, trials), f"insertion trial {k + 1}/{trials}")
+        T0 = cell.start_pose(lat, tilt)
+        res.append(cell.run(learned.skill.predict, T0, seed=k))
+        base.append(cell.run(None, T0, seed=k))
+    images = [plot_synchronised(ds, learned, out / "fig5_10_synchronised.png"),
+              plot_decomposed(ds, learned.labels, out / "fig5_11_decomposed.png"),
+              plot_skill(learned.skill, ds[-1], learned.labels[-1], out / "fig5_12_skill.png"),
+              plot_trials(res, base, task, out / "insertion_trials.png")]
+    step(1.0, "done")
+    e = learned.boundary_errors[np.isfinite(learned.boundary_errors)] * 1e3
+    return {"task": task, "demos": ds, "learned": learned, "results": res, "baseline": base, "images": images,
+            "boundary_ms": float(np.median(e)) if e.size else float("nan"),
+            "success": sum(r.success for r in res), "success_pos": sum(r.success for r in base)}
+
+
+def run_grinding(out: Path, *, demos: int = 3, seed: int = 0, progress=None) -> dict:
+    from robointel.learning import grinding as G
+    from robointel.learning.insertion import HDDScene
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    step = progress or (lambda frac, msg: None)
+    plate = G.Plate()
+    rng = np.random.default_rng(seed)
+    scene = HDDScene(plate, plate.tool())
+    ds = []
+    for i in range(demos):
+        step(0.7 * i / demos, f"demonstration {i + 1}/{demos}")
+        ds.append(G.demonstrate_grinding(plate, rng, scene=scene))
+    skill = G.GrindingSkill(plate).fit(ds)
+    step(0.75, "robot reproduces the force along the diagonal")
+    res = G.reproduce_grinding(plate, skill)
+    img = plot_grinding(plate, skill, res, out / "fig5_13_grinding.png")
+    step(1.0, "done")
+    return {"plate": plate, "skill": skill, "result": res, "images": [img]}
+
+
+def register(app) -> None:
+    import typer
+    from rich.console import Console
+    from rich.progress import Progress
+    from rich.table import Table
+
+    console = Console()
+    learn = typer.Typer(help="Learning from demonstration (Ch. 5): HDD demonstrations in MuJoCo -> skill -> LR Mate.",
+                        no_args_is_help=True)
+
+    @learn.command("insertion")
+    def insertion(out: Path = typer.Option(Path("robointel-learn"), help="folder for the plots"),
+                  demos: int = typer.Option(12, min=3, help="demonstrations"),
+                  labelled: int = typer.Option(4, min=1, help="hand-labelled demonstrations (the rest decomposed)"),
+                  trials: int = typer.Option(5, min=1, help="robot insertion trials"),
+                  seed: int = typer.Option(0),
+                  save: Path = typer.Option(None, help="append the demonstrations to this HDF5 file")) -> None:
+        """Tight peg-in-hole: demonstrate, synchronise, decompose, learn the GMR skill, insert with the LR Mate."""
+        from robointel.errors import RobointelError
+
+        if labelled >= demos:
+            console.print("[red]error:[/red] --labelled must be smaller than --demos")
+            raise typer.Exit(2)
+        try:
+            with Progress(console=console) as prog:
+                task_id = prog.add_task("insertion", total=1.0)
+                r = run_insertion(out, demos=demos, labelled=labelled, trials=trials, seed=seed, save=save,
+                                  progress=lambda f, m: prog.update(task_id, completed=f, description=m))
+        except RobointelError as exc:
+            console.print(f"[red]error:[/red] {exc}")
+            raise typer.Exit(2)
+        t = Table(title=f"insertion, clearance {r['task'].clearance * 1e6:.0f} um")
+        for c in ("trial", "skill", "reason", "time [s]", "max force [N]", "penetration [um]", "position-only"):
+            t.add_column(c, justify="right")
+        for k, (a, b) in enumerate(zip(r["results"], r["baseline"])):
+            t.add_row(str(k), "ok" if a.success else "fail", a.reason, f"{a.time:.2f}", f"{a.max_force:.1f}",
+                      f"{a.max_penetration * 1e6:.1f}", "ok" if b.success else f"fail ({b.reason})")
+        console.print(t)
+        console.print(f"success {r['success']}/{len(r['results'])} (paper 48/50), position-only "
+                      f"{r['success_pos']}/{len(r['baseline'])}; decomposition median boundary error "
+                      f"{r['boundary_ms']:.0f} ms; plots in {out}")
+
+    @learn.command("grinding")
+    def grinding(out: Path = typer.Option(Path("robointel-learn"), help="folder for the plots"),
+                 demos: int = typer.Option(3, min=1), seed: int = typer.Option(0)) -> None:
+        """Grinding: learn position -> pressing force from demonstrations, reproduce it under force control."""
+        with Progress(console=console) as prog:
+            task_id = prog.add_task("grinding", total=1.0)
+            r = run_grinding(out, demos=demos, seed=seed,
+                             progress=lambda f, m: prog.update(task_id, completed=f, description=m))
+        res = r["result"]
+        console.print(f"force RMS error along the diagonal {100 * res.rms_rel:.1f} % of the peak "
+                      f"({100 * res.rms_rel_setpoint:.1f} % against the skill's set-point); plot {r['images'][0]}")
+
+    app.add_typer(learn, name="learn")
+
+
+def demo_stage(ctx: StageContext) -> StageResult:
+    """Quick RLTT: a few demonstrations, learn, a few insertion trials; DTW speed and GMR agreement."""
+    from robointel.learning.rltt import dtw_speed, gmr_agreement
+
+    quick = ctx.quick
+    ctx.advance(0.02, "DTW vs dtaidistance")
+    d = dtw_speed(reps=5 if quick else 15, pairs=5 if quick else 20)
+    n_demos, n_lab, n_trials = (4, 2, 1) if quick else (8, 4, 3)
+    r = run_insertion(ctx.out, demos=n_demos, labelled=n_lab, trials=n_trials,
+                      progress=lambda f, m: ctx.advance(0.05 + 0.9 * f, m))
+    sk = r["learned"].skill
+    Xt = (sk.X_ - sk.x_mean_) / sk.x_scale_
+    agree = gmr_agreement(sk.gmr, Xt[:: max(1, len(Xt) // 200)])
+    figs = [
+        Figure("insertion success (LR Mate, skill model)", f"{r['success']}/{n_trials}", "48/50 (96 %)",
+               f"clearance {r['task'].clearance * 1e6:.0f} um, {n_demos} demonstrations ({n_lab} labelled); "
+               f"the benchmark runs 50 trials from 60 demonstrations"),
+        Figure("insertion success, position-only", f"{r['success_pos']}/{n_trials}", None, "same starts, no skill"),
+        Figure("DTW (1000 x 6-D, window 100)", f"{d['dtw_ms']:.2f} ms vs dtaidistance {d['dtaidistance_ms']:.2f} ms",
+               None, f"max |diff| {d['dtw_max_abs_diff']:.1e}"),
+        Figure("GMR vs gmr package (same mixture)", f"max |diff| {agree:.1e}", None, ""),
+        Figure("decomposition boundary error (median)", f"{r['boundary_ms']:.0f} ms", None,
+               f"{n_demos - n_lab} unlabelled demonstrations"),
+    ]
+    ctx.advance(1.0, "done")
+    return StageResult("Learning from demonstration (Ch. 5): RLTT peg-in-hole", figures=figs, images=r["images"],
+                       text="Scripted HDD demonstrations in MuJoCo, DTW synchronisation, Algorithm 1 decomposition, "
+                            "GMM/GMR skill, reproduction by the LR Mate under a hybrid position/force controller.")

@@ -1,0 +1,232 @@
+"""Grinding by demonstration (Sec. 5.5, Fig. 5.13): learn where to press hard, reproduce the force.
+
+A plate workpiece; the person moves the hand-held demonstration device (here with a stylus tool)
+over it in serpentine strokes, pressing hard on two regions and lightly elsewhere. A GMR skill model
+maps the tool position on the plate to the pressing force (5.14)-(5.17); the LR Mate, carrying the
+same tool, follows a diagonal path across the plate under force control (an axial admittance on top
+of its position-controlled joint servo) with the learned force as its set-point.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import mujoco
+import numpy as np
+
+from robointel.errors import InvalidInput
+from robointel.learning.demonstration import Demonstration
+from robointel.learning.gmr import GaussianMixtureRegression
+from robointel.learning.hdd import Contact, Tool
+from robointel.learning.insertion import R_DOWN, HDDScene, RobotPegHole, _log, _tip
+
+
+@dataclass(frozen=True)
+class Plate:
+    """The workpiece: a plate of ``size`` (m) centred at ``center`` (x, y), top surface at ``top`` z.
+    The demonstrator's intended pressing force is ``light`` N, rising to ``hard`` N in Gaussian
+    regions (std ``spread`` m) around ``hard_spots`` (plate coordinates, m)."""
+
+    center: tuple[float, float] = (0.60, 0.0)
+    top: float = 0.12
+    size: tuple[float, float] = (0.18, 0.18)
+    hard_spots: tuple[tuple[float, float], ...] = ((-0.035, -0.035), (0.035, 0.035))
+    spread: float = 0.025
+    light: float = 5.0
+    hard: float = 25.0
+    contact: Contact = field(default_factory=lambda: Contact(friction=0.15))
+
+    def force_profile(self, xy) -> np.ndarray:
+        """Intended pressing force (N) at plate coordinates ``xy`` (n, 2) m -> (n,)."""
+        xy = np.atleast_2d(np.asarray(xy, float))
+        g = np.zeros(len(xy))
+        for s in self.hard_spots:
+            g = np.maximum(g, np.exp(-0.5 * np.sum((xy - np.asarray(s)) ** 2, axis=1) / self.spread ** 2))
+        return self.light + (self.hard - self.light) * g
+
+    def build(self, spec: mujoco.MjSpec) -> None:
+        cx, cy = self.center
+        g = spec.worldbody.add_geom(name="plate", type=mujoco.mjtGeom.mjGEOM_BOX,
+                                    size=[self.size[0] / 2, self.size[1] / 2, 0.01], pos=[cx, cy, self.top - 0.01],
+                                    rgba=[0.6, 0.6, 0.65, 1], contype=2, conaffinity=3)
+        self.contact.apply(g)
+        if self.top - 0.02 > 0:
+            spec.worldbody.add_geom(name="plate/pedestal", type=mujoco.mjtGeom.mjGEOM_BOX,
+                                    size=[0.05, 0.05, (self.top - 0.02) / 2], pos=[cx, cy, (self.top - 0.02) / 2],
+                                    rgba=[0.4, 0.4, 0.45, 1], contype=2, conaffinity=3)
+
+    def pre_insert_pose(self, tool: Tool, height: float = 0.003) -> np.ndarray:
+        """Tool pointing down over the plate centre, tip ``height`` above the surface."""
+        T = np.eye(4)
+        T[:3, :3] = R_DOWN
+        T[:3, 3] = [self.center[0], self.center[1], self.top + height + tool.tip]
+        return T
+
+    def tool(self) -> Tool:
+        """The grinding stylus (a 6 mm radius capsule tip)."""
+        return Tool(radius=0.006, length=0.04, offset=0.03, mass=0.2, name="stylus")
+
+
+def demonstrate_grinding(plate: Plate, rng: np.random.Generator, *, scene: HDDScene | None = None,
+                         lines: int = 6, speed: float = 0.06, stiffness: float = 2000.0, damping: float = 100.0,
+                         record_dt: float = 0.01, name: str = "") -> Demonstration:
+    """One demonstration: serpentine strokes along x at ``lines`` y-offsets (randomly shifted), the
+    hand pressing with the intended force (plus a human's 8 % force variation and tremor)."""
+    tool = plate.tool()
+    scene = scene or HDDScene(plate, tool)
+    dt = float(scene.model.opt.timestep)
+    half = 0.5 * np.array(plate.size) - 0.015
+    ys = np.linspace(-half[1], half[1], lines) + rng.uniform(-0.01, 0.01)
+    ys = np.clip(ys, -half[1], half[1])
+    c = np.array(plate.center)
+    gain = rng.uniform(0.92, 1.08)
+    T0 = plate.pre_insert_pose(tool, 0.004)
+    T0[:3, 3] += np.array([-half[0], ys[0], 0.0])
+    scene.reset(T0)
+    mg = np.array([0, 0, scene.mass * 9.81])
+    ts, poses, wr = [], [], []
+    rot_k, rot_d = 6.0, 0.2
+    step = 0
+    every = max(1, int(round(record_dt / dt)))
+    phase = rng.uniform(0, 2 * np.pi, 2)
+    acc = np.zeros(6)
+
+    def hand(xy, press):
+        nonlocal step, acc
+        T = scene.pose()
+        v, w = scene.twist()
+        ref = np.array([c[0] + xy[0], c[1] + xy[1], plate.top + tool.tip - press / stiffness])
+        ref[:2] += 1e-4 * np.sin(2 * np.pi * 9 * step * dt + phase)
+        e = ref - T[:3, 3]
+        f = np.array([800.0, 800.0, stiffness]) * e - damping * v + mg
+        scene.step(f, rot_k * _log(R_DOWN @ T[:3, :3].T) - rot_d * w)
+        step += 1
+        acc += scene.wrench()
+        if step % every == 0:  # the sensor's anti-aliasing: the mean over the sample interval
+            ts.append(step * dt)
+            poses.append(scene.pose())
+            wr.append(acc / every + np.r_[0.05 * rng.standard_normal(3), 0.002 * rng.standard_normal(3)])
+            acc = np.zeros(6)
+
+    # touch down
+    for k in range(300):
+        hand(np.array([-half[0], ys[0]]), min(1.0, k / 300) * plate.light)
+    x_dir = 1.0
+    for i, y in enumerate(ys):
+        n = int(2 * half[0] / speed / dt)
+        for k in range(n + 1):
+            x = -half[0] * x_dir + x_dir * 2 * half[0] * k / n
+            xy = np.array([x, y])
+            tip_xy = _tip(scene.pose(), tool)[:2] - c  # the person presses where the tool is
+            hand(xy, gain * plate.force_profile(tip_xy)[0])
+        if i + 1 < len(ys):  # move over to the next line, pressing lightly
+            m = int(abs(ys[i + 1] - y) / speed / dt)
+            for k in range(m):
+                hand(np.array([x, y + (ys[i + 1] - y) * (k + 1) / m]), plate.light)
+        x_dir = -x_dir
+    return Demonstration.create(np.array(ts), np.array(poses), np.array(wr), device="hdd", name=name,
+                                meta={"task": "grinding", "force_gain": gain})
+
+
+class GrindingSkill:
+    """GMR from the tool-tip position on the plate (x, y) to the pressing force (N), (5.14)-(5.17)."""
+
+    def __init__(self, plate: Plate, n_components: int = 25, *, random_state: int = 0) -> None:
+        self.plate = plate
+        self.tool = plate.tool()
+        self.gmr = GaussianMixtureRegression(n_components, random_state=random_state)
+
+    def samples(self, demo: Demonstration) -> tuple[np.ndarray, np.ndarray]:
+        """(x, y) plate coordinates of the tip and the pressing force of the samples in contact."""
+        tips = np.array([_tip(T, self.tool) for T in demo.pose])
+        xy = tips[:, :2] - np.array(self.plate.center)
+        push = -demo.wrench[:, 2]
+        m = push > 1.0
+        return xy[m], push[m]
+
+    def fit(self, demos: Sequence[Demonstration]) -> "GrindingSkill":
+        if len(demos) == 0:
+            raise InvalidInput("GrindingSkill.fit needs demonstrations")
+        X, Y = zip(*(self.samples(d) for d in demos))
+        X, Y = np.concatenate(X), np.concatenate(Y)
+        self.y_mean_, self.y_scale_ = float(Y.mean()), float(Y.std() + 1e-9)
+        self.gmr.fit(X / 0.05, (Y[:, None] - self.y_mean_) / self.y_scale_)
+        self.X_, self.Y_ = X, Y
+        return self
+
+    def predict(self, xy) -> np.ndarray:
+        """Pressing force (n,) N at plate coordinates (n, 2)."""
+        return self.gmr.predict(np.atleast_2d(np.asarray(xy, float)) / 0.05)[:, 0] * self.y_scale_ + self.y_mean_
+
+
+@dataclass
+class GrindingResult:
+    """Reproduction along the path: ``t`` (n,), plate coordinates ``xy`` (n, 2), measured force
+    (n,) N, the skill's set-point (n,), the demonstrator's intended profile (n,) and
+    ``rms_rel`` = RMS(measured - intended) / peak intended force."""
+
+    t: np.ndarray
+    xy: np.ndarray
+    force: np.ndarray
+    setpoint: np.ndarray
+    intended: np.ndarray
+    rms_rel: float
+    rms_rel_setpoint: float
+
+
+def reproduce_grinding(plate: Plate, skill: GrindingSkill, *, cell: RobotPegHole | None = None,
+                       speed: float = 0.03, k_force: float = 1.0 / 1500.0, filter_hz: float = 15.0,
+                       t_touch: float = 1.0, seed: int = 0) -> GrindingResult:
+    """The LR Mate follows the plate's diagonal with the learned pressing force (Fig. 5.13):
+    lateral motion is position controlled, the tool axis is force controlled by an admittance
+    ``v = k_force (F_set - F_measured)`` on the joint servo's reference."""
+    cell = cell or RobotPegHole(plate, tool=plate.tool())
+    tool = cell.tool
+    rng = np.random.default_rng(seed)
+    half = 0.5 * np.array(plate.size) - 0.02
+    a_xy, b_xy = -half, half
+    L = float(np.linalg.norm(b_xy - a_xy))
+    T = plate.pre_insert_pose(tool, 0.0005)
+    T[:3, 3] += np.r_[a_xy, 0.0]
+    q_ref = cell.ik(T)
+    cell.reset(q_ref)
+    dt = float(cell.model.opt.timestep)
+    c = np.array(plate.center)
+    alpha = 1.0 - np.exp(-2 * np.pi * filter_hz * dt)
+    p_f = 0.0
+    z_cmd = float(_tip(cell.tool_pose(), tool)[2])
+    n = int((t_touch + L / speed) / dt)
+    ts, xys, fs, sp = [], [], [], []
+    for k in range(n):
+        t = k * dt
+        Tm = cell.ft.pose(cell.data)
+        w = cell.ft.wrench(cell.data, Tm[:3, :3])
+        push = -w[2] + 0.05 * rng.standard_normal()
+        p_f += alpha * (push - p_f)
+        s = float(np.clip((t - t_touch) * speed / L, 0.0, 1.0))
+        xy = a_xy + s * (b_xy - a_xy)
+        f_set = float(skill.predict(xy[None])[0]) if k % 10 == 0 or k == 0 else f_set
+        z_cmd += -k_force * (f_set - p_f) * dt
+        tip_cmd = np.array([c[0] + xy[0], c[1] + xy[1], z_cmd])
+        T_cmd = np.eye(4)
+        T_cmd[:3, :3] = R_DOWN
+        T_cmd[:3, 3] = tip_cmd - R_DOWN[:, 2] * tool.tip
+        Tf = cell.robot.fk(q_ref)
+        Tf_cmd = cell.flange_target(T_cmd)
+        err = np.concatenate([100.0 * (Tf_cmd[:3, 3] - Tf[:3, 3]), 100.0 * _log(Tf_cmd[:3, :3] @ Tf[:3, :3].T)])
+        qd_ref = np.linalg.solve(cell.robot.jacobian(q_ref), err)
+        q_ref = q_ref + qd_ref * dt
+        cell._step(q_ref, qd_ref)
+        if k % 10 == 0 and t >= t_touch:
+            tip = _tip(Tm, tool)
+            ts.append(t)
+            xys.append(tip[:2] - c)
+            fs.append(p_f)
+            sp.append(f_set)
+    xys = np.array(xys)
+    intended = plate.force_profile(xys)
+    fs, sp = np.array(fs), np.array(sp)
+    peak = float(intended.max())
+    return GrindingResult(np.array(ts), xys, fs, sp, intended,
+                          float(np.sqrt(np.mean((fs - intended) ** 2)) / peak),
+                          float(np.sqrt(np.mean((fs - sp) ** 2)) / peak))

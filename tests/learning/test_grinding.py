@@ -1,0 +1,33 @@
+import numpy as np
+import pytest
+
+from robointel.learning.grinding import GrindingSkill, Plate, demonstrate_grinding, reproduce_grinding
+from robointel.learning.insertion import HDDScene
+
+
+@pytest.fixture(scope="module")
+def setup():
+    plate = Plate()
+    rng = np.random.default_rng(0)
+    demos = [demonstrate_grinding(plate, rng, scene=HDDScene(plate, plate.tool()), lines=4, speed=0.1)]
+    return plate, demos
+
+
+def test_profile_and_demonstration(setup):
+    plate, demos = setup
+    f = plate.force_profile(np.array(plate.hard_spots + ((0.08, -0.08),)))
+    np.testing.assert_allclose(f[:2], plate.hard, rtol=1e-9)
+    assert abs(f[2] - plate.light) < 0.5
+    sk = GrindingSkill(plate, 6)
+    X, Y = sk.samples(demos[0])
+    assert len(X) > 300
+    assert np.corrcoef(Y, plate.force_profile(X))[0, 1] > 0.8  # the person presses as intended
+
+
+def test_force_controlled_reproduction_tracks_setpoint(setup):
+    plate, demos = setup
+    sk = GrindingSkill(plate, 8).fit(demos)
+    res = reproduce_grinding(plate, sk, speed=0.05, t_touch=0.6)
+    assert res.force.shape == res.setpoint.shape and len(res.force) > 50
+    assert res.rms_rel_setpoint < 0.15  # the robot's force follows the learned set-point
+    assert np.all(np.isfinite(res.force))
