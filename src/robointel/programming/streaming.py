@@ -68,10 +68,11 @@ _LIVE: "weakref.WeakSet[StreamingController]" = weakref.WeakSet()
 
 @atexit.register
 def _release_generators() -> None:
-    """Drop the ruckig objects of controllers still alive at exit (e.g. held by a web server's
-    callbacks) before the extension module is torn down."""
+    """Stop (join) the control threads still running at exit, then drop the ruckig objects of
+    controllers still alive (e.g. held by a web server's callbacks) before the extension module is
+    torn down. A daemon thread left inside MuJoCo when the interpreter finalises would crash it."""
     for c in list(_LIVE):
-        c._running = False
+        c.stop()
         c.otg = c.inp = c.out = None
 
 
