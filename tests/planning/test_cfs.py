@@ -107,3 +107,12 @@ def test_bad_input():
         cfs(H, f, A=np.array([[1.0, 0.0], [1.0, 0.0]]), l=[1.0, -np.inf], u=[np.inf, 0.0])
     with pytest.raises(InvalidInput):
         NonlinearConstraint(lambda z: z, lambda z: np.eye(2), kind="general")
+
+
+def test_ftol_stops_early_on_a_feasible_iterate():
+    cons, goal, z0 = CASES["complement_convex"]
+    H, f = goal_cost(goal)
+    full = cfs(H, f, constraints=cons, z0=np.array(z0), eps=1e-10, max_iter=200)
+    quick = cfs(H, f, constraints=cons, z0=np.array(z0), eps=1e-10, max_iter=200, ftol=1e-3)
+    assert quick.converged and quick.feasible and quick.iterations < full.iterations
+    assert quick.costs[-1] <= quick.costs[0]

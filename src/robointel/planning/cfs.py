@@ -202,7 +202,7 @@ class _ConvexSet:
 def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None, u=None,
         z0=None, eps: float = 1e-6, max_iter: int = 100, tol: float = 1e-9, max_cuts: int = 5,
         keep_iterates: bool = False, qp: SparseQP | DenseQP | None = None,
-        trust=None) -> CFSResult:
+        trust=None, ftol: float = 0.0) -> CFSResult:
     """Solve ``min 1/2 z'Hz + f'z  s.t. phi_i(z) >= 0, l <= Az <= u`` by CFS (Algorithm 2).
 
     Args:
@@ -212,7 +212,9 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
         A, l, u: linear constraints (m, n), (m,), (m,); ``None`` for none.
         z0: (n,) initial guess (should be feasible for the nonlinear constraints; if it is not,
             the first iterations use plain linearisations until an iterate is feasible).
-        eps: stop when ``||z(k+1) - z(k)|| <= eps``.
+        eps: stop when ``||z(k+1) - z(k)|| <= eps`` ...
+        ftol: ... or (if > 0) when a feasible iterate after a feasible one lowered the cost by
+            no more than ``ftol`` relative (the iterates of CFS are feasible and J is monotone).
         max_iter: iteration cap; when hit, the best feasible iterate is returned with
             ``status="max_iter"``.
         tol: feasibility tolerance on phi.
@@ -283,7 +285,8 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
 
     costs = [cost(z)]
     iterates = [z.copy()] if keep_iterates else []
-    best, best_cost = (z.copy(), costs[0]) if feasible(z) else (None, np.inf)
+    prev_feasible = feasible(z)
+    best, best_cost = (z.copy(), costs[0]) if prev_feasible else (None, np.inf)
     status, it, qp_iters = "max_iter", 0, 0
     dense = isinstance(qp, DenseQP)
     if dense:
@@ -377,11 +380,17 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
         costs.append(cost(z))
         if keep_iterates:
             iterates.append(z.copy())
-        if feasible(z) and costs[-1] <= best_cost:
+        now_feasible = feasible(z)
+        if now_feasible and costs[-1] <= best_cost:
             best, best_cost = z.copy(), costs[-1]
         if step <= eps and not at_box:
             status = "converged"
             break
+        if ftol > 0 and now_feasible and prev_feasible and not at_box and \
+                costs[-2] - costs[-1] <= ftol * max(abs(costs[-1]), 1e-12):
+            status = "converged"
+            break
+        prev_feasible = now_feasible
     if status != "converged" and best is not None:
         z = best
     viol = violation(z)

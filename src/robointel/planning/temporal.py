@@ -47,6 +47,8 @@ START = "uniform"
 UB_FACTOR = 1.5
 #: refinement stops once the spline is within this fraction of the limits
 REFINE_TOL = 0.005
+#: CFS also stops when the total time fell by less than this fraction in one iteration
+FTOL = 0.0
 
 
 @dataclass
@@ -196,7 +198,7 @@ def _solve_tau(dx: np.ndarray, vmax: np.ndarray, amax_k: np.ndarray, vscale: np.
         Hd[rows, kk2 + 1] = mu
         cons.append(NonlinearConstraint(fun, jac, kind="general", hess_diag=Hd, name="acceleration (7.8)"))
     return cfs(H, f, constraints=cons, A=np.eye(N), l=lb, u=ub, z0=tau0, eps=eps, max_iter=max_iter,
-               tol=1e-9, max_cuts=MAX_CUTS, qp=qp, trust=None if trust is None else trust * h)
+               tol=1e-9, max_cuts=MAX_CUTS, qp=qp, trust=None if trust is None else trust * h, ftol=FTOL)
 
 
 def temporal_optimize(path, vmax, amax, *, dt: float | None = None, w3: float = 1.0, w4: float = 1.0,
