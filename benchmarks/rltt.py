@@ -87,7 +87,7 @@ def main() -> None:
 
     plate = G.Plate()
     gscene = I.HDDScene(plate, plate.tool())
-    gdemos = [G.demonstrate_grinding(plate, rng, scene=gscene) for _ in range(3)]
+    gdemos = [G.demonstrate_grinding(plate, rng, scene=gscene) for _ in range(4)]
     gskill = G.GrindingSkill(plate).fit(gdemos)
     gres = G.reproduce_grinding(plate, gskill)
     out["grinding_force_rms_rel"] = gres.rms_rel

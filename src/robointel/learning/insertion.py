@@ -437,8 +437,9 @@ class InsertionSkill:
     corrective tool velocity [vx, vy, vz, wx, wy] (tool frame), (5.14)-(5.17). Inputs and outputs
     are standardised before the mixture is fitted (k-means needs comparable scales)."""
 
-    def __init__(self, n_components: int = 6, *, random_state: int = 0) -> None:
+    def __init__(self, n_components: int = 6, *, random_state: int = 0, max_samples: int = 4000) -> None:
         self.gmr = GaussianMixtureRegression(n_components, random_state=random_state)
+        self.max_samples = int(max_samples)
 
     def fit(self, demos: Sequence[Demonstration], labels: Sequence[np.ndarray] | None = None,
             *, phase: int = PHASES.index("insertion")) -> "InsertionSkill":
@@ -461,6 +462,9 @@ class InsertionSkill:
         X, Y = np.concatenate(X), np.concatenate(Y)
         if len(X) == 0:
             raise InvalidInput(f"no samples labelled {PHASES[phase]!r} in the demonstrations")
+        if len(X) > self.max_samples:  # EM cost grows with the samples; a seeded subsample suffices
+            keep = np.sort(np.random.default_rng(0).choice(len(X), self.max_samples, replace=False))
+            X, Y = X[keep], Y[keep]
         self.x_lo_, self.x_hi_ = np.percentile(X, 0.5, axis=0), np.percentile(X, 99.5, axis=0)
         self.y_lo_, self.y_hi_ = np.percentile(Y, 0.5, axis=0), np.percentile(Y, 99.5, axis=0)
         self.x_mean_, self.x_scale_ = X.mean(0), X.std(0) + 1e-9

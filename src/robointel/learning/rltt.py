@@ -60,7 +60,7 @@ def learn_insertion(demos: Sequence[Demonstration], *, n_labelled: int = 20, ref
     aligned = align(z, reference=reference, window=sync_window)
     aligned = [a * sd + mu for a in aligned]
     t1 = time.perf_counter()
-    seg = ActionSegmenter(window=seg_window, band=seg_band, stride=2, max_train_windows=2000)
+    seg = ActionSegmenter(window=seg_window, band=seg_band, stride=2, max_train_windows=1500)
     seg.fit(feats[:n_labelled], [d.labels for d in demos[:n_labelled]])
     labels = [d.labels for d in demos[:n_labelled]]
     errs = []
