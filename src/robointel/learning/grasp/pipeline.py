@@ -23,7 +23,7 @@ from robointel.learning.grasp.objects import ObjectModel
 from robointel.learning.grasp.perception import default_cameras, depth_image, perceive
 from robointel.learning.grasp.quality import ParallelGripper
 from robointel.learning.grasp.scene import Placement, scene_xml
-from robointel.learning.grasp.search import SearchResult, orientation_search
+from robointel.learning.grasp.search import SearchResult, orientation_search, refine_position
 from robointel.learning.grasp.transfer import Grasp, transfer_grasp
 
 __all__ = ["GraspPlanner", "GraspPlan", "TrialResult", "grasp_trial", "lrmate_with_gripper"]
@@ -63,7 +63,7 @@ class GraspPlanner:
 
     def __init__(self, templates: list[Template], *, gripper: ParallelGripper = ParallelGripper(), robot="lrmate",
                  base_pose: np.ndarray | None = None, table_z: float = 0.0, n_points: int = 200,
-                 q_ref=None, local_radius: float = 0.04) -> None:
+                 q_ref=None, local_radius: float = 0.04, refine: bool = True) -> None:
         if not templates:
             raise InvalidInput("GraspPlanner needs at least one template", value=templates)
         self.templates = templates
@@ -73,6 +73,7 @@ class GraspPlanner:
         self.table_z = table_z
         self.n_points = n_points
         self.local_radius = local_radius
+        self.refine = refine
         self.q_ref = np.radians([0, 20, -10, 0, -70, 0]) if q_ref is None else q_ref
 
     def _transfer(self, fit, g: Grasp, cloud: np.ndarray) -> Grasp:
@@ -114,8 +115,11 @@ class GraspPlanner:
         # the warped template completes the sides the cameras do not see
         full = np.vstack([cloud, fit.warp(fit.template.points)])
         tree = cKDTree(full)
-        best = None
+        cands = []
         for g in grasps:
+            cands += refine_position(g, full, gripper=self.gripper, tree=tree) if self.refine else [g]
+        best = None
+        for g in cands:
             r = orientation_search(g, full, self.robot, gripper=self.gripper, table_z=self.table_z,
                                    base_pose=self.base_pose, q_ref=self.q_ref, tree=tree)
             if best is None or r.cost < best.cost:
