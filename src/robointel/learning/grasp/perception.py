@@ -2,10 +2,10 @@
 
 Depth images come from ray casting the MuJoCo scene (``mujoco.mj_multiRay`` against the table and the
 objects' scan meshes). Noise follows the Kinect-style axial model of Nguyen et al. (2012),
-``sigma_z = 1.2 mm + 1.9 mm (z - 0.4 m)^2``, with depth quantisation and random drop-outs; rays at
-grazing incidence drop out too. Background removal compares each pixel with a snapshot of the empty
-workspace; the foreground pixels of both cameras are back-projected to the world, merged, clustered
-with scikit-learn's DBSCAN and voxel-downsampled (5 mm).
+``sigma_z = 1.2 mm + 1.9 mm (z - 0.4 m)^2``, with depth quantisation and random drop-outs.
+Background removal compares each pixel with a snapshot of the empty workspace; the foreground
+pixels of both cameras are back-projected to the world, merged, clustered with scikit-learn's
+DBSCAN and voxel-downsampled (5 mm).
 """
 from __future__ import annotations
 
@@ -71,17 +71,16 @@ def default_cameras(**kw) -> list[DepthCamera]:
 def depth_image(model: mujoco.MjModel, data: mujoco.MjData, cam: DepthCamera, rng=None) -> np.ndarray:
     """Ray-cast range along each pixel ray (H, W) in metres; NaN where nothing is hit or dropped.
 
-    Noise (when ``cam.noise``): axial Gaussian noise growing with depth, 1 mm quantisation, random
-    drop-outs and drop-outs at grazing incidence (> 80 deg)."""
+    Noise (when ``cam.noise``): axial Gaussian noise growing with depth, 1 mm quantisation and random
+    drop-outs."""
     rng = np.random.default_rng(rng)
     vec = cam.rays()
     n = vec.shape[0]
     dist = np.empty(n)
     geomid = np.empty(n, dtype=np.int32)
-    normal = np.empty((n, 3))
     group = np.array([1, 1, 0, 0, 0, 0], dtype=np.uint8)
     mujoco.mj_multiRay(model, data, np.asarray(cam.position, float), vec.ravel(), group, 1, -1, geomid, dist,
-                       normal.ravel() if False else None, n, cam.far)
+                       None, n, cam.far)
     dist[(geomid < 0) | (dist < 0)] = np.nan
     if cam.noise:
         z = dist * (vec @ cam.R[:, 2])  # axial depth
