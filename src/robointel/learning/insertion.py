@@ -437,7 +437,7 @@ class InsertionSkill:
     corrective tool velocity [vx, vy, vz, wx, wy] (tool frame), (5.14)-(5.17). Inputs and outputs
     are standardised before the mixture is fitted (k-means needs comparable scales)."""
 
-    def __init__(self, n_components: int = 6, *, random_state: int = 0, max_samples: int = 4000) -> None:
+    def __init__(self, n_components: int = 6, *, random_state: int = 0, max_samples: int = 12000) -> None:
         self.gmr = GaussianMixtureRegression(n_components, random_state=random_state)
         self.max_samples = int(max_samples)
 
