@@ -52,7 +52,7 @@ def test_cfs_agrees_with_slsqp_and_iterates_feasible(case, solver):
     assert all(np.all(c.fun(z0) >= 0) for c in cons)
     qp = DenseQP() if solver == "daqp" else SparseQP(eps_abs=1e-9, eps_rel=1e-9)
     res = cfs(H, f, constraints=cons, z0=z0, eps=1e-8, max_iter=200, keep_iterates=True, qp=qp)
-    ref = slsqp(H, f, constraints=cons, z0=z0, tol=1e-12)
+    ref = slsqp(H, f, constraints=cons, z0=z0, tol=1e-10)  # 1e-12 can end in a line-search stall at the optimum
     assert res.status == "converged" and res.feasible
     assert ref.success
     np.testing.assert_allclose(res.z, ref.z, atol=1e-4)
