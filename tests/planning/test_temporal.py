@@ -79,3 +79,77 @@ def test_variants_meet_limits(kw):
     dense = Trajectory(res.t, res.q, res.qd, res.qdd).resample(0.001)
     assert np.all(np.abs(dense.qd) <= VMAX * (1 + 1e-6)) and np.all(np.abs(dense.qdd) <= AMAX * (1 + 1e-6))
     assert res.cfs.feasible
+
+
+# --- speed work: the forward/backward starting pass, the dedicated CFS loop, the compiled spline ---
+
+def _segment_problem(n_pts=20):
+    from robointel.planning import temporal as T
+
+    path = make_path(n_pts)
+    dx = np.diff(path, axis=0)
+    A = np.tile(AMAX, (len(dx) + 1, 1))
+    return T, path, dx, A
+
+
+def test_pass_start_is_feasible_and_near_optimal():
+    from robointel.planning.qp import DenseQP
+
+    T, path, dx, A = _segment_problem()
+    N = len(dx)
+    tau0 = T.pass_start(dx, VMAX, A)
+    lb = T.step_bounds(dx, VMAX, A)
+    assert np.all(tau0 >= lb) and T.accel_ratio(dx, tau0, A) <= 1.0
+    h_u = T.feasible_uniform_dt(path, VMAX, AMAX)
+    assert tau0.sum() < 0.8 * h_u * N  # far better than the uniform schedule
+    res = T._solve_tau(dx, VMAX, A, np.ones(N), tau0, 1.0, 1.0, 1e-6, 50, DenseQP())
+    assert res.feasible and tau0.sum() <= 1.1 * res.z.sum()  # within 10 % of the CFS optimum
+
+
+def test_pass_start_with_uneven_steps_stays_feasible():
+    T, path, dx, A = _segment_problem(8)  # a tiny last step after long ones (the linear model is poor)
+    tau0 = T.pass_start(dx, VMAX, A)
+    assert np.all(np.isfinite(tau0)) and T.accel_ratio(dx, tau0, A) <= 1.0
+    assert tau0.max() <= T.feasible_uniform_dt(path, VMAX, AMAX) * (1 + 1e-6)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_dedicated_cfs_matches_general_cfs_and_every_iterate_is_feasible(seed, monkeypatch):
+    from robointel.planning.qp import DenseQP
+
+    T, path, dx, A = _segment_problem()
+    rng = np.random.default_rng(seed)
+    A = A * rng.uniform(0.6, 1.0, A.shape)  # per-knot limits as in the refinement rounds
+    N = len(dx)
+    tau0 = T.pass_start(dx, VMAX, A)
+    out = {}
+    for solver in ("dedicated", "general"):
+        monkeypatch.setattr(T, "SOLVER", solver)
+        out[solver] = T._solve_tau(dx, VMAX, A, np.ones(N), tau0, 1.0, 1.0, 1e-7, 60, DenseQP(), keep_iterates=True)
+    d, g = out["dedicated"], out["general"]
+    assert d.status == g.status == "converged"
+    np.testing.assert_allclose(d.z, g.z, rtol=1e-5, atol=1e-7)
+    lb = T.step_bounds(dx, VMAX, A)
+    for z in d.iterates:  # every iterate meets (7.8) exactly and the bounds
+        assert np.all(z >= lb - 1e-12) and T.accel_ratio(dx, z, A) <= 1.0 + 1e-9
+    assert np.all(np.diff(d.costs) <= 1e-12)  # the cost never increases
+
+
+def test_compiled_spline_ratios_match_scipy():
+    T, path, dx, A = _segment_problem()
+    rng = np.random.default_rng(3)
+    for N in (1, 2, 7, 19):
+        t = np.concatenate([[0.0], np.cumsum(rng.uniform(0.02, 0.2, N))])
+        y = rng.normal(size=(N + 1, 6))
+        ra, rv = T._knot_ratios(t, y, VMAX, AMAX)
+        ra_s, rv_s = T._knot_ratios_scipy(t, y, VMAX, AMAX)
+        np.testing.assert_allclose(ra, ra_s, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(rv, rv_s, rtol=1e-9, atol=1e-12)
+
+
+def test_short_and_two_point_segments():
+    for n_pts in (2, 3):
+        path = make_path(n_pts)
+        res = temporal_optimize(path, VMAX, AMAX)
+        dense = Trajectory(res.t, res.q, res.qd, res.qdd).resample(0.001)
+        assert np.all(np.abs(dense.qd) <= VMAX * (1 + 1e-6)) and np.all(np.abs(dense.qdd) <= AMAX * (1 + 1e-6))
