@@ -142,6 +142,34 @@ def test_batch_equals_loop(lrmate):
         np.testing.assert_array_equal(b.spheres, s.spheres)
 
 
+def test_batch_all_spheres_and_empty_batch(lrmate):
+    """The batched kinematics path (all spheres, not only the movable ones) equals the loop, and an
+    empty batch gives empty arrays."""
+    obs = _scene(lrmate, 4)
+    Q = lrmate.random_configuration(5, 4)
+    b = sphere_distances_batch(lrmate, Q, obs)
+    assert b.d.shape == (4, len(lrmate.spheres.radii), len(obs))
+    for t, q in enumerate(Q):
+        s = sphere_distances(lrmate, q, obs)
+        np.testing.assert_allclose(b.d[t], s.d, atol=1e-12)
+        np.testing.assert_allclose(b.grad[t], s.grad, atol=1e-12)
+        np.testing.assert_allclose(b.normals[t], s.normals, atol=1e-12)
+    e = sphere_distances_batch(lrmate, np.zeros((0, 6)), obs, movable_only=True)
+    assert e.d.shape == (0, int(lrmate.spheres.movable.sum()), len(obs))
+
+
+def test_planner_clearances_are_the_batched_distances(lrmate):
+    from robointel.planning.trajectory import sphere_clearances
+
+    obs = _scene(lrmate, 3)
+    Q = lrmate.random_configuration(8, 6)
+    a = sphere_clearances(lrmate, Q, obs)
+    b = sphere_distances_batch(lrmate, Q, obs, movable_only=True)
+    np.testing.assert_array_equal(a.d, b.d)
+    np.testing.assert_array_equal(a.grad, b.grad)
+    np.testing.assert_array_equal(a.spheres, b.spheres)
+
+
 def test_movable_only_and_custom_spheres(lrmate):
     from robointel.robot import SphereModel
 

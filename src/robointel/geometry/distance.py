@@ -195,16 +195,19 @@ def sphere_distances_batch(robot: "Robot", Q, obstacles, spheres: "SphereModel |
     mask = np.asarray(sm.movable, bool)
     radii = np.asarray(sm.radii, float)[idx]
     T, m, n = len(Q), len(idx), robot.nq
-    C = np.empty((T, m, 3))
-    J = np.empty((T, m, 3, n))
-    kin = sm.kinematics
-    if movable_only:
+    if T and hasattr(sm, "kinematics_batch"):
+        # one compiled kinematics pass over all configurations
+        C, J = sm.kinematics_batch(Q)
+        if movable_only:
+            C, J = C[:, mask], J[:, mask]
+        C, J = np.ascontiguousarray(C), np.ascontiguousarray(J)
+    else:
+        C = np.empty((T, m, 3))
+        J = np.empty((T, m, 3, n))
+        kin = sm.kinematics
         for t in range(T):
             c, j = kin(Q[t])
-            C[t], J[t] = c[mask], j[mask]
-    else:
-        for t in range(T):
-            C[t], J[t] = kin(Q[t])
+            C[t], J[t] = (c[mask], j[mask]) if movable_only else (c, j)
     k = len(os_)
     D, N, RP, OP, G = _alloc(T * m, k, n)
     _fill(C.reshape(T * m, 3), J.reshape(T * m, 3, n), np.tile(radii, T), np.arange(T * m), os_, D, N, RP, OP, G)

@@ -124,44 +124,15 @@ class SegmentPlan:
     iterates: list[np.ndarray] = field(default_factory=list)
 
 
-@dataclass
-class _Distances:
-    """Sphere/obstacle distances at a batch of configurations (the fields the planner uses of
-    :class:`robointel.geometry.SphereDistances`)."""
-
-    d: np.ndarray
-    grad: np.ndarray
-    spheres: np.ndarray
-
-
-def sphere_clearances(robot, Q: np.ndarray, obstacles) -> _Distances:
+def sphere_clearances(robot, Q: np.ndarray, obstacles):
     """Signed distances (4.3) between the movable collision spheres and each obstacle, and their
     gradients n^T J (4.4), at configurations Q (B, n): d (B, m', k), grad (B, m', k, n), spheres (m',).
 
-    One batched kinematics pass (``robot.spheres.kinematics_batch``) and one call of each
-    obstacle's ``distance`` over all sphere centres; same numbers as
-    :func:`robointel.geometry.sphere_distances_batch` (``movable_only=True``), which is used when
-    the sphere model has no batched kinematics.
+    The planner's name for :func:`robointel.geometry.sphere_distances_batch` with
+    ``movable_only=True`` (one batched kinematics pass, one compiled distance call); returns its
+    :class:`robointel.geometry.SphereDistances`.
     """
-    sm = robot.spheres
-    obstacles = tuple(obstacles)
-    if not hasattr(sm, "kinematics_batch"):
-        D = sphere_distances_batch(robot, Q, obstacles, movable_only=True)
-        return _Distances(d=D.d, grad=D.grad, spheres=D.spheres)
-    mv = np.flatnonzero(np.asarray(sm.movable, bool))
-    C, J = sm.kinematics_batch(Q)
-    C, J = C[:, mv], J[:, mv]
-    B, m = C.shape[:2]
-    r = np.asarray(sm.radii, float)[mv]
-    k = len(obstacles)
-    d = np.empty((B, m, k))
-    N = np.empty((B, m, k, 3))
-    flat = C.reshape(-1, 3)
-    for j, o in enumerate(obstacles):
-        dj, _, nj = o.distance(flat)
-        d[:, :, j] = dj.reshape(B, m) - r[None]
-        N[:, :, j] = nj.reshape(B, m, 3)
-    return _Distances(d=d, grad=np.einsum("bmki,bmin->bmkn", N, J), spheres=mv)
+    return sphere_distances_batch(robot, Q, tuple(obstacles), movable_only=True)
 
 
 def straight_reference(start: np.ndarray, goal: np.ndarray, N: int) -> np.ndarray:
