@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from robointel.errors import InvalidInput
-from robointel.programming.scara import (ComputedTorqueLQ, KalmanPredictor, arm_angles, double_integrator, lq_gain,
-                                         simulate_scara)
+from robointel.programming.scara import (ARPredictor, ComputedTorqueLQ, KalmanPredictor, arm_angles, double_integrator,
+                                         fit_predictor, lq_gain, simulate_scara)
 from robointel.programming.skeleton import read_bvh, read_kinect_csv, synthetic_wave, synthetic_wave_bvh
 from robointel.robot import Robot
 
@@ -81,3 +81,41 @@ def test_recording_runs(scara, shared_data):
 def test_bad_latency(scara):
     with pytest.raises(InvalidInput):
         simulate_scara(synthetic_wave(1.0), robot=scara, latency=-0.1)
+    with pytest.raises(InvalidInput):
+        simulate_scara(synthetic_wave(1.0), robot=scara, smooth_hz=200.0)  # unstable at 1 kHz
+    with pytest.raises(InvalidInput):
+        ComputedTorqueLQ(scara, r_weight=0.0)
+
+
+def test_ar_predictor_learns_a_ramp_and_resets():
+    # frames of ramps with different slopes: q(t_k + h) - q_k = slope * h = (q_k - q_{k-1}) h / T
+    T, runs = 1 / 30, []
+    for slope in (-1.0, 0.5, 2.0):
+        t = np.arange(60) * T
+        q = np.stack([slope * t, -0.5 * slope * t], 1)
+        runs.append((t, q, q))
+    ar = ARPredictor.fit(runs, latency=0.1, order=3)
+    for k in range(10):
+        ar.update(k * T, np.array([1.5 * k * T, 0.3 * k * T]))
+    q, qd = ar.predict(9 * T + 0.12)
+    assert np.allclose(q, [1.5 * (9 * T + 0.12), 0.3 * (9 * T + 0.12)], atol=2e-3)
+    assert np.allclose(qd, [1.5, 0.3], atol=0.02)
+    ar.reset()
+    assert ar.t is None and ar.hist == []
+
+
+def test_learned_prediction_compensates_the_latency(scara):
+    # predictor fitted on other synthetic takes (different seeds), evaluated on an unseen one
+    ar = fit_predictor([synthetic_wave(6.0, seed=s, dropout_at=None) for s in (1, 2, 3)], robot=scara)
+    sk = synthetic_wave(6.0, seed=0, dropout_at=3.0)
+    r0 = simulate_scara(sk, robot=scara, latency=0.1, smooth_hz=4.0)
+    r1 = simulate_scara(sk, robot=scara, latency=0.1, smooth_hz=4.0, compensate=True, predictor=ar)
+    assert r1.compensated and r1.rms.sum() < 0.8 * r0.rms.sum()  # same shaping, with/without prediction
+    assert r1.tracking_rms.max() < 0.01                             # the reference model is trackable
+    r2 = simulate_scara(sk, robot=scara, latency=0.1, smooth_hz=4.0, compensate=True, predictor=ar)
+    assert np.array_equal(r1.q, r2.q)                               # the predictor is reset: deterministic
+
+
+def test_offline_exact_reference_is_tracked(scara):
+    ro = simulate_scara(synthetic_wave(4.0, speed=0.5), robot=scara, offline=True, follower=False)
+    assert ro.rms.max() < 2e-3 and ro.saturated < 0.01

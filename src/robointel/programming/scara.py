@@ -99,7 +99,7 @@ class ComputedTorqueLQ:
         robot: a :class:`robointel.robot.Robot` (dynamics from Pinocchio).
         dt: control period [s].
         q_weight, qd_weight, r_weight: LQ weights on position error [1/rad^2], velocity error and
-            commanded acceleration.
+            commanded acceleration (scalars or one per joint).
     """
 
     robot: object
@@ -113,8 +113,10 @@ class ComputedTorqueLQ:
     def __post_init__(self) -> None:
         n = self.robot.nq
         A, B = double_integrator(n, self.dt)
-        Q = np.diag([self.q_weight] * n + [self.qd_weight] * n)
-        self.K, self.P = lq_gain(A, B, Q, self.r_weight * np.eye(n))
+        w = [np.broadcast_to(np.asarray(x, float), (n,)) for x in (self.q_weight, self.qd_weight, self.r_weight)]
+        if any(np.any(x <= 0) for x in w):
+            raise InvalidInput("LQ weights must be positive")
+        self.K, self.P = lq_gain(A, B, np.diag(np.concatenate(w[:2])), np.diag(w[2]))
 
     def torque(self, q, qd, q_r, qd_r, qdd_r) -> np.ndarray:
         """Joint torques (n,) [N m], clipped to the effort limits."""
@@ -143,6 +145,10 @@ class KalmanPredictor:
         self.P = None
         self.t = None
 
+    def reset(self) -> None:
+        """Forget all frames."""
+        self.x = self.P = self.t = None
+
     def update(self, t: float, z: np.ndarray) -> None:
         """Fuse the frame taken at time ``t`` (its capture time, not its arrival)."""
         z = np.asarray(z, float)
@@ -166,6 +172,107 @@ class KalmanPredictor:
         """(angle, rate) at time ``t`` by constant-rate extrapolation from the last fused frame."""
         h = t - self.t
         return self.x[:, 0] + h * self.x[:, 1], self.x[:, 1].copy()
+
+
+class ARPredictor:
+    """Linear autoregressive predictor across the latency, fitted by ridge regression on recordings.
+
+    From the newest received frame q_k (captured at t_k) and the P frame-to-frame differences
+    before it, the angle at t_k + h is predicted per joint (weights shared by the joints) as
+
+        q(t_k + h) = q_k + w' (phi_k kron [1, h, h^2]),   phi_k = [q_k - q_{k-1}, ..., q_{k-P+1} - q_{k-P}, 1],
+
+    so the horizon h (latency plus the frame's age) enters polynomially. Fit it with
+    :meth:`fit` on recordings other than the one it is evaluated on (leave-one-recording-out).
+
+    Args:
+        weights: ((P + 1) * (poly + 1),) regression weights.
+        order: P, number of past differences.
+        poly: degree of the horizon polynomial.
+    """
+
+    def __init__(self, weights, order: int = 6, poly: int = 2) -> None:
+        self.order, self.poly = int(order), int(poly)
+        self.w = as_array(weights, "weights", ((self.order + 1) * (self.poly + 1),))
+        self.hist: list[np.ndarray] = []
+        self.t = None
+
+    @staticmethod
+    def _features(hist: np.ndarray, order: int) -> np.ndarray:
+        """(n, P + 1) features per joint from the last frames ``hist`` (m, n), oldest first."""
+        h = hist[-(order + 1):]
+        if len(h) < order + 1:  # too few frames yet: repeat the first (zero differences)
+            h = np.vstack([np.repeat(h[:1], order + 1 - len(h), 0), h])
+        d = np.diff(h, axis=0)[::-1]  # newest difference first
+        return np.hstack([d.T, np.ones((h.shape[1], 1))])
+
+    def reset(self) -> None:
+        """Forget all frames."""
+        self.hist, self.t = [], None
+
+    def update(self, t: float, z: np.ndarray) -> None:
+        """Add the frame captured at time ``t``."""
+        self.hist.append(np.asarray(z, float).copy())
+        if len(self.hist) > self.order + 1:
+            self.hist.pop(0)
+        self.t = t
+
+    def predict(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(angle (n,), rate (n,)) predicted at time ``t`` from the frames received so far."""
+        h = t - self.t
+        f = self._features(np.asarray(self.hist), self.order)
+        hv = h ** np.arange(self.poly + 1)
+        dv = np.concatenate([[0.0], np.arange(1, self.poly + 1) * h ** np.arange(self.poly)])
+        W = self.w.reshape(self.order + 1, self.poly + 1)
+        return self.hist[-1] + f @ W @ hv, f @ W @ dv
+
+    @classmethod
+    def fit(cls, runs, *, latency: float = 0.1, order: int = 6, poly: int = 2, ridge: float = 1e-9,
+            dt: float = 0.003, span: float | None = None) -> "ARPredictor":
+        """Fit on recordings.
+
+        Args:
+            runs: iterable of (t (N,), q_true (N, n), q_meas (N, n)) as returned by
+                :func:`human_reference` (frame times, true angles, angles as received live).
+            latency: sensor latency [s]; horizons from ``latency`` to ``latency`` + ``span``.
+            dt: spacing of the training horizons [s].
+            span: range of horizons beyond the latency [s] (default three frame periods).
+        """
+        X, Y = [], []
+        for t_h, q_true, q_meas in runs:
+            t_h, q_true, q_meas = np.asarray(t_h, float), np.asarray(q_true, float), np.asarray(q_meas, float)
+            spline = CubicSpline(t_h, q_true, axis=0)
+            T = float(np.median(np.diff(t_h)))
+            span_ = 3 * T if span is None else float(span)
+            hs = np.arange(latency, latency + span_, dt)
+            for j in range(len(t_h)):
+                h = hs[t_h[j] + hs <= t_h[-1]]
+                if len(h) == 0:
+                    break
+                f = cls._features(q_meas[max(0, j - order):j + 1], order)  # (n, P + 1)
+                X.append(np.einsum("ca,hb->hcab", f, h[:, None] ** np.arange(poly + 1)).reshape(len(h) * len(f), -1))
+                Y.append((spline(t_h[j] + h) - q_meas[j]).reshape(-1))
+        if not X:
+            raise InvalidInput("ARPredictor.fit needs at least one recording longer than the latency")
+        X, Y = np.vstack(X), np.concatenate(Y)
+        w = np.linalg.solve(X.T @ X + ridge * len(Y) * np.eye(X.shape[1]), X.T @ Y)
+        return cls(w, order, poly)
+
+
+def fit_predictor(skeletons, *, latency: float = 0.1, robot=None, **kw) -> ARPredictor:
+    """An :class:`ARPredictor` fitted on recordings as :func:`simulate_scara` sees them (angles from
+    :func:`human_reference`, clipped to the SCARA's joint range). Pass recordings other than the one
+    you evaluate on. ``kw`` go to :meth:`ARPredictor.fit`."""
+    from robointel.robot import Robot
+
+    robot = robot or Robot.load("scara2")
+    runs = []
+    for sk in skeletons:
+        t_h, q_true, q_meas = human_reference(sk)
+        runs.append((t_h, np.clip(q_true, robot.lower, robot.upper), np.clip(q_meas, robot.lower, robot.upper)))
+    if not runs:
+        raise InvalidInput("fit_predictor needs at least one recording")
+    return ARPredictor.fit(runs, latency=latency, **kw)
 
 
 @dataclass
@@ -216,13 +323,18 @@ def human_reference(skel: Skeleton, side: str | None = None, *,
 def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensate: bool = False,
                    side: str | None = None, dt: float = 0.001, controller: ComputedTorqueLQ | None = None,
                    workcell=None, predictor_psd: float = 10.0, max_accel=(60.0, 120.0),
-                   jerk_factor: float = 20.0, follow_gain: float = 12.0, offline: bool = False) -> ScaraResult:
+                   jerk_factor: float = 20.0, follow_gain: float = 12.0, offline: bool = False,
+                   predictor=None, smooth_hz: float = 0.0,
+                   follower: bool = True) -> ScaraResult:
     """Simulate dynamic imitation of a recording on the SCARA in MuJoCo at 1/dt Hz.
 
     Frames captured at t_k reach the controller at t_k + ``latency``. The reference at time t is the
-    Kalman estimate extrapolated to t - latency (no compensation: the human motion, delayed) or to
-    t (compensation: predicted forward by the latency); the feed-forward acceleration is the
-    reference's numerical derivative. Torques from :class:`ComputedTorqueLQ` drive MuJoCo.
+    predictor's estimate at t - latency (no compensation: the human motion, delayed) or at t
+    (compensation: predicted forward across the latency and the frame's age). The estimate is
+    shaped into (q_r, qd_r, qdd_r) by the jerk-limited follower (default), or by a critically
+    damped second-order reference model at ``smooth_hz`` (qdd_r = wn^2 (q_est - q_r) - 2 wn qd_r),
+    or passed as it is (``follower=False``). Torques from :class:`ComputedTorqueLQ` (3.9) drive
+    MuJoCo; MuJoCo's actuators and the controller clip them to the effort limits.
 
     Args:
         skel: raw skeleton (Kinect or BVH).
@@ -237,6 +349,12 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
         offline: replay of a stored recording, known in advance: the reference is the cleaned
             recording itself at time t (no sensor in the loop, so no latency to compensate); what
             remains is the robot's own limits and tracking. ``latency``/``compensate`` are ignored.
+            With ``follower=False`` the LQ gets the recording's exact q, qd, qdd.
+        predictor: an object with ``update(t, q)``, ``predict(t) -> (q, qd)``, ``t`` (time of the
+            last frame) and ``reset()``, e.g. an :class:`ARPredictor` from :func:`fit_predictor`
+            (fitted on *other* recordings); default a :class:`KalmanPredictor`.
+        smooth_hz: natural frequency [Hz] of the reference model (0: not used).
+        follower: shape the estimate with the jerk-limited follower (ignored if ``smooth_hz`` > 0).
 
     Returns:
         :class:`ScaraResult`.
@@ -261,7 +379,11 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
     spline = CubicSpline(t_h, q_true, axis=0)
     truth = spline(t)
     truth_d = spline(t, 1)
-    kf = KalmanPredictor(2, accel_psd=predictor_psd)
+    if smooth_hz < 0 or smooth_hz * dt > 0.05:
+        raise InvalidInput(f"smooth_hz must be in [0, {0.05 / dt:g}] Hz at dt = {dt} s, got {smooth_hz}",
+                           value=smooth_hz)
+    kf = KalmanPredictor(2, accel_psd=predictor_psd) if predictor is None else predictor
+    kf.reset()
     from robointel.programming.imitation import LimitedFollower
 
     acc = np.broadcast_to(np.asarray(max_accel, float), (2,))
@@ -276,17 +398,32 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
     q_log = np.zeros((M, 2))
     ref_log = np.zeros((M, 2))
     tau_log = np.zeros((M, 2))
+    truth_dd = spline(t, 2)
+    wn = 2.0 * np.pi * smooth_hz
+    qf, vf = np.array(q_meas[0], float), np.zeros(2)
     for k in range(M):
         while nxt < len(t_h) and arrival[nxt] <= t[k] + 1e-12:
             if nxt > 0:
                 kf.update(t_h[nxt], q_meas[nxt])
             nxt += 1
         if offline:
-            raw, rate = truth[k], truth_d[k]
+            raw, rate, acc_r = truth[k], truth_d[k], truth_dd[k]
+            q_r, qd_r, qdd_r = (follow.step(np.clip(raw, robot.lower, robot.upper), rate) if follower else
+                                (raw, rate, acc_r))
+        elif smooth_hz > 0:
+            # the estimate through a critically damped second-order reference model: a smooth
+            # reference with consistent q_r, qd_r, qdd_r
+            tq = t[k] if compensate else max(t[k] - latency, t_h[0])
+            raw = np.clip(kf.predict(min(tq, kf.t + 0.5))[0], robot.lower, robot.upper)
+            acc_r = wn * wn * (raw - qf) - 2.0 * wn * vf
+            qf, vf = qf + dt * vf + 0.5 * dt * dt * acc_r, vf + dt * acc_r
+            q_r, qd_r, qdd_r = qf, vf, acc_r
         else:
             tq = t[k] if compensate else max(t[k] - latency, t_h[0])
             raw, rate = kf.predict(min(tq, kf.t + 0.5))  # never extrapolate more than 0.5 s
-        q_r, qd_r, qdd_r = follow.step(np.clip(raw, robot.lower, robot.upper), rate)
+            q_r, qd_r, qdd_r = (follow.step(np.clip(raw, robot.lower, robot.upper), rate) if follower else
+                                (raw, rate, np.zeros(2)))
+        q_r = np.clip(q_r, robot.lower, robot.upper)
         q, qd = workcell.q, workcell.qd
         tau = ctrl.torque(q, qd, q_r, qd_r, qdd_r)
         workcell.step(tau)
