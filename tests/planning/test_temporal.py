@@ -154,3 +154,17 @@ def test_short_and_two_point_segments():
         res = temporal_optimize(path, VMAX, AMAX)
         dense = Trajectory(res.t, res.q, res.qd, res.qdd).resample(0.001)
         assert np.all(np.abs(dense.qd) <= VMAX * (1 + 1e-6)) and np.all(np.abs(dense.qdd) <= AMAX * (1 + 1e-6))
+
+
+def test_output_is_scipys_clamped_spline_and_limit_stretch():
+    from robointel.planning import temporal as T
+
+    path = make_path()
+    res = temporal_optimize(path, VMAX, AMAX)
+    t0 = np.concatenate([[0.0], np.cumsum(res.tau)])
+    s = T.limit_stretch(T.spline_segment(t0, path), t0[-1], VMAX, AMAX)
+    assert res.stretch == pytest.approx(s, rel=1e-9)
+    np.testing.assert_allclose(res.t, t0 * s, rtol=1e-12)
+    sp = T.spline_segment(res.t, path)
+    np.testing.assert_allclose(res.qd, sp(res.t, 1), atol=1e-9)
+    np.testing.assert_allclose(res.qdd, sp(res.t, 2), atol=1e-8)

@@ -48,11 +48,14 @@ from robointel.planning.qp import DenseQP, SparseQP
 MAX_CUTS = 2
 #: ridge on tau (times w3 / tau_max) making the cost strictly convex; it only favours shorter steps
 RIDGE = 1e-2
-#: limit rescaling between rounds: "tighten" (only where the spline exceeds), "sqrt" (damped),
-#: "both" (also relax where it has slack)
-REFINE_MODE = "tighten"
+#: limit rescaling between rounds: "tighten" (only where the spline exceeds), "spread" (as tighten,
+#: and the knot's neighbours by the factor ** SPREAD: the excess otherwise moves to them, costing a
+#: round each), "sqrt" (damped), "both" (also relax where it has slack)
+REFINE_MODE = "spread"
 #: exponent of the tightening factor (1: divide by the excess ratio; > 1 overshoots, fewer rounds)
 REFINE_POWER = 1.0
+#: exponent on the neighbours' factor in REFINE_MODE "spread"
+SPREAD = 0.25
 #: starting schedule of every CFS solve: "pass" (forward/backward pass, see :func:`pass_start`),
 #: "scaled" (velocity-shaped, see :func:`scaled_start`) or "uniform"
 START = "pass"
@@ -64,7 +67,7 @@ SOLVER = "dedicated"
 #: per-step upper bound = this factor x the start's step (and neighbours); 0: one bound for all steps
 LOCAL_UB = 0.0
 #: refinement stops once the spline is within this fraction of the limits
-REFINE_TOL = 0.005
+REFINE_TOL = 0.01
 #: CFS also stops when the total time fell by less than this fraction in one iteration
 FTOL = 1e-3
 
@@ -321,6 +324,62 @@ def _clamped_ratios(t, y, vmax, amax, sub):  # pragma: no cover - compiled
                 v = -M[i, j] * (hi - s) ** 2 / (2 * hi) + M[i + 1, j] * s * s / (2 * hi) + slope
                 rv[i] = max(rv[i], abs(v) / vmax[j])
     return ra, rv
+
+
+@njit(cache=True)
+def _clamped_spline_knots(t, y, vmax, amax):  # pragma: no cover - compiled
+    """Knot velocities V (N+1, n) and accelerations M (N+1, n) of the clamped C2 cubic spline
+    through (t, y), and the exact largest |velocity| / vmax (knots and interior extrema of every
+    piece) and |acceleration| / amax (at the knots: it is piecewise linear)."""
+    N1, n = y.shape
+    N = N1 - 1
+    M = np.empty((N1, n))
+    V = np.empty((N1, n))
+    cp = np.empty(N1)
+    dp = np.empty(N1)
+    rv = 0.0
+    ra = 0.0
+    for j in range(n):
+        for i in range(N1):
+            if i == 0:
+                a_, b_, c_ = 0.0, 2 * (t[1] - t[0]), t[1] - t[0]
+                r_ = 6 * ((y[1, j] - y[0, j]) / (t[1] - t[0]))
+            elif i == N:
+                h0 = t[N] - t[N - 1]
+                a_, b_, c_ = h0, 2 * h0, 0.0
+                r_ = -6 * ((y[N, j] - y[N - 1, j]) / h0)
+            else:
+                h0, h1 = t[i] - t[i - 1], t[i + 1] - t[i]
+                a_, b_, c_ = h0, 2 * (h0 + h1), h1
+                r_ = 6 * ((y[i + 1, j] - y[i, j]) / h1 - (y[i, j] - y[i - 1, j]) / h0)
+            if i == 0:
+                cp[0] = c_ / b_
+                dp[0] = r_ / b_
+            else:
+                den = b_ - a_ * cp[i - 1]
+                cp[i] = c_ / den
+                dp[i] = (r_ - a_ * dp[i - 1]) / den
+        M[N, j] = dp[N]
+        for i in range(N - 1, -1, -1):
+            M[i, j] = dp[i] - cp[i] * M[i + 1, j]
+        for i in range(N):
+            hi = t[i + 1] - t[i]
+            slope = (y[i + 1, j] - y[i, j]) / hi
+            V[i, j] = slope - hi * (2 * M[i, j] + M[i + 1, j]) / 6
+            if i == N - 1:
+                V[N, j] = slope + hi * (M[i, j] + 2 * M[i + 1, j]) / 6
+            rv = max(rv, abs(V[i, j]) / vmax[j])
+            dm = M[i, j] - M[i + 1, j]
+            if dm != 0.0:
+                s = hi * M[i, j] / dm
+                if 0.0 < s < hi:
+                    v = -M[i, j] * (hi - s) ** 2 / (2 * hi) + M[i + 1, j] * s * s / (2 * hi) + slope \
+                        - (M[i + 1, j] - M[i, j]) * hi / 6
+                    rv = max(rv, abs(v) / vmax[j])
+        rv = max(rv, abs(V[N, j]) / vmax[j])
+        for i in range(N1):
+            ra = max(ra, abs(M[i, j]) / amax[j])
+    return V, M, rv, ra
 
 
 def _knot_ratios(t: np.ndarray, path: np.ndarray, vmax: np.ndarray, amax: np.ndarray, sub: int = 8):
@@ -619,6 +678,11 @@ def _tighten(sig_a: np.ndarray, sig_v: np.ndarray, ra: np.ndarray, rv: np.ndarra
     """Rescaled per-knot acceleration and per-interval velocity factors (see :data:`REFINE_MODE`)."""
     if REFINE_MODE == "both":
         return np.clip(sig_a / np.maximum(ra, 1e-3), 0.2, 2.0), np.clip(sig_v / np.maximum(rv, 1e-3), 0.2, 2.0)
+    if REFINE_MODE == "spread":  # also tighten the neighbours of a tightened knot (damped)
+        fa = np.minimum(1.0, 1.0 / np.maximum(ra, 1e-3))
+        nb = np.minimum(np.r_[1.0, fa[:-1]], np.r_[fa[1:], 1.0]) ** SPREAD
+        fv = np.minimum(1.0, 1.0 / np.maximum(rv, 1e-3))
+        return np.clip(sig_a * np.minimum(fa, nb), 0.2, 2.0), np.clip(sig_v * fv, 0.2, 2.0)
     pw = REFINE_POWER if REFINE_MODE == "tighten" else 0.5
     return (np.clip(sig_a * np.minimum(1.0, 1.0 / np.maximum(ra, 1e-3)) ** pw, 0.2, 2.0),
             np.clip(sig_v * np.minimum(1.0, 1.0 / np.maximum(rv, 1e-3)) ** pw, 0.2, 2.0))
@@ -700,13 +764,13 @@ def temporal_optimize(path, vmax, amax, *, dt: float | None = None, w3: float = 
     secs = time.perf_counter() - t0
     _, tau, res = best
     t = np.concatenate([[0.0], np.cumsum(tau)])
-    sp_ = spline_segment(t, path)
-    s = limit_stretch(sp_, t[-1], vmax, amax)
-    if s > 1.0:
-        t = t * s
-        sp_ = spline_segment(t, path)
-    return TemporalResult(t=t, q=path.copy(), qd=sp_(t, 1), qdd=sp_(t, 2), tau=tau, tau0=tau_first, stretch=s,
-                          cfs=res, seconds=secs)
+    # the clamped spline's knot velocities/accelerations and its exact peak ratios (compiled; the
+    # same spline as :func:`spline_segment`, the same factor as :func:`limit_stretch`)
+    V, M, rv, ra = _clamped_spline_knots(t, np.ascontiguousarray(path, dtype=float), vmax, amax)
+    s = float(max(1.0, rv, np.sqrt(ra)) * (1 + 1e-7))
+    t, V, M = t * s, V / s, M / (s * s)  # the same curve, slower by s
+    return TemporalResult(t=t, q=path.copy(), qd=V, qdd=M, tau=tau, tau0=tau_first, stretch=s, cfs=res,
+                          seconds=secs)
 
 
 def fixed_dt_segment(path, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
