@@ -128,7 +128,7 @@ def primitive_object(category: str, rng: np.random.Generator | int = 0, name: st
     rng = np.random.default_rng(rng)
     name = name or f"{category}-{int(rng.integers(1 << 30))}"
     if category == "cup":
-        r, h, t = rng.uniform(0.03, 0.045), rng.uniform(0.07, 0.11), 0.004
+        r, h, t = rng.uniform(0.032, 0.042), rng.uniform(0.07, 0.095), 0.004
         wall = trimesh.creation.annulus(r_min=r - t, r_max=r, height=h, sections=48)
         wall.apply_translation([0, 0, h / 2])
         bottom = trimesh.creation.cylinder(radius=r, height=t, sections=48)
@@ -137,7 +137,7 @@ def primitive_object(category: str, rng: np.random.Generator | int = 0, name: st
         pieces = _ring(r - t, r, t, h, 16) + [bottom]
         mass = 0.08
     elif category == "can":
-        r, h = rng.uniform(0.016, 0.022), rng.uniform(0.06, 0.12)
+        r, h = rng.uniform(0.017, 0.021), rng.uniform(0.085, 0.11)
         mesh = trimesh.creation.cylinder(radius=r, height=h, sections=48)
         mesh.apply_translation([0, 0, h / 2])
         pieces, mass = [mesh], 0.15

@@ -26,7 +26,7 @@ from robointel.learning.grasp.scene import Placement, scene_xml
 from robointel.learning.grasp.search import SearchResult, orientation_search, refine_position
 from robointel.learning.grasp.transfer import Grasp, transfer_grasp
 
-__all__ = ["GraspPlanner", "GraspPlan", "TrialResult", "grasp_trial", "lrmate_with_gripper"]
+__all__ = ["GraspPlanner", "GraspPlan", "TrialResult", "grasp_trial", "lrmate_with_gripper", "perceived_template"]
 
 
 def lrmate_with_gripper(gripper: ParallelGripper = ParallelGripper()):
@@ -233,3 +233,24 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
     h = float(d.xpos[body][2])
     held = h > 0.05 and rel_after_lift is not None and np.linalg.norm(rel - rel_after_lift) < 0.03
     return TrialResult(bool(held), "held" if held else "dropped", cat, plan, h, cloud)
+
+
+def perceived_template(obj: ObjectModel, *, rng=0, cameras=None, placement: Placement | None = None) -> np.ndarray:
+    """The template cloud as the cameras see it at teach time: ``obj`` placed at ``placement``
+    (default: workspace centre, heading 0), perceived (Fig. 6.4 pipeline) and mapped back into the
+    object frame (n, 3). Templates and targets then share the cameras' viewpoints and sampling."""
+    rng = np.random.default_rng(rng)
+    cams = cameras or default_cameras()
+    p = placement or Placement(obj, 0.5, 0.0, 0.0)
+    m0 = mujoco.MjModel.from_xml_string(scene_xml([]))
+    d0 = mujoco.MjData(m0)
+    mujoco.mj_forward(m0, d0)
+    bgs = [depth_image(m0, d0, c, rng) for c in cams]
+    m = mujoco.MjModel.from_xml_string(scene_xml([p]))
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    clouds = perceive(m, d, cams, bgs, rng=rng)
+    if not clouds:
+        raise InvalidInput(f"the cameras do not see template {obj.name}", value=obj.name)
+    T = np.linalg.inv(p.pose)
+    return clouds[0] @ T[:3, :3].T + T[:3, 3]
