@@ -119,3 +119,14 @@ def test_learned_prediction_compensates_the_latency(scara):
 def test_offline_exact_reference_is_tracked(scara):
     ro = simulate_scara(synthetic_wave(4.0, speed=0.5), robot=scara, offline=True, follower=False)
     assert ro.rms.max() < 2e-3 and ro.saturated < 0.01
+
+
+def test_training_predictor_leaves_the_recording_out(monkeypatch, shared_data):
+    from robointel.io import reference
+    from robointel.programming.scara import training_predictor
+
+    ar, what = training_predictor("Ges01_wavehand.csv")
+    assert what == "6 other Kinect recordings" and isinstance(ar, ARPredictor)
+    monkeypatch.setattr(reference, "data_root", lambda: None)  # no reference data on this machine
+    ar, what = training_predictor("Ges01_wavehand.csv")
+    assert what == "3 synthetic arm waves" and np.all(np.isfinite(ar.w))

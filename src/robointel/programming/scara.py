@@ -28,6 +28,7 @@ human angles (the zero-phase cleaned recording, not delayed).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -40,6 +41,9 @@ from robointel.programming.skeleton import Skeleton, clean
 #: The dissertation's RMS joint errors (q1, q2) [rad] on the SCARA, without / with compensation.
 PAPER_RMS = (0.153, 0.185)
 PAPER_RMS_COMPENSATED = (0.0103, 0.0305)
+#: Natural frequency [Hz] of the reference model used with the learned predictor (chosen on the
+#: seven Kinect recordings: 3 / 4 / 5 / 8 Hz gave mean RMS 0.31/0.32, 0.29/0.31, 0.27/0.32, 0.27/0.37 rad).
+SMOOTH_HZ = 4.0
 
 
 # ----------------------------------------------------------------------------- human -> SCARA angles
@@ -273,6 +277,25 @@ def fit_predictor(skeletons, *, latency: float = 0.1, robot=None, **kw) -> ARPre
     if not runs:
         raise InvalidInput("fit_predictor needs at least one recording")
     return ARPredictor.fit(runs, latency=latency, **kw)
+
+
+def training_predictor(exclude: str = "", *, latency: float = 0.1, robot=None) -> tuple[ARPredictor, str]:
+    """An :class:`ARPredictor` for a live run: fitted on the reference Kinect recordings except the
+    one named ``exclude`` (a file name such as ``Ges01_wavehand.csv``), or, without the reference
+    data, on three synthetic arm waves (seeds 1-3). Returns (predictor, what it was fitted on)."""
+    from robointel.errors import DataMissing
+    from robointel.io.reference import data_path
+    from robointel.programming.skeleton import read_kinect_csv, synthetic_wave
+
+    try:
+        files = sorted(p for p in data_path("kinect").glob("*.csv") if p.name != Path(exclude).name)
+    except DataMissing:
+        files = []
+    if files:
+        skels, what = [read_kinect_csv(f) for f in files], f"{len(files)} other Kinect recordings"
+    else:
+        skels, what = [synthetic_wave(6.0, seed=s, dropout_at=None) for s in (1, 2, 3)], "3 synthetic arm waves"
+    return fit_predictor(skels, latency=latency, robot=robot), what
 
 
 @dataclass
