@@ -33,7 +33,8 @@ def imitation(recordings):
     skels = {name: read_kinect_csv(data_path("kinect", f"{name}.csv")) for name in RECORDINGS}
     scara_keys = ("scara_rms_rad", "scara_rms_compensated_rad", "scara_rms_uncompensated_same_shaping_rad",
                   "scara_rms_compensated_kalman_rad", "scara_rms_offline_rad", "scara_controller_rms_rad",
-                  "scara_controller_rms_compensated_rad")
+                  "scara_controller_rms_compensated_rad", "scara_rms_planar_elbow_rad",
+                  "scara_rms_compensated_planar_elbow_rad")
     out = {"imitation_rms_rad": {}, "imitation_controller_rms_rad": {}, "imitation_tcp_rms_mm": {},
            "imitation_limit_hits": {}, "imitation_unreachable_frames": {}, "scara_torque_saturation": {},
            **{k: {} for k in scara_keys}}
@@ -57,13 +58,21 @@ def imitation(recordings):
         out["scara_controller_rms_rad"][name] = np.round(r0.tracking_rms, 5).tolist()
         out["scara_controller_rms_compensated_rad"][name] = np.round(r1.tracking_rms, 5).tolist()
         out["scara_torque_saturation"][name] = [round(r0.saturated, 4), round(r1.saturated, 4)]
+        # the earlier mapping: the projected in-plane elbow angle (wraps past -pi on Ges05/Ges06)
+        arp = fit_predictor([s for n, s in skels.items() if n != name], robot=sc, latency=0.1, elbow="planar")
+        out["scara_rms_planar_elbow_rad"][name] = np.round(
+            simulate_scara(sk, robot=sc, latency=0.1, elbow="planar").rms, 4).tolist()
+        out["scara_rms_compensated_planar_elbow_rad"][name] = np.round(simulate_scara(
+            sk, robot=sc, latency=0.1, compensate=True, predictor=arp, smooth_hz=SMOOTH_HZ, elbow="planar").rms,
+            4).tolist()
     for k in scara_keys:
         out[k]["mean"] = np.round(np.mean([v for n, v in out[k].items() if n != "mean"], axis=0), 4).tolist()
     out["scara_rms_paper_rad"] = list(PAPER_RMS)
     out["scara_rms_compensated_paper_rad"] = list(PAPER_RMS_COMPENSATED)
     out["scara_latency_s"] = 0.1
     out["scara_note"] = (
-        "rms = robot vs the TRUE human angles (zero-phase cleaned, undelayed) at the same instant. "
+        "rms = robot vs the TRUE human angles (zero-phase cleaned, undelayed) at the same instant; q2 = the "
+        "elbow's 3-D flexion angle (planar_elbow keys: the earlier projected in-plane angle). "
         "scara_rms_rad: live, no compensation (Kalman estimate of the received frames delayed by the latency, "
         "jerk-limited follower). scara_rms_compensated_rad: live, linear autoregressive predictor across the "
         f"latency fitted leave-one-recording-out, {SMOOTH_HZ:g} Hz reference model. "

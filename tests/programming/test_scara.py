@@ -130,3 +130,16 @@ def test_training_predictor_leaves_the_recording_out(monkeypatch, shared_data):
     monkeypatch.setattr(reference, "data_root", lambda: None)  # no reference data on this machine
     ar, what = training_predictor("Ges01_wavehand.csv")
     assert what == "3 synthetic arm waves" and np.all(np.isfinite(ar.w))
+
+
+def test_flexion_elbow_never_wraps(shared_data):
+    from robointel.programming.scara import human_reference
+
+    sk = read_kinect_csv(shared_data("kinect", "Ges05_demopoint.csv"))
+    _, planar, _ = human_reference(sk, elbow="planar")
+    _, flex, live = human_reference(sk, elbow="flexion")
+    assert planar[:, 1].min() < -np.pi                  # the projected forearm swings past the folded pose
+    assert np.all((flex[:, 1] <= 0) & (flex[:, 1] > -np.pi)) and np.all(live[:, 1] <= 0)
+    assert np.allclose(flex[:, 0], planar[:, 0])        # the shoulder angle is the same
+    with pytest.raises(InvalidInput):
+        human_reference(sk, elbow="wrist")

@@ -1,8 +1,9 @@
 """Dynamic imitation on a 2-link SCARA (Ch. 3.2, (3.2)-(3.9)).
 
-The human arm seen by the Kinect is projected onto the plane it moves in; the shoulder->elbow and
-elbow->hand directions in that plane give the desired SCARA angles q1d, q2d (shoulder angle from
-the hanging-down direction, elbow angle relative to the upper arm).
+The human arm seen by the Kinect gives the desired SCARA angles q1d, q2d: q1d = the upper arm's
+angle in the plane the arm moves in (from the hanging-down direction), q2d = the elbow's flexion
+angle (by default the true 3-D angle between upper arm and forearm; the projected in-plane angle,
+``elbow="planar"``, wraps past +-pi when the arm leaves the plane).
 
 The robot (``Robot.load("scara2")``) is driven by computed torque (3.9)
 
@@ -19,11 +20,12 @@ Riccati equation (3.7)-(3.8) (``scipy.linalg.solve_discrete_are``):
 The Kinect delivers frames at ~30 Hz with ~0.1 s latency; a live system sees them cleaned
 causally (dropouts held, causal low-pass). A Kalman filter on the received angles (white-noise-
 acceleration model) estimates angle and rate. Without compensation the reference is that estimate
-at t - latency (the human motion, delayed); with delay compensation it is extrapolated to t (across
-the latency plus the age of the frame). Causal throughout: only frames that have arrived are used.
-A jerk-limited follower (``ruckig``) turns the estimate into a reference (q_r, qd_r, qdd_r) within
-velocity/acceleration limits the torque limits can deliver. Errors are measured against the true
-human angles (the zero-phase cleaned recording, not delayed).
+at t - latency (the human motion, delayed); with delay compensation it is predicted to t (across
+the latency plus the age of the frame), by the Kalman filter (constant rate) or by a linear
+autoregressive predictor (:class:`ARPredictor`) fitted on other recordings. Causal throughout:
+only frames that have arrived are used. A jerk-limited follower (``ruckig``) or a second-order
+reference model turns the estimate into a reference (q_r, qd_r, qdd_r). Errors are measured
+against the true human angles (the zero-phase cleaned recording, not delayed) at the same instant.
 """
 from __future__ import annotations
 
@@ -57,10 +59,18 @@ def arm_plane(skel: Skeleton, side: str) -> np.ndarray:
     return n if n[np.argmax(np.abs(n))] > 0 else -n
 
 
-def arm_angles(skel: Skeleton, side: str | None = None, *, normal=None) -> np.ndarray:
-    """(N, 2) SCARA joint targets [rad] from a skeleton: the upper arm and forearm projected to
-    the arm's plane; q1 = shoulder angle measured from the in-plane 'down' direction, q2 = forearm
-    angle relative to the upper arm, wrapped to (-pi, pi], both unwrapped over time."""
+def arm_angles(skel: Skeleton, side: str | None = None, *, normal=None, elbow: str = "flexion") -> np.ndarray:
+    """(N, 2) SCARA joint targets [rad] from a skeleton: q1 = the upper arm's angle in the arm's
+    plane, measured from the in-plane 'down' direction, unwrapped over time.
+
+    ``elbow="planar"``: q2 = the projected forearm's angle relative to the projected upper arm,
+    unwrapped over time. When the arm leaves the plane the projections can swing through the
+    folded direction and q2 drifts past -pi/pi (Ges05_demopoint reaches -6.2 rad while the elbow
+    is bent 9 degrees). ``elbow="flexion"``: q2 = the elbow's true 3-D flexion angle (0 = straight,
+    in [0, pi)), signed by the recording's dominant in-plane bending direction; it never wraps.
+    """
+    if elbow not in ("planar", "flexion"):
+        raise InvalidInput(f"elbow must be 'planar' or 'flexion', got {elbow!r}", value=elbow)
     side = side or skel.active_side()
     n = arm_plane(skel, side) if normal is None else as_array(normal, "normal", (3,)) / np.linalg.norm(normal)
     down = np.array([0.0, 0.0, -1.0])
@@ -73,8 +83,12 @@ def arm_angles(skel: Skeleton, side: str | None = None, *, normal=None) -> np.nd
     e, h = a["elbow"] - a["shoulder"], a["hand"] - a["elbow"]
     q1 = np.unwrap(np.arctan2(e @ u, e @ d))
     q2 = np.arctan2(h @ u, h @ d) - np.arctan2(e @ u, e @ d)
-    q2 = np.unwrap((q2 + np.pi) % (2 * np.pi) - np.pi)
-    return np.stack([q1, q2], axis=1)
+    q2 = (q2 + np.pi) % (2 * np.pi) - np.pi
+    if elbow == "flexion":
+        c = np.einsum("ij,ij->i", e, h) / (np.linalg.norm(e, axis=1) * np.linalg.norm(h, axis=1))
+        sign = 1.0 if np.median(q2) >= 0 else -1.0
+        return np.stack([q1, sign * np.arccos(np.clip(c, -1.0, 1.0))], axis=1)
+    return np.stack([q1, np.unwrap(q2)], axis=1)
 
 
 # ----------------------------------------------------------------------------- LQ tracking (3.7)-(3.8)
@@ -263,7 +277,7 @@ class ARPredictor:
         return cls(w, order, poly)
 
 
-def fit_predictor(skeletons, *, latency: float = 0.1, robot=None, **kw) -> ARPredictor:
+def fit_predictor(skeletons, *, latency: float = 0.1, robot=None, elbow: str = "flexion", **kw) -> ARPredictor:
     """An :class:`ARPredictor` fitted on recordings as :func:`simulate_scara` sees them (angles from
     :func:`human_reference`, clipped to the SCARA's joint range). Pass recordings other than the one
     you evaluate on. ``kw`` go to :meth:`ARPredictor.fit`."""
@@ -272,14 +286,15 @@ def fit_predictor(skeletons, *, latency: float = 0.1, robot=None, **kw) -> ARPre
     robot = robot or Robot.load("scara2")
     runs = []
     for sk in skeletons:
-        t_h, q_true, q_meas = human_reference(sk)
+        t_h, q_true, q_meas = human_reference(sk, elbow=elbow)
         runs.append((t_h, np.clip(q_true, robot.lower, robot.upper), np.clip(q_meas, robot.lower, robot.upper)))
     if not runs:
         raise InvalidInput("fit_predictor needs at least one recording")
     return ARPredictor.fit(runs, latency=latency, **kw)
 
 
-def training_predictor(exclude: str = "", *, latency: float = 0.1, robot=None) -> tuple[ARPredictor, str]:
+def training_predictor(exclude: str = "", *, latency: float = 0.1, robot=None,
+                       elbow: str = "flexion") -> tuple[ARPredictor, str]:
     """An :class:`ARPredictor` for a live run: fitted on the reference Kinect recordings except the
     one named ``exclude`` (a file name such as ``Ges01_wavehand.csv``), or, without the reference
     data, on three synthetic arm waves (seeds 1-3). Returns (predictor, what it was fitted on)."""
@@ -295,7 +310,7 @@ def training_predictor(exclude: str = "", *, latency: float = 0.1, robot=None) -
         skels, what = [read_kinect_csv(f) for f in files], f"{len(files)} other Kinect recordings"
     else:
         skels, what = [synthetic_wave(6.0, seed=s, dropout_at=None) for s in (1, 2, 3)], "3 synthetic arm waves"
-    return fit_predictor(skels, latency=latency, robot=robot), what
+    return fit_predictor(skels, latency=latency, robot=robot, elbow=elbow), what
 
 
 @dataclass
@@ -327,8 +342,8 @@ class ScaraResult:
     offline: bool = False
 
 
-def human_reference(skel: Skeleton, side: str | None = None, *,
-                    live_cutoff_hz: float = 12.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def human_reference(skel: Skeleton, side: str | None = None, *, live_cutoff_hz: float = 12.0,
+                    elbow: str = "flexion") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t (N,), true angles (N, 2) from the zero-phase cleaned skeleton, measured angles (N, 2) from
     the raw frames as a live system sees them: dropouts held, causal filter)."""
     side = side or skel.active_side()
@@ -336,7 +351,10 @@ def human_reference(skel: Skeleton, side: str | None = None, *,
     truth = clean(skel, joints=joints)
     live = clean(skel, joints=joints, causal=True, cutoff_hz=min(live_cutoff_hz, 0.45 * skel.rate))
     normal = arm_plane(truth, side)
-    q_true, q_live = arm_angles(truth, side, normal=normal), arm_angles(live, side, normal=normal)
+    q_true = arm_angles(truth, side, normal=normal, elbow=elbow)
+    q_live = arm_angles(live, side, normal=normal, elbow=elbow)
+    if np.median(q_true[:, 1]) * np.median(q_live[:, 1]) < 0:  # same bending sign for both (flexion)
+        q_live[:, 1] *= -1.0
     # the SCARA base has no 'down': put the recording's mean shoulder angle at the middle of J1's
     # range (a calibration constant of the mapping, like the LR Mate's workspace scaling)
     off = np.array([np.mean(q_true[:, 0]), 0.0])
@@ -347,8 +365,8 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
                    side: str | None = None, dt: float = 0.001, controller: ComputedTorqueLQ | None = None,
                    workcell=None, predictor_psd: float = 10.0, max_accel=(60.0, 120.0),
                    jerk_factor: float = 20.0, follow_gain: float = 12.0, offline: bool = False,
-                   predictor=None, smooth_hz: float = 0.0,
-                   follower: bool = True) -> ScaraResult:
+                   predictor=None, smooth_hz: float = 0.0, follower: bool = True,
+                   elbow: str = "flexion") -> ScaraResult:
     """Simulate dynamic imitation of a recording on the SCARA in MuJoCo at 1/dt Hz.
 
     Frames captured at t_k reach the controller at t_k + ``latency``. The reference at time t is the
@@ -378,6 +396,7 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
             (fitted on *other* recordings); default a :class:`KalmanPredictor`.
         smooth_hz: natural frequency [Hz] of the reference model (0: not used).
         follower: shape the estimate with the jerk-limited follower (ignored if ``smooth_hz`` > 0).
+        elbow: the human elbow angle, "planar" or "flexion" (see :func:`arm_angles`).
 
     Returns:
         :class:`ScaraResult`.
@@ -389,7 +408,7 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
     robot = robot or Robot.load("scara2")
     if robot.nq != 2:
         raise InvalidInput(f"simulate_scara needs a 2-joint robot, got {robot.nq}", value=robot.name)
-    t_h, q_true, q_meas = human_reference(skel, side)
+    t_h, q_true, q_meas = human_reference(skel, side, elbow=elbow)
     q_true = np.clip(q_true, robot.lower, robot.upper)
     q_meas = np.clip(q_meas, robot.lower, robot.upper)
     ctrl = controller or ComputedTorqueLQ(robot, dt=dt)
