@@ -66,6 +66,9 @@ UB_FACTOR = 1.5
 SOLVER = "dedicated"
 #: per-step upper bound = this factor x the start's step (and neighbours); 0: one bound for all steps
 LOCAL_UB = 0.0
+#: QP working set of the dedicated CFS: rows whose acceleration at the reference is at least this
+#: fraction of the limit, plus the last active ones; others are added when violated (0: all rows)
+WORKING_SET = 0.5
 #: refinement stops once the spline is within this fraction of the limits
 REFINE_TOL = 0.01
 #: CFS also stops when the total time fell by less than this fraction in one iteration
@@ -444,21 +447,26 @@ def _cfs_tau(H: np.ndarray, f: np.ndarray, lb: np.ndarray, ub: np.ndarray, kk: n
     status, it, qp_iters, flag = "max_iter", 0, 0, 0
     # warm start: the active set of the last QP, carried over by constraint row (a row and its
     # tangent cuts share a row id), passed to DAQP as "active" flags
-    act_b = np.zeros(N, dtype=np.intc)      # simple bounds: 3 active at lb, 1 at ub
+    act_b = np.zeros(N, dtype=np.int32)     # simple bounds: 3 active at lb, 1 at ub
     act_r = np.zeros(R, dtype=bool)
     for it in range(1, max_iter + 1):
         p, ga, gb, h = _rows_lin(z, kk, A2, d1, d0, sign, G)
         ref_ok = bool(R == 0 or p.min() >= -tol)
-        Ablk, lo, up = G, np.concatenate([lb, h]), up0
-        row_of = np.arange(R)
+        if WORKING_SET and ref_ok:
+            # working set: rows whose acceleration at the reference uses WORKING_SET of the limit, and
+            # the last active ones; a row left out enters as soon as a QP solution violates its
+            # linearisation (so every QP solution is that of the full linearisation)
+            inW = (p <= (1.0 - WORKING_SET) * (p + sign * (d1 * z[kk] - d0 * z[kk + 1]))) | act_r
+            row_of = np.flatnonzero(inW)
+            Ablk, lo, up = G[row_of], np.concatenate((lb, h[row_of])), up0[:N + row_of.size]
+        else:
+            inW = np.ones(R, dtype=bool)
+            Ablk, lo, up = G, np.concatenate([lb, h]), up0
+            row_of = np.arange(R)
         x = None
-        for _round in range(max_cuts + 1):
-            sense = np.zeros(lo.size, dtype=np.intc)
-            sense[:N] = act_b
-            if act_r.any():
-                last = np.full(R, -1)
-                last[row_of] = np.arange(row_of.size)  # the newest QP row of each constraint row
-                sense[N + last[act_r]] = 3
+        _round, _ws = 0, 0
+        while _round <= max_cuts:
+            sense = _warm_sense(lo.size, N, act_b, act_r, row_of)
             sol, _fv, flag, info = daqp.solve(Hc, f, Ablk, up, lo, sense, primal_tol=1e-9, iter_limit=2000)
             qp_iters += int(info.get("iterations", 0))
             if flag not in (1, 2) or not np.all(np.isfinite(sol)):
@@ -471,19 +479,27 @@ def _cfs_tau(H: np.ndarray, f: np.ndarray, lb: np.ndarray, ub: np.ndarray, kk: n
                     x = None
                     break
             x = np.asarray(sol, float)
-            lam = np.asarray(info["lam"], float)
-            act_b = np.where(lam[:N] < 0, 3, np.where(lam[:N] > 0, 1, 0)).astype(np.intc)
-            act_r = np.zeros(R, dtype=bool)
-            act_r[row_of[lam[N:] != 0]] = True
+            act_b, act_r = _active_from(np.asarray(info["lam"], float), N, row_of, R)
+            if not inW.all():
+                ids = _rows_lin_violated(x, kk, ga, gb, h, inW, 1e-9)
+                if ids.size and _ws < 20:
+                    _ws += 1
+                    inW[ids] = True
+                    Ablk = np.vstack((Ablk, G[ids]))
+                    lo = np.concatenate((lo, h[ids]))
+                    up = np.concatenate((up, np.full(ids.size, INFV)))
+                    row_of = np.concatenate((row_of, ids))
+                    continue
             if not ref_ok or _round == max_cuts:
                 break
-            C, c = _rows_cuts(x, z, kk, p, ga, gb, mu, tol, N)
+            _round += 1
+            C, c, ids = _rows_cuts(x, z, kk, p, ga, gb, mu, tol, N)
             if c.size == 0:
                 break
-            Ablk = np.vstack([Ablk, C])
-            lo = np.concatenate([lo, c])
-            up = np.concatenate([up, np.full(c.size, INFV)])
-            row_of = np.concatenate([row_of, _rows_bad_ids(x, z, kk, p, ga, gb, mu, tol)])
+            Ablk = np.vstack((Ablk, C))
+            lo = np.concatenate((lo, c))
+            up = np.concatenate((up, np.full(c.size, INFV)))
+            row_of = np.concatenate((row_of, ids))
         if x is None:
             if best is None and it == 1:
                 raise InfeasibleProblem("temporal CFS: the convex subproblem at the start is infeasible "
@@ -554,9 +570,11 @@ def _rows_cuts(x, z, kk, p, ga, gb, mu, tol, N):  # pragma: no cover - compiled
             nb += 1
     C = np.zeros((nb, N))
     c = np.empty(nb)
+    ids = np.empty(nb, dtype=np.int64)
     i = 0
     for r in range(R):
         if bad[r]:
+            ids[i] = r
             k = kk[r]
             da, db = x[k] - z[k], x[k + 1] - z[k + 1]
             gv = p[r] + ga[r] * da + gb[r] * db + 0.5 * mu[r] * (da * da + db * db)
@@ -565,18 +583,45 @@ def _rows_cuts(x, z, kk, p, ga, gb, mu, tol, N):  # pragma: no cover - compiled
             C[i, k + 1] = cb
             c[i] = ca * x[k] + cb * x[k + 1] - gv
             i += 1
-    return C, c
+    return C, c, ids
 
 
 @njit(cache=True)
-def _rows_bad_ids(x, z, kk, p, ga, gb, mu, tol):  # pragma: no cover - compiled
-    """Indices of the rows cut by :func:`_rows_cuts` (same test, same order)."""
+def _rows_lin_violated(x, kk, ga, gb, h, inW, tol):  # pragma: no cover - compiled
+    """Rows outside the working set whose linearisation ga x_a + gb x_b >= h fails at x."""
     out = []
     for r in range(kk.size):
-        da, db = x[kk[r]] - z[kk[r]], x[kk[r] + 1] - z[kk[r] + 1]
-        if p[r] + ga[r] * da + gb[r] * db + 0.5 * mu[r] * (da * da + db * db) < -tol:
+        if not inW[r] and ga[r] * x[kk[r]] + gb[r] * x[kk[r] + 1] - h[r] < -tol * (1.0 + abs(h[r])):
             out.append(r)
     return np.array(out, dtype=np.int64)
+
+
+@njit(cache=True)
+def _warm_sense(m, N, act_b, act_r, row_of):  # pragma: no cover - compiled
+    """DAQP constraint flags (m,) marking the last QP's active set: simple bounds as given, and
+    for every active constraint row its newest QP row (the latest tangent cut, else the row)."""
+    sense = np.zeros(m, dtype=np.int32)
+    sense[:N] = act_b
+    last = np.full(act_r.size, -1)
+    for i in range(row_of.size):
+        last[row_of[i]] = i
+    for r in range(act_r.size):
+        if act_r[r] and last[r] >= 0:
+            sense[N + last[r]] = 3
+    return sense
+
+
+@njit(cache=True)
+def _active_from(lam, N, row_of, R):  # pragma: no cover - compiled
+    """Active set of a DAQP solution by constraint row: bounds (3 lower, 1 upper) and rows."""
+    act_b = np.zeros(N, dtype=np.int32)
+    act_r = np.zeros(R, dtype=np.bool_)
+    for i in range(N):
+        act_b[i] = 3 if lam[i] < 0 else (1 if lam[i] > 0 else 0)
+    for i in range(row_of.size):
+        if lam[N + i] != 0:
+            act_r[row_of[i]] = True
+    return act_b, act_r
 
 
 @njit(cache=True)
