@@ -168,3 +168,18 @@ def test_output_is_scipys_clamped_spline_and_limit_stretch():
     sp = T.spline_segment(res.t, path)
     np.testing.assert_allclose(res.qd, sp(res.t, 1), atol=1e-9)
     np.testing.assert_allclose(res.qdd, sp(res.t, 2), atol=1e-8)
+
+
+def test_working_set_gives_the_full_qp_solutions(monkeypatch):
+    from robointel.planning.qp import DenseQP
+
+    T, path, dx, A = _segment_problem()
+    N = len(dx)
+    tau0 = T.pass_start(dx, VMAX, A)
+    out = []
+    for ws in (0.0, 0.5):
+        monkeypatch.setattr(T, "WORKING_SET", ws)
+        out.append(T._solve_tau(dx, VMAX, A, np.ones(N), tau0, 1.0, 1.0, 1e-7, 60, DenseQP(), keep_iterates=True))
+    assert out[0].iterations == out[1].iterations
+    for a, b in zip(out[0].iterates, out[1].iterates):
+        np.testing.assert_allclose(a, b, rtol=1e-7, atol=1e-10)
