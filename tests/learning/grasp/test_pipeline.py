@@ -81,3 +81,14 @@ def test_lift_and_shake_trial_holds_a_box():
     assert res.plan.search.feasible
     assert res.success, res.reason
     assert res.final_height > 0.08
+
+
+def test_perceived_template_is_in_the_object_frame():
+    from robointel.learning.grasp import perceived_template
+
+    box = primitive_object("box", 5)
+    P = perceived_template(box, rng=0)
+    assert len(P) > 50
+    lo, hi = box.mesh.bounds
+    # a few noisy table pixels next to the object survive background removal: check the bulk
+    assert np.all(np.percentile(P, 2, axis=0) > lo - 0.005) and np.all(np.percentile(P, 98, axis=0) < hi + 0.005)

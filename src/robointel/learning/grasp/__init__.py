@@ -12,7 +12,8 @@ from robointel.learning.grasp.objects import (YCB_CATEGORIES, ObjectModel, demo_
                                               ycb_objects)
 from robointel.learning.grasp.perception import (DepthCamera, cluster_objects, default_cameras, depth_image,
                                                  foreground_points, perceive, voxel_downsample)
-from robointel.learning.grasp.pipeline import GraspPlan, GraspPlanner, TrialResult, grasp_trial, lrmate_with_gripper
+from robointel.learning.grasp.pipeline import (GraspPlan, GraspPlanner, TrialResult, grasp_trial, lrmate_with_gripper,
+                                            perceived_template)
 from robointel.learning.grasp.quality import (GraspQuality, ParallelGripper, estimate_normals, grasp_map,
                                               grasp_quality, isotropy)
 from robointel.learning.grasp.scene import Placement, random_placements, scene_xml
@@ -30,5 +31,5 @@ __all__ = [
     "taught_grasps", "sampled_grasps", "toy_arm", "ycb_object", "ycb_objects",
     "DepthCamera", "cluster_objects", "default_cameras", "depth_image", "foreground_points", "perceive",
     "voxel_downsample", "Placement", "random_placements", "scene_xml",
-    "GraspPlan", "GraspPlanner", "TrialResult", "grasp_trial", "lrmate_with_gripper",
+    "GraspPlan", "GraspPlanner", "TrialResult", "grasp_trial", "lrmate_with_gripper", "perceived_template",
 ]
