@@ -437,8 +437,7 @@ def _cfs_tau(H: np.ndarray, f: np.ndarray, lb: np.ndarray, ub: np.ndarray, kk: n
         return float(0.5 * z @ (Hc @ z) + f @ z)
 
     def feasible(z):
-        return bool(np.all(z >= lb - 1e-9) and np.all(z <= ub + 1e-9) and
-                    (R == 0 or _rows_phi_min(z, kk, A2, d1, d0, sign) >= -tol))
+        return bool(_feasible(z, lb, ub, kk, A2, d1, d0, sign, tol))
 
     z = np.clip(np.asarray(z0, float), lb, ub)
     costs = [cost(z)]
@@ -450,13 +449,12 @@ def _cfs_tau(H: np.ndarray, f: np.ndarray, lb: np.ndarray, ub: np.ndarray, kk: n
     act_b = np.zeros(N, dtype=np.int32)     # simple bounds: 3 active at lb, 1 at ub
     act_r = np.zeros(R, dtype=bool)
     for it in range(1, max_iter + 1):
-        p, ga, gb, h = _rows_lin(z, kk, A2, d1, d0, sign, G)
+        p, ga, gb, h, inW = _rows_lin(z, kk, A2, d1, d0, sign, G, WORKING_SET, act_r)
         ref_ok = bool(R == 0 or p.min() >= -tol)
         if WORKING_SET and ref_ok:
             # working set: rows whose acceleration at the reference uses WORKING_SET of the limit, and
             # the last active ones; a row left out enters as soon as a QP solution violates its
             # linearisation (so every QP solution is that of the full linearisation)
-            inW = (p <= (1.0 - WORKING_SET) * (p + sign * (d1 * z[kk] - d0 * z[kk + 1]))) | act_r
             row_of = np.flatnonzero(inW)
             Ablk, lo, up = G[row_of], np.concatenate((lb, h[row_of])), up0[:N + row_of.size]
         else:
@@ -529,22 +527,39 @@ def _cfs_tau(H: np.ndarray, f: np.ndarray, lb: np.ndarray, ub: np.ndarray, kk: n
 
 
 @njit(cache=True)
-def _rows_lin(z, kk, A2, d1, d0, sign, G):  # pragma: no cover - compiled
-    """phi_r(z), its two partials and the linearisation's right-hand side; writes G in place."""
+def _rows_lin(z, kk, A2, d1, d0, sign, G, ws, act_r):  # pragma: no cover - compiled
+    """phi_r(z), its two partials and the linearisation's right-hand side (writes G in place), and
+    the working-set mask: rows whose acceleration uses at least ``ws`` of the limit, or active."""
     R = kk.size
     p = np.empty(R)
     ga = np.empty(R)
     gb = np.empty(R)
     h = np.empty(R)
+    inW = np.empty(R, dtype=np.bool_)
     for r in range(R):
         a, b = z[kk[r]], z[kk[r] + 1]
-        p[r] = 0.5 * A2[r] * (a + b) * a * b - sign[r] * (d1[r] * a - d0[r] * b)
+        cub = 0.5 * A2[r] * (a + b) * a * b
+        p[r] = cub - sign[r] * (d1[r] * a - d0[r] * b)
+        inW[r] = act_r[r] or p[r] <= (1.0 - ws) * cub
         ga[r] = 0.5 * A2[r] * (2 * a * b + b * b) - sign[r] * d1[r]
         gb[r] = 0.5 * A2[r] * (a * a + 2 * a * b) + sign[r] * d0[r]
         G[r, kk[r]] = ga[r]
         G[r, kk[r] + 1] = gb[r]
         h[r] = ga[r] * a + gb[r] * b - p[r]
-    return p, ga, gb, h
+    return p, ga, gb, h, inW
+
+
+@njit(cache=True)
+def _feasible(z, lb, ub, kk, A2, d1, d0, sign, tol):  # pragma: no cover - compiled
+    """z within its bounds (1e-9) and every (7.8) row phi_r(z) >= -tol."""
+    for i in range(z.size):
+        if z[i] < lb[i] - 1e-9 or z[i] > ub[i] + 1e-9:
+            return False
+    for r in range(kk.size):
+        a, b = z[kk[r]], z[kk[r] + 1]
+        if 0.5 * A2[r] * (a + b) * a * b - sign[r] * (d1[r] * a - d0[r] * b) < -tol:
+            return False
+    return True
 
 
 @njit(cache=True)
