@@ -14,12 +14,16 @@ which are neither convex nor concave: CFS case (7.6), with the Hessian lower bou
 -amax * max(ub_k, ub_{k+1}) on the (tau_k, tau_{k+1}) block (ub: the step bounds). The start/stop
 constraints are simple bounds.
 
-Speed (Table 7.1 workcell, ~2 ms per 19-step segment): every CFS solve starts from a feasible,
-nearly optimal schedule given by a compiled TOPP-like backward/forward pass (:func:`pass_start`),
-so it converges in 3-5 iterations; the iterations themselves run in :func:`_cfs_tau`, Algorithm 2
-written for this problem's two-variable constraint rows (compiled linearisation, cuts and pull-back,
-DAQP warm-started with the active set carried over by row). The general solver
-:func:`robointel.planning.cfs.cfs` gives the same iterates (``SOLVER = "general"``).
+Speed (Table 7.1 workcell: 0.4-2.7 ms CPU per 19-step segment, was 6-16 ms): every CFS solve
+starts from a feasible, nearly optimal schedule given by a compiled TOPP-like backward/forward pass
+(:func:`pass_start`), so it converges in 3-6 iterations instead of up to ~40 from the uniform step;
+the iterations run in :func:`_cfs_tau`, Algorithm 2 written for this problem's two-variable
+constraint rows (compiled linearisation, tangent cuts and exact pull-back; DAQP on a working set of
+rows near their limit, warm-started with the active set carried over by row), and gives the same
+iterates as the general solver :func:`robointel.planning.cfs.cfs` (``SOLVER = "general"``). The
+spline checks between refinement rounds and the final stretch use a compiled clamped-spline solve
+(:func:`_clamped_spline_knots`, the same spline as scipy's ``CubicSpline``). Compiled with numba
+(``cache=True``): the very first call in a fresh environment compiles for a few seconds.
 The quadratic term (w4) penalises changes of the time step, i.e. the jerkiness of the discrete
 acceleration profile; it also makes the cost strictly convex as Algorithm 2 requires.
 
@@ -83,8 +87,9 @@ class TemporalResult:
         t: (N+1,) knot times, s, starting at 0.
         q, qd, qdd: (N+1, n) positions, velocities, accelerations of the spline at the knots.
         tau: (N,) optimised intervals before the limit stretch, s.
-        tau0: (N,) the feasible starting schedule of the first CFS solve, s (the smallest
-            feasible uniform step; the input's fixed dt is not used as a floor).
+        tau0: (N,) the feasible starting schedule of the first CFS solve, s (see :data:`START`:
+            by default the forward/backward pass :func:`pass_start`; the input's fixed dt is not
+            used as a floor).
         stretch: uniform time factor applied after CFS to meet the limits on a 1 ms grid (>= 1).
         cfs: the CFS result.
         seconds: wall time of the CFS solve, s.
@@ -755,10 +760,11 @@ def temporal_optimize(path, vmax, amax, *, dt: float | None = None, w3: float = 
 
     After each CFS solve the spline through the re-timed knots is compared with the limits: at
     knots where the spline's acceleration exceeds the limit (or intervals where its velocity does)
-    the limit used by (7.8) is tightened by that ratio, and CFS is re-run warm-started from the
-    previous schedule scaled to be feasible (``refine`` rounds at most, stopping once the spline is
-    within 0.5 % of the limits). The shortest result is kept and finally stretched uniformly so
-    that the spline meets the limits exactly on the dense grid.
+    the limit used by (7.8) is tightened by that ratio (and its neighbours' a little, see
+    :data:`REFINE_MODE`), and CFS is re-run from the forward/backward pass under the new limits
+    (``refine`` rounds at most, stopping once the spline is within :data:`REFINE_TOL` of the limits).
+    The shortest result is kept and finally stretched uniformly so that the spline meets the limits
+    exactly (knots and every piece's velocity extremum).
 
     Args:
         path: (N+1, n) path points (rad), N >= 1; zero velocity at both ends.
