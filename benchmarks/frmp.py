@@ -163,6 +163,7 @@ def main() -> None:
         "sqp_cost": sqp_cost, "cfs_cost": cfs_cost,
         "speedup_vs_sqp": speedup,
         "temporal_ms": tmp_med, "temporal_cpu_ms": tmp_cpu_med, "temporal_stretch": [t.stretch for t in res.temporal],
+        "temporal_cfs_iterations": [t.cfs.iterations for t in res.temporal],
         "operational_time_fixed_s": res.operational_time_fixed,
         "operational_time_frmp_s": res.operational_time_frmp,
         "toppra_time_s": toppra_time, "toppra_ms": top_ms,
