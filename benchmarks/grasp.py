@@ -1,7 +1,7 @@
 """Chapter 6 measured: CPD beside pycpd and probreg, classification by registration residual,
 MuJoCo lift-and-shake grasp trials and the per-object transfer time.
 
-    python benchmarks/grasp.py [--json] [--quick] [--skip-trials]
+    python benchmarks/grasp.py [--json] [--quick] [--skip-trials] [--only classification|CATEGORY,...]
 
 * CPD exactness: our exact dense non-rigid/rigid/affine CPD against pycpd on fish and bunny with the
   same parameters (max |TY_ours - TY_pycpd|).
@@ -130,7 +130,7 @@ def _fits(obj, gripper) -> bool:
     return bool(sampled_grasps(obj, 1, gripper=gripper))
 
 
-def bench_grasping(quick: bool, trials: bool, per_category: int) -> dict:
+def bench_grasping(quick: bool, trials: bool, per_category: int, trial_categories=None) -> dict:
     import mujoco
 
     from robointel.learning.grasp import (GraspPlanner, Template, confusion_matrix, default_cameras, depth_image,
@@ -177,8 +177,10 @@ def bench_grasping(quick: bool, trials: bool, per_category: int) -> dict:
            "transfer_ms": median(plan_ms), "templates": [t.name for t in templates]}
     if not trials:
         return out
-    succ, n, per_cat, excluded = 0, 0, {}, []
+    succ, n, per_cat, excluded, failures = 0, 0, {}, [], {}
     for cat, lst in objs.items():
+        if trial_categories and cat not in trial_categories:
+            continue  # note: the placements of later categories then differ from a full run
         held = [o for o in lst[1:] if _fits(o, planner.gripper)]
         excluded += [o.name for o in lst[1:] if not _fits(o, planner.gripper)]
         if not held:
@@ -189,11 +191,14 @@ def bench_grasping(quick: bool, trials: bool, per_category: int) -> dict:
             p = random_placements([o], rng)[0]
             r = grasp_trial(o, p, planner, rng=rng)
             s += int(r.success)
+            if not r.success:
+                failures.setdefault(cat, []).append(f"{o.name}: {r.reason}")
         per_cat[cat] = [s, per_category]
         succ += s
         n += per_category
     out.update({"grasp_success": succ / max(n, 1), "grasp_trials": n, "grasp_successes": succ,
                 "grasp_success_per_category": per_cat, "grasp_excluded_too_wide": excluded,
+                "grasp_failures": failures,
                 "grasp_success_paper": PAPER["grasp_success"]})
     return out
 
@@ -205,13 +210,22 @@ def main() -> None:
     ap.add_argument("--skip-trials", action="store_true", help="no MuJoCo trials")
     ap.add_argument("--skip-cpd", action="store_true")
     ap.add_argument("--skip-grasping", action="store_true")
+    ap.add_argument("--only", default=None,
+                    help="comma list: 'classification' (no CPD, no trials) and/or trial categories "
+                         "(e.g. clamp,long_tool: CPD skipped, classification still run)")
     args = ap.parse_args()
+    only = set(args.only.split(",")) if args.only else None
+    if only:
+        args.skip_cpd = True
+        if only == {"classification"}:
+            args.skip_trials = True
     out = {"load_average_start": os.getloadavg()[0]}
     t0 = time.perf_counter()
     if not args.skip_cpd:
         out.update(bench_cpd(args.quick))
     if not args.skip_grasping:
-        out.update(bench_grasping(args.quick, not args.skip_trials, 4 if args.quick else 20))
+        out.update(bench_grasping(args.quick, not args.skip_trials, 4 if args.quick else 20,
+                                   trial_categories=(only - {'classification'}) or None if only else None))
     out["load_average_end"] = os.getloadavg()[0]
     out["wall_s"] = time.perf_counter() - t0
     if args.json:
