@@ -721,10 +721,11 @@ class AdmittanceGains:
     hole top is within ``rim_zone`` (where the cylinder meets the rim: the tip sphere's centre at the
     top; a tilted peg wedges there within a few ms at the nominal speed), and ``torque_filter_hz``
     gives the torque about the compliance centre its own low-pass (from the raw wrench) against the
-    contact chatter. Measured (50 trials, 20-demonstration skill): with rim_speed=1 mm/s,
+    contact chatter. Measured on the benchmark's 50 starts with rim_speed=1 mm/s,
     rim_zone=(12.5, 15.5) mm, axial_damping=800, inertia=0.2, rot_damping=0.2, torque_filter_hz=5:
-    17/50 (1-2 deg: 4/17) against 13/50 (0/17) with the defaults, but neighbouring settings gave
-    9-12/50 and the CI trial became slower than the time limit, so the defaults are unchanged."""
+    17/50 against 13/50 with a 20-demonstration skill, but 7/50 against 11/50 with the benchmark's
+    60-demonstration skill, and neighbouring settings gave 9-12/50: no robust gain, so the defaults
+    leave both off."""
 
     center_from_tip: float | None = None  # compliance centre behind the tip (m); None: the tip sphere's centre
     mass: float = 10.0
