@@ -12,18 +12,8 @@ import json
 import time
 
 import numpy as np
+from _timing import median_us
 import pinocchio as pin
-
-
-def median_us(fn, reps: int = 2000, inner: int = 10) -> float:
-    fn()
-    times = []
-    for _ in range(reps // inner):
-        t = time.perf_counter()
-        for _ in range(inner):
-            fn()
-        times.append((time.perf_counter() - t) / inner)
-    return float(np.median(times) * 1e6)
 
 
 def main() -> None:

@@ -16,17 +16,7 @@ import time
 
 import mujoco
 import numpy as np
-
-
-def median_us(fn, reps: int = 3000, inner: int = 10) -> float:
-    fn()
-    times = []
-    for _ in range(reps // inner):
-        t = time.perf_counter()
-        for _ in range(inner):
-            fn()
-        times.append((time.perf_counter() - t) / inner)
-    return float(np.median(times) * 1e6)
+from _timing import median_us
 
 
 def test_trajectory(q0, q1, T=2.0, n=201):
