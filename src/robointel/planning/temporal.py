@@ -287,21 +287,13 @@ def _start(dx, vmax, amax_k, vscale, h_min) -> np.ndarray:
 
 
 @njit(cache=True)
-def _clamped_ratios(t, y, vmax, amax, sub):  # pragma: no cover - compiled
-    """Knot accelerations of the clamped C2 cubic spline (Thomas algorithm on the moment equations)
-    over amax, and the largest |velocity| / vmax at ``sub - 1`` interior samples of each piece."""
+def _clamped_moments(h, y, M, cp, dp):  # pragma: no cover - compiled
+    """Knot second derivatives M (N+1, n) of the clamped C2 cubic spline (zero end slopes) through
+    y with interval lengths h (N,): the moment equations solved by the Thomas algorithm (sub-
+    diagonal a, diagonal b, super-diagonal c, right-hand side r). cp, dp: (N+1,) work arrays."""
     N1, n = y.shape
     N = N1 - 1
-    h = np.empty(N)
-    for i in range(N):
-        h[i] = t[i + 1] - t[i]
-    ra = np.zeros(N1)
-    rv = np.zeros(N)
-    M = np.empty((N1, n))
-    cp = np.empty(N1)
-    dp = np.empty(N1)
     for j in range(n):
-        # tridiagonal system: sub-diagonal a, diagonal b, super-diagonal c, right-hand side r
         for i in range(N1):
             if i == 0:
                 a_, b_, c_ = 0.0, 2 * h[0], h[0]
@@ -322,6 +314,24 @@ def _clamped_ratios(t, y, vmax, amax, sub):  # pragma: no cover - compiled
         M[N, j] = dp[N]
         for i in range(N - 1, -1, -1):
             M[i, j] = dp[i] - cp[i] * M[i + 1, j]
+
+
+@njit(cache=True)
+def _clamped_ratios(t, y, vmax, amax, sub):  # pragma: no cover - compiled
+    """Knot accelerations of the clamped C2 cubic spline (Thomas algorithm on the moment equations)
+    over amax, and the largest |velocity| / vmax at ``sub - 1`` interior samples of each piece."""
+    N1, n = y.shape
+    N = N1 - 1
+    h = np.empty(N)
+    for i in range(N):
+        h[i] = t[i + 1] - t[i]
+    ra = np.zeros(N1)
+    rv = np.zeros(N)
+    M = np.empty((N1, n))
+    cp = np.empty(N1)
+    dp = np.empty(N1)
+    _clamped_moments(h, y, M, cp, dp)
+    for j in range(n):
         for i in range(N1):
             ra[i] = max(ra[i], abs(M[i, j]) / amax[j])
         for i in range(N):
@@ -347,29 +357,11 @@ def _clamped_spline_knots(t, y, vmax, amax):  # pragma: no cover - compiled
     dp = np.empty(N1)
     rv = 0.0
     ra = 0.0
+    h = np.empty(N)
+    for i in range(N):
+        h[i] = t[i + 1] - t[i]
+    _clamped_moments(h, y, M, cp, dp)
     for j in range(n):
-        for i in range(N1):
-            if i == 0:
-                a_, b_, c_ = 0.0, 2 * (t[1] - t[0]), t[1] - t[0]
-                r_ = 6 * ((y[1, j] - y[0, j]) / (t[1] - t[0]))
-            elif i == N:
-                h0 = t[N] - t[N - 1]
-                a_, b_, c_ = h0, 2 * h0, 0.0
-                r_ = -6 * ((y[N, j] - y[N - 1, j]) / h0)
-            else:
-                h0, h1 = t[i] - t[i - 1], t[i + 1] - t[i]
-                a_, b_, c_ = h0, 2 * (h0 + h1), h1
-                r_ = 6 * ((y[i + 1, j] - y[i, j]) / h1 - (y[i, j] - y[i - 1, j]) / h0)
-            if i == 0:
-                cp[0] = c_ / b_
-                dp[0] = r_ / b_
-            else:
-                den = b_ - a_ * cp[i - 1]
-                cp[i] = c_ / den
-                dp[i] = (r_ - a_ * dp[i - 1]) / den
-        M[N, j] = dp[N]
-        for i in range(N - 1, -1, -1):
-            M[i, j] = dp[i] - cp[i] * M[i + 1, j]
         for i in range(N):
             hi = t[i + 1] - t[i]
             slope = (y[i + 1, j] - y[i, j]) / hi
