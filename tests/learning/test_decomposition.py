@@ -64,3 +64,27 @@ def test_bad_input():
     seg = ActionSegmenter(window=20).fit([x], [l])
     with pytest.raises(ShapeError):
         seg.predict(x[:, :5])
+
+
+def test_precomputed_kernel_svm_equals_rbf_svc():
+    """The segmenter evaluates the RBF kernel with BLAS and hands it to libsvm precomputed; its score
+    map equals scikit-learn's ``SVC(kernel="rbf")`` trained on the same aligned-window descriptors."""
+    from sklearn.svm import SVC
+
+    rng = np.random.default_rng(5)
+    train = [_series(rng) for _ in range(3)]
+    seg = ActionSegmenter(window=20, band=4, stride=3, max_train_windows=10**6)
+    seg.fit([x for x, _ in train], [l for _, l in train])
+    D, y = [], []
+    for x, l in train:
+        z = np.ascontiguousarray((x - seg.mean_) / seg.scale_)
+        c = np.arange(0, len(x), seg.stride)
+        D.append(seg._descriptor_all(z, c))
+        y.append(l[c])
+    ref = SVC(C=seg.C, gamma="scale", kernel="rbf", class_weight="balanced",
+              decision_function_shape="ovr").fit(np.concatenate(D), np.concatenate(y))
+    x, _ = _series(rng)
+    S, c = seg.score_map(x)
+    z = np.ascontiguousarray((x - seg.mean_) / seg.scale_)
+    np.testing.assert_allclose(S, ref.decision_function(seg._descriptor_all(z, c)).T, atol=1e-6)
+    np.testing.assert_array_equal(np.sort(seg.svm_.support_), np.sort(ref.support_))

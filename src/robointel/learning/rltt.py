@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from robointel.errors import InvalidInput
 from robointel.learning.decomposition import ActionSegmenter, demo_features
@@ -52,6 +53,15 @@ def learn_insertion(demos: Sequence[Demonstration], *, n_labelled: int = 20, ref
                            "and at least one labelled", value=n_labelled)
     if any(d.labels is None for d in demos[:n_labelled]):
         raise InvalidInput("the first n_labelled demonstrations must carry labels")
+    # every linear-algebra call below is small (10-D EM steps, ~1000 x 1000 kernels): OpenBLAS's
+    # thread start-up and spin-waiting cost 10-100x the arithmetic there, on a shared machine most
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _learn_insertion(demos, n_labelled, reference, sync_window, seg_window, seg_band, n_components,
+                                only_successful)
+
+
+def _learn_insertion(demos, n_labelled, reference, sync_window, seg_window, seg_band, n_components,
+                     only_successful) -> LearnedInsertion:
     t0 = time.perf_counter()
     feats = [demo_features(d) for d in demos]
     allf = np.concatenate(feats)
