@@ -59,7 +59,8 @@ def _rot(axis, angle) -> np.ndarray:
 def _exp(w) -> np.ndarray:
     """Rotation matrix of the rotation vector ``w`` (3,)."""
     a = float(np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]))
-    return np.eye(3) if a < 1e-15 else _rot(w, a)
+    # mju_axisAngle2Quat expects a unit axis: passing w itself rotated by |w|^2, not |w|
+    return np.eye(3) if a < 1e-15 else _rot(np.asarray(w, float) / a, a)
 
 
 def _log(R) -> np.ndarray:
@@ -664,7 +665,8 @@ class RobotPegHole:
                 # the skill moves the equilibrium and the commanded pose (velocity feed-forward) ...
                 x_0 = x_0 + v_s * dt
                 x_0 = x_0 + a * (a @ (x_c - x_0))  # no axial spring: the axis is force controlled
-                R_0 = _exp(w_s * dt) @ R_0
+                if g.rotate:
+                    R_0 = _exp(w_s * dt) @ R_0
                 # ... and the admittance (virtual mass-spring-damper about the compliance centre) adds
                 # the deviation driven by the low-passed environment wrench, world frame
                 w_f += alpha * (w - w_f)
@@ -689,7 +691,8 @@ class RobotPegHole:
                 w_c = w_c + Tq / g.inertia * dt
                 w_c = w_c - (w_c @ a) * a
             x_c = x_c + v_c * dt
-            R_c = _exp(w_c * dt) @ R_c
+            if g.rotate:
+                R_c = _exp(w_c * dt) @ R_c
             # commanded tool pose -> flange twist -> joint reference of the PID servo
             Tf = self.robot.fk(q_ref)
             p_f = Tf[:3, 3]
@@ -709,6 +712,179 @@ class RobotPegHole:
         return TrialResult(seated and ok_pen, seated, depth, max_pen, float(self.data.time), max_force, reason,
                            np.array(logs_t), np.array(logs_tip), np.array(logs_w), np.array(logs_tw))
 
+    def impedance(self, gains: "ImpedanceGains | None" = None) -> "CartesianImpedance":
+        """The torque-level :class:`CartesianImpedance` of this cell (Pinocchio model with the tool
+        as payload and the armature), compliance centre on the tool axis (default: the tip sphere's
+        centre)."""
+        g = gains or ImpedanceGains()
+        back = g.center_from_tip if g.center_from_tip is not None else self.tool.radius
+        T_fc = self.T_flange_tool.copy()
+        T_fc[:3, 3] = R_FLANGE_TOOL @ np.array([0.0, 0.0, self.tool.tip - back])
+        return CartesianImpedance(self.controller.model, self.robot.flange_frame, T_fc, g, self.robot.viscous,
+                                  self.robot.coulomb, self.controller.effort_limit)
+
+    def run_impedance(self, policy: Callable[[np.ndarray], np.ndarray] | None, T_start: np.ndarray, *,
+                      time_limit: float = 10.0, gains: "ImpedanceGains | None" = None, v_push: float = 0.008,
+                      probe: bool = True, f_abort: float = 150.0, skill_dt: float = 0.01,
+                      force_noise: float = 0.05, torque_noise: float = 0.002, settle: float = 0.3,
+                      seed: int = 0) -> TrialResult:
+        """One insertion from ``T_start`` (4x4 tool pose) under torque-level Cartesian impedance
+        (:class:`CartesianImpedance`): the motors get tau = J^T W + h(q, qd) + friction; there is no
+        joint position servo.
+
+        1. ``probe`` (default on): the hole's axis is measured by touch before inserting. The tip
+           sphere touches the flat top face of the hole part at three points around the hole
+           (:attr:`ImpedanceGains.probe_radius` from the nominal axis, 120 deg apart, lowered along the
+           tool axis at ``probe_speed`` until the felt axial force exceeds ``probe_force``); the
+           sphere centres at first touch lie on a plane parallel to the face, whose normal (the
+           face is perpendicular to the bore) is the hole axis. The equilibrium is then rotated
+           about the compliance centre (the tip sphere's centre) to put the tool axis on it, and
+           moved back over the nominal hole position. Only the F/T sensor and the robot's own
+           kinematics are used; the true hole pose is never read.
+        2. insertion: with a ``policy`` (the skill: wrench (6,) tool frame -> tool twist
+           [vx, vy, vz, wx, wy]) the skill moves the impedance equilibrium (lateral, and rotation
+           about the compliance centre) and sets the axial speed of the force-limited axial damper
+           (so the axial force is bounded by ``axial_damping`` x its speed). ``policy=None``
+           replaces the skill by a constant axial push at ``v_push`` with the equilibrium fixed
+           (what the compliant controller does without the skill).
+
+        Success as in :meth:`run`: tip within 1 mm of the bottom, wall penetration below half the
+        clearance, within ``time_limit`` s (probing included).
+        """
+        g = gains or ImpedanceGains()
+        imp = self.impedance(g)
+        rng = np.random.default_rng(seed)
+        q0 = self.ik(T_start)
+        d, m = self.data, self.model
+        mujoco.mj_resetData(m, d)
+        d.qpos[self.qadr] = q0
+        mujoco.mj_forward(m, d)
+        imp.set_gains(q0)
+        dt = float(m.opt.timestep)
+        n_skill = max(1, int(round(skill_dt / dt)))
+        tool = self.tool
+        bottom = self.task.bottom_z
+        st = {"k": 0, "max_pen": 0.0, "max_force": 0.0, "stop": None, "tw": np.zeros(5)}
+        logs_t, logs_tip, logs_w, logs_tw = [], [], [], []
+        n_live = int(time_limit / dt)
+
+        def step(x0, R0, v_ref):
+            """One 1 ms control period; returns the measured tool pose, wrench and centre pose."""
+            q, qd = d.qpos[self.qadr], d.qvel[self.vadr]
+            tau, _ = imp.torque(q, qd, x0, R0, v_ref)
+            d.ctrl[self.aid] = tau
+            mujoco.mj_step(m, d)
+            T = self.ft.pose(d)
+            w = self.ft.wrench(d, T[:3, :3])
+            w[:3] += force_noise * rng.standard_normal(3)
+            w[3:] += torque_noise * rng.standard_normal(3)
+            x, R, _, _ = imp.pose_twist(d.qpos[self.qadr], d.qvel[self.vadr])
+            return T, w, x, R
+
+        # hold the start pose (gravity compensated) for ``settle`` s
+        x0, R0, _, _ = imp.pose_twist(q0, np.zeros(len(q0)))
+        for _ in range(int(settle / dt)):
+            step(x0, R0, 0.0)
+
+        def live(x0, R0, v_ref):
+            T, w, x, R = step(x0, R0, v_ref)
+            st["x"] = x
+            k = st["k"]
+            st["k"] += 1
+            tip = _tip(T, tool)
+            fmag = float(np.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2))
+            st["max_force"] = max(st["max_force"], fmag)
+            st["max_pen"] = max(st["max_pen"], _wall_penetration(d, self._walls[0], self._walls[1], self._peg))
+            if k % 10 == 0:
+                logs_t.append(k * dt)
+                logs_tip.append(tip)
+                logs_w.append(w)
+                logs_tw.append(st["tw"].copy())
+            if tip[2] - bottom <= 1e-3:
+                st["stop"] = "seated"
+            elif fmag > f_abort:
+                st["stop"] = "force limit (safety stop)"
+            elif st["k"] >= n_live:
+                st["stop"] = "time limit"
+            return T, w, x, R
+
+        def move(x0, R0, target, speed):
+            """Move the equilibrium's lateral position to ``target`` (min-jerk); the axial channel
+            holds the axial position with a P law through the damper."""
+            start = x0.copy()
+            n = max(1, int(np.linalg.norm(target - start) / speed / dt))
+            x, R = x0, R0
+            ax0 = None
+            for i in range(1, n + 1):
+                s = _minjerk(i / n)
+                x0 = start + s * (target - start)
+                T, w, x, R = live(x0, R0, 0.0 if ax0 is None else float(g.probe_gain * (R[:, 2] @ (x0 - x))))
+                ax0 = True
+                if st["stop"]:
+                    break
+            return x0
+
+        x_start = x0.copy()
+        st["x"] = x0.copy()
+        if probe:
+            a = R0[:, 2]
+            pts = []
+            for phi in (0.0, 2 * np.pi / 3, 4 * np.pi / 3):
+                off = R0 @ np.array([np.cos(phi), np.sin(phi), 0.0]) * g.probe_radius
+                x0 = move(x0, R0, x_start + off, g.probe_move_speed)
+                touched = None
+                i = 0
+                x_top = st["x"].copy()
+                while not st["stop"]:
+                    i += 1  # speed ramped over 0.1 s: the tool's inertial force stays below the threshold
+                    # fast for the first probe_fast_depth, then slow: a gentle touch
+                    v = g.probe_speed if a @ (st["x"] - x_top) < g.probe_fast_depth else g.probe_touch_speed
+                    T, w, x, R = live(x0 + a * (a @ (st["x"] - x0)), R0, v * min(1.0, i * dt / 0.1))
+                    if -w[2] > g.probe_force:
+                        touched = x.copy()
+                        break
+                if st["stop"]:
+                    break
+                pts.append(touched)
+                x0 = move(x0 + a * (a @ (touched - x0)), R0, x_start + off - a * g.probe_lift, g.probe_move_speed)
+                x0 = x_start + off - a * g.probe_lift
+            if len(pts) == 3 and not st["stop"]:
+                nrm = np.cross(pts[1] - pts[0], pts[2] - pts[0])
+                nrm = nrm / np.linalg.norm(nrm)
+                if nrm @ a < 0:
+                    nrm = -nrm
+                # rotate the equilibrium about the compliance centre: tool axis onto the measured axis
+                R0 = _exp(np.arcsin(np.clip(np.linalg.norm(np.cross(a, nrm)), 0, 1))
+                          * np.cross(a, nrm) / max(np.linalg.norm(np.cross(a, nrm)), 1e-12)) @ R0
+                x0 = move(x0, R0, x_start, g.probe_move_speed)
+            self.last_probe = {"points": np.array(pts), "axis": nrm if len(pts) == 3 else None,
+                               "time": st["k"] * dt}
+        # insertion
+        imp.set_gains(d.qpos[self.qadr].copy(), lateral_stiffness=g.insert_lateral_stiffness)
+        tw = np.zeros(5)
+        kk = 0
+        T, w, x, R = live(x0, R0, 0.0) if not st["stop"] else (None, None, None, None)
+        while not st["stop"]:
+            if policy is None:
+                tw = np.array([0.0, 0.0, v_push, 0.0, 0.0])
+            elif kk % n_skill == 0:
+                tw = np.asarray(policy(w), float)
+            st["tw"] = tw
+            kk += 1
+            x0 = x0 + R @ np.array([tw[0], tw[1], 0.0]) * dt
+            x0 = x0 + R[:, 2] * (R[:, 2] @ (x - x0))  # no axial spring: the axis is force controlled
+            if g.skill_rotation:
+                R0 = _exp(R @ np.array([tw[3], tw[4], 0.0]) * dt) @ R0
+            T, w, x, R = live(x0, R0, float(tw[2]))
+        reason = st["stop"]
+        seated = reason == "seated"
+        max_pen = st["max_pen"]
+        depth = float(_tip(self.ft.pose(d), tool)[2] - bottom)
+        ok_pen = max_pen < 0.5 * self.task.clearance
+        if seated and not ok_pen:
+            reason = "seated but wall penetration exceeded half the clearance"
+        return TrialResult(seated and ok_pen, seated, depth, max_pen, st["k"] * dt, st["max_force"], reason,
+                           np.array(logs_t), np.array(logs_tip), np.array(logs_w), np.array(logs_tw))
 
 @dataclass(frozen=True)
 class AdmittanceGains:
@@ -728,6 +904,10 @@ class AdmittanceGains:
     leave both off."""
 
     center_from_tip: float | None = None  # compliance centre behind the tip (m); None: the tip sphere's centre
+    #: rotate the commanded pose (rotational admittance). Off by default: every figure measured on this
+    #: path (11/50) was taken while ``_exp`` rotated by |w|^2 instead of |w| (a bug, now fixed), i.e. with
+    #: the rotation effectively off; turning it on now gives a different, unmeasured controller.
+    rotate: bool = False
     mass: float = 10.0
     lateral_stiffness: float = 300.0
     lateral_damping: float = 1000.0
@@ -740,6 +920,128 @@ class AdmittanceGains:
     torque_filter_hz: float | None = None  # own low-pass of the torque about the centre (None: force_filter_hz)
     rim_speed: float | None = None  # axial speed limit (m/s) while the tip depth is within rim_zone
     rim_zone: tuple[float, float] = (0.0125, 0.0155)  # tip depth below the hole top (m): the cylinder meets the rim
+
+
+# ------------------------------------------------------------------------------ torque-level impedance
+@dataclass(frozen=True)
+class ImpedanceGains:
+    """Gains of :class:`CartesianImpedance` (SI units), all expressed in the tool frame at the
+    compliance centre (default: the centre of the peg's hemispherical tip).
+
+    Lateral (tool x, y): spring ``lateral_stiffness`` (N/m) to the equilibrium, damper
+    ``lateral_damping`` (N s/m; None: critical, 2 sqrt(K Lambda_ii) with the operational-space
+    inertia Lambda at the start). Axial (tool z): no spring; force = ``axial_damping`` x (skill
+    speed - speed), clipped to +-``max_axial_force`` (N): a force-limited damper, so the axial
+    contact force is set by the skill's velocity. Rotation about the tool x, y axes through the
+    centre: spring ``rot_stiffness`` (N m/rad), damper ``rot_damping`` (None: critical); about the
+    tool axis: ``twist_stiffness`` (N m/rad, critical damping). ``friction_compensation`` adds the
+    URDF's viscous + Coulomb joint friction at the measured joint velocity (Coulomb smoothed by
+    tanh(qd / ``friction_velocity``)).
+    """
+
+    center_from_tip: float | None = None
+    lateral_stiffness: float = 2000.0
+    lateral_damping: float | None = None
+    axial_damping: float = 1000.0
+    max_axial_force: float = 20.0
+    rot_stiffness: float = 300.0
+    rot_damping: float | None = None
+    twist_stiffness: float = 50.0
+    damping_ratio: float = 1.0
+    friction_compensation: bool = True
+    friction_velocity: float = 0.01
+    skill_rotation: bool = False  # let the skill's [wx, wy] rotate the equilibrium while inserting
+    insert_lateral_stiffness: float | None = 300.0  # N/m while inserting (None: lateral_stiffness)
+    probe_radius: float = 0.0187  # lateral offset (m) of the touches from the nominal hole axis
+    probe_speed: float = 0.02  # m/s toward the face for the first probe_fast_depth
+    probe_fast_depth: float = 0.0015  # m
+    probe_touch_speed: float = 0.006  # m/s after that, until the touch
+    probe_force: float = 2.0  # N: a touch
+    probe_lift: float = 0.001  # m back off after a touch
+    probe_move_speed: float = 0.08  # m/s mean speed of the lateral moves
+    probe_gain: float = 20.0  # 1/s: axial position hold while moving (speed = gain x axial error)
+
+
+class CartesianImpedance:
+    """Torque-level Cartesian impedance about a compliance centre on the tool (hybrid
+    position/force control as on a torque-controlled arm):
+
+        tau = J_c(q)^T W + h(q, qd) + tau_f(qd),
+        W = [K_l (x_0 - x)_xy - D_l v_xy ;  clip(D_a (v_ref - v_z), +-f_max) ;
+             K_r log(R_0 R^T)_xy - D_r w_xy ;  K_t log(R_0 R^T)_z - D_t w_z],
+
+    all in the frame of the compliance centre C (tool axes, origin on the tool axis), where
+    J_c is C's 6xn body Jacobian [v; w] (Pinocchio, LOCAL), (x, R) its pose and (v, w) its twist
+    from the measured joints, h = C(q, qd) qd + g(q) the Coriolis/centrifugal and gravity torques of
+    the Pinocchio model with the tool as payload (RNEA at zero acceleration), tau_f the URDF's
+    viscous + Coulomb friction at the measured velocity. (x_0, R_0) is the equilibrium the skill
+    moves; v_ref the axial speed it asks for. The inertia is not shaped: the arm keeps its own
+    operational-space inertia Lambda = (J_c M^-1 J_c^T)^-1 (armature included).
+    """
+
+    def __init__(self, pin_model, flange_frame: str, T_flange_centre: np.ndarray, gains: ImpedanceGains,
+                 viscous, coulomb, effort_limit) -> None:
+        import pinocchio as pin
+
+        self.pin = pin
+        model = pin_model.copy()
+        parent = model.frames[model.getFrameId(flange_frame)]
+        placement = parent.placement * pin.SE3(np.ascontiguousarray(T_flange_centre[:3, :3]),
+                                               np.ascontiguousarray(T_flange_centre[:3, 3]))
+        self.fid = model.addFrame(pin.Frame("compliance_centre", parent.parentJoint, placement,
+                                            pin.FrameType.OP_FRAME))
+        self.model = model
+        self.data = model.createData()
+        self.gains = gains
+        self.viscous = np.asarray(viscous, float)
+        self.coulomb = np.asarray(coulomb, float)
+        self.effort = np.asarray(effort_limit, float)
+        self.K = np.zeros(6)
+        self.D = np.zeros(6)
+
+    def pose_twist(self, q, qd) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Pose (x (3,), R (3,3)), body twist [v; w] (6,) of the centre and its LOCAL Jacobian (6, n)."""
+        pin, m, d = self.pin, self.model, self.data
+        pin.forwardKinematics(m, d, q, qd)
+        pin.updateFramePlacement(m, d, self.fid)
+        M = d.oMf[self.fid]
+        tw = pin.getFrameVelocity(m, d, self.fid, pin.LOCAL)
+        J = pin.computeFrameJacobian(m, d, q, self.fid, pin.LOCAL)
+        return M.translation.copy(), M.rotation.copy(), np.concatenate([tw.linear, tw.angular]), J
+
+    def set_gains(self, q, *, lateral_stiffness: float | None = None) -> None:
+        """Stiffness K and damping D (6,) for the operational inertia at ``q`` (critical where None);
+        ``lateral_stiffness`` overrides the gains' (N/m)."""
+        pin, m, d = self.pin, self.model, self.data
+        g = self.gains
+        if lateral_stiffness is not None:
+            g = replace(g, lateral_stiffness=float(lateral_stiffness))
+        J = pin.computeFrameJacobian(m, d, q, self.fid, pin.LOCAL)
+        Minv = pin.computeMinverse(m, d, q)
+        Minv = np.triu(Minv) + np.triu(Minv, 1).T
+        lam = np.diag(np.linalg.inv(J @ Minv @ J.T))
+        self.K = np.array([g.lateral_stiffness, g.lateral_stiffness, 0.0, g.rot_stiffness, g.rot_stiffness,
+                           g.twist_stiffness])
+        crit = 2.0 * g.damping_ratio * np.sqrt(self.K * lam)
+        self.D = crit.copy()
+        if g.lateral_damping is not None:
+            self.D[:2] = g.lateral_damping
+        if g.rot_damping is not None:
+            self.D[3:5] = g.rot_damping
+        self.D[2] = 0.0
+        self.lam = lam
+
+    def torque(self, q, qd, x0, R0, v_ref: float) -> tuple[np.ndarray, np.ndarray]:
+        """Joint torques (n,) N m (clipped to the effort limits) and the commanded wrench W (6,)."""
+        x, R, tw, J = self.pose_twist(q, qd)
+        e = np.concatenate([R.T @ (x0 - x), R.T @ _log(R0 @ R.T)])
+        W = self.K * e - self.D * tw
+        g = self.gains
+        W[2] = float(np.clip(g.axial_damping * (v_ref - tw[2]), -g.max_axial_force, g.max_axial_force))
+        tau = J.T @ W + self.pin.rnea(self.model, self.data, q, qd, np.zeros_like(q))
+        if g.friction_compensation:
+            tau += self.viscous * qd + self.coulomb * np.tanh(qd / g.friction_velocity)
+        return np.clip(tau, -self.effort, self.effort), W
 
 
 def random_start_errors(rng: np.random.Generator, n: int, *, lateral: float = 1e-3,
