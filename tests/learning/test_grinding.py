@@ -31,3 +31,18 @@ def test_force_controlled_reproduction_tracks_setpoint(setup):
     assert res.force.shape == res.setpoint.shape and len(res.force) > 50
     assert res.rms_rel_setpoint < 0.15  # the robot's force follows the learned set-point
     assert np.all(np.isfinite(res.force))
+
+
+def test_default_strokes_cover_the_plate():
+    """By default the strokes are at most one tool diameter apart, so the sensor samples the whole
+    plate (no unground stripe wider than the tool between strokes)."""
+    from robointel.errors import InvalidInput
+
+    plate = Plate()
+    d = demonstrate_grinding(plate, np.random.default_rng(4), speed=0.4)
+    X, _ = GrindingSkill(plate).samples(d)
+    y = np.sort(X[np.abs(X[:, 0]) < 0.05, 1])  # away from the turnarounds at the plate's edges
+    assert np.diff(y).max() <= 2 * plate.tool().radius + 1e-3
+    assert y[0] < plate.hard_spots[0][1] and y[-1] > plate.hard_spots[1][1]
+    with pytest.raises(InvalidInput):
+        demonstrate_grinding(plate, np.random.default_rng(0), lines=0)
