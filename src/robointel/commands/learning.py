@@ -173,7 +173,7 @@ def run_insertion(out: Path, *, demos: int, labelled: int, trials: int, seed: in
     for k, (lat, tilt) in enumerate(starts):
         step(0.65 + 0.35 * k / max(1, trials), f"insertion trial {k + 1}/{trials}")
         T0 = cell.start_pose(lat, tilt)
-        res.append(cell.run(learned.skill.predict, T0, seed=k))
+        res.append(cell.run_impedance(learned.skill.predict, T0, seed=k))
         base.append(cell.run(None, T0, seed=k))
     images = [plot_synchronised(ds, learned, out / "fig5_10_synchronised.png"),
               plot_decomposed(ds, learned.labels, out / "fig5_11_decomposed.png"),

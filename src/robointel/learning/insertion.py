@@ -15,11 +15,26 @@ Three parts, all in MuJoCo:
    occasional hesitation), reacting to the felt wrench during insertion; recorded at 100 Hz with
    ground-truth phase labels.
 3. :class:`RobotPegHole` - the LR Mate 200iD/7L (the sim module's MuJoCo model of the robot core's
-   URDF, driven by its Fig. 2.3 joint controller) carrying the same tool, running a hybrid
-   position/force controller whose corrective velocities come from the learned skill model
-   (:class:`InsertionSkill`, GMR wrench -> tool velocity, (5.14)-(5.17)); trials start from randomised
-   pose errors (lateral +/-1 mm, tilt up to 3 deg). :func:`run_trial` reports success = seated within
-   1 mm of the bottom, wall penetration below half the clearance, within the time limit.
+   URDF, reflected rotor inertia (armature) included) carrying the same tool; trials start from
+   randomised pose errors (lateral +/-1 mm, tilt up to 3 deg). The reproduction controller is
+   :meth:`RobotPegHole.run_impedance`: a torque-level Cartesian impedance (:class:`CartesianImpedance`,
+   tau = J^T W + h(q, qd) + friction, no joint servo) about the tip sphere's centre, stiff in rotation,
+   soft laterally, force-limited damper along the tool axis. It first measures the hole axis by
+   touching the hole part's top face at three points (F/T sensor + the robot's kinematics), rotates
+   about the sphere centre onto that axis, then the learned skill model (:class:`InsertionSkill`, GMR
+   wrench -> tool velocity, (5.14)-(5.17)) moves the lateral equilibrium and sets the axial speed.
+   :meth:`RobotPegHole.run` keeps the earlier controllers: the position-only baseline (stiff joint
+   servo, straight line) and the admittance-on-servo hybrid controller. Success = seated within 1 mm of
+   the bottom, wall penetration below half the clearance, within the time limit.
+
+Why the probe: a 25.4 mm cylinder with 30 um clearance passes the rim only when its tilt is below
+about c / (mu D) ~ 0.3 deg; with more, the first cylinder contact makes a two-point contact whose
+normals pass within ~1 mm of the sphere centre, so friction locks the rotation (Whitney's wedge;
+measured: thousands of newtons of pinch). The human's light, loose grip gets through; the arm (0.3 kg m^2
+of rotational inertia about the tip, joint friction) does not, even with a rotational stiffness of
+1 N m/rad and zero joint friction (tried). The tilt must therefore be removed before the cylinder
+reaches the rim, and the F/T torque gives no usable tilt signal while the sphere alone is in contact
+(its contact normals pass through the sphere centre).
 """
 from __future__ import annotations
 
@@ -295,7 +310,10 @@ def demonstrate(task: PegHole, rng: np.random.Generator, *, scene: HDDScene | No
     T_a, T_r, T_c = rng.uniform(1.3, 2.0), rng.uniform(0.6, 1.0), rng.uniform(0.5, 0.8)
     gamma = rng.uniform(0.8, 1.25)  # speed profile
     pause = (rng.uniform(0.3, 0.7), rng.uniform(0.15, 0.4)) if rng.random() < person.hesitation_prob else None
-    k_f, k_t = rng.uniform(0.8e-3, 1.4e-3), rng.uniform(3.0, 5.0)
+    # reflex gains: lateral m/s per N; rotational rad/s per N m about the handle. (With 3-5 rad/s/(N m)
+    # the handle rotation swings the tip into the wall and feeds the lateral force back as torque:
+    # 40/60 demonstrations seated once _exp rotated by the right angle.)
+    k_f, k_t = rng.uniform(0.8e-3, 1.4e-3), rng.uniform(0.3, 0.5)
     v_ins, f_lim, tau_lim = rng.uniform(0.006, 0.010), rng.uniform(6.0, 10.0), rng.uniform(0.3, 0.5)
     f_press = rng.uniform(8.0, 15.0)
     tremor_f = rng.uniform(8, 12, 3)
@@ -509,11 +527,13 @@ class TrialResult:
 class RobotPegHole:
     """The LR Mate 200iD/7L with the HDD's tool at its flange over the hole, in MuJoCo.
 
-    The robot model is :func:`robointel.sim.build_spec` (the robot core's URDF, table, motors); the
-    hole and the tool (with its F/T sensor) are added to that spec. The robot is position
-    controlled by the sim module's Fig. 2.3 joint controller (PID + inverse-dynamics feed-forward
-    with the tool as payload); on top of it runs the hybrid position/force controller of
-    :meth:`run`.
+    The robot model is :func:`robointel.sim.build_spec` (the robot core's URDF, table, motors,
+    ``armature``); the hole and the tool (with its F/T sensor) are added to that spec. Two control
+    schemes: :meth:`run_impedance` (the reproduction controller: torque-level Cartesian impedance,
+    :class:`CartesianImpedance`, with the hole axis probed by touch and the skill model moving its
+    equilibrium) and :meth:`run` (the sim module's Fig. 2.3 joint controller, PID + inverse-dynamics
+    feed-forward with the tool as payload, either tracking a straight line - the position-only
+    baseline - or the reference of an admittance about the tip).
     """
 
     def __init__(self, task: PegHole | None = None, robot=None, *, tool: Tool | None = None,
@@ -597,7 +617,9 @@ class RobotPegHole:
             time_limit: float = 10.0, gains: "AdmittanceGains | None" = None, v_nominal: float = 0.008,
             f_abort: float = 150.0, skill_dt: float = 0.01, force_noise: float = 0.05,
             torque_noise: float = 0.002, seed: int = 0) -> TrialResult:
-        """One insertion from ``T_start`` (4x4 tool pose).
+        """One insertion from ``T_start`` (4x4 tool pose) with the stiff joint servo (the
+        position-only baseline and the earlier admittance controller; the reproduction controller
+        is :meth:`run_impedance`).
 
         With a ``policy`` (wrench (6,) in the tool frame -> tool twist [vx, vy, vz, wx, wy]) the
         robot runs the hybrid position/force controller: an admittance (virtual mass-spring-damper,
@@ -937,6 +959,15 @@ class ImpedanceGains:
     tool axis: ``twist_stiffness`` (N m/rad, critical damping). ``friction_compensation`` adds the
     URDF's viscous + Coulomb joint friction at the measured joint velocity (Coulomb smoothed by
     tanh(qd / ``friction_velocity``)).
+
+    Defaults: the rotational stiffness (300 N m/rad) is high so that the J4/J5 Coulomb friction
+    (0.4 N m) leaves at most ~0.08 deg between the equilibrium and the tool after the probed
+    alignment; the lateral stiffness is 2000 N/m while moving and probing (the shoulder joints' 2 N m
+    friction) and ``insert_lateral_stiffness`` (300 N/m) while inserting, where the sphere and the
+    bore centre the peg. ``skill_rotation`` (off): the skill's [wx, wy] would rotate the equilibrium
+    away from the probed axis (the demonstrator's rotational reflex, at the human's torque scale; on
+    tilted starts (2.2-2.9 deg) it turned 6/6 into 2/6, and 5/5 into 0/3 with another skill, by force-limit stops). ``probe_*``: the touch probing of
+    :meth:`RobotPegHole.run_impedance`.
     """
 
     center_from_tip: float | None = None
