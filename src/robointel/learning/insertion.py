@@ -835,13 +835,9 @@ class RobotPegHole:
             holds the axial position with a P law through the damper."""
             start = x0.copy()
             n = max(1, int(np.linalg.norm(target - start) / speed / dt))
-            x, R = x0, R0
-            ax0 = None
             for i in range(1, n + 1):
-                s = _minjerk(i / n)
-                x0 = start + s * (target - start)
-                T, w, x, R = live(x0, R0, 0.0 if ax0 is None else float(g.probe_gain * (R[:, 2] @ (x0 - x))))
-                ax0 = True
+                x0 = start + _minjerk(i / n) * (target - start)
+                live(x0, R0, float(g.probe_gain * (R0[:, 2] @ (x0 - st["x"]))))
                 if st["stop"]:
                     break
             return x0
