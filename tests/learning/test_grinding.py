@@ -46,3 +46,20 @@ def test_default_strokes_cover_the_plate():
     assert y[0] < plate.hard_spots[0][1] and y[-1] > plate.hard_spots[1][1]
     with pytest.raises(InvalidInput):
         demonstrate_grinding(plate, np.random.default_rng(0), lines=0)
+
+
+class _ConstantForce:
+    """A set-point map pressing 15 N everywhere (the interface of GrindingSkill.predict)."""
+
+    def predict(self, xy):
+        return np.full(len(np.atleast_2d(xy)), 15.0)
+
+
+def test_sliding_contact_does_not_chatter():
+    """The arm slides the stylus along the diagonal at a constant 15 N set-point: the pad's soft first
+    touch keeps the contact closed, so the 10 ms force means stay within 1.5 N of the set-point (a
+    stiff first touch made the friction contact chatter: 1 ms contact losses, means off by up to 4 N)."""
+    res = reproduce_grinding(Plate(), _ConstantForce(), speed=0.06, t_touch=1.0)
+    f = res.force[20:]
+    assert np.abs(f - 15.0).max() < 1.5
+    assert f.std() < 0.5
