@@ -97,20 +97,36 @@ def orientation_search(grasp: Grasp, cloud, robot=None, *, gripper: ParallelGrip
 
 def refine_position(grasp: Grasp, cloud, *, gripper: ParallelGripper = ParallelGripper(), step: float = 0.006,
                     yaws=np.radians([-30, -15, 0, 15, 30]), dz=(0.0, 0.005, -0.005, -0.01), weight: float = 2.0,
-                    keep: int = 3, tree: cKDTree | None = None) -> list[Grasp]:
+                    keep: int = 3, tree: cKDTree | None = None, table_z: float | None = None,
+                    column_radius: float = 0.008, clearance: float = 0.003) -> list[Grasp]:
     """Our addition before (6.21): a small local search around a transferred grasp, for when the warp
     lands it a few millimetres off a thin feature (a cup's rim, a tool's handle). Centres on a
     3 x 3 grid (``step`` m) in the plane normal to the approach, heights ``dz``, turns of the closing
     axis about the approach by ``yaws``, for the grasp as transferred and turned upright (approach
     along gravity, when it was within 60 deg of it); scored by isotropy (6.20) minus ``weight`` per metre of offset.
-    Returns the ``keep`` best (the unmodified grasp is always a candidate)."""
+    Returns the ``keep`` best (the unmodified grasp is always a candidate).
+
+    With ``table_z`` (world, m) the upright grasp is also tried at the height found from the cloud
+    itself: the middle of the cloud's column within ``column_radius`` (m, horizontally) of the centre,
+    cut below where the fingertips clear the table by ``clearance`` (m). A warp fitted to a cloud that
+    lacks the object's underside (the cameras never see it) can put a flat object's grasps at or below
+    the table (forks and knives lying flat: every transferred grasp missed the handle, 'off-axis');
+    the object's own visible surface says at which height the jaws meet it."""
     P = np.asarray(cloud, float)
     tree = tree or cKDTree(P)
     scored = []
     bases = [grasp]
     ax_h = np.array([grasp.axis[0], grasp.axis[1], 0.0])
     if np.linalg.norm(ax_h) > 0.5 and grasp.approach[2] < -0.5:  # also try it upright (gravity known)
-        bases.append(grasp_from_axis(grasp.centre, ax_h, [0.0, 0.0, -1.0], grasp.width, grasp.name))
+        up = grasp_from_axis(grasp.centre, ax_h, [0.0, 0.0, -1.0], grasp.width, grasp.name)
+        bases.append(up)
+        if table_z is not None:
+            col = P[np.linalg.norm(P[:, :2] - grasp.centre[:2], axis=1) < column_radius]
+            z_clear = table_z + gripper.tip_depth + clearance
+            if len(col) >= 3 and np.percentile(col[:, 2], 95) > z_clear:
+                z_hi = float(np.percentile(col[:, 2], 95))
+                z_mid = 0.5 * (max(float(col[:, 2].min()), z_clear) + z_hi)
+                bases.append(Grasp(np.array([*grasp.centre[:2], z_mid]), up.rotation, grasp.width, grasp.name))
     for base, yaw in [(b_, y_) for b_ in bases for y_ in yaws]:
         z = base.approach
         u = base.axis
