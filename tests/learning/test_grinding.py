@@ -30,6 +30,8 @@ def test_force_controlled_reproduction_tracks_setpoint(setup):
     res = reproduce_grinding(plate, sk, speed=0.05, t_touch=0.6)
     assert res.force.shape == res.setpoint.shape and len(res.force) > 50
     assert res.rms_rel_setpoint < 0.15  # the robot's force follows the learned set-point
+    far = sk.predict(np.array([[0.3, 0.3], [-0.3, 0.3], [0.0, -0.5]]))  # off the demonstrated area
+    assert np.all((far >= sk.Y_.min()) & (far <= sk.Y_.max()))
     assert np.all(np.isfinite(res.force))
 
 

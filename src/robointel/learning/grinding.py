@@ -169,14 +169,18 @@ class GrindingSkill:
         X, Y = zip(*(self.samples(d) for d in demos))
         X, Y = np.concatenate(X), np.concatenate(Y)
         self.y_mean_, self.y_scale_ = float(Y.mean()), float(Y.std() + 1e-9)
+        self.y_lo_, self.y_hi_ = float(Y.min()), float(Y.max())
         with threadpool_limits(limits=1, user_api="blas"):  # 3-D EM steps: threads cost more than they save
             self.gmr.fit(X / 0.05, (Y[:, None] - self.y_mean_) / self.y_scale_)
         self.X_, self.Y_ = X, Y
         return self
 
     def predict(self, xy) -> np.ndarray:
-        """Pressing force (n,) N at plate coordinates (n, 2)."""
-        return self.gmr.predict(np.atleast_2d(np.asarray(xy, float)) / 0.05)[:, 0] * self.y_scale_ + self.y_mean_
+        """Pressing force (n,) N at plate coordinates (n, 2), saturated to the demonstrated force
+        range (the regression's local linear models would extrapolate to pulling forces off the
+        demonstrated area)."""
+        f = self.gmr.predict(np.atleast_2d(np.asarray(xy, float)) / 0.05)[:, 0] * self.y_scale_ + self.y_mean_
+        return np.clip(f, self.y_lo_, self.y_hi_)
 
 
 @dataclass
