@@ -88,3 +88,16 @@ def test_precomputed_kernel_svm_equals_rbf_svc():
     z = np.ascontiguousarray((x - seg.mean_) / seg.scale_)
     np.testing.assert_allclose(S, ref.decision_function(seg._descriptor_all(z, c)).T, atol=1e-6)
     np.testing.assert_array_equal(np.sort(seg.svm_.support_), np.sort(ref.support_))
+
+
+def test_subsampled_training_windows():
+    """With ``max_train_windows`` far below the window count (some demonstrations keep no window),
+    the SVM is trained on that many windows and still decomposes."""
+    rng = np.random.default_rng(7)
+    train = [_series(rng) for _ in range(8)]
+    seg = ActionSegmenter(window=20, band=4, stride=2, max_train_windows=12, random_state=1)
+    seg.fit([x for x, _ in train], [l for _, l in train])
+    assert seg.n_train_windows_ == 12
+    x, l = _series(rng)
+    d = seg.predict(x)
+    assert d.labels.shape == l.shape and np.all(np.diff(d.labels) >= 0)

@@ -198,7 +198,7 @@ class ActionSegmenter:
         W = _windows(Xs, centers, self.window)
         A = _warp_windows(W, self.references_[a], self.band)
         idx = np.linspace(0, self.window - 1, self.resample).round().astype(int)
-        return A[:, idx].reshape(len(centers), -1)
+        return A[:, idx].reshape(len(centers), self.resample * self.n_features_)
 
     def _descriptor_all(self, Xs, centers):
         return np.concatenate([self._descriptors(Xs, centers, a) for a in range(self.n_actions_)], axis=1)
