@@ -2,7 +2,7 @@
 classification by registration residual (6.17)-(6.19), grasp isotropy (6.20), orientation search (6.21),
 simulated depth cameras (Fig. 6.4) and MuJoCo lift-and-shake trials (Table 6.2)."""
 from robointel.learning.grasp.classify import (Classification, ComposedWarp, Fit, Template, classify,
-                                               confusion_matrix, fit_template, yaw_matrix)
+                                               confusion_matrix, fit_template, normal_disagreement, yaw_matrix)
 from robointel.learning.grasp.cpd import (AffineWarp, CPDResult, NonrigidWarp, RigidWarp, cpd_affine,
                                           cpd_nonrigid, cpd_rigid, farthest_point_sample, mean_nn_residual,
                                           register)
@@ -25,6 +25,7 @@ __all__ = [
     "farthest_point_sample", "mean_nn_residual", "register",
     "Grasp", "grasp_from_axis", "nearest_rotation", "transfer_grasp", "transfer_grasps",
     "Classification", "ComposedWarp", "Fit", "Template", "classify", "confusion_matrix", "fit_template", "yaw_matrix",
+    "normal_disagreement",
     "GraspQuality", "ParallelGripper", "estimate_normals", "grasp_map", "grasp_quality", "isotropy",
     "SearchResult", "orientation_search",
     "YCB_CATEGORIES", "ObjectModel", "demo_objects", "primitive_object", "sample_points", "split_convex",

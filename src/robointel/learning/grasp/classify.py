@@ -19,7 +19,7 @@ from robointel.learning.grasp.cpd import CPDResult, cpd_nonrigid, cpd_rigid, far
 from robointel.learning.grasp.transfer import Grasp
 
 __all__ = ["Template", "ComposedWarp", "Fit", "Classification", "fit_template", "classify",
-           "confusion_matrix", "yaw_matrix"]
+           "confusion_matrix", "yaw_matrix", "normal_disagreement"]
 
 
 @dataclass
@@ -75,7 +75,9 @@ class _Init:
 @dataclass
 class Fit:
     """A template fitted to a target: the full ``warp`` (template frame -> world), the ``residual``
-    (6.17)-(6.19) in metres, the warped (subsampled) template ``warped`` and the CPD results."""
+    (the classification score, metres: ``distance * (1 + normal_weight * normals)``), the symmetric
+    mean nearest-neighbour ``distance`` (6.17)-(6.19) (m), the ``normals`` disagreement (see
+    :func:`normal_disagreement`), the warped (subsampled) template ``warped`` and the CPD results."""
 
     template: Template
     warp: ComposedWarp
@@ -83,6 +85,8 @@ class Fit:
     warped: np.ndarray
     rigid: CPDResult
     nonrigid: CPDResult | None
+    distance: float = float("nan")
+    normals: float = float("nan")
 
 
 def _sym_residual(A: np.ndarray, B: np.ndarray, treeB: cKDTree) -> float:
@@ -91,9 +95,24 @@ def _sym_residual(A: np.ndarray, B: np.ndarray, treeB: cKDTree) -> float:
     return 0.5 * (float(da.mean()) + float(db.mean()))
 
 
+def normal_disagreement(A: np.ndarray, B: np.ndarray, k: int = 10) -> float:
+    """Symmetric mean ``1 - |n_a . n_b|`` over nearest-neighbour pairs between clouds ``A`` (n, 3) and
+    ``B`` (m, 3), normals by PCA of ``k`` neighbours (sign-free): 0 when the surfaces are parallel
+    wherever they meet, up to 1. Shape information the point distance misses: a smooth warp can pull
+    a can's flat lid into a cup's open top, or round a box, and land close to every point, but the
+    surface directions then disagree."""
+    from robointel.learning.grasp.quality import estimate_normals
+
+    nA, nB = estimate_normals(A, k), estimate_normals(B, k)
+    _, ia = cKDTree(B).query(A)
+    _, ib = cKDTree(A).query(B)
+    return 0.5 * (float((1 - np.abs((nA * nB[ia]).sum(1))).mean()) + float((1 - np.abs((nB * nA[ib]).sum(1))).mean()))
+
+
 def fit_template(target, template: Template, *, n_points: int = 200, yaw_steps: int = 12, beta: float = 3.0,
                  lmbda: float = 200.0, w: float = 0.05, nonrigid: bool = True, max_iterations: int = 40,
-                 tolerance: float = 1e-4, anisotropic: float = 1.5, rest_z: float | None = None) -> Fit:
+                 tolerance: float = 1e-4, anisotropic: float = 1.5, rest_z: float | None = None,
+                 normal_weight: float = 2.0, starts: int = 2) -> Fit:
     """Fit ``template`` to ``target`` (n, 3): yaw search, rigid CPD (6.8)-(6.10), non-rigid CPD
     (6.11)-(6.13) with ``beta``, ``lmbda``; return the warp and the residual (6.17)-(6.19).
 
@@ -115,7 +134,19 @@ def fit_template(target, template: Template, *, n_points: int = 200, yaw_steps: 
     scaled isotropically by the horizontal RMS radius (round rims stay round); ``anisotropic`` is then
     ignored. Matching centroids instead puts flat objects' templates half below the table, because
     the cameras never see the underside (a fork's warped screwdriver template reached 2 cm below
-    the table and its transferred grasps sat at z = 0)."""
+    the table and its transferred grasps sat at z = 0).
+
+    ``normal_weight``: the score is the symmetric mean nearest-neighbour distance times
+    ``1 + normal_weight * normal_disagreement`` (0 = distance only, the dissertation's residual).
+    Chosen on perceived placements other than the benchmark's (seeds 7 and 11, 7 categories x 20):
+    distance only 128/140 and 132/140; weights 1, 2, 4 all 130/140 and 133/140 (cups read as cans
+    gone; the margin between the cup and can templates on cups grew from ~0.1 mm to ~0.5 mm); 2 is
+    the middle of that plateau.
+
+    ``starts``: the registration (rigid then non-rigid CPD) runs from the ``starts`` best initial
+    yaws and keeps the lowest score: a square block fitted from a single start sometimes stayed in a
+    local minimum and read as a can. On the same validation placements: 1 start 130/140 and
+    133/140, 2 starts 132/140 and 133/140, 3 starts 132/140 and 133/140."""
     X = as_array(target, "target", (None, 3))
     if len(X) < 4:
         raise InvalidInput(f"target cloud has {len(X)} points; need at least 4", value=len(X))
@@ -133,16 +164,14 @@ def fit_template(target, template: Template, *, n_points: int = 200, yaw_steps: 
             raise InvalidInput("rest_z: template and target must reach above their resting planes",
                                value=(h_y, h_x))
         sxy = np.sqrt(((Xs[:, :2] - cx[:2]) ** 2).sum(1).mean() / ((Ys[:, :2] - cy[:2]) ** 2).sum(1).mean())
-    best = None
+    inits = []
     for a in np.linspace(0, 2 * np.pi, yaw_steps, endpoint=False):
         R = yaw_matrix(a)
         A = sc * R
         if rest_z is not None:
             A = R @ np.diag([sxy, sxy, h_x / h_y])
             t = np.r_[cx[:2] - (A @ cy)[:2], rest_z]
-            r = _sym_residual(Ys @ A.T + t, Xs, treeX)
-            if best is None or r < best[0]:
-                best = (r, A, t)
+            inits.append((_sym_residual(Ys @ A.T + t, Xs, treeX), A, t))
             continue
         if anisotropic:
             # per-axis scale in the template's own frame: its extents along x, y, z (after the yaw)
@@ -152,21 +181,27 @@ def fit_template(target, template: Template, *, n_points: int = 200, yaw_steps: 
             ex[2] = np.ptp(Xs[:, 2])
             A = R @ np.diag(sc * np.clip(ex / np.maximum(ey, 1e-6) / sc, 1.0 / anisotropic, anisotropic))
         Z = (Ys - cy) @ A.T + cx
-        r = _sym_residual(Z, Xs, treeX)
-        if best is None or r < best[0]:
-            best = (r, A, cx - A @ cy)
-    init = _Init(best[1], best[2])
-    Y0 = init(Ys)
-    rig = cpd_rigid(Xs, Y0, w=w, tolerance=1e-3, max_iterations=max_iterations, method="fast")
-    warp = ComposedWarp(init, rig.warp)
-    warped = rig.TY
-    nr = None
-    if nonrigid:
-        nr = cpd_nonrigid(Xs, warped, beta=beta, lmbda=lmbda, w=w, tolerance=tolerance,
-                          max_iterations=max_iterations, method="lowrank")
-        warp = ComposedWarp(warp, nr.warp)
-        warped = nr.TY
-    return Fit(template, warp, _sym_residual(warped, Xs, treeX), warped, rig, nr)
+        inits.append((_sym_residual(Z, Xs, treeX), A, cx - A @ cy))
+    inits.sort(key=lambda c: c[0])
+    best = None
+    for _, A, t in inits[:max(1, int(starts))]:
+        init = _Init(A, t)
+        Y0 = init(Ys)
+        rig = cpd_rigid(Xs, Y0, w=w, tolerance=1e-3, max_iterations=max_iterations, method="fast")
+        warp = ComposedWarp(init, rig.warp)
+        warped = rig.TY
+        nr = None
+        if nonrigid:
+            nr = cpd_nonrigid(Xs, warped, beta=beta, lmbda=lmbda, w=w, tolerance=tolerance,
+                              max_iterations=max_iterations, method="lowrank")
+            warp = ComposedWarp(warp, nr.warp)
+            warped = nr.TY
+        dist = _sym_residual(warped, Xs, treeX)
+        nd = normal_disagreement(warped, Xs) if normal_weight else 0.0
+        fit = Fit(template, warp, dist * (1.0 + normal_weight * nd), warped, rig, nr, dist, nd)
+        if best is None or fit.residual < best.residual:
+            best = fit
+    return best
 
 
 @dataclass

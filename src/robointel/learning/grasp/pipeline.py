@@ -115,8 +115,8 @@ class GraspPlanner:
         # transfer fit). Each fit's transferred grasps are refined and searched against that fit's
         # completed cloud; the lowest (6.21) cost wins.
         cloud = np.asarray(cloud, float)
-        fits = [fit_template(cloud, cls.best.template, n_points=self.n_points, rest_z=self.table_z),
-                fit_template(cloud, cls.best.template, n_points=self.n_points, anisotropic=0.0)]
+        fits = [fit_template(cloud, cls.best.template, n_points=self.n_points, rest_z=self.table_z, starts=1),
+                fit_template(cloud, cls.best.template, n_points=self.n_points, anisotropic=0.0, starts=1)]
         t1 = time.perf_counter()
         per_fit = [[self._transfer(fit, g, cloud) for g in fit.template.grasps] for fit in fits]
         grasps = per_fit[0]
@@ -128,7 +128,8 @@ class GraspPlanner:
             tree = cKDTree(full)
             cands = []
             for g in gs:
-                cands += (refine_position(g, full, gripper=self.gripper, tree=tree, table_z=self.table_z)
+                cands += (refine_position(g, full, gripper=self.gripper, tree=tree, table_z=self.table_z,
+                                          observed=cloud)
                           if self.refine else [g])
             for g in cands:
                 r = orientation_search(g, full, self.robot, gripper=self.gripper, table_z=self.table_z,

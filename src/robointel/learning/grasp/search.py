@@ -98,7 +98,8 @@ def orientation_search(grasp: Grasp, cloud, robot=None, *, gripper: ParallelGrip
 def refine_position(grasp: Grasp, cloud, *, gripper: ParallelGripper = ParallelGripper(), step: float = 0.006,
                     yaws=np.radians([-30, -15, 0, 15, 30]), dz=(0.0, 0.005, -0.005, -0.01), weight: float = 2.0,
                     keep: int = 3, tree: cKDTree | None = None, table_z: float | None = None,
-                    column_radius: float = 0.008, clearance: float = 0.003) -> list[Grasp]:
+                    column_radius: float = 0.008, clearance: float = 0.003,
+                    slide=(-0.018, -0.012, 0.012, 0.018), observed=None) -> list[Grasp]:
     """Our addition before (6.21): a small local search around a transferred grasp, for when the warp
     lands it a few millimetres off a thin feature (a cup's rim, a tool's handle). Centres on a
     3 x 3 grid (``step`` m) in the plane normal to the approach, heights ``dz``, turns of the closing
@@ -111,8 +112,13 @@ def refine_position(grasp: Grasp, cloud, *, gripper: ParallelGripper = ParallelG
     cut below where the fingertips clear the table by ``clearance`` (m). A warp fitted to a cloud that
     lacks the object's underside (the cameras never see it) can put a flat object's grasps at or below
     the table (forks and knives lying flat: every transferred grasp missed the handle, 'off-axis');
-    the object's own visible surface says at which height the jaws meet it."""
+    the object's own visible surface (``observed``, default ``cloud``: pass the perceived points
+    when ``cloud`` is completed by a warped template) says at which height the jaws meet it. These re-heighted grasps
+    are also tried slid by ``slide`` (m) horizontally across the closing axis (along a handle), for
+    thin parts whose graspable spots are a few millimetres long (the offset is penalised like the
+    grid's)."""
     P = np.asarray(cloud, float)
+    Pobs = P if observed is None else np.asarray(observed, float)
     tree = tree or cKDTree(P)
     scored = []
     bases = [grasp]
@@ -121,12 +127,15 @@ def refine_position(grasp: Grasp, cloud, *, gripper: ParallelGripper = ParallelG
         up = grasp_from_axis(grasp.centre, ax_h, [0.0, 0.0, -1.0], grasp.width, grasp.name)
         bases.append(up)
         if table_z is not None:
-            col = P[np.linalg.norm(P[:, :2] - grasp.centre[:2], axis=1) < column_radius]
             z_clear = table_z + gripper.tip_depth + clearance
-            if len(col) >= 3 and np.percentile(col[:, 2], 95) > z_clear:
-                z_hi = float(np.percentile(col[:, 2], 95))
-                z_mid = 0.5 * (max(float(col[:, 2].min()), z_clear) + z_hi)
-                bases.append(Grasp(np.array([*grasp.centre[:2], z_mid]), up.rotation, grasp.width, grasp.name))
+            along = np.cross([0.0, 0.0, 1.0], up.axis)  # horizontal, across the closing axis
+            for b in (0.0,) + tuple(slide):
+                c = grasp.centre + b * along
+                col = Pobs[np.linalg.norm(Pobs[:, :2] - c[:2], axis=1) < column_radius]
+                if len(col) >= 3 and np.percentile(col[:, 2], 95) > z_clear:
+                    z_hi = float(np.percentile(col[:, 2], 95))
+                    z_mid = 0.5 * (max(float(col[:, 2].min()), z_clear) + z_hi)
+                    bases.append(Grasp(np.array([c[0], c[1], z_mid]), up.rotation, grasp.width, grasp.name))
     for base, yaw in [(b_, y_) for b_ in bases for y_ in yaws]:
         z = base.approach
         u = base.axis
@@ -139,6 +148,7 @@ def refine_position(grasp: Grasp, cloud, *, gripper: ParallelGripper = ParallelG
                 for h in dz:
                     off = a * u + b * v - h * z
                     g = Grasp(base.centre + off, R, base.width, base.name)
+                    off = g.centre - grasp.centre
                     q = grasp_quality(P, g, gripper=gripper, tree=tree)
                     score = q.quality - weight * float(np.linalg.norm(off)) - 0.05 * abs(yaw)
                     scored.append((score, q.grasp if q.grasp is not None and q.quality > 0 else g))
