@@ -92,3 +92,28 @@ def test_perceived_template_is_in_the_object_frame():
     lo, hi = box.mesh.bounds
     # a few noisy table pixels next to the object survive background removal: check the bulk
     assert np.all(np.percentile(P, 2, axis=0) > lo - 0.005) and np.all(np.percentile(P, 98, axis=0) < hi + 0.005)
+
+
+def test_arm_scene_matches_the_robot_core_and_servos_track(lrmate):
+    """The LR Mate in the grasp scene: MuJoCo's gripper frame equals the robot core's forward
+    kinematics (tool = grasp frame), and the joint servos hold a commanded pose under gravity."""
+    from robointel.learning.grasp.pipeline import lrmate_with_gripper
+    from robointel.learning.grasp.quality import ParallelGripper
+    from robointel.learning.grasp.scene import arm_scene
+
+    g = ParallelGripper()
+    robot = lrmate_with_gripper(g)
+    m = arm_scene([], robot, g)
+    d = mujoco.MjData(m)
+    adr = [m.jnt_qposadr[m.joint("arm/" + n).id] for n in robot.joint_names]
+    q = np.radians([10, 25, -5, 20, -60, 30])
+    d.qpos[adr] = q
+    mujoco.mj_forward(m, d)
+    T = robot.fk(q)
+    b = m.body("arm/gripper").id
+    assert np.allclose(d.xpos[b], T[:3, 3], atol=1e-9)
+    assert np.allclose(d.xmat[b].reshape(3, 3), T[:3, :3], atol=1e-9)
+    d.ctrl[:6] = q
+    for _ in range(500):
+        mujoco.mj_step(m, d)
+    assert np.abs(d.qpos[adr] - q).max() < 2e-3

@@ -22,7 +22,7 @@ from robointel.learning.grasp.cpd import cpd_rigid, single_thread_blas
 from robointel.learning.grasp.objects import ObjectModel
 from robointel.learning.grasp.perception import default_cameras, depth_image, perceive
 from robointel.learning.grasp.quality import ParallelGripper
-from robointel.learning.grasp.scene import Placement, scene_xml
+from robointel.learning.grasp.scene import ARM_KP, ARM_KV, Placement, arm_scene, scene_xml
 from robointel.learning.grasp.search import SearchResult, orientation_search, refine_position
 from robointel.learning.grasp.transfer import Grasp, transfer_grasp
 
@@ -159,18 +159,44 @@ def _smooth(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
     return a + (b - a) * s[:, None]
 
 
+#: Where the arm waits while the cameras look (joint angles, rad): turned 90 deg away from the table
+#: and folded up, out of the cameras' view of the workspace.
+Q_PARK = np.radians([90.0, -20.0, 10.0, 0.0, -60.0, 0.0])
+
+
 def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *, rng=None,
-                cameras=None, shake_amplitude: float = 0.15, settle: float = 0.3) -> TrialResult:
+                cameras=None, shake_amplitude: float = 0.15, settle: float = 0.3, arm: bool = True) -> TrialResult:
     """Place ``obj`` (free body), perceive, plan, approach, close, lift 10 cm, shake; success if the
-    object is still held (above 5 cm and within 3 cm of where it sat in the gripper after the lift)."""
+    object is still held (above 5 cm and within 3 cm of where it sat in the gripper after the lift).
+
+    ``arm=True`` (default): the whole LR Mate is in the MuJoCo scene (:func:`scene.arm_scene`): its
+    joint servos track the planned joint path (park -> pre-grasp 8 cm back along the approach ->
+    grasp -> close -> lift 10 cm -> shake with J1 and J6), its links collide with the table and the
+    object, and the held object loads its joints. ``arm=False``: the earlier simplification, the
+    gripper alone follows the forward kinematics of the same joint path (a mocap weld), no arm links."""
     rng = np.random.default_rng(rng)
     g = planner.gripper
     cams = cameras or default_cameras()
-    m = mujoco.MjModel.from_xml_string(scene_xml([placement], dynamic=True, gripper=g))
+    robot = planner.robot
+    Tb = planner.base_pose
+    if arm:
+        if robot is None or not np.allclose(Tb, np.eye(4)):
+            raise InvalidInput("grasp_trial(arm=True) needs the planner's robot at the world origin", value=Tb)
+        m = arm_scene([placement], robot, g)
+        jadr = np.array([m.jnt_qposadr[m.joint("arm/" + n).id] for n in robot.joint_names])
+        gbody = m.body("arm/gripper").id
+        fp = m.joint("arm/fp").id
+    else:
+        m = mujoco.MjModel.from_xml_string(scene_xml([placement], dynamic=True, gripper=g))
+        gbody = m.body("gripper").id
+        fp = m.joint("fp").id
     d = mujoco.MjData(m)
-    park = np.array([0.5, 0.0, 1.6])
-    d.mocap_pos[0] = park
     d.ctrl[:] = 0.0
+    if arm:
+        d.qpos[jadr] = Q_PARK
+        d.ctrl[:6] = Q_PARK
+    else:
+        d.mocap_pos[0] = np.array([0.5, 0.0, 1.6])
     mujoco.mj_forward(m, d)
     # background: the same scene with the object moved far away (the empty workspace)
     qadr = m.jnt_qposadr[m.joint("obj0").id]
@@ -194,8 +220,6 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
     if not res.feasible or res.q is None:
         return TrialResult(False, f"no feasible grasp ({plan.search.detail.reason if plan.search.detail else '-'})",
                            cat, plan, cloud=cloud)
-    robot = planner.robot
-    Tb = planner.base_pose
     G = res.grasp.pose
     pre = G.copy()
     pre[:3, 3] -= 0.08 * res.grasp.approach
@@ -209,7 +233,7 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
         return TrialResult(False, "approach or lift unreachable", cat, plan, cloud=cloud)
     dt = m.opt.timestep
     open_w = g.max_width / 2 - 0.0  # finger joint 0 = open
-    path = [(_smooth(q_pre, q_pre, int(0.1 / dt)), 0.0)]
+    path = [(_smooth(Q_PARK, q_pre, int(1.5 / dt)) if arm else _smooth(q_pre, q_pre, int(0.1 / dt)), 0.0)]
     path.append((_smooth(q_pre, q_grasp, int(0.8 / dt)), 0.0))
     path.append((_smooth(q_grasp, q_grasp, int(0.6 / dt)), open_w))
     path.append((_smooth(q_grasp, q_up, int(1.0 / dt)), open_w))
@@ -221,26 +245,32 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
     path.append((shake, open_w))
     path.append((_smooth(q_up, q_up, int(0.4 / dt)), open_w))
     body = m.body("obj0").id
-    gbody = m.body("gripper").id
-    gadr = m.jnt_qposadr[m.joint("gripper").id]
-    T0 = Tb @ robot.fk(q_pre)
-    q0 = np.empty(4)
-    mujoco.mju_mat2Quat(q0, T0[:3, :3].ravel())
-    d.qpos[gadr:gadr + 3] = T0[:3, 3]
-    d.qpos[gadr + 3:gadr + 7] = q0
-    d.qvel[m.jnt_dofadr[m.joint("gripper").id]:][:6] = 0.0
+    if not arm:
+        gadr = m.jnt_qposadr[m.joint("gripper").id]
+        T0 = Tb @ robot.fk(q_pre)
+        q0 = np.empty(4)
+        mujoco.mju_mat2Quat(q0, T0[:3, :3].ravel())
+        d.qpos[gadr:gadr + 3] = T0[:3, 3]
+        d.qpos[gadr + 3:gadr + 7] = q0
+        d.qvel[m.jnt_dofadr[m.joint("gripper").id]:][:6] = 0.0
+    kv_over_kp = np.asarray(ARM_KV) / np.asarray(ARM_KP)
     rel_after_lift = None
     for k, (qs, ctrl) in enumerate(path):
-        for q in qs:
-            T = Tb @ robot.fk(q)
-            d.mocap_pos[0] = T[:3, 3]
-            qw = np.empty(4)
-            mujoco.mju_mat2Quat(qw, T[:3, :3].ravel())
-            d.mocap_quat[0] = qw
-            d.ctrl[:] = ctrl
+        qd = np.gradient(qs, dt, axis=0) if len(qs) > 1 else np.zeros_like(qs)
+        for q, v in zip(qs, qd):
+            if arm:
+                # servo torque kp (ctrl - q) - kv qdot = kp (q_ref - q) + kv (qdot_ref - qdot)
+                d.ctrl[:6] = q + kv_over_kp * v
+            else:
+                T = Tb @ robot.fk(q)
+                d.mocap_pos[0] = T[:3, 3]
+                qw = np.empty(4)
+                mujoco.mju_mat2Quat(qw, T[:3, :3].ravel())
+                d.mocap_quat[0] = qw
+            d.ctrl[-2:] = ctrl
             mujoco.mj_step(m, d)
         if k == 2:
-            closed = float(d.qpos[m.jnt_qposadr[m.joint("fp").id]])  # finger travel after closing (m)
+            closed = float(d.qpos[m.jnt_qposadr[fp]])  # finger travel after closing (m)
         if k == 3:
             rel_after_lift = (d.xpos[body] - d.xpos[gbody]).copy()
             h_lift = float(d.xpos[body][2])

@@ -120,3 +120,71 @@ def scene_xml(placements: list[Placement], *, dynamic: bool = False, gripper: Pa
   </worldbody>
   {act}
 </mujoco>"""
+
+
+#: Joint servo gains of the LR Mate in :func:`arm_scene` (N m/rad, N m s/rad), J1..J6.
+ARM_KP = (3000.0, 3000.0, 2000.0, 300.0, 300.0, 150.0)
+ARM_KV = (120.0, 120.0, 60.0, 6.0, 6.0, 3.0)
+#: Reflected rotor inertia added to each joint (kg m^2): an assumption (the LR Mate's motor and gear data
+#: are not public); it keeps the stiff wrist servos stable at the 2 ms physics step.
+ARM_ARMATURE = (0.2, 0.2, 0.1, 0.02, 0.02, 0.01)
+
+
+def arm_scene(placements: list[Placement], robot, gripper: ParallelGripper, *, timestep: float = 0.002,
+              friction: float = 1.0, grip_force: float = 20.0, kp=ARM_KP, kv=ARM_KV, armature=ARM_ARMATURE):
+    """The grasp scene with the whole robot: the table and free objects of :func:`scene_xml`, and the
+    arm built from its URDF by :func:`robointel.sim.mjcf.build_spec` (root at the world origin, its
+    links' collision geometry touching the table and the objects) carrying the parallel-jaw gripper
+    on its flange at ``gripper.tool_transform()``. Each arm joint is driven by a position servo
+    (``kp``, ``kv``; torque limited to the URDF effort limits) with the arm's gravity compensated
+    (MuJoCo ``gravcomp``, the controller's gravity feed-forward); the held object is a real payload.
+    Actuators: ``arm/joint_1..6`` (joint angle, rad) then ``arm/afp``, ``arm/afn`` (finger travel, m;
+    0 = open). Returns the compiled ``MjModel``."""
+    import mujoco
+
+    from robointel.sim.mjcf import build_spec
+
+    spec = mujoco.MjSpec.from_string(scene_xml(placements, dynamic=True, timestep=timestep, friction=friction))
+    rs, _ = build_spec(robot, table=False, ft_sensor=False, timestep=timestep, armature=np.asarray(armature, float))
+    for b in rs.bodies:
+        if b.name != "world":
+            b.gravcomp = 1.0
+    for a, p, v, eff in zip(rs.actuators, kp, kv, robot.effort_limit):
+        a.set_to_position(kp=float(p), kv=float(v))
+        a.forcerange = [-float(eff), float(eff)]
+        a.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    g = gripper
+    T = g.tool_transform()
+    q = np.empty(4)
+    mujoco.mju_mat2Quat(q, T[:3, :3].ravel())
+    gb = rs.body("tool").add_body(name="gripper", pos=T[:3, 3], quat=q)
+    gb.gravcomp = 1.0
+    palm = np.array([g.palm_breadth, g.max_width + 2 * g.finger_thickness, g.palm_height]) / 2
+    gb.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=palm, pos=[0, 0, g.tip_depth - g.finger_length - g.palm_height / 2],
+                mass=g.mass, rgba=[0.4, 0.4, 0.4, 1])
+    fb = np.array([g.finger_breadth, g.finger_thickness, g.finger_length]) / 2
+    zc = g.tip_depth - g.finger_length / 2
+    y0 = g.max_width / 2 + g.finger_thickness / 2
+    for name, s in (("fp", 1.0), ("fn", -1.0)):
+        f = gb.add_body(name=name, pos=[0, s * y0, zc])
+        f.gravcomp = 1.0
+        f.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, -s, 0], range=[0, g.max_width / 2],
+                    damping=200, armature=0.01)
+        f.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=fb, mass=0.05, friction=[friction, 0.02, 0.001], condim=6,
+                   rgba=[0.2, 0.2, 0.2, 1])
+        a = rs.add_actuator(name="a" + name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        a.set_to_position(kp=3000.0)
+        a.ctrlrange = [0, g.max_width / 2]
+        a.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        a.forcerange = [-grip_force, grip_force]
+        a.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    rs.add_equality(type=mujoco.mjtEq.mjEQ_JOINT, name1="fp", name2="fn", data=[0, 1, 0, 0, 0] + [0] * 7,
+                    solref=[0.005, 1])
+    # the gripper touches the objects and the table; the robot's own links never touch the gripper
+    for gname in ("gripper", "fp", "fn"):
+        for link in ("link_5", "link_6", "flange", "tool0", "tool"):
+            if rs.body(link) is not None:
+                rs.add_exclude(bodyname1=link, bodyname2=gname)
+    spec.worldbody.add_frame().attach_body(rs.worldbody.first_body(), "arm/", "")
+    return spec.compile()
