@@ -84,6 +84,10 @@ def test_bad_latency(scara):
     with pytest.raises(InvalidInput):
         simulate_scara(synthetic_wave(1.0), robot=scara, smooth_hz=200.0)  # unstable at 1 kHz
     with pytest.raises(InvalidInput):
+        simulate_scara(synthetic_wave(1.0), robot=scara, shaping="spline")
+    with pytest.raises(InvalidInput):
+        simulate_scara(synthetic_wave(1.0), robot=scara, blend_time=0.0)
+    with pytest.raises(InvalidInput):
         ComputedTorqueLQ(scara, r_weight=0.0)
 
 
@@ -94,7 +98,7 @@ def test_ar_predictor_learns_a_ramp_and_resets():
         t = np.arange(60) * T
         q = np.stack([slope * t, -0.5 * slope * t], 1)
         runs.append((t, q, q))
-    ar = ARPredictor.fit(runs, latency=0.1, order=3)
+    ar = ARPredictor.fit(runs, latency=0.1, order=3, alphas=(1e-8,))  # (near) unregularised: exact on ramps
     for k in range(10):
         ar.update(k * T, np.array([1.5 * k * T, 0.3 * k * T]))
     q, qd = ar.predict(9 * T + 0.12)
@@ -108,12 +112,63 @@ def test_learned_prediction_compensates_the_latency(scara):
     # predictor fitted on other synthetic takes (different seeds), evaluated on an unseen one
     ar = fit_predictor([synthetic_wave(6.0, seed=s, dropout_at=None) for s in (1, 2, 3)], robot=scara)
     sk = synthetic_wave(6.0, seed=0, dropout_at=3.0)
-    r0 = simulate_scara(sk, robot=scara, latency=0.1, smooth_hz=4.0)
-    r1 = simulate_scara(sk, robot=scara, latency=0.1, smooth_hz=4.0, compensate=True, predictor=ar)
-    assert r1.compensated and r1.rms.sum() < 0.8 * r0.rms.sum()  # same shaping, with/without prediction
-    assert r1.tracking_rms.max() < 0.01                             # the reference model is trackable
-    r2 = simulate_scara(sk, robot=scara, latency=0.1, smooth_hz=4.0, compensate=True, predictor=ar)
+    r0 = simulate_scara(sk, robot=scara, latency=0.1)
+    r1 = simulate_scara(sk, robot=scara, latency=0.1, compensate=True, predictor=ar)
+    assert r1.compensated and not r0.compensated
+    # the prediction is much closer to the true human angles than the delayed frames are ...
+    assert r1.prediction_rms.sum() < 0.6 * r0.prediction_rms.sum()
+    assert np.allclose(r0.prediction_rms, np.sqrt(np.mean((r0.q_delayed - r0.q_human) ** 2, 0)))
+    # ... and the robot driven by it imitates better (same shaping, same controller)
+    assert r1.rms.sum() < 0.9 * r0.rms.sum()
+    r2 = simulate_scara(sk, robot=scara, latency=0.1, compensate=True, predictor=ar)
     assert np.array_equal(r1.q, r2.q)                               # the predictor is reset: deterministic
+
+
+def test_crossfade_is_smooth_and_lands_on_the_frames(scara):
+    sk = synthetic_wave(3.0, dropout_at=None, speed=0.5)
+    r = simulate_scara(sk, robot=scara, latency=0.1, blend_time=0.05)
+    step_ref = np.abs(np.diff(r.q_ref, axis=0)).max()
+    step_frames = np.abs(np.diff(r.q_delayed, axis=0)).max()
+    assert step_ref < 0.1 * step_frames                             # no jumps at frame arrivals
+    # 50 ms after an arrival the crossfade is over: the reference is the received frame itself
+    t_h = sk.t[0] + np.arange(len(sk.t)) / sk.rate
+    settled = np.zeros(len(r.t), bool)
+    for a in t_h[1:] + 0.1:
+        settled |= (r.t >= a + 0.05 + 1e-9) & (r.t < a + 1 / sk.rate - 2e-3)
+    assert settled.sum() == 0 or np.abs(r.q_ref[settled] - r.q_delayed[settled]).max() < 1e-9
+
+
+def test_torque_limit_scales_the_acceleration(scara):
+    ctrl = ComputedTorqueLQ(scara)
+    q, qd = np.array([0.3, 1.0]), np.array([0.5, -0.2])
+    tau = ctrl.torque(q, qd, q + np.array([2.0, -1.0]), qd, np.zeros(2))  # far off: far beyond the limits
+    assert np.all(np.abs(tau) <= scara.effort_limit + 1e-9) and np.any(np.isclose(np.abs(tau), scara.effort_limit))
+    b = scara.nonlinear_effects(q, qd) + scara.viscous * qd
+    u_applied = np.linalg.solve(scara.mass_matrix(q), tau - b)
+    u_wanted = -ctrl.K @ np.concatenate([-np.array([2.0, -1.0]), np.zeros(2)])
+    cos = u_applied @ u_wanted / (np.linalg.norm(u_applied) * np.linalg.norm(u_wanted))
+    assert cos > 0.999 and np.linalg.norm(u_applied) < np.linalg.norm(u_wanted)  # same direction, scaled down
+
+
+def test_ar_predictor_rejects_bad_weights():
+    with pytest.raises(InvalidInput):
+        ARPredictor(np.ones(7), order=3, poly=1)
+    with pytest.raises(InvalidInput):
+        ARPredictor(np.full(12, np.nan), order=3, poly=1)
+    ar = ARPredictor(np.zeros(12), order=3, poly=1)
+    with pytest.raises(InvalidInput):
+        ar.update(0.0, np.zeros(3))
+
+
+def test_plot_has_the_predicted_signal(scara, tmp_path):
+    from robointel.programming.scara import plot_scara
+
+    sk = synthetic_wave(2.0, dropout_at=None)
+    r0 = simulate_scara(sk, robot=scara)
+    r1 = simulate_scara(sk, robot=scara, compensate=True)
+    assert r1.q_pred.shape == r1.q.shape and not np.allclose(r1.q_pred, r1.q_delayed)
+    plot_scara([r0, r1], tmp_path / "fig.png")
+    assert (tmp_path / "fig.png").stat().st_size > 10_000
 
 
 def test_offline_exact_reference_is_tracked(scara):

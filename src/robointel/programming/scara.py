@@ -18,17 +18,30 @@ Riccati equation (3.7)-(3.8) (``scipy.linalg.solve_discrete_are``):
     u_k = qdd_r,k - K (x_k - r_k).
 
 The Kinect delivers frames at ~30 Hz with ~0.1 s latency; a live system sees them cleaned
-causally (dropouts held, causal low-pass). A Kalman filter on the received angles (white-noise-
-acceleration model) estimates angle and rate. Without compensation the reference is that estimate
-at t - latency (the human motion, delayed); with delay compensation it is predicted to t (across
-the latency plus the age of the frame), by the Kalman filter (constant rate) or by a linear
-autoregressive predictor (:class:`ARPredictor`) fitted on other recordings. Causal throughout:
-only frames that have arrived are used. A jerk-limited follower (``ruckig``) or a second-order
-reference model turns the estimate into a reference (q_r, qd_r, qdd_r). Errors are measured
-against the true human angles (the zero-phase cleaned recording, not delayed) at the same instant.
+causally (dropouts held, causal low-pass). Without compensation the reference is the newest
+received frame (the human motion delayed by the latency and the frame's age); with delay
+compensation it is a prediction of the human angles at the current instant from the frames
+received so far: by a linear autoregressive predictor (:class:`ARPredictor`, ridge regression
+fitted on *other* recordings) or a constant-rate Kalman filter (:class:`KalmanPredictor`). Causal
+throughout. At each frame arrival the reference crossfades (quintic smoothstep over two frame
+periods) from what it was to the new frame's prediction, giving consistent (q_r, qd_r, qdd_r)
+without adding lag. Errors are measured against the true human angles (the zero-phase cleaned
+recording, not delayed) at the same instant.
+
+Why the earlier compensation did worse than none (measured on the seven recordings, mean RMS
+q1/q2 of the signal itself, no robot): the received frames held as they come are 0.26/0.23 rad
+from the true angles (0.19/0.16 for a noise-free copy delayed by exactly 0.1 s: frame age and the
+live filter's lag add to the latency); the predictor's raw output is 0.18/0.20, but the 4 Hz
+second-order reference model it was shaped with lags by 2 / wn = 80 ms, which put it back at
+0.28/0.25, and torque clipping of each joint on its own (instead of scaling the commanded
+acceleration) made the stiff LQ oscillate at the torque limits. Prediction 0.1 s ahead is hard
+on these gestures: the angle rate 0.12 s ahead is predicted with an RMS error of 1.7 rad/s
+against a 1.9 rad/s signal, so the predictions jump at every frame (innovation) and the
+reference has to absorb those jumps within the SCARA's torque limits.
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,10 +56,16 @@ from robointel.programming.skeleton import Skeleton, clean
 #: The dissertation's RMS joint errors (q1, q2) [rad] on the SCARA, without / with compensation.
 PAPER_RMS = (0.153, 0.185)
 PAPER_RMS_COMPENSATED = (0.0103, 0.0305)
-#: Natural frequency [Hz] of the reference model used with the learned predictor, chosen on the
-#: seven Kinect recordings (a tuned hyper-parameter; the predictor itself is fitted leave-one-out):
-#: 3 / 4 / 5 / 6 Hz gave mean RMS q1/q2 0.319/0.276, 0.294/0.274, 0.283/0.291, 0.277/0.321 rad.
-SMOOTH_HZ = 4.0
+#: Natural frequency [Hz] of the second-order reference model for the compensated run; 0: none,
+#: the lag-free crossfade (:func:`simulate_scara`) instead. The earlier 4 Hz model lagged by 80 ms
+#: and gave mean RMS q1/q2 0.294/0.274 rad against the true human angles (worse than no prediction).
+SMOOTH_HZ = 0.0
+#: Crossfade length in frame periods, chosen on the seven recordings (a shaping hyper-parameter;
+#: the predictor is fitted leave-one-out): mean live compensated RMS q1/q2 with the LQ at
+#: r_weight 1e-6 was 0.246/0.278 (1 frame, r_weight 1e-8), 0.240/0.247 (2), 0.251/0.253 (3) rad.
+BLEND_FRAMES = 2.0
+#: Cut-off [Hz] of the causal low-pass on the live Kinect frames (see :func:`human_reference`).
+LIVE_CUTOFF_HZ = 12.0
 
 
 # ----------------------------------------------------------------------------- human -> SCARA angles
@@ -118,14 +137,16 @@ class ComputedTorqueLQ:
         robot: a :class:`robointel.robot.Robot` (dynamics from Pinocchio).
         dt: control period [s].
         q_weight, qd_weight, r_weight: LQ weights on position error [1/rad^2], velocity error and
-            commanded acceleration (scalars or one per joint).
+            commanded acceleration (scalars or one per joint). r_weight 1e-6 (position gain about
+            1000 s^-2): on the live Kinect references 1e-8 saturated the torques more often (mean
+            live compensated RMS 0.248/0.273 rad vs 0.240/0.247 rad); offline both track to ~2 mrad.
     """
 
     robot: object
     dt: float = 0.001
     q_weight: float = 1.0
     qd_weight: float = 1e-3
-    r_weight: float = 1e-8
+    r_weight: float = 1e-6
     K: np.ndarray = field(init=False)
     P: np.ndarray = field(init=False)
 
@@ -138,13 +159,25 @@ class ComputedTorqueLQ:
         self.K, self.P = lq_gain(A, B, np.diag(np.concatenate(w[:2])), np.diag(w[2]))
 
     def torque(self, q, qd, q_r, qd_r, qdd_r) -> np.ndarray:
-        """Joint torques (n,) [N m], clipped to the effort limits."""
-        x = np.concatenate([q, qd])
-        r = np.concatenate([q_r, qd_r])
-        u = qdd_r - self.K @ (x - r)
+        """Joint torques (n,) [N m] within the effort limits.
+
+        When M(q) u + b (b = C qd + G + F_v qd) would exceed a limit, the commanded acceleration u
+        is scaled down as a whole (largest alpha in [0, 1] with |M alpha u + b| <= limit): the
+        joints stay decoupled and the robot accelerates in the commanded direction. Clipping each
+        torque on its own instead feeds the inertial coupling of the clipped joint to the others
+        as a wrong acceleration and, with the stiff LQ gains, sets off a bang-bang oscillation.
+        """
+        u = qdd_r - self.K @ (np.concatenate([q, qd]) - np.concatenate([q_r, qd_r]))
         rb = self.robot
-        tau = rb.mass_matrix(q) @ u + rb.nonlinear_effects(q, qd) + rb.viscous * qd
-        return np.clip(tau, -rb.effort_limit, rb.effort_limit)
+        b = rb.nonlinear_effects(q, qd) + rb.viscous * qd
+        a = rb.mass_matrix(q) @ u
+        lim = rb.effort_limit
+        alpha = 1.0
+        for i in range(len(a)):
+            if abs(a[i] + b[i]) > lim[i] and abs(a[i]) > 1e-12:
+                room = lim[i] - np.sign(a[i]) * b[i]  # torque left for acceleration in a[i]'s direction
+                alpha = min(alpha, max(room, 0.0) / abs(a[i]))
+        return np.clip(alpha * a + b, -lim, lim)
 
 
 # ----------------------------------------------------------------------------- latency and prediction
@@ -193,92 +226,167 @@ class KalmanPredictor:
         return self.x[:, 0] + h * self.x[:, 1], self.x[:, 1].copy()
 
 
+class HoldPredictor:
+    """No prediction: the newest received frame as it is (the human motion delayed by the latency
+    and the frame's age). Same interface as the predictors, rate 0."""
+
+    def __init__(self) -> None:
+        self.z = None
+        self.t = None
+
+    def reset(self) -> None:
+        """Forget all frames."""
+        self.z = self.t = None
+
+    def update(self, t: float, z: np.ndarray) -> None:
+        """Take the frame captured at time ``t``."""
+        self.z, self.t = np.asarray(z, float).copy(), t
+
+    def predict(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(the newest frame (n,), zeros (n,))."""
+        return self.z.copy(), np.zeros_like(self.z)
+
+
 class ARPredictor:
-    """Linear autoregressive predictor across the latency, fitted by ridge regression on recordings.
+    """Linear autoregressive predictor of the human joint angles across the latency, fitted by ridge
+    regression (``sklearn.linear_model.Ridge``) on recordings other than the one it runs on.
 
-    From the newest received frame q_k (captured at t_k) and the P frame-to-frame differences
-    before it, the angle at t_k + h is predicted per joint (weights shared by the joints) as
+    From the newest received frame q_k (captured at t_k) and the P frames before it, the angle of
+    joint c at t_k + h is
 
-        q(t_k + h) = q_k + w' (phi_k kron [1, h, h^2]),   phi_k = [q_k - q_{k-1}, ..., q_{k-P+1} - q_{k-P}, 1],
+        q_c(t_k + h) = q_c,k + w' (phi_c,k kron [1, h, ..., h^poly]),
+        phi_c,k = [q_c,k-1 - q_c,k, ..., q_c,k-P - q_c,k,  (the same for the other joints c+1, c+2, ...)],
 
-    so the horizon h (latency plus the frame's age) enters polynomially. Fit it with
-    :meth:`fit` on recordings other than the one it is evaluated on (leave-one-recording-out).
+    one weight vector shared by the joints (each joint sees its own past first, then the others').
+    The features are differences to the newest frame, so the prediction does not depend on where
+    the arm is, only on how it has been moving; no intercept. The horizon h (latency plus the age
+    of the frame) enters polynomially. The ridge strength is chosen by leave-one-recording-out
+    cross-validation *within* the training recordings (``GridSearchCV`` + ``LeaveOneGroupOut``).
 
     Args:
-        weights: ((P + 1) * (poly + 1),) regression weights.
-        order: P, number of past differences.
+        weights: (n * P * (poly + 1),) regression weights (``n`` = number of joints).
+        order: P, number of past frames.
         poly: degree of the horizon polynomial.
+        alpha: the ridge strength it was fitted with (for the record).
     """
 
-    def __init__(self, weights, order: int = 6, poly: int = 2) -> None:
-        self.order, self.poly = int(order), int(poly)
-        self.w = as_array(weights, "weights", ((self.order + 1) * (self.poly + 1),))
+    def __init__(self, weights, order: int = 10, poly: int = 1, alpha: float = float("nan")) -> None:
+        self.order, self.poly, self.alpha = int(order), int(poly), float(alpha)
+        w = np.asarray(weights, float).ravel()
+        per = self.order * (self.poly + 1)
+        if self.order < 1 or self.poly < 0 or w.size == 0 or w.size % per:
+            raise InvalidInput(f"ARPredictor: {w.size} weights do not fit order {order}, poly {poly}")
+        if not np.all(np.isfinite(w)):
+            raise InvalidInput("ARPredictor weights must be finite")
+        self.w, self.n = w, w.size // per
         self.hist: list[np.ndarray] = []
         self.t = None
 
     @staticmethod
     def _features(hist: np.ndarray, order: int) -> np.ndarray:
-        """(n, P + 1) features per joint from the last frames ``hist`` (m, n), oldest first."""
+        """(n, n * P) features per joint from the last frames ``hist`` (m, n), oldest first; missing
+        early frames repeat the first one (zero differences)."""
+        hist = np.asarray(hist, float)
         h = hist[-(order + 1):]
-        if len(h) < order + 1:  # too few frames yet: repeat the first (zero differences)
+        if len(h) < order + 1:
             h = np.vstack([np.repeat(h[:1], order + 1 - len(h), 0), h])
-        d = np.diff(h, axis=0)[::-1]  # newest difference first
-        return np.hstack([d.T, np.ones((h.shape[1], 1))])
+        d = (h[:-1] - h[-1])[::-1]  # (P, n): q_{k-1} - q_k first
+        n = h.shape[1]
+        return np.stack([np.concatenate([d[:, (c + r) % n] for r in range(n)]) for c in range(n)])
+
+    @staticmethod
+    def _design(f: np.ndarray, h: np.ndarray, poly: int) -> np.ndarray:
+        """Rows f kron [1, h, ..h^poly]: f (m, K), h (m,) -> (m, K * (poly + 1))."""
+        return np.einsum("mk,md->mkd", f, np.asarray(h, float)[:, None] ** np.arange(poly + 1)).reshape(len(f), -1)
 
     def reset(self) -> None:
         """Forget all frames."""
         self.hist, self.t = [], None
 
     def update(self, t: float, z: np.ndarray) -> None:
-        """Add the frame captured at time ``t``."""
-        self.hist.append(np.asarray(z, float).copy())
+        """Add the frame (n,) captured at time ``t`` [s]."""
+        z = np.asarray(z, float)
+        if z.shape != (self.n,):
+            raise InvalidInput(f"ARPredictor was fitted for {self.n} joints, got a frame of shape {z.shape}")
+        self.hist.append(z.copy())
         if len(self.hist) > self.order + 1:
             self.hist.pop(0)
         self.t = t
+        self._f = self._features(np.asarray(self.hist), self.order)  # (n, n P)
 
     def predict(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """(angle (n,), rate (n,)) predicted at time ``t`` from the frames received so far."""
+        """(angle (n,) [rad], rate (n,) [rad/s]) predicted at time ``t`` from the frames received so far."""
         h = t - self.t
-        f = self._features(np.asarray(self.hist), self.order)
+        f = self._f
+        W = self.w.reshape(-1, self.poly + 1)  # (n P, poly + 1)
         hv = h ** np.arange(self.poly + 1)
         dv = np.concatenate([[0.0], np.arange(1, self.poly + 1) * h ** np.arange(self.poly)])
-        W = self.w.reshape(self.order + 1, self.poly + 1)
         return self.hist[-1] + f @ W @ hv, f @ W @ dv
 
     @classmethod
-    def fit(cls, runs, *, latency: float = 0.1, order: int = 6, poly: int = 2, ridge: float = 1e-9,
-            dt: float = 0.003, span: float | None = None) -> "ARPredictor":
+    def fit(cls, runs, *, latency: float = 0.1, order: int = 10, poly: int = 1,
+            alphas=(1e-3, 1e-1, 1e1, 1e3), dt: float = 0.004, span: float | None = None,
+            rate_weight: float = 0.03) -> "ARPredictor":
         """Fit on recordings.
 
         Args:
             runs: iterable of (t (N,), q_true (N, n), q_meas (N, n)) as returned by
-                :func:`human_reference` (frame times, true angles, angles as received live).
-            latency: sensor latency [s]; horizons from ``latency`` to ``latency`` + ``span``.
+                :func:`human_reference` (uniform frame times [s], true angles, angles as received live).
+            latency: sensor latency [s]; trained on horizons from ``latency`` to ``latency`` + ``span``.
+            order, poly: P and the horizon polynomial's degree.
+            alphas: ridge strengths to choose from by leave-one-recording-out cross-validation over
+                ``runs`` (with fewer than 3 recordings the middle one is used).
             dt: spacing of the training horizons [s].
-            span: range of horizons beyond the latency [s] (default three frame periods).
+            span: range of horizons beyond the latency [s] (default one frame period: the age of
+                the newest frame runs from 0 to one period).
+            rate_weight: [s] weight of extra rows fitting the prediction's slope in h to the true
+                angle rate (in rad/s, times ``rate_weight``); over a horizon range of one frame
+                period the slope is otherwise barely determined and comes out arbitrary (on a ramp
+                it is off by a third). On the recordings 0 and 0.03 give the same robot RMS.
         """
-        X, Y = [], []
-        for t_h, q_true, q_meas in runs:
-            t_h, q_true, q_meas = np.asarray(t_h, float), np.asarray(q_true, float), np.asarray(q_meas, float)
+        from sklearn.linear_model import Ridge
+        from sklearn.model_selection import GridSearchCV, LeaveOneGroupOut
+
+        X, Y, G = [], [], []
+        for g, (t_h, q_true, q_meas) in enumerate(runs):
+            t_h, q_true, q_meas = (np.asarray(x, float) for x in (t_h, q_true, q_meas))
+            if q_true.ndim != 2 or q_true.shape != q_meas.shape or len(t_h) != len(q_true) or len(t_h) < 4:
+                raise InvalidInput("ARPredictor.fit: each run is (t (N,), q_true (N, n), q_meas (N, n)), N >= 4")
             spline = CubicSpline(t_h, q_true, axis=0)
             T = float(np.median(np.diff(t_h)))
-            span_ = 3 * T if span is None else float(span)
-            hs = np.arange(latency, latency + span_, dt)
-            for j in range(len(t_h)):
-                h = hs[t_h[j] + hs <= t_h[-1]]
-                if len(h) == 0:
-                    break
-                f = cls._features(q_meas[max(0, j - order):j + 1], order)  # (n, P + 1)
-                X.append(np.einsum("ca,hb->hcab", f, h[:, None] ** np.arange(poly + 1)).reshape(len(h) * len(f), -1))
-                Y.append((spline(t_h[j] + h) - q_meas[j]).reshape(-1))
+            hs = np.arange(latency, latency + (T if span is None else float(span)), dt)
+            jj, hh = (a.ravel() for a in np.meshgrid(np.arange(len(t_h)), hs, indexing="ij"))
+            ok = t_h[jj] + hh <= t_h[-1]
+            jj, hh = jj[ok], hh[ok]
+            if len(jj) == 0:
+                continue
+            F = np.stack([cls._features(q_meas[max(0, j - order):j + 1], order) for j in range(len(t_h))])
+            target = spline(t_h[jj] + hh) - q_meas[jj]  # (m, n)
+            rate = spline(t_h[jj] + hh, 1)
+            dpow = np.concatenate([np.zeros((len(hh), 1)), np.arange(1, poly + 1) * hh[:, None] ** np.arange(poly)], 1)
+            for c in range(q_meas.shape[1]):
+                X.append(cls._design(F[jj, c], hh, poly))
+                Y.append(target[:, c])
+                if rate_weight > 0:  # the prediction's slope in h is the rate: fit it to the true rate too
+                    X.append(rate_weight * np.einsum("mk,md->mkd", F[jj, c], dpow).reshape(len(jj), -1))
+                    Y.append(rate_weight * rate[:, c])
+                G.append(np.full(len(jj) * (2 if rate_weight > 0 else 1), g))
         if not X:
             raise InvalidInput("ARPredictor.fit needs at least one recording longer than the latency")
-        X, Y = np.vstack(X), np.concatenate(Y)
-        w = np.linalg.solve(X.T @ X + ridge * len(Y) * np.eye(X.shape[1]), X.T @ Y)
-        return cls(w, order, poly)
+        X, Y, G = np.vstack(X), np.concatenate(Y), np.concatenate(G)
+        alphas = [float(a) for a in alphas]
+        if len(np.unique(G)) >= 3 and len(alphas) > 1:
+            search = GridSearchCV(Ridge(fit_intercept=False), {"alpha": alphas}, cv=LeaveOneGroupOut(),
+                                  scoring="neg_mean_squared_error").fit(X, Y, groups=G)
+            alpha = float(search.best_params_["alpha"])
+        else:
+            alpha = alphas[len(alphas) // 2]
+        model = Ridge(alpha=alpha, fit_intercept=False).fit(X, Y)
+        return cls(model.coef_, order, poly, alpha)
 
 
-def fit_predictor(skeletons, *, latency: float = 0.1, robot=None, elbow: str = "flexion", **kw) -> ARPredictor:
+def fit_predictor(skeletons, *, latency: float = 0.1, robot=None, elbow: str = "flexion",
+                  live_cutoff_hz: float = LIVE_CUTOFF_HZ, **kw) -> ARPredictor:
     """An :class:`ARPredictor` fitted on recordings as :func:`simulate_scara` sees them (angles from
     :func:`human_reference`, clipped to the SCARA's joint range). Pass recordings other than the one
     you evaluate on. ``kw`` go to :meth:`ARPredictor.fit`."""
@@ -287,7 +395,7 @@ def fit_predictor(skeletons, *, latency: float = 0.1, robot=None, elbow: str = "
     robot = robot or Robot.load("scara2")
     runs = []
     for sk in skeletons:
-        t_h, q_true, q_meas = human_reference(sk, elbow=elbow)
+        t_h, q_true, q_meas = human_reference(sk, elbow=elbow, live_cutoff_hz=live_cutoff_hz)
         runs.append((t_h, np.clip(q_true, robot.lower, robot.upper), np.clip(q_meas, robot.lower, robot.upper)))
     if not runs:
         raise InvalidInput("fit_predictor needs at least one recording")
@@ -322,11 +430,16 @@ class ScaraResult:
         t: (M,) control times [s] (1 kHz).
         q: (M, 2) simulated joint angles [rad].
         q_human: (M, 2) true human angles [rad] (zero-phase cleaned, not delayed).
-        q_ref: (M, 2) reference the controller tracked (delayed or predicted).
+        q_ref: (M, 2) reference the controller tracked [rad] (delayed, predicted, or the recording).
         tau: (M, 2) commanded torques [N m].
-        rms: (2,) RMS of q - q_human [rad] (the imitation error).
-        tracking_rms: (2,) RMS of q - q_ref [rad] (the controller's own error).
+        rms: (2,) RMS of q - q_human [rad]: the imitation error, robot vs the true human.
+        tracking_rms: (2,) RMS of q - q_ref [rad]: the controller's own error vs what it was given.
         saturated: fraction of steps with a torque at its limit.
+        q_delayed: (M, 2) the newest received frame at each step [rad] (the human motion as the
+            controller sees it: delayed by the latency and the frame's age, live-filtered).
+        q_pred: (M, 2) the predictor's output before shaping [rad] (equal to ``q_delayed``
+            without compensation; the recording itself offline).
+        prediction_rms: (2,) RMS of q_pred - q_human [rad]: the predictor's own error.
     """
 
     t: np.ndarray
@@ -341,12 +454,16 @@ class ScaraResult:
     compensated: bool
     source: str = ""
     offline: bool = False
+    q_delayed: np.ndarray | None = None
+    q_pred: np.ndarray | None = None
+    prediction_rms: np.ndarray | None = None
 
 
-def human_reference(skel: Skeleton, side: str | None = None, *, live_cutoff_hz: float = 12.0,
+def human_reference(skel: Skeleton, side: str | None = None, *, live_cutoff_hz: float = LIVE_CUTOFF_HZ,
                     elbow: str = "flexion") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(t (N,), true angles (N, 2) from the zero-phase cleaned skeleton, measured angles (N, 2) from
-    the raw frames as a live system sees them: dropouts held, causal filter)."""
+    """(t (N,) [s], true angles (N, 2) [rad] from the zero-phase cleaned skeleton, measured angles
+    (N, 2) [rad] from the raw frames as a live system sees them: dropouts held, causal Butterworth
+    low-pass at ``live_cutoff_hz`` (at most 0.45 x the frame rate))."""
     side = side or skel.active_side()
     joints = ["SpineBase", *[f"{j}{'Right' if side == 'right' else 'Left'}" for j in ("Shoulder", "Elbow", "Hand")]]
     truth = clean(skel, joints=joints)
@@ -362,21 +479,77 @@ def human_reference(skel: Skeleton, side: str | None = None, *, live_cutoff_hz: 
     return truth.t, q_true - off, q_live - off
 
 
+def delayed_copy_rms(skel: Skeleton, *, latency: float = 0.1, robot=None, dt: float = 0.001,
+                     elbow: str = "flexion") -> np.ndarray:
+    """(2,) RMS [rad] of q_human(t - latency) - q_human(t) on the 1/dt grid: a perfect, noise-free
+    copy of the true human motion delayed by the latency (what an ideal uncompensated system with
+    no frame age and no sensor noise would reach; a live system without prediction does worse)."""
+    from robointel.robot import Robot
+
+    robot = robot or Robot.load("scara2")
+    t_h, q_true, _ = human_reference(skel, elbow=elbow)
+    spline = CubicSpline(t_h, np.clip(q_true, robot.lower, robot.upper), axis=0)
+    t = np.arange(int(np.floor(t_h[-1] / dt)) + 1) * dt
+    return np.sqrt(np.mean((spline(np.maximum(t - latency, t_h[0])) - spline(t)) ** 2, axis=0))
+
+
+def _smoothstep(x: float) -> tuple[float, float, float]:
+    """Quintic smoothstep s(x) on [0, 1] and its first two derivatives."""
+    x = min(max(x, 0.0), 1.0)
+    return (x ** 3 * (10 - 15 * x + 6 * x * x), 30 * x * x * (1 - x) ** 2, 60 * x * (1 - x) * (1 - 2 * x))
+
+
+class _Transition:
+    """One piece of the blended reference: from the reference as it was before a frame arrived
+    (``prev``) to the prediction made with that frame, over a smoothstep of ``tb`` (n,) seconds
+    per joint starting at the arrival ``a``; predictions are taken as linear in time (p'' = 0)."""
+
+    def __init__(self, pred, a: float, tb, prev: "_Transition | None", horizon) -> None:
+        self.pred, self.a, self.tb, self.prev, self.horizon = pred, a, np.asarray(tb, float), prev, horizon
+
+    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(r, r', r'') at time ``t`` (non-decreasing over calls)."""
+        p, v = self.pred.predict(self.horizon(self.pred))
+        x = (t - self.a) / self.tb
+        if self.prev is not None and np.all(x >= 1.0):
+            self.prev = None  # the transition is over: the older pieces are never needed again
+        if self.prev is None:
+            return p, v, np.zeros_like(p)
+        q0, v0, a0 = self.prev(t)
+        s, s1, s2 = (np.array(z) for z in zip(*(_smoothstep(xi) for xi in x)))
+        s1, s2, d = s1 / self.tb, s2 / self.tb ** 2, p - q0
+        return q0 + s * d, v0 + s * (v - v0) + s1 * d, (1 - s) * a0 + 2 * s1 * (v - v0) + s2 * d
+
+
 def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensate: bool = False,
                    side: str | None = None, dt: float = 0.001, controller: ComputedTorqueLQ | None = None,
-                   workcell=None, predictor_psd: float = 10.0, max_accel=(60.0, 120.0),
-                   jerk_factor: float = 20.0, follow_gain: float = 12.0, offline: bool = False,
-                   predictor=None, smooth_hz: float = 0.0, follower: bool = True,
-                   elbow: str = "flexion") -> ScaraResult:
+                   workcell=None, predictor=None, shaping: str = "blend", blend_time: float | None = None,
+                   smooth_hz: float = 0.0, follower: bool | None = None,
+                   offline: bool = False,
+                   predictor_psd: float = 10.0, max_accel=(60.0, 120.0), jerk_factor: float = 20.0,
+                   follow_gain: float = 12.0, elbow: str = "flexion",
+                   live_cutoff_hz: float = LIVE_CUTOFF_HZ) -> ScaraResult:
     """Simulate dynamic imitation of a recording on the SCARA in MuJoCo at 1/dt Hz.
 
-    Frames captured at t_k reach the controller at t_k + ``latency``. The reference at time t is the
-    predictor's estimate at t - latency (no compensation: the human motion, delayed) or at t
-    (compensation: predicted forward across the latency and the frame's age). The estimate is
-    shaped into (q_r, qd_r, qdd_r) by the jerk-limited follower (default), or by a critically
-    damped second-order reference model at ``smooth_hz`` (qdd_r = wn^2 (q_est - q_r) - 2 wn qd_r),
-    or passed as it is (``follower=False``). Torques from :class:`ComputedTorqueLQ` (3.9) drive
-    MuJoCo; MuJoCo's actuators and the controller clip them to the effort limits.
+    Frames captured at t_k reach the controller at t_k + ``latency`` (live-filtered, see
+    :func:`human_reference`). Without compensation the reference is the newest received frame (the
+    human motion delayed by the latency and the frame's age); with compensation it is the
+    ``predictor``'s estimate of the angles at the current time t, from the frames received so far.
+
+    Shaping of that estimate into (q_r, qd_r, qdd_r) for the LQ (3.7)-(3.9):
+
+    - ``"blend"`` (default): at each frame arrival the reference crossfades, with a quintic
+      smoothstep over ``blend_time`` (default ``BLEND_FRAMES`` frame periods), from the reference
+      as it was to the new frame's prediction; both estimate the same instant, so the crossfade
+      adds no lag (it mixes in the older, longer-horizon predictions for a while), and q_r, qd_r,
+      qdd_r are consistent (analytic derivatives). Without compensation this is a smooth
+      interpolation of the delayed frames.
+    - ``smooth_hz`` > 0: a critically damped second-order reference model at ``smooth_hz``
+      (qdd_r = wn^2 (q_est - q_r) - 2 wn qd_r); it lags by about 2 / wn (80 ms at 4 Hz), which
+      eats most of what a prediction across a 0.1 s latency gains.
+    - ``"follower"``: the jerk-limited follower (``ruckig``) of the estimate, the estimate being a
+      Kalman filter's (uncompensated: at t - latency); it lags by about 1 / ``follow_gain``.
+    - ``"none"`` (or ``follower=False``): the estimate as it is, qdd_r = 0.
 
     Args:
         skel: raw skeleton (Kinect or BVH).
@@ -384,34 +557,47 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
         latency: sensor latency [s] (>= 0).
         compensate: predict across the latency.
         workcell: a ``robointel.sim.Workcell`` of ``robot`` (default: built here, no table).
-        predictor_psd: Kalman process noise of the prediction [rad^2/s^3].
-        max_accel: (2,) acceleration limit of the reference [rad/s^2] (what the torque limits can
-            deliver); jerk limit = ``jerk_factor`` * max_accel; the reference follows the estimate
-            with :class:`~robointel.programming.imitation.LimitedFollower` (``follow_gain`` [1/s]).
+        predictor: an object with ``update(t, q)``, ``predict(t) -> (q, qd)``, ``t`` (capture time of
+            the last frame) and ``reset()``, e.g. an :class:`ARPredictor` from :func:`fit_predictor`
+            (fitted on *other* recordings); default a :class:`KalmanPredictor` (``predictor_psd``).
+            Used only with ``compensate`` (and by the legacy follower / reference-model shaping).
+        shaping, blend_time [s], smooth_hz [Hz], follower: see above.
         offline: replay of a stored recording, known in advance: the reference is the cleaned
-            recording itself at time t (no sensor in the loop, so no latency to compensate); what
-            remains is the robot's own limits and tracking. ``latency``/``compensate`` are ignored.
-            With ``follower=False`` the LQ gets the recording's exact q, qd, qdd.
-        predictor: an object with ``update(t, q)``, ``predict(t) -> (q, qd)``, ``t`` (time of the
-            last frame) and ``reset()``, e.g. an :class:`ARPredictor` from :func:`fit_predictor`
-            (fitted on *other* recordings); default a :class:`KalmanPredictor`.
-        smooth_hz: natural frequency [Hz] of the reference model (0: not used).
-        follower: shape the estimate with the jerk-limited follower (ignored if ``smooth_hz`` > 0).
+            recording itself at time t (no sensor in the loop, so nothing to compensate: this is
+            the offline compensation, the recording shifted by its known latency); what remains is
+            the robot's own limits and tracking. ``latency``/``compensate`` are ignored. With
+            ``follower=False`` (or ``shaping="none"``/``"blend"``) the LQ gets the recording's exact
+            q, qd, qdd; with the follower, its jerk-limited version.
+        max_accel, jerk_factor, follow_gain: limits [rad/s^2] and gain [1/s] of the follower.
         elbow: the human elbow angle, "planar" or "flexion" (see :func:`arm_angles`).
+        live_cutoff_hz: causal low-pass on the live frames [Hz] (see :func:`human_reference`).
 
     Returns:
-        :class:`ScaraResult`.
+        :class:`ScaraResult` (errors against the true human angles at the same instant).
     """
     from robointel.robot import Robot
 
     if not (0.0 <= latency < 2.0):
         raise InvalidInput(f"latency must be in [0, 2) s, got {latency}", value=latency)
+    if follower is not None:
+        shaping = "follower" if follower else "none"
+    if smooth_hz < 0 or smooth_hz * dt > 0.05:
+        raise InvalidInput(f"smooth_hz must be in [0, {0.05 / dt:g}] Hz at dt = {dt} s, got {smooth_hz}",
+                           value=smooth_hz)
+    if smooth_hz > 0:
+        shaping = "model"
+    if shaping not in ("blend", "model", "follower", "none"):
+        raise InvalidInput(f"shaping must be 'blend', 'follower' or 'none', got {shaping!r}", value=shaping)
     robot = robot or Robot.load("scara2")
     if robot.nq != 2:
         raise InvalidInput(f"simulate_scara needs a 2-joint robot, got {robot.nq}", value=robot.name)
-    t_h, q_true, q_meas = human_reference(skel, side, elbow=elbow)
+    t_h, q_true, q_meas = human_reference(skel, side, elbow=elbow, live_cutoff_hz=live_cutoff_hz)
     q_true = np.clip(q_true, robot.lower, robot.upper)
     q_meas = np.clip(q_meas, robot.lower, robot.upper)
+    T = float(np.median(np.diff(t_h)))
+    tb = BLEND_FRAMES * T if blend_time is None else float(blend_time)
+    if not (dt <= tb <= 1.0):
+        raise InvalidInput(f"blend_time must be in [dt, 1] s, got {tb}", value=tb)
     ctrl = controller or ComputedTorqueLQ(robot, dt=dt)
     if workcell is None:
         from robointel.sim import Workcell
@@ -420,13 +606,13 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
     M = int(np.floor(t_h[-1] / dt)) + 1
     t = np.arange(M) * dt
     spline = CubicSpline(t_h, q_true, axis=0)
-    truth = spline(t)
-    truth_d = spline(t, 1)
-    if smooth_hz < 0 or smooth_hz * dt > 0.05:
-        raise InvalidInput(f"smooth_hz must be in [0, {0.05 / dt:g}] Hz at dt = {dt} s, got {smooth_hz}",
-                           value=smooth_hz)
-    kf = KalmanPredictor(2, accel_psd=predictor_psd) if predictor is None else predictor
-    kf.reset()
+    truth, truth_d, truth_dd = spline(t), spline(t, 1), spline(t, 2)
+    legacy = shaping in ("model", "follower")
+    if legacy or compensate:
+        pred = KalmanPredictor(2, accel_psd=predictor_psd) if predictor is None else predictor
+    else:
+        pred = HoldPredictor()
+    pred.reset()
     from robointel.programming.imitation import LimitedFollower
 
     acc = np.broadcast_to(np.asarray(max_accel, float), (2,))
@@ -435,52 +621,57 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
     arrival = t_h + latency
     nxt = 0
     # the robot starts at rest at the first frame's pose (the operator is in view before start)
-    kf.update(t_h[0], q_meas[0])
+    pred.update(t_h[0], q_meas[0])
     follow.reset(q_meas[0])
     workcell.reset(q_meas[0], np.zeros(2))
-    q_log = np.zeros((M, 2))
-    ref_log = np.zeros((M, 2))
-    tau_log = np.zeros((M, 2))
-    truth_dd = spline(t, 2)
+    q_log, ref_log, tau_log = np.zeros((M, 2)), np.zeros((M, 2)), np.zeros((M, 2))
+    del_log, pred_log = np.zeros((M, 2)), np.zeros((M, 2))
     wn = 2.0 * np.pi * smooth_hz
     qf, vf = np.array(q_meas[0], float), np.zeros(2)
+    horizon = lambda p: min(t[k] if compensate else max(t[k] - latency, t_h[0]), p.t + 0.5)  # <= 0.5 s ahead
+    blend = _Transition(copy.deepcopy(pred), -np.inf, np.full(2, tb), None, horizon)
     for k in range(M):
         while nxt < len(t_h) and arrival[nxt] <= t[k] + 1e-12:
             if nxt > 0:
-                kf.update(t_h[nxt], q_meas[nxt])
+                pred.update(t_h[nxt], q_meas[nxt])
+                if shaping == "blend" and not offline:
+                    blend = _Transition(copy.deepcopy(pred), arrival[nxt], np.full(2, tb), blend, horizon)
             nxt += 1
+        del_log[k] = q_meas[max(nxt - 1, 0)]
         if offline:
-            raw, rate, acc_r = truth[k], truth_d[k], truth_dd[k]
-            q_r, qd_r, qdd_r = (follow.step(np.clip(raw, robot.lower, robot.upper), rate) if follower else
-                                (raw, rate, acc_r))
-        elif smooth_hz > 0:
-            # the estimate through a critically damped second-order reference model: a smooth
-            # reference with consistent q_r, qd_r, qdd_r
-            tq = t[k] if compensate else max(t[k] - latency, t_h[0])
-            raw = np.clip(kf.predict(min(tq, kf.t + 0.5))[0], robot.lower, robot.upper)
+            raw = truth[k]
+            q_r, qd_r, qdd_r = (follow.step(raw, truth_d[k]) if shaping == "follower" else
+                                (raw, truth_d[k], truth_dd[k]))
+        elif shaping == "model":
+            raw = np.clip(pred.predict(horizon(pred))[0], robot.lower, robot.upper)
             acc_r = wn * wn * (raw - qf) - 2.0 * wn * vf
             qf, vf = qf + dt * vf + 0.5 * dt * dt * acc_r, vf + dt * acc_r
             q_r, qd_r, qdd_r = qf, vf, acc_r
+        elif shaping == "follower":
+            raw, rate = pred.predict(horizon(pred))
+            q_r, qd_r, qdd_r = follow.step(np.clip(raw, robot.lower, robot.upper), rate)
+        elif shaping == "none":
+            raw, rate = pred.predict(horizon(pred))
+            q_r, qd_r, qdd_r = raw, rate, np.zeros(2)
         else:
-            tq = t[k] if compensate else max(t[k] - latency, t_h[0])
-            raw, rate = kf.predict(min(tq, kf.t + 0.5))  # never extrapolate more than 0.5 s
-            q_r, qd_r, qdd_r = (follow.step(np.clip(raw, robot.lower, robot.upper), rate) if follower else
-                                (raw, rate, np.zeros(2)))
+            raw = pred.predict(horizon(pred))[0]
+            q_r, qd_r, qdd_r = blend(t[k])
+        pred_log[k] = raw
         q_r = np.clip(q_r, robot.lower, robot.upper)
         q, qd = workcell.q, workcell.qd
         tau = ctrl.torque(q, qd, q_r, qd_r, qdd_r)
         workcell.step(tau)
         q_log[k], ref_log[k], tau_log[k] = q, q_r, tau
-    err = q_log - truth
-    rms = np.sqrt(np.mean(err ** 2, axis=0))
-    trk = np.sqrt(np.mean((q_log - ref_log) ** 2, axis=0))
+    rms_of = lambda e: np.sqrt(np.mean(e ** 2, axis=0))
     sat = float(np.mean(np.any(np.abs(tau_log) >= robot.effort_limit - 1e-9, axis=1)))
-    return ScaraResult(t, q_log, truth, ref_log, tau_log, rms, trk, sat, 0.0 if offline else latency,
-                       compensate and not offline, skel.source, offline)
+    return ScaraResult(t, q_log, truth, ref_log, tau_log, rms_of(q_log - truth), rms_of(q_log - ref_log), sat,
+                       0.0 if offline else latency, compensate and not offline, skel.source, offline,
+                       del_log, pred_log, rms_of(pred_log - truth))
 
 
 def plot_scara(results: list[ScaraResult], path) -> None:
-    """Fig. 3.8-style plot: human vs robot angles, without and with compensation."""
+    """Fig. 3.8-style plot, one column per run: the true human angle, the delayed signal the
+    controller receives, the predicted signal (compensated runs) and the SCARA's angle in MuJoCo."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -491,12 +682,15 @@ def plot_scara(results: list[ScaraResult], path) -> None:
         for j in range(2):
             ax = axes[j, c]
             ax.plot(r.t, r.q_human[:, j], "k-", lw=1.2, label="human (true)")
-            ax.plot(r.t, r.q_ref[:, j], "C1--", lw=0.8, label="reference (received)")
+            if not r.offline and r.q_delayed is not None:
+                ax.plot(r.t, r.q_delayed[:, j], "C1-", lw=0.7, alpha=0.8, label=f"received (delayed {r.latency:.2f} s)")
+            if r.compensated and r.q_pred is not None:
+                ax.plot(r.t, r.q_pred[:, j], "C2--", lw=0.8, label="predicted")
             ax.plot(r.t, r.q[:, j], "C0-", lw=1.0, label="SCARA (MuJoCo)")
             ax.set_ylabel(f"q{j + 1} [rad]")
-            mode = ("offline replay (no latency)" if r.offline else
+            mode = ("offline replay (recording known, no latency)" if r.offline else
                     "with delay compensation" if r.compensated else "without delay compensation")
-            ax.set_title(f"{mode}: q{j + 1} RMS {r.rms[j]:.3f} rad", fontsize=9)
+            ax.set_title(f"{mode}: q{j + 1} RMS vs human {r.rms[j]:.3f} rad", fontsize=9)
             if j == 1:
                 ax.set_xlabel("t [s]")
         axes[0, c].legend(fontsize=7, loc="best")
