@@ -228,7 +228,8 @@ def transfer(category: str = typer.Option("cup"), seed: int = typer.Option(0), s
 
 @grasp_app.command()
 def trial(category: str = typer.Option("all", help="a category or 'all'"), n: int = typer.Option(5, help="trials per category"),
-          seed: int = typer.Option(0), source: str = typer.Option("demo"), db: Path = typer.Option(None)) -> None:
+          seed: int = typer.Option(0), source: str = typer.Option("demo"), db: Path = typer.Option(None),
+          arm: bool = typer.Option(True, help="the whole LR Mate in MuJoCo (--no-arm: the gripper alone on the FK path)")) -> None:
     """MuJoCo lift-and-shake trials (Table 6.2): random placements, perceive, plan, grasp, lift 10 cm, shake."""
     from rich.progress import track
 
@@ -248,7 +249,7 @@ def trial(category: str = typer.Option("all", help="a category or 'all'"), n: in
             ok = right = 0
             for k in track(range(n), description=cat):
                 o = held[k % len(held)]
-                r = grasp_trial(o, random_placements([o], rng)[0], planner, rng=rng)
+                r = grasp_trial(o, random_placements([o], rng)[0], planner, rng=rng, arm=arm)
                 ok += int(r.success)
                 right += int(r.category == cat)
             tot += ok

@@ -183,3 +183,20 @@ def test_refine_position_finds_the_height_of_a_flat_handle():
     ok = [r for r in results if r.feasible and r.quality > 0]
     assert ok and all(r.grasp.centre[2] >= gripper.tip_depth + 0.003 - 1e-9 for r in ok)
     assert not orientation_search(g, P, None, gripper=gripper, table_z=0.0).feasible
+
+
+def test_quality_unseen_contact_when_only_the_completion_is_there():
+    """A box seen on one side only, completed by a model of the other side: the grasp across it
+    scores normally on the completed cloud, and UNSEEN when contacts must lie on perceived points."""
+    from scipy.spatial import cKDTree
+
+    from robointel.learning.grasp.quality import UNSEEN
+
+    box = primitive_object("box", 3)
+    P = sample_points(box, 4000, 0)
+    g = taught_grasps(box)[0]
+    seen = P[(P - g.centre) @ g.axis > 0]  # the camera saw only the +axis half
+    assert grasp_quality(P, g).quality > 0
+    assert grasp_quality(P, g, observed=cKDTree(P)).quality > 0
+    q = grasp_quality(P, g, observed=cKDTree(seen))
+    assert q.quality == UNSEEN and q.reason == "unseen"

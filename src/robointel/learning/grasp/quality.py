@@ -12,7 +12,11 @@ Negative quality marks grasps that cannot work (Table 6.1 of the dissertation, p
 * -1 ``off-axis``: (almost) no cloud points near the axis within the jaws' opening,
 * -2 ``sparse``: too few points around a contact to estimate its normal,
 * -3 ``too wide``: the contacts are farther apart than the gripper opens,
-* -4 ``slip``: a contact normal is outside the friction cone about the closing axis.
+* -4 ``slip``: a contact normal is outside the friction cone about the closing axis,
+* -5 ``unseen``: (only when an ``observed`` cloud is given) a contact is farther than
+  ``observed_radius`` from every observed point: the jaw would close on a part of the cloud that only
+  a completion (e.g. the warped template) put there. On a fork the jaws otherwise closed on the warped
+  template's wider handle, 9 mm beside the real one.
 """
 from __future__ import annotations
 
@@ -28,7 +32,7 @@ from robointel.learning.grasp.transfer import Grasp
 __all__ = ["ParallelGripper", "GraspQuality", "grasp_quality", "estimate_normals", "grasp_map",
            "isotropy"]
 
-OFF_AXIS, SPARSE, TOO_WIDE, SLIP = -1.0, -2.0, -3.0, -4.0
+OFF_AXIS, SPARSE, TOO_WIDE, SLIP, UNSEEN = -1.0, -2.0, -3.0, -4.0, -5.0
 
 
 @dataclass(frozen=True)
@@ -151,7 +155,8 @@ def isotropy(G: np.ndarray) -> float:
 
 def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGripper(), mu: float = 0.5,
                   axis_radius: float = 0.006, normal_radius: float = 0.010, min_neighbors: int = 5,
-                  tree: cKDTree | None = None) -> GraspQuality:
+                  tree: cKDTree | None = None, observed: cKDTree | None = None,
+                  observed_radius: float = 0.005) -> GraspQuality:
     """(6.20) grasp isotropy of ``grasp`` on ``cloud`` (n, 3), negative for infeasible grasps.
 
     Args:
@@ -159,6 +164,8 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
         gripper: jaw model (max opening). mu: friction coefficient.
         axis_radius: points within this distance of the axis line count for the line search.
         normal_radius: neighbourhood for the contact normals; ``min_neighbors`` points needed there.
+        observed: KD-tree of the points actually perceived (when ``cloud`` is completed by a model);
+            contacts must lie within ``observed_radius`` (m) of them.
     """
     P = as_array(cloud, "cloud", (None, 3))
     if len(P) < min_neighbors:
@@ -184,6 +191,8 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
     regrasp = Grasp(mid, grasp.rotation, width, grasp.name)
     if width > gripper.max_width:
         return GraspQuality(TOO_WIDE, "too wide", contacts, width=width, grasp=regrasp)
+    if observed is not None and np.max(observed.query(contacts)[0]) > observed_radius:
+        return GraspQuality(UNSEEN, "unseen", contacts, width=width, grasp=regrasp)
     tree = tree or cKDTree(P)
     normals = np.zeros((2, 3))
     for i, (c, sign) in enumerate(zip(contacts, (1.0, -1.0))):

@@ -3,9 +3,10 @@
 The table top is the plane ``z = 0`` (world), centred at ``TABLE_CENTRE``. Each placed object has
 its scan mesh as a visual geom in group 1 (what the depth cameras see; no contacts) and its convex
 pieces as collision geoms in group 3. With ``dynamic=True`` the objects are free bodies; the gripper
-follows a mocap target (its pose is commanded each step, e.g. from the LR Mate's forward kinematics) with
-(a free body welded to a mocap target, so that the motion has velocity and friction acts) with
-two slide-jointed fingers driven by force-limited position actuators.
+(without the arm) follows a mocap target (its pose is commanded each step, e.g. from the LR Mate's
+forward kinematics; a free body welded to the mocap target, so that the motion has velocity and
+friction acts) with two slide-jointed fingers driven by force-limited position actuators.
+:func:`arm_scene` puts the whole LR Mate (from its URDF) in the scene instead, the gripper on its flange.
 """
 from __future__ import annotations
 

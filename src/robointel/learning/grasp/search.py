@@ -42,7 +42,7 @@ class SearchResult:
 def orientation_search(grasp: Grasp, cloud, robot=None, *, gripper: ParallelGripper = ParallelGripper(),
                        angles=None, weight: float = 0.05, table_z: float | None = None, q_ref=None,
                        base_pose: np.ndarray | None = None, lift: float = 0.10,
-                       tree: cKDTree | None = None) -> SearchResult:
+                       tree: cKDTree | None = None, observed: cKDTree | None = None) -> SearchResult:
     """(6.21) search rotations of ``grasp`` about its closing axis.
 
     Args:
@@ -55,6 +55,8 @@ def orientation_search(grasp: Grasp, cloud, robot=None, *, gripper: ParallelGrip
         q_ref: preferred joint configuration (IK solutions sorted by distance to it).
         base_pose: 4x4 world pose of the robot root (default identity).
         lift: the grasp is only feasible if the pose ``lift`` metres above is reachable too.
+        observed: KD-tree of the perceived points when ``cloud`` is completed (see
+            :func:`grasp_quality`: contacts must have been seen).
     """
     P = np.asarray(cloud, float)
     tree = tree or cKDTree(P)
@@ -72,7 +74,7 @@ def orientation_search(grasp: Grasp, cloud, robot=None, *, gripper: ParallelGrip
                 g = Grasp(g.centre + np.array([0, 0, deficit]), g.rotation, g.width, g.name)
         key = tuple(np.round(g.centre, 6))
         if key not in cache:  # turning about the closing axis leaves the contacts unchanged
-            cache[key] = grasp_quality(P, g, gripper=gripper, tree=tree)
+            cache[key] = grasp_quality(P, g, gripper=gripper, tree=tree, observed=observed)
         gq = cache[key]
         if gq.grasp is not None:
             g = Grasp(gq.grasp.centre, g.rotation, gq.width, g.name)
@@ -113,12 +115,14 @@ def refine_position(grasp: Grasp, cloud, *, gripper: ParallelGripper = ParallelG
     lacks the object's underside (the cameras never see it) can put a flat object's grasps at or below
     the table (forks and knives lying flat: every transferred grasp missed the handle, 'off-axis');
     the object's own visible surface (``observed``, default ``cloud``: pass the perceived points
-    when ``cloud`` is completed by a warped template) says at which height the jaws meet it. These re-heighted grasps
+    when ``cloud`` is completed by a warped template; contacts must then also have been seen, see
+    :func:`grasp_quality`) says at which height the jaws meet it. These re-heighted grasps
     are also tried slid by ``slide`` (m) horizontally across the closing axis (along a handle), for
     thin parts whose graspable spots are a few millimetres long (the offset is penalised like the
     grid's)."""
     P = np.asarray(cloud, float)
     Pobs = P if observed is None else np.asarray(observed, float)
+    obs_tree = None if observed is None else cKDTree(Pobs)
     tree = tree or cKDTree(P)
     scored = []
     bases = [grasp]
@@ -149,7 +153,7 @@ def refine_position(grasp: Grasp, cloud, *, gripper: ParallelGripper = ParallelG
                     off = a * u + b * v - h * z
                     g = Grasp(base.centre + off, R, base.width, base.name)
                     off = g.centre - grasp.centre
-                    q = grasp_quality(P, g, gripper=gripper, tree=tree)
+                    q = grasp_quality(P, g, gripper=gripper, tree=tree, observed=obs_tree)
                     score = q.quality - weight * float(np.linalg.norm(off)) - 0.05 * abs(yaw)
                     scored.append((score, q.grasp if q.grasp is not None and q.quality > 0 else g))
     scored.sort(key=lambda t: -t[0])
