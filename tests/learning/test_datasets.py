@@ -20,3 +20,25 @@ def test_uci_ft_episodes(shared_data):
     assert sum(sizes.values()) == 463
     e = load_ft("lp1")
     assert e.X.shape[1:] == (15, 6) and "normal" in e.classes and len(e.y) == e.X.shape[0]
+
+
+def test_ft_features_and_svm_beat_the_majority_class(shared_data):
+    import pytest
+    from sklearn.model_selection import StratifiedKFold, cross_val_score
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+    from sklearn.svm import SVC
+
+    from robointel.errors import InvalidInput
+    from robointel.learning.rltt import ft_episode_features
+
+    shared_data("ft", "lp1.data.txt")
+    e = load_ft("lp1")
+    F = ft_episode_features(e.X)
+    assert F.shape == (len(e.X), 8 * 6 + 15 * 6) and np.isfinite(F).all()
+    with pytest.raises(InvalidInput):
+        ft_episode_features(e.X[:, :, :5])
+    acc = cross_val_score(make_pipeline(StandardScaler(), SVC(C=10.0)), F, e.y,
+                          cv=StratifiedKFold(4, shuffle=True, random_state=0)).mean()
+    majority = np.bincount(e.y).max() / len(e.y)
+    assert acc > majority + 0.3, (acc, majority)
