@@ -117,3 +117,26 @@ def test_arm_scene_matches_the_robot_core_and_servos_track(lrmate):
     for _ in range(500):
         mujoco.mj_step(m, d)
     assert np.abs(d.qpos[adr] - q).max() < 2e-3
+
+
+def test_planner_classifies_with_k_templates_and_excludes_the_target():
+    """Several classifying templates per category (6.17)-(6.19): the nearest wins, an excluded name is
+    never fitted, and the grasps come from the category's taught template even when the nearest
+    classifying template has none."""
+    box_t = primitive_object("box", 10)
+    tmpl = Template("box_t", "box", sample_points(box_t, 600, 0), taught_grasps(box_t))
+    box_b = primitive_object("box", 12)
+    tb = Template("box_b", "box", sample_points(box_b, 600, 0), [])
+    ball = primitive_object("ball", 11)
+    tball = Template("ball_t", "ball", sample_points(ball, 600, 0), taught_grasps(ball))
+    planner = GraspPlanner([tmpl, tball], classifiers=[tmpl, tb, tball], robot=None)
+    cloud = sample_points(box_b, 600, 1) + [0.5, 0.0, 0.0]
+    plan = planner.plan(cloud)
+    assert plan.classification.category == "box"
+    assert len(plan.classification.fits) == 3
+    assert len(plan.transferred) == len(tmpl.grasps)
+    plan = planner.plan(cloud, exclude=("box_b",))
+    assert [f.template.name for f in plan.classification.fits] == ["box_t", "ball_t"]
+    assert plan.classification.category == "box"
+    with pytest.raises(InvalidInput):
+        planner.plan(cloud, exclude=("box_t", "box_b", "ball_t"))

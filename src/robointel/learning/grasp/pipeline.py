@@ -65,14 +65,20 @@ class GraspPlanner:
             :func:`grasp_quality`), not only on the warped-template completion. Off: on validation
             placements (seed 11, arm trials) it turned two forks dropped from grasps on the completion
             into infeasible plans and cost long tools 18/20 -> 13/20 overall (thin handles are sparsely seen).
+        classifiers: the K templates of (6.17)-(6.19) (default ``templates``): several instances per
+            category may classify (nearest template wins) while the grasps are transferred from the
+            category's taught template in ``templates`` (the classifying template itself when it has
+            grasps). :meth:`plan` can exclude templates by name (held-out targets).
     """
 
     def __init__(self, templates: list[Template], *, gripper: ParallelGripper = ParallelGripper(), robot="lrmate",
                  base_pose: np.ndarray | None = None, table_z: float = 0.0, n_points: int = 200,
-                 q_ref=None, local_radius: float = 0.04, refine: bool = True, seen_contacts: bool = False) -> None:
+                 q_ref=None, local_radius: float = 0.04, refine: bool = True, seen_contacts: bool = False,
+                 classifiers: list[Template] | None = None) -> None:
         if not templates:
             raise InvalidInput("GraspPlanner needs at least one template", value=templates)
         self.templates = templates
+        self.classifiers = list(classifiers) if classifiers else list(templates)
         self.gripper = gripper
         self.robot = lrmate_with_gripper(gripper) if robot == "lrmate" else robot
         self.base_pose = np.eye(4) if base_pose is None else np.asarray(base_pose, float)
@@ -106,14 +112,28 @@ class GraspPlanner:
             return h  # the local fit jumped to another part: keep the global transfer
         return transfer_grasp(ComposedWarp(fit.warp, rr.warp), g)
 
-    def plan(self, cloud) -> GraspPlan:
-        """Plan a grasp on ``cloud`` (n, 3) in the world frame."""
+    def plan(self, cloud, exclude=()) -> GraspPlan:
+        """Plan a grasp on ``cloud`` (n, 3) in the world frame; classifying templates named in
+        ``exclude`` are left out (a held-out target is never its own template)."""
         with single_thread_blas():
-            return self._plan(cloud)
+            return self._plan(cloud, set(exclude))
 
-    def _plan(self, cloud) -> GraspPlan:
+    def _grasp_template(self, cls: Classification) -> Template:
+        t = cls.best.template
+        if t.grasps:
+            return t
+        for u in self.templates:
+            if u.category == cls.category and u.grasps:
+                return u
+        raise InvalidInput(f"no template of category {cls.category!r} has taught grasps", value=cls.category)
+
+    def _plan(self, cloud, exclude=frozenset()) -> GraspPlan:
         t0 = time.perf_counter()
-        cls = classify(cloud, self.templates, n_points=self.n_points)
+        cands = [t for t in self.classifiers if t.name not in exclude]
+        if not cands:
+            raise InvalidInput("every classifying template is excluded", value=sorted(exclude))
+        cls = classify(cloud, cands, n_points=self.n_points)
+        tmpl = self._grasp_template(cls)
         # the bounded per-axis scale of the template init separates categories (classification) but
         # its stretched warp moved transferred grasps off cup rims (cups 20/20 -> 14/20). The grasps
         # are transferred through two fits of the chosen template: one that rests on the table (base
@@ -122,8 +142,8 @@ class GraspPlanner:
         # transfer fit). Each fit's transferred grasps are refined and searched against that fit's
         # completed cloud; the lowest (6.21) cost wins.
         cloud = np.asarray(cloud, float)
-        fits = [fit_template(cloud, cls.best.template, n_points=self.n_points, rest_z=self.table_z, starts=1),
-                fit_template(cloud, cls.best.template, n_points=self.n_points, anisotropic=0.0, starts=1)]
+        fits = [fit_template(cloud, tmpl, n_points=self.n_points, rest_z=self.table_z, starts=1),
+                fit_template(cloud, tmpl, n_points=self.n_points, anisotropic=0.0, starts=1)]
         t1 = time.perf_counter()
         per_fit = [[self._transfer(fit, g, cloud) for g in fit.template.grasps] for fit in fits]
         grasps = per_fit[0]
@@ -223,7 +243,7 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
     cloud = clouds[0]
     if len(cloud) < 20:
         return TrialResult(False, "cloud too small", cloud=cloud)
-    plan = planner.plan(cloud)
+    plan = planner.plan(cloud, exclude=(obj.name,))
     cat = plan.classification.category
     res = plan.search
     if not res.feasible or res.q is None:
