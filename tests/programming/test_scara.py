@@ -198,3 +198,58 @@ def test_flexion_elbow_never_wraps(shared_data):
     assert np.allclose(flex[:, 0], planar[:, 0])        # the shoulder angle is the same
     with pytest.raises(InvalidInput):
         human_reference(sk, elbow="wrist")
+
+
+def test_accel_limits_keep_the_torques_within_the_effort_limits(scara):
+    from robointel.programming.scara import accel_limits
+
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        q, qd = rng.uniform(-2.5, 2.5, 2), rng.uniform(-3, 3, 2)
+        b = scara.nonlinear_effects(q, qd) + scara.viscous * qd
+        M = scara.mass_matrix(q)
+        lo, hi = accel_limits(scara, q, qd, margin=0.9)  # the box: every corner is within the limits
+        for corner in ([lo[0], lo[1]], [lo[0], hi[1]], [hi[0], lo[1]], [hi[0], hi[1]]):
+            assert np.all(np.abs(M @ corner + b) <= 0.9 * scara.effort_limit + 1e-9)
+        qdd = rng.uniform(-20, 20, 2)  # with the other joint's acceleration as it is: each bound is exact
+        lo, hi = accel_limits(scara, q, qd, margin=0.9, qdd=qdd)
+        for i in range(2):
+            for bound, sign in ((lo[i], -1), (hi[i], 1)):
+                a = qdd.copy()
+                a[i] = bound
+                if abs(bound) > 0.1 * 0.9 * scara.effort_limit[i] / M[i, i] + 1e-9:  # not the braking floor
+                    assert np.isclose((M @ a + b)[i], sign * 0.9 * scara.effort_limit[i])
+
+
+def test_feasible_reference_is_followed_within_the_torque_limits(scara):
+    from robointel.programming.scara import FeasibleReference
+    from robointel.sim import Workcell
+
+    target = np.array([1.2, -1.0])  # a 1.2 / 1.0 rad step: far beyond what the torques allow at once
+    errs = {}
+    for shaped in (False, True):
+        wc = Workcell(scara, table=False, ft_sensor=False)
+        wc.reset(np.zeros(2), np.zeros(2))
+        ctrl, fr = ComputedTorqueLQ(scara), FeasibleReference(scara)
+        fr.reset(np.zeros(2))
+        e, need = [], []
+        for _ in range(1500):
+            q_r, qd_r, qdd_r = fr.step(target, np.zeros(2)) if shaped else (target, np.zeros(2), np.zeros(2))
+            if shaped:  # the torque the reference itself needs stays within the effort limits
+                need.append(np.abs(scara.mass_matrix(q_r) @ qdd_r + scara.nonlinear_effects(q_r, qd_r)
+                                   + scara.viscous * qd_r) / scara.effort_limit)
+            wc.step(ctrl.torque(wc.q, wc.qd, q_r, qd_r, qdd_r))
+            e.append(np.abs(wc.q - q_r))
+        errs[shaped] = np.max(e[100:], axis=0)
+        if shaped:
+            assert np.max(need) <= 0.9 * 1.02                    # margin 0.9 (+ what one jerk step can add)
+            assert np.allclose(q_r, target, atol=1e-3)            # it gets there within 1.5 s
+    assert errs[True].max() < 0.02 and errs[False].max() > 0.3    # the robot follows the shaped reference
+
+
+def test_feasible_reference_rejects_bad_settings(scara):
+    from robointel.programming.scara import FeasibleReference
+
+    for kw in ({"margin": 0.0}, {"margin": 1.5}, {"jerk_time": 0.0}, {"mode": "torque"}, {"coupling": "none"}):
+        with pytest.raises(InvalidInput):
+            FeasibleReference(scara, **kw)

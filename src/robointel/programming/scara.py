@@ -63,7 +63,7 @@ SMOOTH_HZ = 0.0
 #: Crossfade length in frame periods, chosen on the seven recordings (a shaping hyper-parameter;
 #: the predictor is fitted leave-one-out): mean live compensated RMS q1/q2 with the LQ at
 #: r_weight 1e-6 was 0.246/0.278 (1 frame, r_weight 1e-8), 0.240/0.247 (2), 0.251/0.253 (3) rad.
-BLEND_FRAMES = 2.0
+BLEND_FRAMES = 1.0
 #: Cut-off [Hz] of the causal low-pass on the live Kinect frames (see :func:`human_reference`).
 LIVE_CUTOFF_HZ = 12.0
 
@@ -457,6 +457,8 @@ class ScaraResult:
     q_delayed: np.ndarray | None = None
     q_pred: np.ndarray | None = None
     prediction_rms: np.ndarray | None = None
+    q_target: np.ndarray | None = None
+    target_rms: np.ndarray | None = None
 
 
 def human_reference(skel: Skeleton, side: str | None = None, *, live_cutoff_hz: float = LIVE_CUTOFF_HZ,
@@ -521,6 +523,132 @@ class _Transition:
         return q0 + s * d, v0 + s * (v - v0) + s1 * d, (1 - s) * a0 + 2 * s1 * (v - v0) + s2 * d
 
 
+def accel_limits(robot, q, qd, *, margin: float = 0.85, ratio: float = 2.0, qdd=None, floor: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
+    """(lo (n,), hi (n,)) joint acceleration bounds [rad/s^2] that the effort limits allow at (q, qd).
+
+    With ``qdd`` None: the symmetric box |qdd_i| <= A_i such that every qdd in it satisfies
+    |M(q) qdd + b(q, qd)|_i <= margin tau_max,i, b = C(q, qd) qd + G(q) + F_v qd (3.9): row i needs
+    sum_j |M_ij| A_j <= margin tau_max,i - |b_i|; A_j proportional to (1, ratio, ...), the largest such box.
+
+    With ``qdd`` (n,) (the accelerations the joints have now): joint i's own range with the other
+    joints' accelerations held at ``qdd``: (+-margin tau_max,i - b_i - sum_{j != i} M_ij qdd_j) / M_ii
+    (the coupling as it is, not its worst case; jerk-limited accelerations change little per period).
+    Each range keeps 0 inside it, at least +-floor * margin tau_max,i / M_ii (with ``qdd``) or
+    +-1e-3 (the box), so that the follower can always brake within a bounded time.
+    """
+    M = robot.mass_matrix(q)
+    qd = np.asarray(qd, float)
+    b = robot.nonlinear_effects(q, qd) + robot.viscous * qd
+    L = margin * np.asarray(robot.effort_limit, float)
+    if qdd is None:
+        shape = np.asarray(ratio, float) ** np.arange(len(b))
+        room = np.maximum(L - np.abs(b), 0.0)
+        A = np.maximum(np.min(room / (np.abs(M) @ shape)) * shape, 1e-3)
+        return -A, A
+    qdd = np.asarray(qdd, float)
+    d = np.diag(M)
+    cross = M @ qdd - d * qdd + b
+    lo, hi = (-L - cross) / d, (L - cross) / d
+    return np.minimum(lo, -floor * L / d), np.maximum(hi, floor * L / d)
+
+
+class FeasibleReference:
+    """Torque-feasible online follower of a reference (``ruckig``, position interface): each control
+    period the state (q_s, qd_s, qdd_s) moves by one step of the time-optimal, jerk-limited
+    trajectory to the target's current (q_r, qd_r), with acceleration bounds from the effort limits
+    and the inertia at the follower's state (:func:`accel_limits`) and the robot's velocity limits.
+    The LQ (3.7)-(3.9) then gets a reference it can follow, instead of saturating on jumps it cannot.
+
+    Args:
+        robot: the robot (M(q), b(q, qd), effort, velocity and position limits).
+        dt: period [s].
+        margin: share of the effort limits the reference may use (the rest is for the feedback).
+        ratio: A2 / A1 of the acceleration box.
+        jerk_time: time [s] to ramp the acceleration from 0 to its bound (jerk = A / jerk_time).
+    """
+
+    def __init__(self, robot, dt: float = 0.001, *, margin: float = 0.9, ratio: float = 2.0,
+                 jerk_time: float = 0.004, coupling: str = "current", mode: str = "velocity",
+                 gain: float = 20.0) -> None:
+        from ruckig import InputParameter, OutputParameter, Ruckig, Synchronization
+
+        if not (0.0 < margin <= 1.0) or ratio <= 0 or jerk_time <= 0:
+            raise InvalidInput(f"FeasibleReference: margin in (0, 1], ratio > 0 and jerk_time > 0 "
+                               f"(got {margin}, {ratio}, {jerk_time})")
+        if coupling not in ("box", "current"):
+            raise InvalidInput(f"FeasibleReference: coupling must be 'box' or 'current', got {coupling!r}")
+        self.robot, self.dt, self.margin, self.ratio, self.jerk_time = robot, dt, margin, ratio, jerk_time
+        if mode not in ("position", "velocity"):
+            raise InvalidInput(f"FeasibleReference: mode must be 'position' or 'velocity', got {mode!r}")
+        self.coupling, self.mode, self.gain = coupling, mode, float(gain)
+        n = robot.nq
+        self.otg, self.inp, self.out = Ruckig(n, dt), InputParameter(n), OutputParameter(n)
+        self.inp.synchronization = Synchronization.No  # each joint as fast as it can
+        self.inp.max_velocity = np.asarray(robot.velocity_limit, float).tolist()
+        self.q = self.qd = self.qdd = np.zeros(n)
+        self.scaled = 0
+
+    def reset(self, q, qd=None) -> None:
+        """Start at rest (or at velocity ``qd``) at ``q``."""
+        n = self.robot.nq
+        self.q = np.array(q, float)
+        self.qd = np.zeros(n) if qd is None else np.array(qd, float)
+        self.qdd = np.zeros(n)
+        self.scaled = 0  # steps whose acceleration had to be scaled down (coupling)
+        self.inp.current_position, self.inp.current_velocity = self.q.tolist(), self.qd.tolist()
+        self.inp.current_acceleration = [0.0] * n
+
+    def step(self, q_r, qd_r) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One period toward the target (q_r, qd_r) (n,): the new (q_s, qd_s, qdd_s)."""
+        from ruckig import Result
+
+        rb = self.robot
+        lo, hi = accel_limits(rb, self.q, self.qd, margin=self.margin, ratio=self.ratio,
+                              qdd=self.qdd if self.coupling == "current" else None)
+        vmax = np.asarray(rb.velocity_limit, float)
+        self.inp.min_acceleration, self.inp.max_acceleration = lo.tolist(), hi.tolist()
+        self.inp.max_jerk = (np.maximum(-lo, hi) / self.jerk_time).tolist()
+        if self.mode == "velocity":
+            from ruckig import ControlInterface
+
+            self.inp.control_interface = ControlInterface.Velocity
+            e = np.clip(q_r, rb.lower, rb.upper) - self.q
+            brake = np.where(e > 0, -lo, hi)  # deceleration available when arriving from e's side
+            fb = np.sign(e) * np.minimum(self.gain * np.abs(e), np.sqrt(2.0 * brake * np.abs(e)))
+            self.inp.target_velocity = np.clip(np.asarray(qd_r, float) + fb, -0.99 * vmax, 0.99 * vmax).tolist()
+        else:
+            self.inp.target_position = np.clip(q_r, rb.lower, rb.upper).tolist()
+            self.inp.target_velocity = np.clip(qd_r, -0.99 * vmax, 0.99 * vmax).tolist()
+        self.inp.target_acceleration = [0.0] * rb.nq
+        # the bounds change with q: a state beyond the new ones is brought back by ruckig itself
+        res = self.otg.update(self.inp, self.out)
+        if res not in (Result.Working, Result.Finished):
+            raise InvalidInput(f"ruckig failed ({res})", value=res)
+        a = np.array(self.out.new_acceleration)
+        # the per-joint bounds hold the other joints' accelerations at their last values; when the joints
+        # change together the coupling can still ask for more: scale the step's acceleration as a whole
+        # (largest alpha in [0, 1] with |M alpha a + b| <= margin tau_max) and integrate it here instead
+        M = rb.mass_matrix(self.q)
+        bias = rb.nonlinear_effects(self.q, self.qd) + rb.viscous * self.qd
+        L, Ma = self.margin * np.asarray(rb.effort_limit, float), M @ a
+        alpha = 1.0
+        for i in range(len(a)):
+            if abs(Ma[i] + bias[i]) > L[i] and abs(Ma[i]) > 1e-12:
+                alpha = min(alpha, max(L[i] - np.sign(Ma[i]) * bias[i], 0.0) / abs(Ma[i]))
+        if alpha < 1.0:
+            a = alpha * a
+            self.q = self.q + self.dt * self.qd + 0.5 * self.dt ** 2 * a
+            self.qd = self.qd + self.dt * a
+            self.inp.current_position, self.inp.current_velocity = self.q.tolist(), self.qd.tolist()
+            self.inp.current_acceleration = a.tolist()
+        else:
+            self.q, self.qd = np.array(self.out.new_position), np.array(self.out.new_velocity)
+            self.out.pass_to_input(self.inp)
+        self.qdd = a
+        self.scaled += alpha < 1.0
+        return self.q, self.qd, self.qdd
+
+
 def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensate: bool = False,
                    side: str | None = None, dt: float = 0.001, controller: ComputedTorqueLQ | None = None,
                    workcell=None, predictor=None, shaping: str = "blend", blend_time: float | None = None,
@@ -528,7 +656,7 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
                    offline: bool = False,
                    predictor_psd: float = 10.0, max_accel=(60.0, 120.0), jerk_factor: float = 20.0,
                    follow_gain: float = 12.0, elbow: str = "flexion",
-                   live_cutoff_hz: float = LIVE_CUTOFF_HZ) -> ScaraResult:
+                   live_cutoff_hz: float = LIVE_CUTOFF_HZ, feasible: bool | dict | None = None) -> ScaraResult:
     """Simulate dynamic imitation of a recording on the SCARA in MuJoCo at 1/dt Hz.
 
     Frames captured at t_k reach the controller at t_k + ``latency`` (live-filtered, see
@@ -623,9 +751,15 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
     # the robot starts at rest at the first frame's pose (the operator is in view before start)
     pred.update(t_h[0], q_meas[0])
     follow.reset(q_meas[0])
+    shaper = None
+    if feasible is None:
+        feasible = not offline and shaping == "blend"
+    if feasible:
+        shaper = FeasibleReference(robot, dt, **(feasible if isinstance(feasible, dict) else {}))
+        shaper.reset(q_meas[0])
     workcell.reset(q_meas[0], np.zeros(2))
     q_log, ref_log, tau_log = np.zeros((M, 2)), np.zeros((M, 2)), np.zeros((M, 2))
-    del_log, pred_log = np.zeros((M, 2)), np.zeros((M, 2))
+    del_log, pred_log, tgt_log = np.zeros((M, 2)), np.zeros((M, 2)), np.zeros((M, 2))
     wn = 2.0 * np.pi * smooth_hz
     qf, vf = np.array(q_meas[0], float), np.zeros(2)
     horizon = lambda p: min(t[k] if compensate else max(t[k] - latency, t_h[0]), p.t + 0.5)  # <= 0.5 s ahead
@@ -657,6 +791,9 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
             raw = pred.predict(horizon(pred))[0]
             q_r, qd_r, qdd_r = blend(t[k])
         pred_log[k] = raw
+        tgt_log[k] = q_r
+        if shaper is not None:
+            q_r, qd_r, qdd_r = shaper.step(q_r, qd_r)
         q_r = np.clip(q_r, robot.lower, robot.upper)
         q, qd = workcell.q, workcell.qd
         tau = ctrl.torque(q, qd, q_r, qd_r, qdd_r)
@@ -666,7 +803,8 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
     sat = float(np.mean(np.any(np.abs(tau_log) >= robot.effort_limit - 1e-9, axis=1)))
     return ScaraResult(t, q_log, truth, ref_log, tau_log, rms_of(q_log - truth), rms_of(q_log - ref_log), sat,
                        0.0 if offline else latency, compensate and not offline, skel.source, offline,
-                       del_log, pred_log, rms_of(pred_log - truth))
+                       del_log, pred_log, rms_of(pred_log - truth), np.clip(tgt_log, robot.lower, robot.upper),
+                       rms_of(q_log - np.clip(tgt_log, robot.lower, robot.upper)))
 
 
 def plot_scara(results: list[ScaraResult], path) -> None:
