@@ -80,7 +80,8 @@ def register(app: typer.Typer) -> None:
                               f"{r.tracking_rms[0]:.4f} / {r.tracking_rms[1]:.4f}", f"{100 * r.saturated:.1f} %")
                 console.print(s)
                 console.print(f"RMS vs the true (undelayed) human angles; predictor fitted on {fitted_on}; "
-                              "controller RMS = robot vs the reference it was given")
+                              "controller RMS = robot vs the reference it was given (live: after the torque-feasible "
+                              "follower)")
                 console.print(f"plot: {out / 'scara_imitation.png'}")
         except RobointelError as exc:
             console.print(f"[red]error:[/red] {exc}")
@@ -166,7 +167,8 @@ def demo_stage(ctx: StageContext) -> StageResult:
         Figure("SCARA RMS q1 / q2, delay compensation [rad]", f(r1.rms),
                f"{PAPER_RMS_COMPENSATED[0]} / {PAPER_RMS_COMPENSATED[1]}",
                "vs the true human angles; live: ridge autoregressive predictor fitted on other takes, "
-               "the reference crossfaded to each new prediction over two frame periods"),
+               "the reference crossfaded to each new prediction over one frame period, then a "
+               "torque-feasible ruckig follower"),
         Figure("SCARA RMS q1 / q2, offline replay [rad]", f(r2.rms), None,
                "recording known in advance: no sensor latency in the loop"),
         Figure("SCARA controller RMS q1 / q2 vs its reference, compensated [rad]", f(r1.tracking_rms), None,

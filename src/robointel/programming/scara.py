@@ -23,10 +23,27 @@ received frame (the human motion delayed by the latency and the frame's age); wi
 compensation it is a prediction of the human angles at the current instant from the frames
 received so far: by a linear autoregressive predictor (:class:`ARPredictor`, ridge regression
 fitted on *other* recordings) or a constant-rate Kalman filter (:class:`KalmanPredictor`). Causal
-throughout. At each frame arrival the reference crossfades (quintic smoothstep over two frame
-periods) from what it was to the new frame's prediction, giving consistent (q_r, qd_r, qdd_r)
-without adding lag. Errors are measured against the true human angles (the zero-phase cleaned
-recording, not delayed) at the same instant.
+throughout. At each frame arrival the reference crossfades (quintic smoothstep over one frame
+period) from what it was to the new frame's prediction, giving consistent (q_r, qd_r, qdd_r)
+without adding lag; a torque-feasible online follower (:class:`FeasibleReference`, ``ruckig``,
+acceleration bounds from the URDF effort limits and M(q), b(q, qd) at every step) then turns that
+signal into a reference the robot can actually follow. Errors are measured against the true
+human angles (the zero-phase cleaned recording, not delayed) at the same instant.
+
+What the follower changed (benchmarks/teach.py, mean over the seven recordings, q1/q2 rad, live
+0.1 s latency; the previous pipeline fed the 2-frame crossfade straight to the LQ): robot vs the
+reference it is given 0.022/0.028 -> 0.0007/0.0024 uncompensated and 0.119/0.145 -> 0.0011/0.0047
+compensated; steps with a torque at its limit 10-19 % -> 0 % and 26-44 % -> 0-0.7 %; robot vs the
+true human angles 0.311/0.268 -> 0.314/0.258 uncompensated and 0.240/0.250 -> 0.241/0.223
+compensated. The robot now follows its reference, but most of what it no longer adds is the
+follower smoothing away the prediction's frame-to-frame jumps (robot vs the crossfaded prediction
+0.14/0.14 rad): the remaining error is the signal's. Tried and measured on the same recordings:
+ruckig's position interface aimed at the moving target overshot (0.37/0.27 compensated), a
+coupling-proof acceleration box was too conservative for J1 (0.43/0.31), follower gains 8/12/40/80
+1/s and crossfades of 0.5/2 frames were worse than 20 1/s and 1 frame, effort margin 1.0 instead of
+0.9 gave the same RMS with the torques at the limit in 34-48 % of steps; AR predictors with 5/20
+frames, a quadratic horizon polynomial, a stronger ridge, a 0.5-2 s running-mean 'spring' feature
+or a 6/9 Hz live low-pass all predicted 0.18-0.19/0.20-0.21 rad (no better than 10 frames at 12 Hz).
 
 Why the earlier compensation did worse than none (measured on the seven recordings, mean RMS
 q1/q2 of the signal itself, no robot): the received frames held as they come are 0.26/0.23 rad
@@ -61,8 +78,10 @@ PAPER_RMS_COMPENSATED = (0.0103, 0.0305)
 #: and gave mean RMS q1/q2 0.294/0.274 rad against the true human angles (worse than no prediction).
 SMOOTH_HZ = 0.0
 #: Crossfade length in frame periods, chosen on the seven recordings (a shaping hyper-parameter;
-#: the predictor is fitted leave-one-out): mean live compensated RMS q1/q2 with the LQ at
-#: r_weight 1e-6 was 0.246/0.278 (1 frame, r_weight 1e-8), 0.240/0.247 (2), 0.251/0.253 (3) rad.
+#: the predictor is fitted leave-one-out). Without the torque-feasible follower 2 frames was best
+#: (mean live compensated RMS q1/q2 0.246/0.278 (1 frame, r_weight 1e-8), 0.240/0.247 (2),
+#: 0.251/0.253 (3) rad); with it (margin 1.0 at the time) 1 frame: 0.238/0.225 vs 0.246/0.228
+#: (0.5 frame) and 0.254/0.231 (none).
 BLEND_FRAMES = 1.0
 #: Cut-off [Hz] of the causal low-pass on the live Kinect frames (see :func:`human_reference`).
 LIVE_CUTOFF_HZ = 12.0
@@ -440,6 +459,9 @@ class ScaraResult:
         q_pred: (M, 2) the predictor's output before shaping [rad] (equal to ``q_delayed``
             without compensation; the recording itself offline).
         prediction_rms: (2,) RMS of q_pred - q_human [rad]: the predictor's own error.
+        q_target: (M, 2) the shaped signal before the torque-feasible follower [rad] (equal to
+            ``q_ref`` without the follower).
+        target_rms: (2,) RMS of q - q_target [rad]: robot vs that signal.
     """
 
     t: np.ndarray
@@ -699,6 +721,9 @@ def simulate_scara(skel: Skeleton, *, robot=None, latency: float = 0.1, compensa
         max_accel, jerk_factor, follow_gain: limits [rad/s^2] and gain [1/s] of the follower.
         elbow: the human elbow angle, "planar" or "flexion" (see :func:`arm_angles`).
         live_cutoff_hz: causal low-pass on the live frames [Hz] (see :func:`human_reference`).
+        feasible: pass the shaped reference through a :class:`FeasibleReference` (torque-feasible
+            ruckig follower) before the LQ: True, False, or a dict of its keyword arguments. Default
+            (None): on for live ``"blend"`` runs, off offline and for the other shapings.
 
     Returns:
         :class:`ScaraResult` (errors against the true human angles at the same instant).
