@@ -32,12 +32,15 @@ human angles (the zero-phase cleaned recording, not delayed) at the same instant
 
 What the follower changed (benchmarks/teach.py, mean over the seven recordings, q1/q2 rad, live
 0.1 s latency; the previous pipeline fed the 2-frame crossfade straight to the LQ): robot vs the
-reference it is given 0.022/0.028 -> 0.0007/0.0024 uncompensated and 0.119/0.145 -> 0.0011/0.0047
-compensated; steps with a torque at its limit 10-19 % -> 0 % and 26-44 % -> 0-0.7 %; robot vs the
-true human angles 0.311/0.268 -> 0.314/0.258 uncompensated and 0.240/0.250 -> 0.241/0.223
-compensated. The robot now follows its reference, but most of what it no longer adds is the
-follower smoothing away the prediction's frame-to-frame jumps (robot vs the crossfaded prediction
-0.14/0.14 rad): the remaining error is the signal's. Tried and measured on the same recordings:
+reference it is given 0.022/0.028 -> 0.0007/0.0024 uncompensated and 0.119/0.145 -> 0.0011/0.0046
+compensated; steps with a torque at its limit 10-19 % -> 0-0.01 % and 26-44 % -> 0-0.7 %; robot vs
+the true human angles 0.311/0.268 -> 0.314/0.258 uncompensated and 0.240/0.250 -> 0.241/0.223
+compensated (Kalman prediction 0.312/0.355 -> 0.259/0.253). The robot now follows its reference,
+but most of what it no longer adds is the follower smoothing away the prediction's frame-to-frame
+jumps (robot vs the crossfaded prediction 0.143/0.135 rad): the remaining error is the signal's.
+The predictor alone is 0.181/0.200 rad from the true angles (the same ridge fitted in-sample on all
+seven recordings, an optimistic bound: 0.175/0.194), so the dissertation's compensated
+0.0103/0.0305 rad is out of reach for live prediction on these recordings. Tried and measured on the same recordings:
 ruckig's position interface aimed at the moving target overshot (0.37/0.27 compensated), a
 coupling-proof acceleration box was too conservative for J1 (0.43/0.31), follower gains 8/12/40/80
 1/s and crossfades of 0.5/2 frames were worse than 20 1/s and 1 frame, effort margin 1.0 instead of
