@@ -200,3 +200,58 @@ def test_quality_unseen_contact_when_only_the_completion_is_there():
     assert grasp_quality(P, g, observed=cKDTree(P)).quality > 0
     q = grasp_quality(P, g, observed=cKDTree(seen))
     assert q.quality == UNSEEN and q.reason == "unseen"
+
+
+def test_rim_normals_on_a_thin_plate_seen_from_above():
+    """A 3 mm plate seen only from above (its top face, 5 mm grid): PCA normals at the jaw contacts are
+    the face normal (SLIP); with ``edge_normals`` the contacts are the plate's rims, normal along the
+    closing axis, and the grasp across the plate scores; a grasp along a slanted face stays SLIP."""
+    xs, ys = np.meshgrid(np.arange(-0.04, 0.0401, 0.005), np.arange(-0.008, 0.0081, 0.004))
+    top = np.c_[xs.ravel(), ys.ravel(), np.full(xs.size, 0.003)]
+    g = grasp_from_axis([0.0, 0.0, 0.003], [0, 1, 0], [0, 0, -1])
+    assert grasp_quality(top, g).quality == SLIP
+    q = grasp_quality(top, g, edge_normals=True)
+    assert q.quality > 0 and q.reason == "ok"
+    assert abs(q.normals[0] @ [0, 1, 0]) > 0.95 and abs(q.normals[1] @ [0, 1, 0]) > 0.95
+    assert q.width == pytest.approx(0.016, abs=1e-9)
+    # a face tilted 40 deg about x: the jaw meets it at an angle -> still outside the cone
+    a = np.radians(40)
+    R = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+    tilted = top @ R.T
+    g2 = grasp_from_axis([0.0, 0.0, 0.0], [0, 1, 0], [0, 0, -1])
+    assert grasp_quality(tilted, g2, edge_normals=True, axis_radius=0.02).quality == SLIP
+
+
+def test_carve_above_seen_drops_floating_and_outside_completion():
+    from robointel.learning.grasp.pipeline import carve_above_seen
+
+    xs, ys = np.meshgrid(np.arange(0.0, 0.05, 0.005), np.arange(0.0, 0.02, 0.005))
+    seen = np.c_[xs.ravel(), ys.ravel(), np.full(xs.size, 0.010)]
+    below = seen[:5] - [0, 0, 0.008]  # under the seen top: an unseen underside, kept
+    above = seen[5:10] + [0, 0, 0.015]  # in space the cameras saw empty
+    beside = seen[:3] + [0, 0.05, 0]  # beside the footprint, where the table was seen
+    W = np.vstack([below, above, beside])
+    out = carve_above_seen(W, seen)
+    assert np.allclose(out, below)
+    assert len(carve_above_seen(W, seen, footprint=None)) == len(below) + len(beside)
+
+
+def test_pad_reach_and_sloped_rims():
+    """A part seen as two strips (its 12 mm top face at z = 12 mm, and a 16 mm wide section at z = 6 mm
+    seen beside it: a rounded handle). Jaws centred 16 mm up reach only the top strip (fingertips at
+    11 mm). With ``pad_reach`` and rim
+    normals the top strip's rims are not a grasp: the part is wider past the fingertips (its side
+    slopes out). Jaws centred at 9 mm reach the wide section: the pad reach changes nothing there."""
+    xs = np.arange(-0.03, 0.0301, 0.004)
+    top = np.array([[x, y, 0.012] for x in xs for y in np.arange(-0.006, 0.00601, 0.003)])
+    low = np.array([[x, y, 0.006] for x in xs for y in (-0.008, 0.008)])
+    P = np.vstack([top, low])
+    high = grasp_from_axis([0.0, 0.0, 0.016], [0, 1, 0], [0, 0, -1])
+    assert grasp_quality(P, high, edge_normals=True, pad_reach=0.001).quality == SLIP
+    mid = grasp_from_axis([0.0, 0.0, 0.009], [0, 1, 0], [0, 0, -1])
+    qm = grasp_quality(P, mid, edge_normals=True, pad_reach=0.001)
+    assert qm.width == pytest.approx(0.016, abs=1e-9)  # the pads reach the wide section
+    assert qm.quality == grasp_quality(P, mid, edge_normals=True).quality
+    # the pad reach alone: a grasp 12 mm above the top strip touches nothing
+    over = grasp_from_axis([0.0, 0.0, 0.017], [0, 1, 0], [0, 0, -1])
+    assert grasp_quality(P, over, pad_reach=0.001).quality == OFF_AXIS

@@ -28,7 +28,8 @@ from robointel.learning.grasp.scene import ARM_KP, ARM_KV, Placement, arm_scene,
 from robointel.learning.grasp.search import SearchResult, orientation_search, refine_position
 from robointel.learning.grasp.transfer import Grasp, transfer_grasp
 
-__all__ = ["GraspPlanner", "GraspPlan", "TrialResult", "grasp_trial", "lrmate_with_gripper", "perceived_template"]
+__all__ = ["GraspPlanner", "GraspPlan", "TrialResult", "carve_above_seen", "grasp_trial", "lrmate_with_gripper",
+           "perceived_template"]
 
 
 def lrmate_with_gripper(gripper: ParallelGripper = ParallelGripper()):
@@ -36,6 +37,36 @@ def lrmate_with_gripper(gripper: ParallelGripper = ParallelGripper()):
     from robointel.robot import Robot
 
     return Robot.load("lrmate200id7l", tool=gripper.tool_transform())
+
+
+def carve_above_seen(completion: np.ndarray, observed: np.ndarray, *, radius: float = 0.008,
+                     margin: float = 0.006, footprint: float | None = 0.008) -> np.ndarray:
+    """The completion points (k, 3) that do not contradict the perceived cloud ``observed`` (n, 3).
+
+    The cameras look down on the table from above the workspace, so the top of every object resting
+    on the table is in view and its footprint is the vertical projection of what they see. Dropped:
+    a completion point (the warped template's) higher than ``margin`` (m) above every observed point
+    within ``radius`` (m, horizontally): it lies in space the cameras saw empty; and (``footprint``
+    not None) a point with no observed point within ``footprint`` (m, horizontally): it lies beside
+    the object, where the cameras saw the table. Points under the seen surface (the sides and the
+    underside the cameras miss) are kept. A warp of a thick template (the screwdriver) onto a thin
+    target (a fork) otherwise left template points floating above and beside the handle, and jaws
+    planned on them closed on nothing. ``margin`` and ``footprint`` cover the 5 mm voxels (a voxel
+    mean sits up to 2.5 mm inside the surface) and the depth noise. Assumes no undercut wider than
+    the object's top (objects lying or standing on the table)."""
+    W = np.asarray(completion, float)
+    X = np.asarray(observed, float)
+    if len(W) == 0 or len(X) == 0:
+        return W
+    tree = cKDTree(X[:, :2])
+    keep = np.ones(len(W), bool)
+    for i, nb in enumerate(tree.query_ball_point(W[:, :2], radius)):
+        if nb and W[i, 2] > X[nb, 2].max() + margin:
+            keep[i] = False
+    if footprint is not None:
+        d, _ = tree.query(W[:, :2])
+        keep &= d <= footprint
+    return W[keep]
 
 
 @dataclass
@@ -69,12 +100,21 @@ class GraspPlanner:
             category may classify (nearest template wins) while the grasps are transferred from the
             category's taught template in ``templates`` (the classifying template itself when it has
             grasps). :meth:`plan` can exclude templates by name (held-out targets).
+        edge_normals: contact normals on thin parts seen face-on are their rims' (see
+            :func:`grasp_quality`); False = PCA normals everywhere (the earlier behaviour).
+        carve: drop completion points (warped template) that lie above the perceived surface, in
+            space the cameras saw empty (:func:`carve_above_seen`).
+        pad_reach: contacts must lie this far (m) inside the finger pads (see :func:`grasp_quality`;
+            None = the whole line-search cylinder, the earlier test).
+        rest_height: re-heighted upright grasps also at mid-height of a part lying on the table
+            (see :func:`refine_position`).
     """
 
     def __init__(self, templates: list[Template], *, gripper: ParallelGripper = ParallelGripper(), robot="lrmate",
                  base_pose: np.ndarray | None = None, table_z: float = 0.0, n_points: int = 200,
                  q_ref=None, local_radius: float = 0.04, refine: bool = True, seen_contacts: bool = False,
-                 classifiers: list[Template] | None = None) -> None:
+                 classifiers: list[Template] | None = None, edge_normals: bool = True, carve: bool = True,
+                 pad_reach: float | None = 0.003, rest_height: bool = True) -> None:
         if not templates:
             raise InvalidInput("GraspPlanner needs at least one template", value=templates)
         self.templates = templates
@@ -87,6 +127,10 @@ class GraspPlanner:
         self.local_radius = local_radius
         self.refine = refine
         self.seen_contacts = seen_contacts
+        self.edge_normals = edge_normals
+        self.carve = carve
+        self.pad_reach = pad_reach
+        self.rest_height = rest_height
         self.q_ref = np.radians([0, 20, -10, 0, -70, 0]) if q_ref is None else q_ref
 
     def _transfer(self, fit, g: Grasp, cloud: np.ndarray) -> Grasp:
@@ -153,16 +197,21 @@ class GraspPlanner:
         seen = cKDTree(cloud) if self.seen_contacts else None
         for fit, gs in zip(fits, per_fit):
             # the warped template completes the sides the cameras do not see
-            full = np.vstack([cloud, fit.warp(fit.template.points)])
+            W = fit.warp(fit.template.points)
+            if self.carve:
+                W = carve_above_seen(W, cloud)
+            full = np.vstack([cloud, W])
             tree = cKDTree(full)
             cands = []
             for g in gs:
                 cands += (refine_position(g, full, gripper=self.gripper, tree=tree, table_z=self.table_z,
-                                          observed=cloud)
+                                          observed=cloud, edge_normals=self.edge_normals,
+                                          pad_reach=self.pad_reach, rest_height=self.rest_height)
                           if self.refine else [g])
             for g in cands:
                 r = orientation_search(g, full, self.robot, gripper=self.gripper, table_z=self.table_z,
-                                       base_pose=self.base_pose, q_ref=self.q_ref, tree=tree, observed=seen)
+                                       base_pose=self.base_pose, q_ref=self.q_ref, tree=tree, observed=seen,
+                                       edge_normals=self.edge_normals, pad_reach=self.pad_reach)
                 if best is None or r.cost < best.cost:
                     best = r
         t3 = time.perf_counter()
@@ -173,7 +222,8 @@ class GraspPlanner:
 @dataclass
 class TrialResult:
     """One lift-and-shake trial: ``success``, the planned ``plan`` (None if perception failed),
-    the predicted ``category``, the object's final height (m) and a ``reason``."""
+    the predicted ``category``, the object's final height (m), a ``reason`` and a ``log``: the state at
+    the end of each phase (:data:`PHASES`; see :func:`_phase_state`)."""
 
     success: bool
     reason: str
@@ -181,6 +231,39 @@ class TrialResult:
     plan: GraspPlan | None = None
     final_height: float = float("nan")
     cloud: np.ndarray | None = None
+    log: list = field(default_factory=list)
+
+
+#: The phases of a trial's joint path, in order.
+PHASES = ("approach", "descend", "close", "lift", "shake", "hold")
+
+
+def _phase_state(m, d, phase: str, body: int, gbody: int, fingers: set, fp: int, g: ParallelGripper) -> dict:
+    """Diagnostics at the end of a trial phase: ``phase``; the object's position in the gripper's
+    frame ``obj_in_gripper`` (m, (3,)); its height ``obj_z`` (m); the lowest fingertip corner's height
+    ``fingertip_z`` (m, world); the jaw opening ``opening`` (m); the
+    summed normal force of the finger-object contacts ``grip_normal_N`` (N) and their summed
+    tangential (friction) force ``grip_tangential_N`` (N); ``contacts`` (count)."""
+    R = d.xmat[gbody].reshape(3, 3)
+    rel = R.T @ (d.xpos[body] - d.xpos[gbody])
+    fn = ft = 0.0
+    n = 0
+    f6 = np.zeros(6)
+    for i in range(d.ncon):
+        c = d.contact[i]
+        b1, b2 = m.geom_bodyid[c.geom1], m.geom_bodyid[c.geom2]
+        if (b1 == body and b2 in fingers) or (b2 == body and b1 in fingers):
+            mujoco.mj_contactForce(m, d, i, f6)
+            fn += abs(f6[0])
+            ft += float(np.hypot(f6[1], f6[2]))
+            n += 1
+    tips = min(float((d.geom_xpos[j] + d.geom_xmat[j].reshape(3, 3) @ (np.array([sx, sy, sz]) * m.geom_size[j]))[2])
+               for j in range(m.ngeom) if m.geom_bodyid[j] in fingers
+               for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1))
+    return {"phase": phase, "obj_in_gripper": rel.round(4).tolist(), "obj_z": round(float(d.xpos[body][2]), 4),
+            "fingertip_z": round(tips, 4),
+            "opening": round(float(g.max_width - 2 * d.qpos[m.jnt_qposadr[fp]]), 4),
+            "grip_normal_N": round(fn, 2), "grip_tangential_N": round(ft, 2), "contacts": n}
 
 
 def _smooth(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
@@ -284,6 +367,8 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
         d.qvel[m.jnt_dofadr[m.joint("gripper").id]:][:6] = 0.0
     kv_over_kp = np.asarray(ARM_KV) / np.asarray(ARM_KP)
     rel_after_lift = None
+    fingers = {m.body("arm/fp" if arm else "fp").id, m.body("arm/fn" if arm else "fn").id}
+    log: list[dict] = []
     for k, (qs, ctrl) in enumerate(path):
         qd = np.gradient(qs, dt, axis=0) if len(qs) > 1 else np.zeros_like(qs)
         for q, v in zip(qs, qd):
@@ -298,6 +383,7 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
                 d.mocap_quat[0] = qw
             d.ctrl[-2:] = ctrl
             mujoco.mj_step(m, d)
+        log.append(_phase_state(m, d, PHASES[k], body, gbody, fingers, fp, g))
         if k == 2:
             closed = float(d.qpos[m.jnt_qposadr[fp]])  # finger travel after closing (m)
         if k == 3:
@@ -315,7 +401,7 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
         reason = f"dropped: slipped during lift (height {h_lift:.3f} m, grip {2 * (g.max_width / 2 - closed):.3f} m)"
     else:
         reason = f"dropped: slipped during shake (moved {moved:.3f} m in hand, grip {2 * (g.max_width / 2 - closed):.3f} m)"
-    return TrialResult(bool(held), reason, cat, plan, h, cloud)
+    return TrialResult(bool(held), reason, cat, plan, h, cloud, log)
 
 
 def perceived_template(obj: ObjectModel, *, rng=0, cameras=None, placement: Placement | None = None) -> np.ndarray:

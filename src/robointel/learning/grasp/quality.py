@@ -153,10 +153,34 @@ def isotropy(G: np.ndarray) -> float:
     return float(s[-1] / s[0]) if s[0] > 0 else 0.0
 
 
+def _rim_normal(contact: np.ndarray, mean: np.ndarray, face: np.ndarray, closing: np.ndarray,
+                radius: float) -> np.ndarray:
+    """Outward normal of the rim of a thin part (a fork's or knife's handle lying on the table) at a
+    jaw contact, when the cloud shows only the part's face.
+
+    A depth camera above a handle 2-3 mm thick sees its top face; after 5 mm voxels the PCA normal of
+    the contact's neighbourhood (``face``, unit (3,)) is the face normal, square to the closing axis,
+    so the jaw would read as sliding off (SLIP). The jaw, closing along ``closing`` (unit (3,), pointing
+    out of the object at this contact), does not touch that face: it meets the rim at the face's
+    boundary, whose outward normal lies in the face plane, away from the one-sided neighbourhood.
+    Estimated as the in-plane part of ``contact - mean`` (m; ``mean`` the neighbourhood centroid).
+    Used only when the face normal is more than 60 deg from the closing axis (a jaw sliding along the
+    face) and the contact is a boundary: the in-plane offset is at least a quarter of ``radius`` (m)
+    and points outward along the closing axis; otherwise ``face`` is returned unchanged (and the
+    friction-cone check of (6.20) decides, e.g. SLIP for a slanted face)."""
+    d = contact - mean
+    d = d - (d @ face) * face
+    nd = float(np.linalg.norm(d))
+    if nd < 0.25 * radius or d @ closing <= 0:
+        return face
+    return d / nd
+
+
 def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGripper(), mu: float = 0.5,
                   axis_radius: float = 0.006, normal_radius: float = 0.010, min_neighbors: int = 5,
                   tree: cKDTree | None = None, observed: cKDTree | None = None,
-                  observed_radius: float = 0.005) -> GraspQuality:
+                  observed_radius: float = 0.005, edge_normals: bool = False,
+                  pad_reach: float | None = None) -> GraspQuality:
     """(6.20) grasp isotropy of ``grasp`` on ``cloud`` (n, 3), negative for infeasible grasps.
 
     Args:
@@ -166,6 +190,18 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
         normal_radius: neighbourhood for the contact normals; ``min_neighbors`` points needed there.
         observed: KD-tree of the points actually perceived (when ``cloud`` is completed by a model);
             contacts must lie within ``observed_radius`` (m) of them.
+        pad_reach: contacts must lie at least this far (m) inside the finger pads along the approach,
+            i.e. no deeper than ``gripper.tip_depth - pad_reach`` past the grasp centre (None: the
+            whole ``axis_radius`` cylinder, the earlier test and the default, which the teaching
+            sampler and the benchmark's gripper-fit test keep). The line-search cylinder reaches
+            ``axis_radius`` (6 mm) past the centre, beyond the 5 mm fingertips: grasps planned 5 mm above
+            a fork's or knife's handle read as touching it, and the jaws closed on nothing. With
+            ``pad_reach`` and ``edge_normals`` a grasp is also SLIP when the part is more than 1 mm
+            wider (along the closing axis, up to ``axis_radius`` past the fingertips) past the fingertips
+            than at the contacts: its side slopes out under the seen face (the rim normal does not
+            hold) and the jaws would close on its upper slope and squeeze it down and out.
+        edge_normals: contact normals at the rim of a thin part seen face-on (see :func:`_rim_normal`);
+            off by default (full object models, e.g. teaching, have their side faces sampled).
     """
     P = as_array(cloud, "cloud", (None, 3))
     if len(P) < min_neighbors:
@@ -179,12 +215,26 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
     if np.any(near & (np.abs(s) > half) & (np.abs(s) <= half + gripper.finger_thickness)):
         return GraspQuality(TOO_WIDE, "too wide")  # a jaw would land on the object
     near &= np.abs(s) <= half
+    beyond = None
+    if pad_reach is not None:  # the pads end at the fingertips: nothing beyond them is gripped
+        t = rel @ grasp.approach
+        lim = gripper.tip_depth - pad_reach
+        # points past the fingertips (up to axis_radius deeper), in the jaws' path across the breadth
+        beyond = (np.abs(rel @ grasp.rotation[:, 0]) < axis_radius) & (np.abs(s) <= half) & \
+            (t > gripper.tip_depth) & (t < gripper.tip_depth + axis_radius)
+        near &= t <= lim
     if np.count_nonzero(near) < 2:
         return GraspQuality(OFF_AXIS, "off-axis")
     # each jaw, closing from its side, meets the outermost point within the opening
     idx = np.flatnonzero(near)
     ip = idx[np.argmax(s[idx])]
     ineg = idx[np.argmin(s[idx])]
+    if edge_normals and beyond is not None and np.any(beyond & ((s > s[ip] + 0.001) | (s < s[ineg] - 0.001))):
+        # rim normals assume the part's side under the seen face is square to it; the part being
+        # wider past the fingertips than where the pads touch it says the side slopes out: the jaws
+        # close on its upper slope and squeeze it down and out (a fork's rounded handle under jaws set
+        # too high)
+        return GraspQuality(SLIP, "slip", P[[ip, ineg]], width=float(s[ip] - s[ineg]))
     contacts = P[[ip, ineg]]
     width = float(s[ip] - s[ineg])
     mid = grasp.centre + 0.5 * (s[ip] + s[ineg]) * y
@@ -195,15 +245,19 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
         return GraspQuality(UNSEEN, "unseen", contacts, width=width, grasp=regrasp)
     tree = tree or cKDTree(P)
     normals = np.zeros((2, 3))
+    cos_lim = 1.0 / np.sqrt(1.0 + mu * mu)
     for i, (c, sign) in enumerate(zip(contacts, (1.0, -1.0))):
         nb = tree.query_ball_point(c, normal_radius)
         if len(nb) < min_neighbors:
             return GraspQuality(SPARSE, "sparse", contacts, width=width, grasp=regrasp)
-        Q = P[nb] - P[nb].mean(0)
+        mean = P[nb].mean(0)
+        Q = P[nb] - mean
         _, V = np.linalg.eigh(Q.T @ Q)
         n = V[:, 0]
-        normals[i] = n if n @ y * sign >= 0 else -n
-    cos_lim = 1.0 / np.sqrt(1.0 + mu * mu)
+        n = n if n @ y * sign >= 0 else -n
+        if edge_normals and abs(n @ y) < 0.5:  # a face the jaw slides along: it meets the face's rim
+            n = _rim_normal(c, mean, n, y * sign, normal_radius)
+        normals[i] = n
     if normals[0] @ y < cos_lim or -(normals[1] @ y) < cos_lim:
         return GraspQuality(SLIP, "slip", contacts, normals, width, regrasp)
     q = isotropy(grasp_map(contacts, normals, mid, mu=mu))

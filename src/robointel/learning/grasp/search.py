@@ -42,7 +42,8 @@ class SearchResult:
 def orientation_search(grasp: Grasp, cloud, robot=None, *, gripper: ParallelGripper = ParallelGripper(),
                        angles=None, weight: float = 0.05, table_z: float | None = None, q_ref=None,
                        base_pose: np.ndarray | None = None, lift: float = 0.10,
-                       tree: cKDTree | None = None, observed: cKDTree | None = None) -> SearchResult:
+                       tree: cKDTree | None = None, observed: cKDTree | None = None,
+                       edge_normals: bool = False, pad_reach: float | None = None) -> SearchResult:
     """(6.21) search rotations of ``grasp`` about its closing axis.
 
     Args:
@@ -57,6 +58,8 @@ def orientation_search(grasp: Grasp, cloud, robot=None, *, gripper: ParallelGrip
         lift: the grasp is only feasible if the pose ``lift`` metres above is reachable too.
         observed: KD-tree of the perceived points when ``cloud`` is completed (see
             :func:`grasp_quality`: contacts must have been seen).
+        edge_normals: rim normals at contacts on thin parts seen face-on (see :func:`grasp_quality`).
+        pad_reach: contacts only where the finger pads reach (see :func:`grasp_quality`).
     """
     P = np.asarray(cloud, float)
     tree = tree or cKDTree(P)
@@ -74,7 +77,8 @@ def orientation_search(grasp: Grasp, cloud, robot=None, *, gripper: ParallelGrip
                 g = Grasp(g.centre + np.array([0, 0, deficit]), g.rotation, g.width, g.name)
         key = tuple(np.round(g.centre, 6))
         if key not in cache:  # turning about the closing axis leaves the contacts unchanged
-            cache[key] = grasp_quality(P, g, gripper=gripper, tree=tree, observed=observed)
+            cache[key] = grasp_quality(P, g, gripper=gripper, tree=tree, observed=observed,
+                                       edge_normals=edge_normals, pad_reach=pad_reach)
         gq = cache[key]
         if gq.grasp is not None:
             g = Grasp(gq.grasp.centre, g.rotation, gq.width, g.name)
@@ -101,7 +105,8 @@ def refine_position(grasp: Grasp, cloud, *, gripper: ParallelGripper = ParallelG
                     yaws=np.radians([-30, -15, 0, 15, 30]), dz=(0.0, 0.005, -0.005, -0.01), weight: float = 2.0,
                     keep: int = 3, tree: cKDTree | None = None, table_z: float | None = None,
                     column_radius: float = 0.008, clearance: float = 0.003,
-                    slide=(-0.018, -0.012, 0.012, 0.018), observed=None) -> list[Grasp]:
+                    slide=(-0.018, -0.012, 0.012, 0.018), observed=None, edge_normals: bool = False,
+                    pad_reach: float | None = None, rest_height: bool = False) -> list[Grasp]:
     """Our addition before (6.21): a small local search around a transferred grasp, for when the warp
     lands it a few millimetres off a thin feature (a cup's rim, a tool's handle). Centres on a
     3 x 3 grid (``step`` m) in the plane normal to the approach, heights ``dz``, turns of the closing
@@ -119,7 +124,12 @@ def refine_position(grasp: Grasp, cloud, *, gripper: ParallelGripper = ParallelG
     :func:`grasp_quality`) says at which height the jaws meet it. These re-heighted grasps
     are also tried slid by ``slide`` (m) horizontally across the closing axis (along a handle), for
     thin parts whose graspable spots are a few millimetres long (the offset is penalised like the
-    grid's)."""
+    grid's). ``edge_normals``, ``pad_reach``: as in :func:`grasp_quality`.
+
+    ``rest_height``: the re-heighted grasps are also tried at half the column's top height above
+    the table (not below the fingertip clearance): the middle of a part lying on the table, whose
+    underside the cameras never see (the lowest seen point of a fork's 12 mm thick scan was 4 mm up,
+    which put the jaws 1 mm over its widest section)."""
     P = np.asarray(cloud, float)
     Pobs = P if observed is None else np.asarray(observed, float)
     obs_tree = None if observed is None else cKDTree(Pobs)
@@ -140,6 +150,10 @@ def refine_position(grasp: Grasp, cloud, *, gripper: ParallelGripper = ParallelG
                     z_hi = float(np.percentile(col[:, 2], 95))
                     z_mid = 0.5 * (max(float(col[:, 2].min()), z_clear) + z_hi)
                     bases.append(Grasp(np.array([c[0], c[1], z_mid]), up.rotation, grasp.width, grasp.name))
+                    # the middle of a part lying on the table (its unseen underside on the table)
+                    z_rest = max(0.5 * (table_z + z_hi), z_clear)
+                    if rest_height and abs(z_rest - z_mid) > 0.002:
+                        bases.append(Grasp(np.array([c[0], c[1], z_rest]), up.rotation, grasp.width, grasp.name))
     for base, yaw in [(b_, y_) for b_ in bases for y_ in yaws]:
         z = base.approach
         u = base.axis
@@ -153,7 +167,8 @@ def refine_position(grasp: Grasp, cloud, *, gripper: ParallelGripper = ParallelG
                     off = a * u + b * v - h * z
                     g = Grasp(base.centre + off, R, base.width, base.name)
                     off = g.centre - grasp.centre
-                    q = grasp_quality(P, g, gripper=gripper, tree=tree, observed=obs_tree)
+                    q = grasp_quality(P, g, gripper=gripper, tree=tree, observed=obs_tree, edge_normals=edge_normals,
+                                      pad_reach=pad_reach)
                     score = q.quality - weight * float(np.linalg.norm(off)) - 0.05 * abs(yaw)
                     scored.append((score, q.grasp if q.grasp is not None and q.quality > 0 else g))
     scored.sort(key=lambda t: -t[0])
