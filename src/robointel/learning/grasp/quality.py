@@ -180,7 +180,7 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
                   axis_radius: float = 0.006, normal_radius: float = 0.010, min_neighbors: int = 5,
                   tree: cKDTree | None = None, observed: cKDTree | None = None,
                   observed_radius: float = 0.005, edge_normals: bool = False,
-                  pad_reach: float | None = None) -> GraspQuality:
+                  pad_reach: float | None = None, table_z: float | None = None) -> GraspQuality:
     """(6.20) grasp isotropy of ``grasp`` on ``cloud`` (n, 3), negative for infeasible grasps.
 
     Args:
@@ -196,12 +196,23 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
             sampler and the benchmark's gripper-fit test keep). The line-search cylinder reaches
             ``axis_radius`` (6 mm) past the centre, beyond the 5 mm fingertips: grasps planned 5 mm above
             a fork's or knife's handle read as touching it, and the jaws closed on nothing. With
-            ``pad_reach`` and ``edge_normals`` a grasp is also SLIP when the part is more than 1 mm
-            wider (along the closing axis, up to ``axis_radius`` past the fingertips) past the fingertips
-            than at the contacts: its side slopes out under the seen face (the rim normal does not
-            hold) and the jaws would close on its upper slope and squeeze it down and out.
+            ``pad_reach`` and ``edge_normals``, no rim or pad normals are used when the part is more
+            than 1 mm wider (along the closing axis, up to ``axis_radius`` past the fingertips) past
+            the fingertips than at the contacts: its side slopes out under the seen face and the jaws
+            would close on its upper slope and squeeze it down and out; the cloud normals decide.
         edge_normals: contact normals at the rim of a thin part seen face-on (see :func:`_rim_normal`);
-            off by default (full object models, e.g. teaching, have their side faces sampled).
+            off by default (full object models, e.g. teaching, have their side faces sampled). Only
+            when no cloud point lies in the jaws' path up to ``axis_radius`` past the fingertips (above
+            ``table_z + 0.004`` when ``table_z``, world m, is given): a cup's wall seen from above
+            continues below its top ring, which is no rim to grip (cups 20/20 -> 19/20 without this).
+            A contact whose cloud normal is tilted 30-60 deg from the closing axis (a rounded handle's
+            side, seen obliquely and smeared by 5 mm voxels and a 10 mm normal neighbourhood) takes
+            the flat pad's normal (the closing axis) when that tilt is about the pad's breadth axis
+            (normal within 15 deg of the closing-approach plane): a flat jaw closing on a part meets
+            it at the part's extreme point inside the pad, where the pad is the supporting plane; the
+            part is not wider past the fingertips (``pad_reach`` check) and does not continue there.
+            A taper along the breadth (the medium clamp's wedge-shaped end) keeps its normal and is
+            SLIP: squeezed, it slid out of the jaws toward its narrow end.
     """
     P = as_array(cloud, "cloud", (None, 3))
     if len(P) < min_neighbors:
@@ -229,12 +240,11 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
     idx = np.flatnonzero(near)
     ip = idx[np.argmax(s[idx])]
     ineg = idx[np.argmin(s[idx])]
-    if edge_normals and beyond is not None and np.any(beyond & ((s > s[ip] + 0.001) | (s < s[ineg] - 0.001))):
-        # rim normals assume the part's side under the seen face is square to it; the part being
-        # wider past the fingertips than where the pads touch it says the side slopes out: the jaws
-        # close on its upper slope and squeeze it down and out (a fork's rounded handle under jaws set
-        # too high)
-        return GraspQuality(SLIP, "slip", P[[ip, ineg]], width=float(s[ip] - s[ineg]))
+    # rim and pad normals (below) assume the part's side under the seen face is square to it; the
+    # part being wider past the fingertips than where the pads touch it says the side slopes out: the
+    # jaws would close on its upper slope and squeeze it down and out (a fork's rounded handle under
+    # jaws set too high). The cloud normals then decide.
+    wider = beyond is not None and bool(np.any(beyond & ((s > s[ip] + 0.001) | (s < s[ineg] - 0.001))))
     contacts = P[[ip, ineg]]
     width = float(s[ip] - s[ineg])
     mid = grasp.centre + 0.5 * (s[ip] + s[ineg]) * y
@@ -246,6 +256,17 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
     tree = tree or cKDTree(P)
     normals = np.zeros((2, 3))
     cos_lim = 1.0 / np.sqrt(1.0 + mu * mu)
+    # a rim lies within the pads only when the part does not continue past the fingertips (a cup's
+    # wall seen from above does: its top ring is no rim to grip); below ``table_z + 0.004`` nothing is
+    # seen (the perception's table cut), so points there do not count
+    deeper = False
+    if edge_normals:
+        t_all = rel @ grasp.approach
+        past = (np.abs(rel @ grasp.rotation[:, 0]) < axis_radius) & (np.abs(s) <= half) & \
+            (t_all > gripper.tip_depth) & (t_all < gripper.tip_depth + axis_radius)
+        if table_z is not None:
+            past &= P[:, 2] > table_z + 0.004
+        deeper = bool(np.any(past)) or wider
     for i, (c, sign) in enumerate(zip(contacts, (1.0, -1.0))):
         nb = tree.query_ball_point(c, normal_radius)
         if len(nb) < min_neighbors:
@@ -255,8 +276,14 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
         _, V = np.linalg.eigh(Q.T @ Q)
         n = V[:, 0]
         n = n if n @ y * sign >= 0 else -n
-        if edge_normals and abs(n @ y) < 0.5:  # a face the jaw slides along: it meets the face's rim
-            n = _rim_normal(c, mean, n, y * sign, normal_radius)
+        if edge_normals and not deeper and n @ y * sign < cos_lim:
+            if abs(n @ y) < 0.5:  # a face the jaw slides along: it meets the face's rim
+                n = _rim_normal(c, mean, n, y * sign, normal_radius)
+            elif abs(n @ grasp.rotation[:, 0]) < 0.26:
+                # a side rounded about the breadth axis, seen obliquely: the flat pad is the
+                # supporting plane at the part's extreme point (a taper along the breadth keeps its
+                # normal: squeezed, a wedge slides out toward its narrow end)
+                n = y * sign
         normals[i] = n
     if normals[0] @ y < cos_lim or -(normals[1] @ y) < cos_lim:
         return GraspQuality(SLIP, "slip", contacts, normals, width, regrasp)

@@ -78,7 +78,8 @@ def orientation_search(grasp: Grasp, cloud, robot=None, *, gripper: ParallelGrip
         key = tuple(np.round(g.centre, 6))
         if key not in cache:  # turning about the closing axis leaves the contacts unchanged
             cache[key] = grasp_quality(P, g, gripper=gripper, tree=tree, observed=observed,
-                                       edge_normals=edge_normals, pad_reach=pad_reach)
+                                       edge_normals=edge_normals, pad_reach=pad_reach,
+                                       table_z=table_z)
         gq = cache[key]
         if gq.grasp is not None:
             g = Grasp(gq.grasp.centre, g.rotation, gq.width, g.name)
@@ -168,7 +169,7 @@ def refine_position(grasp: Grasp, cloud, *, gripper: ParallelGripper = ParallelG
                     g = Grasp(base.centre + off, R, base.width, base.name)
                     off = g.centre - grasp.centre
                     q = grasp_quality(P, g, gripper=gripper, tree=tree, observed=obs_tree, edge_normals=edge_normals,
-                                      pad_reach=pad_reach)
+                                      pad_reach=pad_reach, table_z=table_z)
                     score = q.quality - weight * float(np.linalg.norm(off)) - 0.05 * abs(yaw)
                     scored.append((score, q.grasp if q.grasp is not None and q.quality > 0 else g))
     scored.sort(key=lambda t: -t[0])
