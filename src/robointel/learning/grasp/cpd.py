@@ -161,16 +161,28 @@ class CPDResult:
 # helpers
 
 
+_BLAS_CONTROLLER = None
+
+
 def single_thread_blas():
     """Context manager limiting BLAS to one thread. The fast variants issue many small, thin GEMMs
-    for which OpenBLAS' thread start-up and spinning cost 10-100x the arithmetic on a shared machine."""
+    for which OpenBLAS' thread start-up and spinning cost 10-100x the arithmetic on a shared machine.
+
+    The ``threadpoolctl`` controller is built once (the first call) and reused: building it scans
+    the process's loaded libraries, ~3-7 ms a call, a third of a whole 1k-point registration.
+    BLAS libraries loaded after the first call are not limited (numpy's and scipy's are loaded by then)."""
+    global _BLAS_CONTROLLER
     try:
-        from threadpoolctl import threadpool_limits
+        from threadpoolctl import ThreadpoolController
     except ImportError:  # pragma: no cover - threadpoolctl ships with scikit-learn
         import contextlib
 
         return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
+    if _BLAS_CONTROLLER is None:
+        import scipy.linalg  # noqa: F401  - load scipy's BLAS before the scan
+
+        _BLAS_CONTROLLER = ThreadpoolController()
+    return _BLAS_CONTROLLER.limit(limits=1, user_api="blas")
 
 
 def _sqdist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
