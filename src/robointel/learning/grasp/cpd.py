@@ -291,7 +291,7 @@ def _estep_fast(X32, xx32, TY, sigma2, w):
 
 
 @numba.njit(fastmath=True, cache=True)
-def _estep_kernel(x0, x1, x2, y0, y1, y2, inv2s2, c, pt1, s0, s1, s2, s3, kb, ib):  # pragma: no cover - numba
+def _estep_kernel(x0, x1, x2, y0, y1, y2, inv2s2, c, pt1, s0, s1, s2, s3, kb, ib, n0, n1):  # pragma: no cover - numba
     """Fused float32 E-step: one pass over targets, the kernel column held in ``kb``.
 
     exp(-d^2 / (2 sigma2)) is evaluated as 2^t with t = -d^2 log2(e) / (2 sigma2) split into integer
@@ -299,14 +299,13 @@ def _estep_kernel(x0, x1, x2, y0, y1, y2, inv2s2, c, pt1, s0, s1, s2, s3, kb, ib
     straight into the float32 exponent bits (``ib`` viewed as float32), so that the loops vectorise.
     """
     fb = ib.view(np.float32)
-    N = x0.shape[0]
     M = y0.shape[0]
     for m in range(M):
         s0[m] = 0.0
         s1[m] = 0.0
         s2[m] = 0.0
         s3[m] = 0.0
-    for n in range(N):
+    for n in range(n0, n1):
         a0 = x0[n]
         a1 = x1[n]
         a2 = x2[n]
@@ -342,6 +341,17 @@ def _estep_kernel(x0, x1, x2, y0, y1, y2, inv2s2, c, pt1, s0, s1, s2, s3, kb, ib
             s3[m] += k * b3
 
 
+@numba.njit(parallel=True, cache=True)
+def _estep_chunks(x0, x1, x2, y0, y1, y2, inv2s2, c, pt1, S, KB, IB):  # pragma: no cover - numba
+    """The fused E-step on ``S.shape[0]`` threads: chunk j of the targets accumulates into S[j]
+    (4, M) with its own kernel buffers KB[j], IB[j]; the caller sums S over the chunks."""
+    C = S.shape[0]
+    N = x0.shape[0]
+    for j in numba.prange(C):
+        _estep_kernel(x0, x1, x2, y0, y1, y2, inv2s2, c, pt1, S[j, 0], S[j, 1], S[j, 2], S[j, 3],
+                      KB[j], IB[j], j * N // C, (j + 1) * N // C)
+
+
 class _FastEstep:
     """The fast E-step for one target cloud: numba kernel for D <= 3, blocked numpy otherwise."""
 
@@ -354,9 +364,11 @@ class _FastEstep:
                     for i in range(3)]
             self.x = cols
             self.pt1 = np.empty(self.N, np.float32)
-            self.s = [np.empty(M, np.float32) for _ in range(4)]
-            self.kb = np.empty(M, np.float32)
-            self.ib = np.empty(M, np.int32)
+            # one chunk of targets per thread when the work pays for the threads (>= ~0.25 M pairs)
+            C = max(1, min(numba.get_num_threads(), self.N * M // 250_000))
+            self.S = np.empty((C, 4, M), np.float32)
+            self.KB = np.empty((C, M), np.float32)
+            self.IB = np.empty((C, M), np.int32)
         else:
             self.xx32 = np.einsum("ij,ij->i", self.X32, self.X32)
 
@@ -368,10 +380,11 @@ class _FastEstep:
         y = [np.ascontiguousarray(TY[:, i], dtype=np.float32) if i < D else np.zeros(M, np.float32)
              for i in range(3)]
         c = (2.0 * np.pi * sigma2) ** (D / 2.0) * w / (1.0 - w) * M / N
-        _estep_kernel(*self.x, *y, np.float32(1.0 / (2.0 * sigma2)), np.float32(c), self.pt1, *self.s,
-                      self.kb, self.ib)
-        P1 = self.s[0].astype(np.float64)
-        PX = np.column_stack([si.astype(np.float64) for si in self.s[1:1 + D]])
+        _estep_chunks(*self.x, *y, np.float32(1.0 / (2.0 * sigma2)), np.float32(c), self.pt1, self.S,
+                      self.KB, self.IB)
+        Ssum = self.S.sum(axis=0, dtype=np.float64)
+        P1 = Ssum[0]
+        PX = Ssum[1:1 + D].T.copy()
         return self.pt1.astype(np.float64), P1, PX, float(P1.sum())
 
 
