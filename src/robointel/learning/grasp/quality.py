@@ -227,13 +227,13 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
         return GraspQuality(TOO_WIDE, "too wide")  # a jaw would land on the object
     near &= np.abs(s) <= half
     beyond = None
-    if pad_reach is not None:  # the pads end at the fingertips: nothing beyond them is gripped
+    if pad_reach is not None or edge_normals:
         t = rel @ grasp.approach
-        lim = gripper.tip_depth - pad_reach
         # points past the fingertips (up to axis_radius deeper), in the jaws' path across the breadth
         beyond = (np.abs(rel @ grasp.rotation[:, 0]) < axis_radius) & (np.abs(s) <= half) & \
             (t > gripper.tip_depth) & (t < gripper.tip_depth + axis_radius)
-        near &= t <= lim
+    if pad_reach is not None:  # the pads end at the fingertips: nothing beyond them is gripped
+        near &= t <= gripper.tip_depth - pad_reach
     if np.count_nonzero(near) < 2:
         return GraspQuality(OFF_AXIS, "off-axis")
     # each jaw, closing from its side, meets the outermost point within the opening
@@ -244,7 +244,7 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
     # part being wider past the fingertips than where the pads touch it says the side slopes out: the
     # jaws would close on its upper slope and squeeze it down and out (a fork's rounded handle under
     # jaws set too high). The cloud normals then decide.
-    wider = beyond is not None and bool(np.any(beyond & ((s > s[ip] + 0.001) | (s < s[ineg] - 0.001))))
+    wider = pad_reach is not None and bool(np.any(beyond & ((s > s[ip] + 0.001) | (s < s[ineg] - 0.001))))
     contacts = P[[ip, ineg]]
     width = float(s[ip] - s[ineg])
     mid = grasp.centre + 0.5 * (s[ip] + s[ineg]) * y
@@ -261,11 +261,7 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
     # seen (the perception's table cut), so points there do not count
     deeper = False
     if edge_normals:
-        t_all = rel @ grasp.approach
-        past = (np.abs(rel @ grasp.rotation[:, 0]) < axis_radius) & (np.abs(s) <= half) & \
-            (t_all > gripper.tip_depth) & (t_all < gripper.tip_depth + axis_radius)
-        if table_z is not None:
-            past &= P[:, 2] > table_z + 0.004
+        past = beyond if table_z is None else beyond & (P[:, 2] > table_z + 0.004)
         deeper = bool(np.any(past)) or wider
     for i, (c, sign) in enumerate(zip(contacts, (1.0, -1.0))):
         nb = tree.query_ball_point(c, normal_radius)
