@@ -407,7 +407,7 @@ def detect_bad(skel: Skeleton, *, window: int = 9, k: float = 4.0, floor: float 
 
 
 def clean(skel: Skeleton, *, cutoff_hz: float = 6.0, rate: float | None = None, causal: bool = False,
-          order: int = 2, joints: Sequence[str] | None = None) -> Skeleton:
+          order: int = 2, joints: Sequence[str] | None = None, smooth: bool = True) -> Skeleton:
     """Resample to a uniform clock, bridge dropouts/occlusion jumps, low-pass filter.
 
     Args:
@@ -418,6 +418,7 @@ def clean(skel: Skeleton, *, cutoff_hz: float = 6.0, rate: float | None = None, 
             True (online): hold the last good sample, causal ``sosfilt`` (adds lag, like a live filter).
         order: Butterworth order.
         joints: only these joints (default all).
+        smooth: False: bridge dropouts only, no low-pass (the recording's own samples elsewhere).
 
     Returns:
         A new Skeleton on the uniform grid with ``bridged`` marking replaced samples.
@@ -451,14 +452,14 @@ def clean(skel: Skeleton, *, cutoff_hz: float = 6.0, rate: float | None = None, 
         near = np.rint(gap).astype(int)
         bridged[:, c] = bad[near, j] | (np.abs(gap - near) > 0.25)
     sos = butter(order, cutoff_hz, fs=rate, output="sos")
-    if causal:
+    if smooth and causal:
         zi = sosfilt_zi(sos)
         flat = out.reshape(n, -1)
         filt = np.empty_like(flat)
         for m in range(flat.shape[1]):
             filt[:, m], _ = sosfilt(sos, flat[:, m], zi=zi * flat[0, m])
         out = filt.reshape(out.shape)
-    elif n > 3 * (2 * order + 1):
+    elif smooth and n > 3 * (2 * order + 1):
         out = sosfiltfilt(sos, out, axis=0)
     state = np.where(bridged, INFERRED, TRACKED).astype(np.int8)
     return Skeleton(tu, out, state, [skel.joint_names[j] for j in cols],

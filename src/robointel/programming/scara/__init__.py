@@ -6,12 +6,12 @@ predictor (:mod:`.predictors`, :mod:`.ar_predictor`), the predicted signal is cr
 (:mod:`.crossfade`) and made torque-feasible (:mod:`.feasible`) before the LQ; :mod:`.simulation`
 runs it all in MuJoCo with the settings of :mod:`.settings`; :mod:`.plot` draws Fig. 3.8.
 """
-from robointel.programming.scara.angles import arm_angles, arm_plane, human_reference
+from robointel.programming.scara.angles import arm_angles, arm_plane, human_reference, recorded_angles
 from robointel.programming.scara.ar_predictor import ARPredictor, fit_predictor, training_predictor
 from robointel.programming.scara.crossfade import Transition, smoothstep
 from robointel.programming.scara.feasible import FeasibleReference, accel_limits
 from robointel.programming.scara.lq import ComputedTorqueLQ, double_integrator, lq_gain
-from robointel.programming.scara.metrics import delayed_copy_rms
+from robointel.programming.scara.metrics import delay_aligned_rms, delayed_copy_rms
 from robointel.programming.scara.plot import plot_scara
 from robointel.programming.scara.predictors import HoldPredictor, KalmanPredictor, Predictor
 from robointel.programming.scara.settings import (
@@ -28,6 +28,7 @@ __all__ = [
     "BLEND_FRAMES", "LIVE_CUTOFF_HZ", "PAPER_RMS", "PAPER_RMS_COMPENSATED", "SMOOTH_HZ",
     "ARPredictor", "ComputedTorqueLQ", "FeasibleReference", "HoldPredictor", "KalmanPredictor", "Predictor",
     "ScaraResult", "ScaraSettings", "Transition",
-    "accel_limits", "arm_angles", "arm_plane", "delayed_copy_rms", "double_integrator", "fit_predictor",
-    "human_reference", "lq_gain", "plot_scara", "simulate_scara", "smoothstep", "training_predictor",
+    "accel_limits", "arm_angles", "arm_plane", "delay_aligned_rms", "delayed_copy_rms", "double_integrator",
+    "fit_predictor", "human_reference", "lq_gain", "plot_scara", "recorded_angles", "simulate_scara", "smoothstep",
+    "training_predictor",
 ]

@@ -115,3 +115,30 @@ def human_reference(skel: Skeleton, side: str | None = None, *, live_cutoff_hz: 
     # range (a calibration constant of the mapping, like the LR Mate's workspace scaling)
     off = np.array([np.mean(q_true[:, 0]), 0.0])
     return truth.t, q_true - off, q_live - off
+
+
+def recorded_angles(skel: Skeleton, side: str | None = None, *,
+                    elbow: str = "flexion") -> tuple[np.ndarray, np.ndarray]:
+    """The human angles as recorded: dropouts bridged, not smoothed, in the SCARA's convention.
+
+    The arm plane, elbow sign and J1 offset are those of the true angles of
+    :func:`human_reference`, so the two signals differ only by the smoothing.
+
+    Args:
+        skel: raw skeleton.
+        side: "left" or "right" (default: the more active arm).
+        elbow: "flexion" or "planar".
+
+    Returns:
+        t (N,) [s] (the uniform frame clock of :func:`human_reference`), angles (N, 2) [rad].
+    """
+    side = side or skel.active_side()
+    joints = _arm_joints(side)
+    truth = clean(skel, joints=joints)
+    raw = clean(skel, joints=joints, smooth=False)
+    normal = arm_plane(truth, side)
+    q_true = arm_angles(truth, side, normal=normal, elbow=elbow)
+    q_raw = arm_angles(raw, side, normal=normal, elbow=elbow)
+    if np.median(q_true[:, 1]) * np.median(q_raw[:, 1]) < 0:  # same bending sign (flexion)
+        q_raw[:, 1] *= -1.0
+    return raw.t, q_raw - np.array([np.mean(q_true[:, 0]), 0.0])
