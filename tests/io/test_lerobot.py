@@ -76,3 +76,14 @@ def test_episode_validation():
         Episode.create(t, {"state": np.zeros((5, 2)), "a.b": np.zeros(5)}, np.zeros((5, 1)))
     with pytest.raises(ShapeError):
         Episode.create(t, {"state": np.zeros((5, 2))}, np.zeros((5, 1)), names={"state": ("only one",)})
+
+
+def test_large_exports_are_split_into_files(tmp_path, make_wave, doctor):
+    eps = [make_wave(100, s) for s in range(3)]
+    root = write_lerobot(tmp_path / "ds", eps, data_file_mb=0.01)  # ~16 kB per episode: one file each
+    files = sorted((root / "data" / "chunk-000").glob("file-*.parquet"))
+    assert [f.name for f in files] == ["file-000.parquet", "file-001.parquet", "file-002.parquet"]
+    meta = pq.read_table(root / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pylist()
+    assert [m["data/file_index"] for m in meta] == [0, 1, 2]
+    assert all(a.equals(b) for a, b in zip(eps, read_lerobot(root)))
+    assert doctor(root)[1] == []

@@ -10,7 +10,8 @@ Layout (``codebase_version`` "v3.0")::
                                                 dataset_to_index, meta/episodes/chunk_index,
                                                 meta/episodes/file_index, stats/<feature>/<stat>,
                                                 robointel/kind, robointel/name, robointel/meta (JSON)
-    data/chunk-000/file-000.parquet             one row per frame, episodes one after another
+    data/chunk-000/file-000.parquet             one row per frame, episodes one after another; the next
+                                                file (file-001, ...) once one passes 100 MB
 
 Frame columns: ``observation.state`` and ``observation.<name>`` for the other observations,
 ``action``, ``time`` (the exact sample time, float64 s), and LeRobot's ``timestamp`` (float32 s
@@ -33,7 +34,8 @@ from robointel.errors import DataMissing, InvalidInput
 from robointel.io.episode import STATE, Episode
 
 CODEBASE_VERSION = "v3.0"
-CHUNKS_SIZE = 1000
+CHUNKS_SIZE = 1000  # files per chunk folder
+DATA_FILE_MB = 100  # episodes go to the next data file past this size
 DATA_PATH = "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
 EPISODES_PATH = "meta/episodes/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
 QUANTILES = {"q01": 0.01, "q10": 0.10, "q50": 0.50, "q90": 0.90, "q99": 0.99}
@@ -94,7 +96,7 @@ def _tasks_table(tasks: list[str]) -> pa.Table:
 
 
 def write_lerobot(root: str | Path, episodes: Sequence[Episode], *, robot_type: str = "",
-                  fps: int | None = None, overwrite: bool = False) -> Path:
+                  fps: int | None = None, overwrite: bool = False, data_file_mb: float = DATA_FILE_MB) -> Path:
     """Write episodes as a LeRobot v3.0 dataset folder.
 
     Args:
@@ -103,6 +105,7 @@ def write_lerobot(root: str | Path, episodes: Sequence[Episode], *, robot_type: 
         robot_type: info.json's ``robot_type`` (e.g. "lrmate200id7l").
         fps: frames per second (default: from the episodes' median sample period, the same for all).
         overwrite: replace an existing folder.
+        data_file_mb: size [MB] past which the next episode starts a new data file.
 
     Returns:
         The dataset folder.
@@ -137,6 +140,8 @@ def write_lerobot(root: str | Path, episodes: Sequence[Episode], *, robot_type: 
 
     # frames
     cols: dict[str, list[np.ndarray]] = {c: [] for c in (*schema, "time", *_DEFAULT)}
+    files: list[list[int]] = [[]]  # episodes per data file (an episode never spans two files)
+    size = 0.0
     ep_rows: dict[str, list[Any]] = {c: [] for c in (
         "episode_index", "tasks", "length", "data/chunk_index", "data/file_index", "dataset_from_index",
         "dataset_to_index", "meta/episodes/chunk_index", "meta/episodes/file_index")}
@@ -150,18 +155,28 @@ def write_lerobot(root: str | Path, episodes: Sequence[Episode], *, robot_type: 
                  "task_index": np.full(n, tasks.index(ep.task))}
         for c, v in frame.items():
             cols[c].append(np.asarray(v))
+        mb = sum(np.asarray(v).nbytes for v in frame.values()) / 2 ** 20
+        if files[-1] and size + mb > data_file_mb:
+            files.append([])
+            size = 0.0
+        files[-1].append(e)
+        size += mb
+        chunk, file = divmod(len(files) - 1, CHUNKS_SIZE)
         ep_stats.append({c: _stats(np.asarray(v)) for c, v in frame.items()})
-        for c, v in (("episode_index", e), ("tasks", [ep.task]), ("length", n), ("data/chunk_index", 0),
-                     ("data/file_index", 0), ("dataset_from_index", start), ("dataset_to_index", start + n),
+        for c, v in (("episode_index", e), ("tasks", [ep.task]), ("length", n), ("data/chunk_index", chunk),
+                     ("data/file_index", file), ("dataset_from_index", start), ("dataset_to_index", start + n),
                      ("meta/episodes/chunk_index", 0), ("meta/episodes/file_index", 0)):
             ep_rows[c].append(v)
         start += n
     dtypes = {**{c: d for c, (d, _) in schema.items()}, "time": "float64", "timestamp": "float32",
               **{c: "int64" for c in _DEFAULT[1:]}}
+    for f, members in enumerate(files):
+        chunk, file = divmod(f, CHUNKS_SIZE)
+        path = root / DATA_PATH.format(chunk_index=chunk, file_index=file)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        part = {c: np.concatenate([v[e] for e in members]) for c, v in cols.items()}
+        pq.write_table(pa.table({c: _column(v, dtypes[c]) for c, v in part.items()}), path)
     data = {c: np.concatenate(v) for c, v in cols.items()}
-    path = root / DATA_PATH.format(chunk_index=0, file_index=0)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    pq.write_table(pa.table({c: _column(v, dtypes[c]) for c, v in data.items()}), path)
 
     # episodes metadata with per-episode stats
     table: dict[str, pa.Array] = {c: pa.array(v) for c, v in ep_rows.items()}
@@ -183,7 +198,7 @@ def write_lerobot(root: str | Path, episodes: Sequence[Episode], *, robot_type: 
     stats = {c: _stats(v) for c, v in data.items()}
     info = {"codebase_version": CODEBASE_VERSION, "robot_type": robot_type or None,
             "total_episodes": len(episodes), "total_frames": int(start), "total_tasks": len(tasks),
-            "chunks_size": CHUNKS_SIZE, "data_files_size_in_mb": 100, "video_files_size_in_mb": 200,
+            "chunks_size": CHUNKS_SIZE, "data_files_size_in_mb": data_file_mb, "video_files_size_in_mb": 200,
             "fps": int(fps), "splits": {"train": f"0:{len(episodes)}"}, "data_path": DATA_PATH,
             "video_path": None, "features": features}
     (root / "meta" / "info.json").write_text(json.dumps(info, indent=4))
