@@ -22,6 +22,7 @@ import json
 import sys
 import threading
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -48,7 +49,8 @@ def imitation(recordings):
 
     lr, sc = Robot.load("lrmate200id7l"), Robot.load("scara2")
     skels = {name: read_kinect_csv(data_path("kinect", f"{name}.csv")) for name in RECORDINGS}
-    scara_keys = ("scara_rms_rad", "scara_rms_delay_aligned_rad", "scara_rms_compensated_rad",
+    scara_keys = ("scara_rms_rad", "scara_rms_delay_aligned_rad", "scara_rms_best_lag_rad",
+                  "scara_received_delay_aligned_rad", "scara_rms_compensated_rad",
                   "scara_rms_compensated_kalman_rad",
                   "scara_rms_delayed_copy_rad", "scara_prediction_rms_delayed_frames_rad",
                   "scara_prediction_rms_rad", "scara_prediction_rms_kalman_rad",
@@ -61,7 +63,7 @@ def imitation(recordings):
                   "scara_prediction_rms_insample_rad")
     out = {"imitation_rms_rad": {}, "imitation_controller_rms_rad": {}, "imitation_tcp_rms_mm": {},
            "imitation_limit_hits": {}, "imitation_unreachable_frames": {}, "scara_torque_saturation": {},
-           "scara_torque_saturation_unshaped": {}, "scara_predictor_ridge_alpha": {},
+           "scara_torque_saturation_unshaped": {}, "scara_predictor_ridge_alpha": {}, "scara_lag_s": {},
            **{k: {} for k in scara_keys}}
     # optimistic bound for this predictor family: the ridge fitted on all seven recordings, INCLUDING the
     # one it is then evaluated on (in-sample; not a live figure)
@@ -88,7 +90,15 @@ def imitation(recordings):
         u1 = simulate_scara(sk, robot=sc, latency=0.1, compensate=True, predictor=ar, blend_time=2 / sk.rate,
                             feasible=False)
         ins = simulate_scara(sk, robot=sc, latency=0.1, compensate=True, predictor=ar_all).prediction_rms
-        vals = {"scara_rms_rad": r0.rms, "scara_rms_delay_aligned_rad": delay_aligned_rms(r0, sk, delay=0.1, robot=sc),
+        # how late the live uncompensated robot really is: the shift of the recorded angles that fits it best
+        lags = np.round(np.arange(0.10, 0.26, 0.01), 2)
+        by_lag = [delay_aligned_rms(r0, sk, delay=d, robot=sc) for d in lags]
+        best = int(np.argmin([a.sum() for a in by_lag]))
+        out["scara_lag_s"][name] = float(lags[best])
+        vals = {"scara_rms_rad": r0.rms, "scara_rms_delay_aligned_rad": by_lag[0],
+                "scara_rms_best_lag_rad": by_lag[best],
+                "scara_received_delay_aligned_rad": delay_aligned_rms(replace(r0, q=r0.q_delayed), sk, delay=0.1,
+                                                                      robot=sc),
                 "scara_rms_compensated_rad": r1.rms, "scara_rms_compensated_kalman_rad": rk.rms,
                 "scara_rms_delayed_copy_rad": delayed_copy_rms(sk, robot=sc, latency=0.1),
                 "scara_prediction_rms_delayed_frames_rad": r0.prediction_rms,
@@ -114,6 +124,7 @@ def imitation(recordings):
             sk, robot=sc, latency=0.1, compensate=True, predictor=arp, elbow="planar").rms, 4).tolist()
     for k in scara_keys:
         out[k]["mean"] = np.round(np.mean([v for n, v in out[k].items() if n != "mean"], axis=0), 4).tolist()
+    out["scara_lag_s"]["mean"] = round(float(np.mean(list(out["scara_lag_s"].values()))), 3)
     pred = {"delayed frames (no prediction)": "scara_prediction_rms_delayed_frames_rad",
             "constant-rate Kalman": "scara_prediction_rms_kalman_rad", "ridge AR (LORO)": "scara_prediction_rms_rad"}
     out["scara_predictor_choice"] = min(pred, key=lambda p: sum(out[pred[p]]["mean"]))
@@ -137,7 +148,11 @@ def imitation(recordings):
         "scara_rms_delay_aligned_rad: the SAME live uncompensated run read as the dissertation's 'if the delay is "
         "compensated in 0.1 second': RMS over time of q_robot(t) - q_human(t - 0.1 s), q_human the angles from the "
         "recording itself (dropouts bridged, not smoothed, linear between frames), over the steps with t - 0.1 s "
-        "inside the recording; compared with the dissertation's 0.0103/0.0305 rad. "
+        "inside the recording; compared with the dissertation's 0.0103/0.0305 rad. scara_lag_s: the shift "
+        "(0.10-0.25 s, 10 ms grid) of the recorded angles that fits that run best (how late the robot really is: "
+        "latency + frame age + live low-pass + crossfade + follower); scara_rms_best_lag_rad: the RMS at that shift; "
+        "scara_received_delay_aligned_rad: the received frames themselves (held, live-filtered) vs the recorded "
+        "angles 0.1 s earlier (the signal the robot is given, no robot). "
         "scara_rms_compensated_rad: live, with compensation - THE HONEST LIVE FIGURE - a ridge autoregressive "
         "predictor of the angles 0.1 s + frame age ahead, fitted leave-one-recording-out (never on the recording "
         "it runs on). scara_rms_compensated_kalman_rad: live, constant-rate Kalman prediction instead. "
