@@ -5,8 +5,16 @@ import numpy as np
 import pytest
 
 from robointel.errors import InvalidInput
-from robointel.programming.scara import (ARPredictor, ComputedTorqueLQ, KalmanPredictor, arm_angles, double_integrator,
-                                         fit_predictor, lq_gain, simulate_scara)
+from robointel.programming.scara import (
+    ARPredictor,
+    ComputedTorqueLQ,
+    KalmanPredictor,
+    arm_angles,
+    double_integrator,
+    fit_predictor,
+    lq_gain,
+    simulate_scara,
+)
 from robointel.programming.skeleton import read_bvh, read_kinect_csv, synthetic_wave, synthetic_wave_bvh
 from robointel.robot import Robot
 
