@@ -27,17 +27,6 @@ from robointel.io.episode import Episode
 from robointel.io.lerobot import read_lerobot, write_lerobot
 from robointel.io.robomimic import read_robomimic, write_robomimic
 from robointel.learning.demonstration_episode import demonstration_to_episode, episode_to_demonstration
-from robointel.programming.imitation import kinematic_imitation, simulate_imitation
-from robointel.programming.recording_episodes import (
-    guidance_episode,
-    imitation_episode,
-    scara_episode,
-    teleop_episode,
-)
-from robointel.programming.scara import simulate_scara
-from robointel.programming.scenarios import run_scenario
-from robointel.programming.teleop import load_program
-from robointel.robot import Robot
 
 console = Console()
 FORMATS = ("lerobot", "robomimic")
@@ -56,6 +45,19 @@ def episodes_from(source: str, *, guidance_seconds: float | None = None) -> list
     Raises:
         InvalidInput: an unknown source.
     """
+    # the simulators load here, not when the CLI starts (they would add seconds to every `robointel` call)
+    from robointel.programming.imitation import kinematic_imitation, simulate_imitation
+    from robointel.programming.recording_episodes import (
+        guidance_episode,
+        imitation_episode,
+        scara_episode,
+        teleop_episode,
+    )
+    from robointel.programming.scara import simulate_scara
+    from robointel.programming.scenarios import run_scenario
+    from robointel.programming.teleop import load_program
+    from robointel.robot import Robot
+
     kind, _, arg = source.partition(":")
     if kind == "imitation" and arg:
         robot = Robot.load("lrmate200id7l")
