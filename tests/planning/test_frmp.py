@@ -9,7 +9,7 @@ import yaml
 
 from robointel.errors import CollisionAtStart, InvalidInput, LimitViolation, NotFinite
 from robointel.io.scene import SCENES, load_scene, scene_from_dict
-from robointel.io.trajectory import Trajectory
+from robointel.io.trajectory import load_trajectory, save_trajectory
 from robointel.planning.frmp import check_trajectory, execute, plan_scene
 
 
@@ -61,8 +61,8 @@ def test_frmp_executes_in_mujoco_without_touching_obstacles(result):
 
 def test_trajectory_file_round_trip(result, tmp_path):
     for suffix in (".npz", ".json"):
-        p = result.trajectory.save(tmp_path / f"traj{suffix}")
-        back = Trajectory.load(p)
+        p = save_trajectory(result.trajectory, tmp_path / f"traj{suffix}")
+        back = load_trajectory(p)
         np.testing.assert_allclose(back.q, result.trajectory.q)
         np.testing.assert_allclose(back.t, result.trajectory.t)
         assert back.joint_names == result.trajectory.joint_names

@@ -6,7 +6,8 @@ import pytest
 
 from robointel.errors import InvalidInput, NotFinite, ShapeError
 from robointel.io.scene import builtin_scenes, load_scene, scene_from_dict
-from robointel.io.trajectory import Trajectory
+from robointel.io.trajectory import load_trajectory, save_trajectory
+from robointel.trajectory import Trajectory
 
 
 def test_trajectory_validation_and_resample(tmp_path):
@@ -24,9 +25,9 @@ def test_trajectory_validation_and_resample(tmp_path):
     with pytest.raises(ShapeError):
         Trajectory(t, q, qd[:2], qd)
     with pytest.raises(InvalidInput):
-        tr.save(tmp_path / "x.csv")
+        save_trajectory(tr, tmp_path / "x.csv")
     with pytest.raises(InvalidInput):
-        Trajectory.load(tmp_path / "missing.npz")
+        load_trajectory(tmp_path / "missing.npz")
 
 
 def test_scene_round_trip_and_pose_waypoints(tmp_path):

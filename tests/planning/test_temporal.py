@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from robointel.errors import InvalidInput, LimitViolation, NotFinite
-from robointel.io.trajectory import Trajectory
 from robointel.planning.temporal import concatenate_segments, temporal_optimize
+from robointel.trajectory import Trajectory
 
 
 def make_path(n_pts=20):
@@ -25,14 +25,15 @@ def test_retimed_segment_meets_limits_densely_and_is_faster():
     path = make_path()
     res = temporal_optimize(path, VMAX, AMAX, dt=15 / 95)
     assert res.cfs.feasible
-    tr = Trajectory(res.t, res.q, res.qd, res.qdd)
+    tr = res.trajectory
+    assert isinstance(tr, Trajectory)
     dense = tr.resample(0.001)
     assert np.all(np.abs(dense.qd) <= VMAX * (1 + 1e-6))
     assert np.all(np.abs(dense.qdd) <= AMAX * (1 + 1e-6))
     np.testing.assert_allclose(dense.qd[[0, -1]], 0.0, atol=1e-9)  # stops at the waypoints
     assert res.duration < 19 * 15 / 95
     # passes through the input points (they are kept when up-sampling)
-    q_at = tr.sample(res.t)[0]
+    q_at = tr.sample(tr.t)[0]
     np.testing.assert_allclose(q_at, path, atol=1e-9)
 
 
@@ -54,9 +55,9 @@ def test_close_to_toppra():
 def test_concatenate_segments_stops_at_waypoints():
     p1, p2 = make_path(8), make_path(8)[::-1]
     r1, r2 = temporal_optimize(p1, VMAX, AMAX), temporal_optimize(p2, VMAX, AMAX)
-    tr = concatenate_segments([(r.t, r.q, r.qd, r.qdd) for r in (r1, r2)], [f"j{i}" for i in range(6)])
+    tr = concatenate_segments([r.trajectory for r in (r1, r2)], [f"j{i}" for i in range(6)])
     assert tr.duration == pytest.approx(r1.duration + r2.duration)
-    k = len(r1.t) - 1
+    k = len(r1.trajectory.t) - 1
     np.testing.assert_allclose(tr.qd[k], 0.0, atol=1e-9)
 
 
@@ -76,7 +77,7 @@ def test_bad_input():
 def test_variants_meet_limits(kw):
     path = make_path()
     res = temporal_optimize(path, VMAX, AMAX, **kw)
-    dense = Trajectory(res.t, res.q, res.qd, res.qdd).resample(0.001)
+    dense = res.trajectory.resample(0.001)
     assert np.all(np.abs(dense.qd) <= VMAX * (1 + 1e-6)) and np.all(np.abs(dense.qdd) <= AMAX * (1 + 1e-6))
     assert res.cfs.feasible
 
@@ -152,7 +153,7 @@ def test_short_and_two_point_segments():
     for n_pts in (2, 3):
         path = make_path(n_pts)
         res = temporal_optimize(path, VMAX, AMAX)
-        dense = Trajectory(res.t, res.q, res.qd, res.qdd).resample(0.001)
+        dense = res.trajectory.resample(0.001)
         assert np.all(np.abs(dense.qd) <= VMAX * (1 + 1e-6)) and np.all(np.abs(dense.qdd) <= AMAX * (1 + 1e-6))
 
 
@@ -164,10 +165,11 @@ def test_output_is_scipys_clamped_spline_and_limit_stretch():
     t0 = np.concatenate([[0.0], np.cumsum(res.tau)])
     s = T.limit_stretch(T.spline_segment(t0, path), t0[-1], VMAX, AMAX)
     assert res.stretch == pytest.approx(s, rel=1e-9)
-    np.testing.assert_allclose(res.t, t0 * s, rtol=1e-12)
-    sp = T.spline_segment(res.t, path)
-    np.testing.assert_allclose(res.qd, sp(res.t, 1), atol=1e-9)
-    np.testing.assert_allclose(res.qdd, sp(res.t, 2), atol=1e-8)
+    tr = res.trajectory
+    np.testing.assert_allclose(tr.t, t0 * s, rtol=1e-12)
+    sp = T.spline_segment(tr.t, path)
+    np.testing.assert_allclose(tr.qd, sp(tr.t, 1), atol=1e-9)
+    np.testing.assert_allclose(tr.qdd, sp(tr.t, 2), atol=1e-8)
 
 
 def test_working_set_gives_the_full_qp_solutions(monkeypatch):

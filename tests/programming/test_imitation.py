@@ -57,8 +57,8 @@ def test_jerk_limited_reference_respects_limits():
 def test_imitation_synthetic_in_mujoco(lrmate):
     plan = kinematic_imitation(synthetic_wave(3.0, dropout_at=1.5), lrmate)
     assert plan.reachable.all()
-    assert np.all(np.abs(plan.qd_ref) <= lrmate.velocity_limit + 1e-9)
-    assert np.all(np.abs(plan.qdd_ref) <= lrmate.acceleration_limit + 1e-9)
+    assert np.all(np.abs(plan.trajectory.qd) <= lrmate.velocity_limit + 1e-9)
+    assert np.all(np.abs(plan.trajectory.qdd) <= lrmate.acceleration_limit + 1e-9)
     run = simulate_imitation(plan, lrmate)
     assert run.tracking_rms.max() < 0.005       # the 1 kHz controller follows the reference
     assert run.tcp_rms < 0.15 and not run.log.collided

@@ -10,9 +10,9 @@ import numpy as np
 
 from robointel.errors import InvalidInput
 from robointel.io.scene import Scene
-from robointel.io.trajectory import Trajectory
 from robointel.planning.temporal import TemporalResult, concatenate_segments, fixed_dt_segment, temporal_optimize
 from robointel.planning.trajectory import PlannerSettings, SegmentPlan, TrajectoryPlanner
+from robointel.trajectory import Trajectory
 
 
 @dataclass
@@ -167,7 +167,7 @@ def plan_scene(scene: Scene, *, planners: dict[int, TrajectoryPlanner] | None = 
         temporal_ms.append((time.perf_counter() - t0) * 1e3)
         temps.append(tr)
         fixed_parts.append(fixed_dt_segment(seg.path, scene.dt))
-        frmp_parts.append((tr.t, tr.q, tr.qd, tr.qdd))
+        frmp_parts.append(tr.trajectory)
     names = list(scene.robot.joint_names)
     path = np.concatenate([segs[0].path] + [s.path[1:] for s in segs[1:]])
     traj = concatenate_segments(frmp_parts, names, {"scene": scene.name, "planner": "FRMP (CFS + temporal CFS)"})
@@ -210,7 +210,7 @@ def execute(result: FRMPResult, *, workcell=None) -> Execution:
     scene = result.scene
     wc = workcell or Workcell(scene.robot, obstacles=scene.obstacles, ft_sensor=False)
     tr = result.trajectory
-    log = wc.run_trajectory(tr.t, tr.q, tr.qd, tr.qdd, record_ft=False)
+    log = wc.run_trajectory(tr, record_ft=False)
     err = log.error
     contacts = 0
     try:

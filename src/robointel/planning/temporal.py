@@ -44,9 +44,9 @@ from scipy.interpolate import CubicSpline
 
 from robointel._validate import as_array
 from robointel.errors import InfeasibleProblem, InvalidInput, LimitViolation
-from robointel.io.trajectory import Trajectory
 from robointel.planning.cfs import CFSResult, NonlinearConstraint, cfs
 from robointel.planning.qp import DenseQP, SparseQP
+from robointel.trajectory import Trajectory
 
 #: tangent-cut rounds per CFS iteration for the curved acceleration sets (7.6)
 MAX_CUTS = 2
@@ -84,21 +84,17 @@ class TemporalResult:
     """Re-timed segment.
 
     Attributes:
-        t: (N+1,) knot times, s, starting at 0.
-        q, qd, qdd: (N+1, n) positions, velocities, accelerations of the spline at the knots.
+        trajectory: the segment's clamped C2 spline at its N+1 knots (starting at t = 0), s, rad,
+            rad/s, rad/s^2 (default joint names).
         tau: (N,) optimised intervals before the limit stretch, s.
-        tau0: (N,) the feasible starting schedule of the first CFS solve, s (see :data:`START`:
-            by default the forward/backward pass :func:`pass_start`; the input's fixed dt is not
-            used as a floor).
+        tau0: (N,) the feasible starting schedule of the first CFS solve, s (by default the
+            forward/backward pass :func:`pass_start`; the input's fixed dt is not used as a floor).
         stretch: uniform time factor applied after CFS to meet the limits on a 1 ms grid (>= 1).
         cfs: the CFS result.
         seconds: wall time of the CFS solve, s.
     """
 
-    t: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
-    qdd: np.ndarray
+    trajectory: Trajectory
     tau: np.ndarray
     tau0: np.ndarray
     stretch: float
@@ -107,7 +103,8 @@ class TemporalResult:
 
     @property
     def duration(self) -> float:
-        return float(self.t[-1])
+        """Duration of the re-timed segment, s."""
+        return self.trajectory.duration
 
 
 def _limits(v, n: int, name: str) -> np.ndarray:
@@ -827,30 +824,29 @@ def temporal_optimize(path, vmax, amax, *, dt: float | None = None, w3: float = 
     V, M, rv, ra = _clamped_spline_knots(t, np.ascontiguousarray(path, dtype=float), vmax, amax)
     s = float(max(1.0, rv, np.sqrt(ra)) * (1 + 1e-7))
     t, V, M = t * s, V / s, M / (s * s)  # the same curve, slower by s
-    return TemporalResult(t=t, q=path.copy(), qd=V, qdd=M, tau=tau, tau0=tau_first, stretch=s, cfs=res,
-                          seconds=secs)
+    return TemporalResult(trajectory=Trajectory(t, path.copy(), V, M), tau=tau, tau0=tau_first, stretch=s,
+                          cfs=res, seconds=secs)
 
 
-def fixed_dt_segment(path, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(t, q, qd, qdd) of the clamped spline through ``path`` at the fixed step ``dt``."""
+def fixed_dt_segment(path, dt: float) -> Trajectory:
+    """The clamped spline through ``path`` (N+1, n) at the fixed step ``dt`` (s), from t = 0."""
     path = as_array(path, "path", (None, None))
     t = dt * np.arange(path.shape[0])
     s = spline_segment(t, path)
-    return t, path.copy(), s(t, 1), s(t, 2)
+    return Trajectory(t, path.copy(), s(t, 1), s(t, 2))
 
 
-def concatenate_segments(parts: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
-                         joint_names: list[str], meta: dict | None = None) -> Trajectory:
-    """Join per-segment (t, q, qd, qdd) (each from t=0, sharing end/start waypoints) into one
+def concatenate_segments(parts: list[Trajectory], joint_names: list[str], meta: dict | None = None) -> Trajectory:
+    """Join per-segment trajectories (each from t=0, sharing end/start waypoints) into one
     :class:`Trajectory`; the shared waypoint appears once (zero velocity there)."""
     T, Q, QD, QDD = [], [], [], []
     offset = 0.0
-    for i, (t, q, qd, qdd) in enumerate(parts):
+    for i, p in enumerate(parts):
         sl = slice(0 if i == 0 else 1, None)
-        T.append(t[sl] + offset)
-        Q.append(q[sl])
-        QD.append(qd[sl])
-        QDD.append(qdd[sl])
-        offset += float(t[-1])
+        T.append(p.t[sl] - p.t[0] + offset)
+        Q.append(p.q[sl])
+        QD.append(p.qd[sl])
+        QDD.append(p.qdd[sl])
+        offset += p.duration
     return Trajectory(np.concatenate(T), np.concatenate(Q), np.concatenate(QD), np.concatenate(QDD),
                       list(joint_names), dict(meta or {}))

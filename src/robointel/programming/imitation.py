@@ -22,6 +22,7 @@ import numpy as np
 from robointel._validate import as_array
 from robointel.errors import IKFailure, InvalidInput
 from robointel.programming.skeleton import Skeleton, clean
+from robointel.trajectory import Trajectory
 
 #: Default workspace box for the TCP (robot root frame, m): every point is reachable with the
 #: default tool orientation, and J5 stays away from the wrist singularity there.
@@ -63,8 +64,8 @@ class ImitationPlan:
     Attributes:
         t: (N,) frame times [s]; p_target: (N, 3) TCP targets [m]; q_ik: (N, 6) IK per frame [rad];
         reachable: (N,) IK found a solution; limit_hits: (6,) frames per joint whose raw IK
-        velocity or acceleration exceeded the limit; t_ref, q_ref, qd_ref, qdd_ref: the 1 kHz
-        jerk-limited reference; mapping: the workspace map; source: the recording.
+        velocity or acceleration exceeded the limit; trajectory: the 1 kHz jerk-limited joint
+        reference (s, rad, rad/s, rad/s^2); mapping: the workspace map; source: the recording.
     """
 
     t: np.ndarray
@@ -73,10 +74,7 @@ class ImitationPlan:
     q_ik: np.ndarray
     reachable: np.ndarray
     limit_hits: np.ndarray
-    t_ref: np.ndarray
-    q_ref: np.ndarray
-    qd_ref: np.ndarray
-    qdd_ref: np.ndarray
+    trajectory: Trajectory
     mapping: WorkspaceMap
     source: str = ""
 
@@ -228,7 +226,8 @@ def kinematic_imitation(skel: Skeleton, robot, *, side: str | None = None, R_too
     hits = np.sum((v > robot.velocity_limit) | (a > robot.acceleration_limit), axis=0)
     tg, Q, QD, QDD = jerk_limited(c.t, q_ik, robot.velocity_limit, robot.acceleration_limit,
                                   jerk_factor * robot.acceleration_limit, dt=dt, lower=robot.lower, upper=robot.upper)
-    return ImitationPlan(c.t, p, R, q_ik, ok, hits, tg, Q, QD, QDD, mapping, skel.source)
+    ref = Trajectory(tg, Q, QD, QDD, list(getattr(robot, "joint_names", [])))
+    return ImitationPlan(c.t, p, R, q_ik, ok, hits, ref, mapping, skel.source)
 
 
 @dataclass
@@ -252,8 +251,8 @@ def simulate_imitation(plan: ImitationPlan, robot, workcell=None) -> ImitationRu
         from robointel.sim import Workcell
 
         workcell = Workcell(robot, ft_sensor=False)
-    log = workcell.run_trajectory(plan.t_ref, plan.q_ref, plan.qd_ref, plan.qdd_ref, record_ft=False)
-    tq = plan.t_ref[: len(log.q)]
+    log = workcell.run_trajectory(plan.trajectory, record_ft=False)
+    tq = plan.trajectory.t[: len(log.q)]
     target = np.stack([np.interp(tq, plan.t, plan.q_ik[:, j]) for j in range(robot.nq)], axis=1)
     rms = np.sqrt(np.mean((log.q - target) ** 2, axis=0))
     idx = np.searchsorted(tq, plan.t).clip(0, len(tq) - 1)
@@ -274,7 +273,7 @@ def plot_imitation(run: ImitationRun, path) -> None:
     for j in range(6):
         ax = fig.add_subplot(3, 3, j + 1)
         ax.plot(plan.t, plan.q_ik[:, j], "k.", ms=2, label="IK per frame")
-        ax.plot(plan.t_ref[: len(log.q)], log.q[:, j], "C0-", lw=1, label="LR Mate (MuJoCo)")
+        ax.plot(plan.trajectory.t[: len(log.q)], log.q[:, j], "C0-", lw=1, label="LR Mate (MuJoCo)")
         ax.set_title(f"J{j + 1}: RMS {run.rms[j]:.4f} rad, {int(plan.limit_hits[j])} limit hits", fontsize=8)
         ax.tick_params(labelsize=7)
         if j == 0:

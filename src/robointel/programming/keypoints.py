@@ -19,6 +19,7 @@ import numpy as np
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
 from robointel.programming.compliance import damped_pinv
+from robointel.trajectory import Trajectory
 
 __all__ = ["BlendedTrajectory", "Reproduction", "blended_trajectory", "extract_keypoints",
            "joint_velocity_reference", "orientation_reference", "plot_reproduction", "rdp_indices",
@@ -259,17 +260,34 @@ class Reproduction:
     """A guided path reproduced from its key points (Figs. 3.11-3.12).
 
     Attributes:
-        keypoints: indices into the guided path. trajectory: the blended Cartesian trajectory.
-        t: (M,) s. q: (M, n) joint reference, rad. qd: (M, n) joint velocity reference, rad/s.
+        keypoints: indices into the guided path.
+        cartesian: the blended Cartesian TCP trajectory through the key points.
+        trajectory: the joint reference (M samples at the reference's step), s, rad, rad/s and
+            rad/s^2 (accelerations by finite differences of the velocity reference).
         path_error: largest distance (m) from the reproduced TCP path to the guided polyline.
     """
 
     keypoints: np.ndarray
-    trajectory: BlendedTrajectory
-    t: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
+    cartesian: BlendedTrajectory
+    trajectory: Trajectory
     path_error: float
+
+    # Transitional: commands/guidance.py (another branch this session) reads rep.t / rep.q / rep.qd;
+    # the lead removes these three after merging.
+    @property
+    def t(self) -> np.ndarray:
+        """(M,) times of the joint reference, s (``trajectory.t``)."""
+        return self.trajectory.t
+
+    @property
+    def q(self) -> np.ndarray:
+        """(M, n) joint reference, rad (``trajectory.q``)."""
+        return self.trajectory.q
+
+    @property
+    def qd(self) -> np.ndarray:
+        """(M, n) joint velocity reference, rad/s (``trajectory.qd``)."""
+        return self.trajectory.qd
 
 
 def _polyline_distance(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
@@ -307,7 +325,8 @@ def reproduce_path(robot, t, positions, q0, *, rotations=None, tolerance: float 
     tt, Q, dQ = joint_velocity_reference(robot, q0, tr, rotations=Rk, dt=dt)
     tcp = np.array([robot.fk(q)[:3, 3] for q in Q[::10]])
     err = float(_polyline_distance(tcp, P[np.r_[0:len(P):5, len(P) - 1]]).max())
-    return Reproduction(k, tr, tt, Q, dQ, err)
+    joints = Trajectory(tt, Q, dQ, np.gradient(dQ, tt, axis=0), list(getattr(robot, "joint_names", [])))
+    return Reproduction(k, tr, joints, err)
 
 
 def plot_reproduction(guided: np.ndarray, rep: Reproduction, path, *, executed: np.ndarray | None = None):
@@ -327,7 +346,7 @@ def plot_reproduction(guided: np.ndarray, rep: Reproduction, path, *, executed: 
     ax0, ax1 = np.argsort(np.ptp(guided, axis=0))[::-1][:2]
     names = "xyz"
     ax[0].plot(guided[:, ax0], guided[:, ax1], c="0.6", lw=3, label="guided")
-    p, _, _ = rep.trajectory(rep.t)
+    p, _, _ = rep.cartesian(rep.trajectory.t)
     ax[0].plot(p[:, ax0], p[:, ax1], c="C0", label="reproduced (reference)")
     if executed is not None:
         ax[0].plot(executed[:, ax0], executed[:, ax1], "--", c="C1", label="executed (MuJoCo)")
@@ -338,10 +357,10 @@ def plot_reproduction(guided: np.ndarray, rep: Reproduction, path, *, executed: 
     ax[0].axis("equal")
     ax[0].legend(fontsize=7)
     ax[0].set_title(f"{len(rep.keypoints)} key points, path error {rep.path_error * 1e3:.1f} mm", fontsize=9)
-    ax[1].plot(rep.t, rep.qd)
+    ax[1].plot(rep.trajectory.t, rep.trajectory.qd)
     ax[1].set_xlabel("time [s]")
     ax[1].set_ylabel("joint velocity reference [rad/s]")
-    ax[1].legend([f"J{i + 1}" for i in range(rep.qd.shape[1])], fontsize=7, ncol=2)
+    ax[1].legend([f"J{i + 1}" for i in range(rep.trajectory.n_joints)], fontsize=7, ncol=2)
     fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
