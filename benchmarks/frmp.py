@@ -59,7 +59,7 @@ def main() -> None:
     load = os.getloadavg()[0]
 
     from robointel.geometry import Sphere
-    from robointel.io.scene import load_scene
+    from robointel.planning.scene import load_scene
     from robointel.planning.frmp import execute, make_planners, plan_scene, planner_settings
     from robointel.planning.ompl_peer import rrtconnect
     from robointel.planning.replan import receding_horizon

@@ -5,7 +5,7 @@
 import numpy as np
 
 from robointel.geometry import Sphere
-from robointel.io.scene import load_scene
+from robointel.planning.scene import load_scene
 from robointel.planning import planner_settings, receding_horizon
 
 scene = load_scene("table71")

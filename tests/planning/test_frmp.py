@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from robointel.errors import CollisionAtStart, InvalidInput, LimitViolation, NotFinite
-from robointel.io.scene import SCENES, load_scene, scene_from_dict
+from robointel.planning.scene import SCENES, load_scene, scene_from_dict
 from robointel.io.trajectory import load_trajectory, save_trajectory
 from robointel.planning.frmp import check_trajectory, execute, plan_scene
 

@@ -7,14 +7,17 @@ The same device is later mounted on the robot, so demonstration and reproduction
 """
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput, ShapeError
+from robointel.io.demonstrations import UNITS, DemonstrationFile, DemonstrationRecord
 
-UNITS = {"t": "s", "pose": "m (translation), rotation matrix (unitless)", "wrench": "N (force), N m (torque)"}
+__all__ = ["UNITS", "Demonstration", "load_demonstrations", "save_demonstrations"]
 
 
 @dataclass(frozen=True)
@@ -85,3 +88,43 @@ class Demonstration:
             raise InvalidInput(f"demonstration {self.name!r} has no labels")
         k = np.flatnonzero(np.diff(self.labels) != 0) + 1
         return self.t[k]
+
+
+def save_demonstrations(path: str | Path, demos: Iterable[Demonstration]) -> DemonstrationFile:
+    """Append demonstrations to an HDF5 file (created if missing; the others are not rewritten).
+
+    Args:
+        path: The ``.h5`` file (schema in :mod:`robointel.io.demonstrations`).
+        demos: The demonstrations, stored under their names (or ``demo_NNNN``).
+
+    Returns:
+        The file.
+
+    Raises:
+        InvalidInput: a name is already stored or the file has another schema.
+    """
+    f = DemonstrationFile(path)
+    f.extend(demos)
+    return f
+
+
+def load_demonstrations(path: str | Path) -> list[Demonstration]:
+    """Read and validate every demonstration of an HDF5 file, in insertion order.
+
+    Args:
+        path: The ``.h5`` file.
+
+    Returns:
+        The demonstrations.
+
+    Raises:
+        DataMissing: the file does not exist.
+        InvalidInput, ShapeError, NotFinite: a stored demonstration is invalid.
+    """
+    return [_from_record(r) for r in DemonstrationFile(path).load_all()]
+
+
+def _from_record(r: DemonstrationRecord) -> Demonstration:
+    """Validated :class:`Demonstration` of a stored record."""
+    return Demonstration.create(r.t, r.pose, r.wrench, r.labels, action_names=r.action_names, device=r.device,
+                                name=r.name, meta=r.meta)

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from robointel.errors import InvalidInput
-from robointel.io.scene import Scene
+from robointel.planning.scene import Scene
 from robointel.planning.temporal import TemporalResult, concatenate_segments, fixed_dt_segment, temporal_optimize
 from robointel.planning.trajectory import PlannerSettings, SegmentPlan, TrajectoryPlanner
 from robointel.trajectory import Trajectory
@@ -146,7 +146,7 @@ def plan_scene(scene: Scene, *, planners: dict[int, TrajectoryPlanner] | None = 
         InfeasibleProblem: a segment's first QP is infeasible (limits too tight for its steps).
     """
     if not isinstance(scene, Scene):
-        raise InvalidInput(f"plan_scene needs a Scene (robointel.io.scene.load_scene), got {type(scene).__name__}",
+        raise InvalidInput(f"plan_scene needs a Scene (robointel.planning.scene.load_scene), got {type(scene).__name__}",
                            value=scene)
     planners = planners or make_planners(scene)
     first = planners[scene.steps[0]]
