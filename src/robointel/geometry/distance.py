@@ -24,7 +24,7 @@ import numpy as np
 from robointel._validate import as_array
 from robointel.errors import CollisionAtStart, InvalidInput
 from robointel.geometry import _kernels as K
-from robointel.geometry.obstacles import Obstacle, PointCloud
+from robointel.geometry.obstacles import Box, Capsule, Cylinder, Obstacle, PointCloud, Sphere
 
 if TYPE_CHECKING:  # pragma: no cover
     from robointel.robot import Robot, SphereModel
@@ -443,8 +443,6 @@ def check_collision_free(robot: "Robot", q, obstacles, margin: float = 0.0, *, w
 def warmup() -> None:
     """Compile (or load from numba's on-disk cache) every distance kernel now, so that the first
     call inside a control loop does not pay the compilation (about a second per kernel, once)."""
-    from robointel.geometry.obstacles import Box, Capsule, Cylinder, Sphere
-
     prims = [Sphere([0, 0, 0], 0.1), Capsule([0, 0, 0], [0, 0, 1], 0.1), Cylinder([0, 0, 0], [0, 0, 1], 0.1),
              Box([0, 0, 0], [1, 1, 1])]
     os_ = ObstacleSet(prims)

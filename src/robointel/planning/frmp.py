@@ -11,7 +11,8 @@ import numpy as np
 from robointel.errors import InvalidInput
 from robointel.planning.scene import Scene
 from robointel.planning.temporal import TemporalResult, concatenate_segments, fixed_dt_segment, temporal_optimize
-from robointel.planning.trajectory import PlannerSettings, SegmentPlan, TrajectoryPlanner
+from robointel.planning.trajectory import PlannerSettings, SegmentPlan, TrajectoryPlanner, sphere_clearances
+from robointel.sim import Workcell
 from robointel.trajectory import Trajectory
 
 
@@ -40,8 +41,6 @@ class TrajectoryCheck:
 def check_trajectory(traj: Trajectory, robot, obstacles, vmax, amax, *, dt: float = 0.001,
                      rtol: float = 1e-6) -> TrajectoryCheck:
     """Resample ``traj`` every ``dt`` and check clearance and joint limits."""
-    from robointel.planning.trajectory import sphere_clearances
-
     dense = traj.resample(dt)
     q, qd, qdd = dense.q, dense.qd, dense.qdd
     vmax = np.asarray(vmax, float)
@@ -205,8 +204,6 @@ class Execution:
 
 def execute(result: FRMPResult, *, workcell=None) -> Execution:
     """Track the FRMP trajectory with the workcell's 1 kHz controller (Fig. 2.3) and report."""
-    from robointel.sim import Workcell
-
     scene = result.scene
     wc = workcell or Workcell(scene.robot, obstacles=scene.obstacles, ft_sensor=False)
     tr = result.trajectory

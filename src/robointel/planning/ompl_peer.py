@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robointel.errors import RobointelError
+from robointel.geometry import min_distance
 
 
 @dataclass
@@ -39,7 +40,6 @@ def rrtconnect(robot, obstacles, start, goal, *, clearance: float, timeout: floa
         from ompl import util as ou
     except ImportError as exc:  # pragma: no cover - dev extra
         raise RobointelError(f"the OMPL peer needs the 'ompl' package (dev extra): {exc}") from None
-    from robointel.geometry import min_distance
 
     ou.setLogLevel(ou.LogLevel.LOG_NONE)
     if seed is not None:

@@ -15,6 +15,7 @@ import scipy.sparse as sp
 from scipy.optimize import minimize
 
 from robointel.planning.cfs import NonlinearConstraint
+from robointel.planning.trajectory import straight_reference
 
 
 @dataclass
@@ -80,8 +81,6 @@ def slsqp_segment(planner, start, goal, *, reference=None, tol: float = 1e-4, ma
     Returns:
         (path (N+1, n), :class:`SQPResult`).
     """
-    from robointel.planning.trajectory import straight_reference
-
     n, N = planner.n, planner.N
     x0, xN = np.asarray(start, float), np.asarray(goal, float)
     Xr = straight_reference(x0, xN, N) if reference is None else np.asarray(reference, float)

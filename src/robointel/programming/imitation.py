@@ -22,6 +22,7 @@ import numpy as np
 from robointel._validate import as_array
 from robointel.errors import IKFailure, InvalidInput
 from robointel.programming.skeleton import Skeleton, clean
+from robointel.sim import Workcell
 from robointel.trajectory import Trajectory
 
 #: Default workspace box for the TCP (robot root frame, m): every point is reachable with the
@@ -248,8 +249,6 @@ class ImitationRun:
 def simulate_imitation(plan: ImitationPlan, robot, workcell=None) -> ImitationRun:
     """Track the plan's reference in the MuJoCo workcell (1 kHz PID + feed-forward, Fig. 2.3)."""
     if workcell is None:
-        from robointel.sim import Workcell
-
         workcell = Workcell(robot, ft_sensor=False)
     log = workcell.run_trajectory(plan.trajectory, record_ft=False)
     tq = plan.trajectory.t[: len(log.q)]

@@ -26,7 +26,7 @@ tests). :func:`plot_scenario` draws the four panels of Fig. 4.6b.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
@@ -34,9 +34,13 @@ import numpy as np
 
 from robointel.errors import InvalidInput
 from robointel.geometry import Cylinder
+from robointel.programming.ft_identification import FTCalibration, calibrate_in_workcell
 from robointel.programming.guidance import GuidanceConfig, GuidanceController
-from robointel.programming.ft_identification import calibrate_in_workcell
 from robointel.programming.keypoints import blended_trajectory
+from robointel.robot import Robot
+from robointel.sim import Workcell
+from robointel.sim.mjcf import Payload
+from robointel.sim.workcell import FTSensor
 
 __all__ = ["BASE_HEIGHT", "OBSTACLE_RADIUS", "SCENARIOS", "Scenario", "ScenarioResult", "SimulatedOperator",
            "plot_scenario", "run_scenario", "scenario", "table_4_1_obstacles"]
@@ -262,10 +266,6 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
         identify: identify payload and bias first (3.14)-(3.19); else use the true values.
         progress: called with the fraction done.
     """
-    from dataclasses import replace
-
-    from robointel.robot import Robot
-
     sc = scenario(number)
     robot = robot or Robot.load("lrmate200id7l")
     cfg = replace(config or GuidanceConfig(), method=method)
@@ -284,10 +284,6 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
     extra: dict = {}
     wc = cal = None
     if physics:
-        from robointel.sim import Workcell
-        from robointel.sim.mjcf import Payload
-        from robointel.sim.workcell import FTSensor
-
         payload = Payload(mass=0.6, com=(0.04, 0.0, 0.01), radius=0.03)
         sens = FTSensor(bias=np.asarray(ft_bias, float), noise_std=np.r_[[ft_noise] * 3, [ft_noise / 10] * 3],
                         seed=seed)
@@ -297,8 +293,6 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
             extra["identified_mass"] = cal.mass
             extra["identified_com"] = cal.com.tolist()
         else:
-            from robointel.programming.ft_identification import FTCalibration
-
             cal = FTCalibration(payload.mass, np.asarray(payload.com, float), np.asarray(ft_bias[:3], float),
                                 np.asarray(ft_bias[3:], float), 0.0, 0.0)
         wc.reset(q0)

@@ -21,6 +21,8 @@ import pinocchio as pin
 from robointel._validate import as_array, check_limits
 from robointel.errors import DescriptionError, IKFailure, InvalidInput, NotFinite, ShapeError, UnknownRobot
 from robointel.robot._kernels import points_jacobians, points_jacobians_batch
+from robointel.robot.collision import SphereModel
+from robointel.robot.ik import LRMateIK
 
 DESCRIPTIONS = Path(__file__).resolve().parent / "descriptions"
 BUILTIN = {
@@ -121,13 +123,9 @@ class Robot:
         self._oMi = [self.data.oMi[i] for i in range(model.njoints)]
         self._Jw = self.data.J
         self._T = np.empty((model.njoints, 4, 4))
-        from robointel.robot.collision import SphereModel  # local import: collision uses Robot
-
         self.spheres: SphereModel = SphereModel.from_robot(self)
         self._ik = None
         if name == "lrmate200id7l":
-            from robointel.robot.ik import LRMateIK
-
             self._ik = LRMateIK(self)
 
     # ------------------------------------------------------------------ loading

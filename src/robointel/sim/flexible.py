@@ -27,6 +27,7 @@ import pinocchio as pin
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput, SafetyStop
+from robointel.sim.controller import JointController
 
 #: ESTIMATES for the LR Mate 200iD/7L (no public data): joint stiffness (N m/rad), joint damping
 #: (N m s/rad), rotor inertia (kg m^2), motor viscous friction (N m s/rad), gear ratio.
@@ -183,8 +184,6 @@ class FlexibleJointModel:
         """A Fig. 2.3 :class:`~robointel.sim.JointController` for this arm: feed-forward and gain
         schedule from the rigid limit (M(q) + J, RNEA with the rotor inertia; keyword arguments go to
         the controller). The URDF friction compensation is off (this model has motor friction B)."""
-        from robointel.sim.controller import JointController
-
         rigid = self.rigid_model()
         kwargs.setdefault("friction_compensation", False)
         return JointController(self.robot, dt=self.dt, model=rigid, gain_model=rigid, **kwargs)

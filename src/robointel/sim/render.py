@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robointel.errors import RobointelError
+from robointel.errors import InvalidInput, RobointelError
 
 _PROBE = ("import mujoco, numpy as np\n"
           "m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom size=\".1\"/></worldbody></mujoco>')\n"
@@ -83,8 +83,6 @@ def render_frames(workcell, qpos, path=None, *, width: int = 480, height: int = 
         InvalidInput: a state of the wrong size.
     """
     import mujoco
-
-    from robointel.errors import InvalidInput
 
     backend = available_backend()
     if backend is None:
