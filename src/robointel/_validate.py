@@ -1,7 +1,7 @@
 """Checks at the public boundary: shapes, finiteness, limits."""
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

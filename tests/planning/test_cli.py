@@ -24,7 +24,8 @@ def test_plan_command_reports_bad_scene(tmp_path):
     from robointel.cli import app
 
     bad = tmp_path / "bad.yaml"
-    bad.write_text("robot: lrmate200id7l\ndt: 0.1\nwaypoints:\n  - {q_deg: [0, 0, 0, 0, .nan, 0]}\n  - {q_deg: [0, 0, 0, 0, 0, 0]}\n")
+    bad.write_text("robot: lrmate200id7l\ndt: 0.1\nwaypoints:\n  - {q_deg: [0, 0, 0, 0, .nan, 0]}\n"
+                   "  - {q_deg: [0, 0, 0, 0, 0, 0]}\n")
     r = CliRunner().invoke(app, ["plan", str(bad), "--out", str(tmp_path / "t.npz")])
     assert r.exit_code == 2 and "error" in r.output
 

@@ -8,9 +8,9 @@ import pytest
 import yaml
 
 from robointel.errors import CollisionAtStart, InvalidInput, LimitViolation, NotFinite
-from robointel.planning.scene import SCENES, load_scene, scene_from_dict
 from robointel.io.trajectory import load_trajectory, save_trajectory
 from robointel.planning.frmp import check_trajectory, execute, plan_scene
+from robointel.planning.scene import SCENES, load_scene, scene_from_dict
 
 
 @pytest.fixture(scope="module")

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from robointel.errors import InvalidInput, NotFinite, ShapeError
-from robointel.planning.scene import builtin_scenes, load_scene, scene_from_dict
 from robointel.io.trajectory import load_trajectory, save_trajectory
+from robointel.planning.scene import builtin_scenes, load_scene, scene_from_dict
 from robointel.trajectory import Trajectory
 
 

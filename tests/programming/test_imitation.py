@@ -5,8 +5,16 @@ import numpy as np
 import pytest
 
 from robointel.errors import InvalidInput
-from robointel.programming.imitation import (TOOL_DOWN, WORKSPACE_HI, WORKSPACE_LO, fit_workspace, jerk_limited,
-                                             kinematic_imitation, simulate_imitation, solve_ik_path)
+from robointel.programming.imitation import (
+    TOOL_DOWN,
+    WORKSPACE_HI,
+    WORKSPACE_LO,
+    fit_workspace,
+    jerk_limited,
+    kinematic_imitation,
+    simulate_imitation,
+    solve_ik_path,
+)
 from robointel.programming.skeleton import read_kinect_csv, synthetic_wave
 
 

@@ -3,8 +3,7 @@ import numpy as np
 import pytest
 
 from robointel.errors import InvalidInput
-from robointel.programming.keypoints import (blended_trajectory, extract_keypoints,
-                                             joint_velocity_reference, rdp_indices)
+from robointel.programming.keypoints import blended_trajectory, extract_keypoints, joint_velocity_reference, rdp_indices
 
 
 def _guided_path(rng):

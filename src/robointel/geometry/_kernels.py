@@ -185,8 +185,10 @@ def rep_terms(c, J, r, nrm):
 
 @njit(cache=True)
 def sphere_pairs_min(C, radii, rows, types, params):
-    """Minimum over all (sphere in rows, primitive) pairs: (d, i, j, closest (3,), normal (3,));
-    i (an index into C) = -1 when there is no pair."""
+    """Minimum over all (sphere in rows, primitive) pairs.
+
+    (d, i, j, closest (3,), normal (3,)); i (an index into C) = -1 when there is no pair.
+    """
     best = np.inf
     bi, bj = -1, -1
     bo = np.zeros(3)
@@ -206,10 +208,11 @@ def sphere_pairs_min(C, radii, rows, types, params):
 
 @njit(cache=True)
 def per_obstacle_min(C, J, radii, rows, types, params, cols, D, S, O, N, P, G, JR):
-    """For each primitive j (output column cols[j]), the closest robot sphere among ``rows``:
-    distance D, sphere S (index into C), obstacle point O, normal N, robot point P (.., 3),
-    gradient G (.., n) and J_rep JR (.., 3, n); J: (M, 6, n) [v; w]. Columns stay untouched when
-    there is no sphere."""
+    """For each primitive j (output column cols[j]), the closest robot sphere among ``rows``.
+
+    Distance D, sphere S (index into C), obstacle point O, normal N, robot point P (.., 3), gradient G (.., n) and
+    J_rep JR (.., 3, n); J: (M, 6, n) [v; w]. Columns stay untouched when there is no sphere.
+    """
     for j in range(types.shape[0]):
         c = cols[j]
         best = np.inf

@@ -1,5 +1,7 @@
-"""Robot-obstacle distances with exact gradients: the closest points and J_rep of Ch. 4 ((4.1)-(4.3),
-(4.6)) and the collision constraints d(x_t, O) >= d_min of the CFS planner (Ch. 7, (7.1)-(7.3)).
+"""Robot-obstacle distances with exact gradients.
+
+The closest points and J_rep of Ch. 4 ((4.1)-(4.3), (4.6)) and the collision constraints d(x_t, O) >= d_min of the
+CFS planner (Ch. 7, (7.1)-(7.3)).
 
 The robot is covered by spheres on control points (Fig. 4.2, :class:`robointel.robot.SphereModel`).
 For sphere i with centre c_i(q), radius r_i and obstacle k with signed distance field phi_k, the
@@ -16,8 +18,9 @@ point clouds by one k-d tree query each. One robot-kinematics pass per configura
 """
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Iterable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -93,7 +96,7 @@ def _obstacle_set(obstacles) -> ObstacleSet:
     return s
 
 
-def _sphere_model(robot: "Robot", spheres: "SphereModel | None") -> "SphereModel":
+def _sphere_model(robot: Robot, spheres: SphereModel | None) -> SphereModel:
     s = robot.spheres if spheres is None else spheres
     if not hasattr(s, "kinematics") or not hasattr(s, "radii"):
         raise InvalidInput(f"spheres must be a robointel.robot.SphereModel, got {type(s).__name__}", value=s)
@@ -102,8 +105,10 @@ def _sphere_model(robot: "Robot", spheres: "SphereModel | None") -> "SphereModel
 
 @dataclass
 class SphereDistances:
-    """Distances between m robot spheres and k obstacles at one configuration (leading (T,) axis
-    added by :func:`sphere_distances_batch`).
+    """Distances between m robot spheres and k obstacles at one configuration.
+
+    Distances between m robot spheres and k obstacles at one configuration (leading (T,) axis added by
+    :func:`sphere_distances_batch`).
 
     Attributes:
         d: (m, k) signed surface-to-surface distances (m), negative when penetrating.
@@ -131,7 +136,7 @@ class SphereDistances:
         return int(i), int(k)
 
 
-def _rows(sm: "SphereModel", movable_only: bool) -> np.ndarray:
+def _rows(sm: SphereModel, movable_only: bool) -> np.ndarray:
     """Indices of the spheres to use: all, or those on links that move."""
     if movable_only:
         return np.flatnonzero(np.asarray(sm.movable, bool))
@@ -157,11 +162,12 @@ def _alloc(m: int, k: int, n: int):
     return np.empty((m, k)), np.empty((m, k, 3)), np.empty((m, k, 3)), np.empty((m, k, 3)), np.empty((m, k, n))
 
 
-def sphere_distances(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = None, *,
+def sphere_distances(robot: Robot, q, obstacles, spheres: SphereModel | None = None, *,
                      movable_only: bool = False) -> SphereDistances:
-    """Signed distances, closest points and exact gradients between every robot sphere and every
-    obstacle at configuration ``q`` (n,) (d = phi(c(q)) - r,
-    dd/dq = n^T J; the collision constraints of (7.1)-(7.3)).
+    """Signed distances, closest points and exact gradients between every robot sphere and obstacle.
+
+    Signed distances, closest points and exact gradients between every robot sphere and every obstacle at
+    configuration ``q`` (n,) (d = phi(c(q)) - r, dd/dq = n^T J; the collision constraints of (7.1)-(7.3)).
 
     Args:
         robot: the robot (its :attr:`spheres` are used unless ``spheres`` is given).
@@ -183,11 +189,14 @@ def sphere_distances(robot: "Robot", q, obstacles, spheres: "SphereModel | None"
     return SphereDistances(D, G, N, RP, OP, rows, os_.obstacles)
 
 
-def sphere_distances_batch(robot: "Robot", Q, obstacles, spheres: "SphereModel | None" = None, *,
+def sphere_distances_batch(robot: Robot, Q, obstacles, spheres: SphereModel | None = None, *,
                            movable_only: bool = False) -> SphereDistances:
-    """:func:`sphere_distances` at T configurations ``Q`` (T, n) in one compiled call (CFS
-    collision constraints at all time steps, Ch. 7). Results carry a leading (T,) axis:
-    d (T, m, k), grad (T, m, k, n), normals/points (T, m, k, 3); ``spheres`` stays (m,)."""
+    """:func:`sphere_distances` at T configurations ``Q`` (T, n) in one compiled call.
+
+    :func:`sphere_distances` at T configurations ``Q`` (T, n) in one compiled call (CFS collision constraints at all
+    time steps, Ch. 7). Results carry a leading (T,) axis: d (T, m, k), grad (T, m, k, n), normals/points (T, m, k,
+    3); ``spheres`` stays (m,).
+    """
     sm = _sphere_model(robot, spheres)
     os_ = _obstacle_set(obstacles)
     Q = as_array(Q, "Q", (None, robot.nq))
@@ -255,11 +264,13 @@ def _cloud_min(os_: ObstacleSet, C, radii, rows, best):
     return best
 
 
-def min_distance(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = None, *,
+def min_distance(robot: Robot, q, obstacles, spheres: SphereModel | None = None, *,
                  movable_only: bool = False) -> MinDistance:
-    """Minimum signed distance between the robot spheres and the obstacles at ``q`` (n,), with the
-    closest pair, the gradient (n,) and J_rep (3, n) of the closest robot point (Ch. 4: the distance and
-    repulsive direction of (4.1)-(4.3), J_rep of (4.6)).
+    """Minimum signed distance between the robot spheres and the obstacles at ``q`` (n,).
+
+    Minimum signed distance between the robot spheres and the obstacles at ``q`` (n,), with the closest pair, the
+    gradient (n,) and J_rep (3, n) of the closest robot point (Ch. 4: the distance and repulsive direction of
+    (4.1)-(4.3), J_rep of (4.6)).
 
     With no obstacles (or no spheres) the distance is ``inf`` and indices are -1.
     """
@@ -285,8 +296,9 @@ def min_distance(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = N
 
 @dataclass
 class ClosestPairs:
-    """For each of k obstacles, its closest robot sphere at one configuration: one repulsive
-    constraint per obstacle (the QP (4.11) of Ch. 4, with J_rep (4.6) of each closest point).
+    """For each of k obstacles, its closest robot sphere at one configuration.
+
+    One repulsive constraint per obstacle (the QP (4.11) of Ch. 4, with J_rep (4.6) of each closest point).
 
     Attributes:
         distance: (k,) signed surface distances (m); ``inf`` where there is no robot sphere.
@@ -316,10 +328,13 @@ class ClosestPairs:
                            self.jacobian[k])
 
 
-def closest_pairs(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = None, *,
+def closest_pairs(robot: Robot, q, obstacles, spheres: SphereModel | None = None, *,
                   movable_only: bool = False) -> ClosestPairs:
-    """For every obstacle, the closest robot sphere at ``q`` (n,) with distance, closest points,
-    normal, gradient and J_rep (4.6): the per-obstacle constraints of the guidance QP (4.11)."""
+    """For every obstacle, the closest robot sphere at ``q`` (n,).
+
+    For every obstacle, the closest robot sphere at ``q`` (n,) with distance, closest points, normal, gradient and
+    J_rep (4.6): the per-obstacle constraints of the guidance QP (4.11).
+    """
     sm = _sphere_model(robot, spheres)
     os_ = _obstacle_set(obstacles)
     C, J = sm.kinematics(q, angular=True)
@@ -362,7 +377,7 @@ class SelfDistance:
     gradient: np.ndarray
 
 
-def self_collision_distance(robot: "Robot", q, spheres: "SphereModel | None" = None) -> SelfDistance:
+def self_collision_distance(robot: Robot, q, spheres: SphereModel | None = None) -> SelfDistance:
     """Minimum signed distance over the robot's self-collision sphere pairs, with its gradient."""
     sm = _sphere_model(robot, spheres)
     C, J = sm.kinematics(q)
@@ -413,10 +428,13 @@ class Collision:
                 f"margin {self.margin * 1e3:.1f} mm)")
 
 
-def in_collision(robot: "Robot", q, obstacles, margin: float = 0.0, *, spheres: "SphereModel | None" = None,
+def in_collision(robot: Robot, q, obstacles, margin: float = 0.0, *, spheres: SphereModel | None = None,
                  self_collision: bool = False) -> Collision:
-    """Is any robot sphere closer than ``margin`` (m) to an obstacle (or, with ``self_collision``,
-    to a non-adjacent link)? The result is truthy when colliding and names link and obstacle."""
+    """Whether any robot sphere is closer than ``margin`` (m) to an obstacle or (optionally) another link.
+
+    Is any robot sphere closer than ``margin`` (m) to an obstacle (or, with ``self_collision``, to a non-adjacent
+    link)? The result is truthy when colliding and names link and obstacle.
+    """
     margin = float(as_array(margin, "margin", ()))
     md = min_distance(robot, q, obstacles, spheres)
     res = Collision(md.distance < margin, md.distance, md.link, md.obstacle, md.obstacle_name, margin)
@@ -427,8 +445,8 @@ def in_collision(robot: "Robot", q, obstacles, margin: float = 0.0, *, spheres: 
     return res
 
 
-def check_collision_free(robot: "Robot", q, obstacles, margin: float = 0.0, *, what: str = "start configuration",
-                         spheres: "SphereModel | None" = None, self_collision: bool = False) -> Collision:
+def check_collision_free(robot: Robot, q, obstacles, margin: float = 0.0, *, what: str = "start configuration",
+                         spheres: SphereModel | None = None, self_collision: bool = False) -> Collision:
     """Raise :class:`CollisionAtStart` naming link and obstacle when ``q`` is in collision.
 
     Returns the (non-colliding) :class:`Collision` result otherwise.
@@ -441,8 +459,11 @@ def check_collision_free(robot: "Robot", q, obstacles, margin: float = 0.0, *, w
 
 
 def warmup() -> None:
-    """Compile (or load from numba's on-disk cache) every distance kernel now, so that the first
-    call inside a control loop does not pay the compilation (about a second per kernel, once)."""
+    """Compile (or load from numba's on-disk cache) every distance kernel now.
+
+    Compile (or load from numba's on-disk cache) every distance kernel now, so that the first call inside a control
+    loop does not pay the compilation (about a second per kernel, once).
+    """
     prims = [Sphere([0, 0, 0], 0.1), Capsule([0, 0, 0], [0, 0, 1], 0.1), Cylinder([0, 0, 0], [0, 0, 1], 0.1),
              Box([0, 0, 0], [1, 1, 1])]
     os_ = ObstacleSet(prims)

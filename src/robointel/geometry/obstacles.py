@@ -89,20 +89,22 @@ class Obstacle:
         raise NotImplementedError  # pragma: no cover
 
     # moving -----------------------------------------------------------------
-    def transformed(self, T) -> "Obstacle":
+    def transformed(self, T) -> Obstacle:
         """The shape moved by the rigid transform ``T`` (4x4, applied in the world frame)."""
         raise NotImplementedError  # pragma: no cover
 
-    def translated(self, offset) -> "Obstacle":
+    def translated(self, offset) -> Obstacle:
         """The shape shifted by ``offset`` (3,) metres."""
         T = np.eye(4)
         T[:3, 3] = as_array(offset, "offset", (3,))
         return self.transformed(T)
 
-    def moved(self, center) -> "Obstacle":
-        """The shape translated so that its reference point ``center`` (the centre of a sphere or
-        box, the axis mid-point of a capsule or cylinder, the centroid of a point cloud) is at
-        ``center`` (3,)."""
+    def moved(self, center) -> Obstacle:
+        """The shape translated so that its reference point is at ``center`` (3,), m.
+
+        The shape translated so that its reference point ``center`` (the centre of a sphere or box, the axis
+        mid-point of a capsule or cylinder, the centroid of a point cloud) is at ``center`` (3,).
+        """
         return self.translated(as_array(center, "center", (3,)) - self.center)
 
     # files ------------------------------------------------------------------
@@ -153,7 +155,7 @@ class Sphere(Obstacle):
     def bounds(self):
         return self.center - self.radius, self.center + self.radius
 
-    def transformed(self, T) -> "Sphere":
+    def transformed(self, T) -> Sphere:
         R, t = _rigid(T)
         return replace(self, center=R @ self.center + t)
 
@@ -198,7 +200,7 @@ class Capsule(Obstacle):
     def bounds(self):
         return np.minimum(self.a, self.b) - self.radius, np.maximum(self.a, self.b) + self.radius
 
-    def transformed(self, T) -> "Capsule":
+    def transformed(self, T) -> Capsule:
         R, t = _rigid(T)
         return replace(self, a=R @ self.a + t, b=R @ self.b + t)
 
@@ -253,7 +255,7 @@ class Cylinder(Obstacle):
         ext = self.radius * np.sqrt(np.clip(1.0 - u * u, 0.0, None))  # disc extent per axis
         return np.minimum(self.a, self.b) - ext, np.maximum(self.a, self.b) + ext
 
-    def transformed(self, T) -> "Cylinder":
+    def transformed(self, T) -> Cylinder:
         R, t = _rigid(T)
         return replace(self, a=R @ self.a + t, b=R @ self.b + t)
 
@@ -263,8 +265,10 @@ class Cylinder(Obstacle):
 
 @dataclass(frozen=True, eq=False)
 class Box(Obstacle):
-    """Oriented box: ``center`` (3,), full edge lengths ``size`` (3,) m, ``rotation`` (3x3) of the
-    box axes in the world frame."""
+    """Oriented box.
+
+    ``center`` (3,), full edge lengths ``size`` (3,) m, ``rotation`` (3x3) of the box axes in the world frame.
+    """
 
     center: np.ndarray
     size: np.ndarray
@@ -305,7 +309,7 @@ class Box(Obstacle):
         ext = np.abs(self.rotation) @ (self.size / 2)
         return self.center - ext, self.center + ext
 
-    def transformed(self, T) -> "Box":
+    def transformed(self, T) -> Box:
         R, t = _rigid(T)
         return replace(self, center=R @ self.center + t, rotation=R @ self.rotation)
 
@@ -318,9 +322,11 @@ class Box(Obstacle):
 
 @dataclass(frozen=True, eq=False)
 class PointCloud(Obstacle):
-    """Points (N, 3), each inflated by ``radius`` >= 0 (m); distance to the nearest point minus
-    ``radius`` (a k-d tree query, :class:`scipy.spatial.cKDTree`). Inside a ball the value is the
-    depth below that ball's surface (exact outside the union of balls, conservative inside)."""
+    """Points (N, 3), each inflated by ``radius`` >= 0 (m).
+
+    Distance to the nearest point minus ``radius`` (a k-d tree query, :class:`scipy.spatial.cKDTree`). Inside a ball
+    the value is the depth below that ball's surface (exact outside the union of balls, conservative inside).
+    """
 
     points: np.ndarray
     radius: float = 0.0
@@ -360,7 +366,7 @@ class PointCloud(Obstacle):
     def bounds(self):
         return self.points.min(0) - self.radius, self.points.max(0) + self.radius
 
-    def transformed(self, T) -> "PointCloud":
+    def transformed(self, T) -> PointCloud:
         R, t = _rigid(T)
         return replace(self, points=self.points @ R.T + t)
 

@@ -21,8 +21,11 @@ from robointel.io.reference import data_path
 
 @dataclass(frozen=True)
 class LasaShape:
-    """One LASA shape: ``t`` (7, 1000) s, ``pos``/``vel``/``acc`` (7, 1000, 2) in mm, mm/s, mm/s^2
-    (the data set's units), ``dt`` mean sample time (s)."""
+    """One LASA shape.
+
+    ``t`` (7, 1000) s, ``pos``/``vel``/``acc`` (7, 1000, 2) in mm, mm/s, mm/s^2 (the data set's units), ``dt`` mean
+    sample time (s).
+    """
 
     name: str
     dt: float
@@ -70,8 +73,11 @@ def load_lasa(name: str) -> LasaShape:
 
 @dataclass(frozen=True)
 class FTEpisodes:
-    """UCI robot-failure episodes of one learning problem: ``X`` (n, 15, 6) force/torque samples
-    (Fx Fy Fz Tx Ty Tz, raw integer sensor units), ``y`` (n,) integer labels into ``classes``."""
+    """UCI robot-failure episodes of one learning problem.
+
+    ``X`` (n, 15, 6) force/torque samples (Fx Fy Fz Tx Ty Tz, raw integer sensor units), ``y`` (n,) integer labels
+    into ``classes``.
+    """
 
     problem: str
     X: np.ndarray

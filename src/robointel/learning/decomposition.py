@@ -17,8 +17,8 @@ programming over the action order.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numba
 import numpy as np
@@ -29,10 +29,12 @@ from robointel.learning.demonstration import Demonstration
 
 
 def demo_features(demo: Demonstration, *, smooth: int = 5) -> np.ndarray:
-    """Per-sample features (5.7) of a demonstration: vec(T) (12) with the position expressed in the
-    task frame (relative to the demonstration's final tool position, where the task completes),
-    wrench (6), tool linear velocity (3) and angular velocity (3) from smoothed finite differences.
-    Returns (N, 24)."""
+    """Per-sample features (5.7) of a demonstration.
+
+    Vec(T) (12) with the position expressed in the task frame (relative to the demonstration's final tool position,
+    where the task completes), wrench (6), tool linear velocity (3) and angular velocity (3) from smoothed finite
+    differences. Returns (N, 24).
+    """
     f = demo.features(wrench=True)
     f[:, 9:12] -= demo.position[-1]
     p = demo.position
@@ -63,8 +65,10 @@ def _windows(X, centers, w):
 
 @numba.njit(cache=True)
 def _warp_windows(W, R, band):
-    """DTW-align each window W[i] (w, F) onto the reference R (w, F) with a Sakoe-Chiba band; sample j
-    of the result is the mean of the window samples matched to R[j] (5.9)-(5.10)."""
+    """DTW-align each window W[i] (w, F) onto the reference R (w, F) with a Sakoe-Chiba band.
+
+    Sample j of the result is the mean of the window samples matched to R[j] (5.9)-(5.10).
+    """
     nw, w, f = W.shape
     out = np.zeros((nw, w, f))
     acc = np.empty((w, w))
@@ -121,9 +125,11 @@ def _warp_windows(W, R, band):
 
 
 def ordered_segmentation(scores: np.ndarray) -> np.ndarray:
-    """Split points (5.13): for scores (A, T) find 0 < b_1 <= ... <= b_{A-1} <= T maximising
-    sum_a sum_{b_a <= t < b_{a+1}} scores[a, t] (actions in order, each at least one step).
-    Returns the A-1 split indices (first step of actions 1..A-1)."""
+    """Split points (5.13).
+
+    For scores (A, T) find 0 < b_1 <= ... <= b_{A-1} <= T maximising sum_a sum_{b_a <= t < b_{a+1}} scores[a, t]
+    (actions in order, each at least one step). Returns the A-1 split indices (first step of actions 1..A-1).
+    """
     a_n, t_n = scores.shape
     if t_n < a_n:
         raise InvalidInput(f"{t_n} windows cannot hold {a_n} ordered actions")
@@ -155,8 +161,11 @@ def ordered_segmentation(scores: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Decomposition:
-    """Result for one demonstration: ``labels`` (N,) action per sample, ``splits`` (A-1,) sample index
-    of each action's first sample, ``scores`` (A, n_windows) and the window ``centers``."""
+    """Result for one demonstration.
+
+    ``labels`` (N,) action per sample, ``splits`` (A-1,) sample index of each action's first sample, ``scores`` (A,
+    n_windows) and the window ``centers``.
+    """
 
     labels: np.ndarray
     splits: np.ndarray
@@ -203,9 +212,10 @@ class ActionSegmenter:
     def _descriptor_all(self, Xs, centers):
         return np.concatenate([self._descriptors(Xs, centers, a) for a in range(self.n_actions_)], axis=1)
 
-    def fit(self, series: Sequence, labels: Sequence) -> "ActionSegmenter":
-        """Train on labelled demonstrations: ``series`` list of (N_i, F) features, ``labels`` list of
-        (N_i,) action indices 0..A-1 appearing in order.
+    def fit(self, series: Sequence, labels: Sequence) -> ActionSegmenter:
+        """Train on labelled demonstrations.
+
+        ``series`` list of (N_i, F) features, ``labels`` list of (N_i,) action indices 0..A-1 appearing in order.
 
         Raises:
             ShapeError: different feature dimensions or label lengths. NotFinite: NaN samples.
@@ -276,9 +286,11 @@ class ActionSegmenter:
         return self
 
     def _decision(self, D: np.ndarray) -> np.ndarray:
-        """One-vs-rest SVM decision values (n, A) of descriptors (n, P). Only the support vectors
-        enter an SVM's decision function, so only their kernel columns are evaluated (the others
-        multiply zero dual coefficients and are left at zero)."""
+        """One-vs-rest SVM decision values (n, A) of descriptors (n, P).
+
+        Only the support vectors enter an SVM's decision function, so only their kernel columns are evaluated (the
+        others multiply zero dual coefficients and are left at zero).
+        """
         from sklearn.metrics.pairwise import rbf_kernel
 
         K = np.zeros((len(D), self.n_train_windows_))

@@ -22,9 +22,11 @@ __all__ = ["UNITS", "Demonstration", "load_demonstrations", "save_demonstrations
 
 @dataclass(frozen=True)
 class Demonstration:
-    """One demonstration: ``t`` (N,) s, ``pose`` (N, 4, 4) tool poses in the world frame (m),
-    ``wrench`` (N, 6) [fx, fy, fz, tx, ty, tz] in the sensor frame (N, N m), optional ``labels`` (N,)
-    integer action indices into ``action_names`` (-1 = unlabelled).
+    """One demonstration.
+
+    ``t`` (N,) s, ``pose`` (N, 4, 4) tool poses in the world frame (m), ``wrench`` (N, 6) [fx, fy, fz, tx, ty, tz]
+    in the sensor frame (N, N m), optional ``labels`` (N,) integer action indices into ``action_names`` (-1 =
+    unlabelled).
 
     Construct with :meth:`create` to validate shapes, monotonic time and finiteness.
     """
@@ -40,7 +42,7 @@ class Demonstration:
 
     @classmethod
     def create(cls, t, pose, wrench, labels=None, *, action_names=(), device: str = "hdd", name: str = "",
-               meta: dict | None = None) -> "Demonstration":
+               meta: dict | None = None) -> Demonstration:
         """Validated constructor.
 
         Raises:

@@ -16,8 +16,8 @@ costs), so the two agree to rounding.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numba
 import numpy as np
@@ -182,8 +182,11 @@ def dtw_distance(a, b, *, window: int | None = None) -> float:
 
 @dataclass(frozen=True)
 class DTWResult:
-    """``distance`` (float) and warping ``path`` (K, 2) of index pairs (i into a, j into b), monotone,
-    from (0, 0) to (n-1, m-1)."""
+    """DTW distance and warping path.
+
+    ``distance`` (float) and warping ``path`` (K, 2) of index pairs (i into a, j into b), monotone, from (0, 0) to
+    (n-1, m-1).
+    """
 
     distance: float
     path: np.ndarray
@@ -198,8 +201,9 @@ def dtw(a, b, *, window: int | None = None) -> DTWResult:
 
 
 def warp_to(series, reference, *, window: int | None = None) -> np.ndarray:
-    """Warp ``series`` (n, d) onto the time axis of ``reference`` (m, d) (5.6): sample j of the
-    result is the mean of the series samples the warping path matches to reference sample j.
+    """Warp ``series`` (n, d) onto the time axis of ``reference`` (m, d) (5.6).
+
+    Sample j of the result is the mean of the series samples the warping path matches to reference sample j.
 
     Returns:
         (m, d) array (or (m,) for 1-D input).

@@ -1,5 +1,7 @@
-"""Skill model (5.14)-(5.17): a Gaussian mixture over [perception, policy] fitted by EM with k-means
-initialisation (scikit-learn's ``GaussianMixture``), and our Gaussian mixture regression.
+"""Skill model (5.14)-(5.17).
+
+A Gaussian mixture over [perception, policy] fitted by EM with k-means initialisation (scikit-learn's
+``GaussianMixture``), and our Gaussian mixture regression.
 
 The joint density of perception ``x`` and policy ``y`` is modelled as (5.14)
 
@@ -29,9 +31,11 @@ from robointel.errors import InvalidInput, ShapeError
 
 
 def regularize_covariances(covariances: np.ndarray, *, min_eig: float = 1e-9) -> np.ndarray:
-    """Make each (d, d) covariance symmetric positive definite: eigenvalues below ``min_eig`` times
-    the largest (and at least ``min_eig``) are raised to it. A singular covariance is regularised,
-    not an error. Returns (K, d, d)."""
+    """Make each (d, d) covariance symmetric positive definite.
+
+    Eigenvalues below ``min_eig`` times the largest (and at least ``min_eig``) are raised to it. A singular
+    covariance is regularised, not an error. Returns (K, d, d).
+    """
     cov = np.array(covariances, dtype=float)
     cov = 0.5 * (cov + np.swapaxes(cov, -1, -2))
     w, v = np.linalg.eigh(cov)
@@ -75,7 +79,7 @@ class GaussianMixtureRegression:
         self.random_state = random_state
 
     @classmethod
-    def from_mixture(cls, priors, means, covariances, n_inputs: int) -> "GaussianMixtureRegression":
+    def from_mixture(cls, priors, means, covariances, n_inputs: int) -> GaussianMixtureRegression:
         """A model from a given mixture; the first ``n_inputs`` dimensions are the perception ``x``."""
         priors = as_array(priors, "priors", (None,))
         k = priors.shape[0]
@@ -110,9 +114,11 @@ class GaussianMixtureRegression:
         self._c = _Conditional(ix, iy, chol, np.array(log_norm), np.array(coef),
                                regularize_covariances(np.array(cond)))
 
-    def fit(self, X, Y) -> "GaussianMixtureRegression":
-        """Fit the joint GMM (5.14)-(5.15) on perception ``X`` (n, dx) and policy ``Y`` (n, dy) by EM
-        with k-means initialisation.
+    def fit(self, X, Y) -> GaussianMixtureRegression:
+        """Fit the joint GMM (5.14)-(5.15) by EM with k-means initialisation.
+
+        Fit the joint GMM (5.14)-(5.15) on perception ``X`` (n, dx) and policy ``Y`` (n, dy) by EM with k-means
+        initialisation.
 
         Raises:
             ShapeError: X and Y of different lengths. NotFinite: NaN samples.

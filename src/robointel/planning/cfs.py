@@ -21,8 +21,8 @@ set: the iterates are feasible and the cost never increases once the reference i
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
 
 import numpy as np
 import scipy.sparse as sp
@@ -156,7 +156,7 @@ class _ConvexSet:
         return self.phi + self.G @ d + 0.5 * self._quad(d)
 
     def _quad(self, d: np.ndarray) -> np.ndarray:
-        """d' H*_i d for every i."""
+        """Quadratic terms d' H*_i d for every i."""
         if self.Hd is not None:
             return self.Hd @ (d * d)
         return np.einsum("i,kij,j->k", d, self.H, d)

@@ -22,9 +22,10 @@ def spline_segment(t: np.ndarray, path: np.ndarray) -> CubicSpline:
 
 
 def limit_stretch(spline: CubicSpline, duration: float, vmax, amax, dt: float = 1e-3) -> float:
-    """Uniform time factor s >= 1 so that the spline's |qd| <= vmax and |qdd| <= amax: accelerations
-    at the knots (exact, a cubic's acceleration is piecewise linear), velocities on a ``dt`` grid
-    plus the knots and the interior extrema of each cubic piece.
+    """Uniform time factor s >= 1 so that the spline's |qd| <= vmax and |qdd| <= amax.
+
+    Accelerations at the knots (exact, a cubic's acceleration is piecewise linear), velocities on a ``dt`` grid plus
+    the knots and the interior extrema of each cubic piece.
     """
     knots = np.asarray(spline.x)
     ts = np.union1d(np.linspace(0.0, duration, max(int(np.ceil(duration / dt)) + 1, 2)), knots)
@@ -44,9 +45,11 @@ def limit_stretch(spline: CubicSpline, duration: float, vmax, amax, dt: float = 
 
 @njit(cache=True)
 def _clamped_moments(h, y, M, cp, dp):  # pragma: no cover - compiled
-    """Knot second derivatives M (N+1, n) of the clamped C2 cubic spline (zero end slopes) through
-    y with interval lengths h (N,): the moment equations solved by the Thomas algorithm (sub-
-    diagonal a, diagonal b, super-diagonal c, right-hand side r). cp, dp: (N+1,) work arrays.
+    """Knot second derivatives M (N+1, n) of the clamped C2 cubic spline (zero end slopes).
+
+    Knot second derivatives M (N+1, n) of the clamped C2 cubic spline (zero end slopes) through y with interval
+    lengths h (N,): the moment equations solved by the Thomas algorithm (sub- diagonal a, diagonal b, super-diagonal
+    c, right-hand side r). cp, dp: (N+1,) work arrays.
     """
     N1, n = y.shape
     N = N1 - 1
@@ -75,8 +78,10 @@ def _clamped_moments(h, y, M, cp, dp):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def _clamped_ratios(t, y, vmax, amax, sub):  # pragma: no cover - compiled
-    """Knot accelerations of the clamped C2 cubic spline (Thomas algorithm on the moment equations)
-    over amax, and the largest |velocity| / vmax at ``sub - 1`` interior samples of each piece.
+    """Limit ratios of the clamped C2 cubic spline at its knots and inside its pieces.
+
+    Knot accelerations of the clamped C2 cubic spline (Thomas algorithm on the moment equations) over amax, and the
+    largest |velocity| / vmax at ``sub - 1`` interior samples of each piece.
     """
     N1, n = y.shape
     N = N1 - 1
@@ -104,9 +109,11 @@ def _clamped_ratios(t, y, vmax, amax, sub):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def clamped_spline_knots(t, y, vmax, amax):  # pragma: no cover - compiled
-    """Knot velocities V (N+1, n) and accelerations M (N+1, n) of the clamped C2 cubic spline
-    through (t, y), and the exact largest |velocity| / vmax (knots and interior extrema of every
-    piece) and |acceleration| / amax (at the knots: it is piecewise linear).
+    """Knot velocities and accelerations of the clamped C2 cubic spline and its exact peak limit ratios.
+
+    Knot velocities V (N+1, n) and accelerations M (N+1, n) of the clamped C2 cubic spline through (t, y), and the
+    exact largest |velocity| / vmax (knots and interior extrema of every piece) and |acceleration| / amax (at the
+    knots: it is piecewise linear).
     """
     N1, n = y.shape
     N = N1 - 1
@@ -142,9 +149,10 @@ def clamped_spline_knots(t, y, vmax, amax):  # pragma: no cover - compiled
 
 
 def knot_ratios(t: np.ndarray, path: np.ndarray, vmax: np.ndarray, amax: np.ndarray, sub: int = 8):
-    """Spline acceleration / limit at each knot (exact: a cubic's acceleration is piecewise linear)
-    and the largest velocity / limit inside each interval (sampled at ``sub - 1`` interior points)
-    of the clamped spline :func:`spline_segment` (compiled, same spline as scipy's).
+    """Spline acceleration / limit at each knot (exact.
+
+    A cubic's acceleration is piecewise linear) and the largest velocity / limit inside each interval (sampled at
+    ``sub - 1`` interior points) of the clamped spline :func:`spline_segment` (compiled, same spline as scipy's).
     """
     return _clamped_ratios(np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(path, dtype=float),
                            np.asarray(vmax, float), np.asarray(amax, float), int(sub))

@@ -1,5 +1,7 @@
-"""The fast robot motion planner (FRMP, Sec. 7.4): scene -> CFS path -> temporal optimization ->
-time-stamped trajectory -> checks on a dense resample -> execution in the MuJoCo workcell.
+"""The fast robot motion planner (FRMP, Sec.
+
+7.4): scene -> CFS path -> temporal optimization -> time-stamped trajectory -> checks on a dense resample ->
+execution in the MuJoCo workcell.
 """
 from __future__ import annotations
 
@@ -136,8 +138,10 @@ def make_planners(scene: Scene) -> dict[int, TrajectoryPlanner]:
 
 def plan_scene(scene: Scene, *, planners: dict[int, TrajectoryPlanner] | None = None,
                progress=None) -> FRMPResult:
-    """Run the FRMP on a scene: check the waypoints, plan each segment by CFS, re-time each segment
-    by temporal optimization, join the segments and check the result on a 1 ms grid.
+    """Run the FRMP on a scene.
+
+    Check the waypoints, plan each segment by CFS, re-time each segment by temporal optimization, join the segments
+    and check the result on a 1 ms grid.
 
     Raises:
         CollisionAtStart: a waypoint is in collision (names link and obstacle).
@@ -145,7 +149,8 @@ def plan_scene(scene: Scene, *, planners: dict[int, TrajectoryPlanner] | None = 
         InfeasibleProblem: a segment's first QP is infeasible (limits too tight for its steps).
     """
     if not isinstance(scene, Scene):
-        raise InvalidInput(f"plan_scene needs a Scene (robointel.planning.scene.load_scene), got {type(scene).__name__}",
+        raise InvalidInput("plan_scene needs a Scene (robointel.planning.scene.load_scene), got "
+                           f"{type(scene).__name__}",
                            value=scene)
     planners = planners or make_planners(scene)
     first = planners[scene.steps[0]]

@@ -2,7 +2,8 @@
 
 Same robot spheres, same obstacles and the same clearance (``d_min + safety``) as the CFS planner:
 a configuration is valid when every movable sphere is at least that far from every obstacle
-(:func:`robointel.geometry.min_distance`, the compiled minimum over all pairs). Motions are checked by OMPL's discrete motion
+(:func:`robointel.geometry.min_distance`, the compiled minimum over all pairs). Motions are checked by OMPL's
+discrete motion
 validator at ``resolution`` (fraction of the joint-space extent). ``ompl`` is a dev extra.
 """
 from __future__ import annotations

@@ -129,8 +129,11 @@ class DenseQP:
         self.primal_start = True
 
     def solve(self, P, q, A, l, u, *, x0=None, full_P: bool = False, y0=None) -> QPSolution:
-        """``full_P=True``: ``P`` is already the full symmetric dense matrix (skip symmetrising).
-        ``y0``: dual warm start (m,) (its nonzero entries mark the initial active set)."""
+        """``full_P=True``.
+
+        ``P`` is already the full symmetric dense matrix (skip symmetrising). ``y0``: dual warm start (m,) (its
+        nonzero entries mark the initial active set).
+        """
         import daqp
 
         P = P.toarray() if sp.issparse(P) else np.asarray(P, float)

@@ -8,8 +8,8 @@ not change between ticks). The replanning rate is 1 / (time per re-plan).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -20,9 +20,11 @@ from robointel.planning.trajectory import PlannerSettings, TrajectoryPlanner
 
 @dataclass
 class ReplanResult:
-    """Per tick: re-plan wall time (ms), CFS iterations, whether the plan is clear, the plan's
-    smallest sphere/obstacle distance (m); the executed configurations (ticks+1, n) and the
-    obstacle positions (ticks, 3)."""
+    """Per tick.
+
+    Re-plan wall time (ms), CFS iterations, whether the plan is clear, the plan's smallest sphere/obstacle distance
+    (m); the executed configurations (ticks+1, n) and the obstacle positions (ticks, 3).
+    """
 
     times_ms: np.ndarray
     iterations: np.ndarray

@@ -219,7 +219,7 @@ def scene_from_dict(d: dict, *, base: Path | None = None) -> Scene:
         except RobointelError as exc:
             raise InvalidInput(f"obstacle {k}: {exc}", value=o) from None
     weights = {"w1": 1.0, "w2": 0.02, "w3": 1.0, "w4": 1.0}
-    for k, v in (d.get("weights") or {}).items():
+    for k in d.get("weights") or {}:
         if k not in weights:
             raise InvalidInput(f"unknown weight {k!r}; use w1, w2, w3, w4", value=k)
         weights[k] = _num(d["weights"], k)

@@ -7,8 +7,8 @@ stopping tolerance as :func:`robointel.planning.cfs.cfs`.
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 import scipy.sparse as sp

@@ -130,8 +130,10 @@ def cfs_tau(H: np.ndarray, f: np.ndarray, lb: np.ndarray, ub: np.ndarray, kk: np
              d1: np.ndarray, d0: np.ndarray, sign: np.ndarray, mu: np.ndarray, z0: np.ndarray, *, eps: float,
              max_iter: int, tol: float = 1e-9, max_cuts: int = 2, ftol: float = 0.0, working_set: float = 0.5,
             keep_iterates: bool = False) -> CFSResult:
-    """Algorithm 2 specialised to (7.7)-(7.9): the same iteration as :func:`robointel.planning.cfs.cfs`
-    for case-(7.6) constraints with a diagonal Hessian bound, written for this problem's structure.
+    """Algorithm 2 specialised to (7.7)-(7.9).
+
+    The same iteration as :func:`robointel.planning.cfs.cfs` for case-(7.6) constraints with a diagonal Hessian
+    bound, written for this problem's structure.
 
     Constraint row r couples only tau_a (a = kk_r) and tau_b (b = kk_r + 1):
     ``phi_r = A_r (tau_a + tau_b) tau_a tau_b / 2 - sign_r (d1_r tau_a - d0_r tau_b) >= 0``. At the
@@ -249,8 +251,9 @@ def cfs_tau(H: np.ndarray, f: np.ndarray, lb: np.ndarray, ub: np.ndarray, kk: np
 
 @njit(cache=True)
 def _rows_lin(z, kk, A2, d1, d0, sign, G, ws, act_r):  # pragma: no cover - compiled
-    """phi_r(z), its two partials and the linearisation's right-hand side (writes G in place), and
-    the working-set mask: rows whose acceleration uses at least ``ws`` of the limit, or active.
+    """phi_r(z), its two partials and the linearisation's right-hand side (writes G in place), and the working-set mask.
+
+    Rows whose acceleration uses at least ``ws`` of the limit, or active.
     """
     R = kk.size
     p = np.empty(R)
@@ -335,8 +338,10 @@ def _rows_lin_violated(x, kk, ga, gb, h, inW, tol):  # pragma: no cover - compil
 
 @njit(cache=True)
 def _warm_sense(m, N, act_b, act_r, row_of):  # pragma: no cover - compiled
-    """DAQP constraint flags (m,) marking the last QP's active set: simple bounds as given, and
-    for every active constraint row its newest QP row (the latest tangent cut, else the row).
+    """DAQP constraint flags (m,) marking the last QP's active set.
+
+    Simple bounds as given, and for every active constraint row its newest QP row (the latest tangent cut, else the
+    row).
     """
     sense = np.zeros(m, dtype=np.int32)
     sense[:N] = act_b

@@ -29,9 +29,10 @@ def feasible_uniform_dt(path: np.ndarray, vmax: np.ndarray, amax: np.ndarray, dt
 
 
 def scaled_start(dx: np.ndarray, vmax: np.ndarray, amax: np.ndarray, h0: float) -> np.ndarray:
-    """A feasible starting schedule shaped like the path: the velocity-limited steps
-    ``b_k = max_j |dx_kj| / vmax_j`` scaled uniformly by the smallest factor c >= 1 meeting
-    (7.7)-(7.9) (accelerations scale by 1 / c^2); falls back to the uniform step ``h0``.
+    """A feasible starting schedule shaped like the path.
+
+    The velocity-limited steps ``b_k = max_j |dx_kj| / vmax_j`` scaled uniformly by the smallest factor c >= 1
+    meeting (7.7)-(7.9) (accelerations scale by 1 / c^2); falls back to the uniform step ``h0``.
     """
     b = np.maximum(np.max(np.abs(dx) / vmax, axis=1), 1e-3 * h0)
     v = dx / b[:, None]
@@ -46,8 +47,9 @@ def scaled_start(dx: np.ndarray, vmax: np.ndarray, amax: np.ndarray, h0: float) 
 
 @njit(cache=True)
 def _pass_x(dx, A, xcap, xlo):  # pragma: no cover - compiled
-    """Forward/backward pass over the squared interval speeds x_k = 1 / tau_k^2 in [xlo, xcap_k]
-    (see pass_start); (xlo, xlo) must satisfy every pair constraint.
+    """Forward/backward pass over the squared interval speeds x_k = 1 / tau_k^2 in [xlo, xcap_k] (see pass_start).
+
+    (xlo, xlo) must satisfy every pair constraint.
     """
     N, n = dx.shape
     K = xcap.copy()
@@ -97,8 +99,9 @@ def _pass_x(dx, A, xcap, xlo):  # pragma: no cover - compiled
 
 
 def step_bounds(dx: np.ndarray, vmax: np.ndarray, amax_k: np.ndarray, vscale: np.ndarray | None = None) -> np.ndarray:
-    """(N,) smallest admissible steps: velocity limits |dx_k| <= vmax tau_k and the start/stop
-    constraints (7.9) on the first and last step.
+    """(N,) smallest admissible steps.
+
+    Velocity limits |dx_k| <= vmax tau_k and the start/stop constraints (7.9) on the first and last step.
     """
     vs = 1.0 if vscale is None else vscale[:, None]
     lb = np.maximum(np.max(np.abs(dx) / (vmax * vs), axis=1), 1e-6)

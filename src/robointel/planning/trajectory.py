@@ -125,8 +125,10 @@ class SegmentPlan:
 
 
 def sphere_clearances(robot, Q: np.ndarray, obstacles):
-    """Signed distances (4.3) between the movable collision spheres and each obstacle, and their
-    gradients n^T J (4.4), at configurations Q (B, n): d (B, m', k), grad (B, m', k, n), spheres (m',).
+    """Signed distances (4.3) between the movable collision spheres and each obstacle, with gradients.
+
+    Signed distances (4.3) between the movable collision spheres and each obstacle, and their gradients n^T J (4.4),
+    at configurations Q (B, n): d (B, m', k), grad (B, m', k, n), spheres (m',).
 
     The planner's name for :func:`robointel.geometry.sphere_distances_batch` with
     ``movable_only=True`` (one batched kinematics pass, one compiled distance call); returns its
@@ -296,8 +298,10 @@ class TrajectoryPlanner:
         return (1 - a) * X[t] + a * X[t + 1]
 
     def distances(self, X: np.ndarray):
-        """Exact signed distances at all samples of the knots X (N+1, n): d (S, m', k) and
-        grad (S, m', k, n) for the m' movable spheres (``spheres`` holds their indices)."""
+        """Exact signed distances at all samples of the knots X (N+1, n).
+
+        D (S, m', k) and grad (S, m', k, n) for the m' movable spheres (``spheres`` holds their indices).
+        """
         if not self.obstacles:
             return None
         return self.config_distances(self._sample_configs(X))
@@ -307,7 +311,6 @@ class TrajectoryPlanner:
         return sphere_clearances(self.robot, Q, self.obstacles)
 
     def _linear_bounds(self, x0: np.ndarray, xN: np.ndarray):
-        n = self.n
         N = self.N
         ends = np.r_[x0, xN]
         lo = np.tile(self.robot.lower, N - 1)
@@ -357,8 +360,11 @@ class TrajectoryPlanner:
         return data, lo.ravel()
 
     def check_waypoints(self, waypoints: np.ndarray, names: list[str] | None = None) -> None:
-        """Raise if a waypoint is outside the joint limits or in collision (CollisionAtStart naming
-        the link and obstacle)."""
+        """Raise if a waypoint is outside the joint limits or in collision.
+
+        Raise if a waypoint is outside the joint limits or in collision (CollisionAtStart naming the link and
+        obstacle).
+        """
         W = as_array(waypoints, "waypoints", (None, self.n))
         for i, w in enumerate(W):
             label = names[i] if names else f"waypoint {i}"
@@ -419,7 +425,7 @@ class TrajectoryPlanner:
         up_coll = np.full(self._coll_nrows, INF)
         nS = len(self.samples)
         qz = np.r_[q, np.full(nS, st.elastic)]
-        for it in range(1, st.max_iter + 1):
+        for _it in range(1, st.max_iter + 1):
             data, lo_c = self._collision_rows(X, D, d_req)
             # elastic slacks only while the reference is infeasible (Sec. 7.2: CFS from an infeasible start)
             smax = INF if not feas else 0.0
@@ -545,8 +551,11 @@ class TrajectoryPlanner:
         return -2 * self.settings.w1 * w.ravel()
 
     def _merit(self, X: np.ndarray, Xr: np.ndarray, D, d_req: float) -> float:
-        """Exact-penalty merit of the elastic phase: J + elastic * sum over samples of the clearance
-        shortfall (the QP's slack objective evaluated with the true distances)."""
+        """Exact-penalty merit of the elastic phase.
+
+        J + elastic * sum over samples of the clearance shortfall (the QP's slack objective evaluated with the true
+        distances).
+        """
         if D is None:
             return self._cost(X, Xr)
         short = np.maximum(d_req - D.d.reshape(len(self.samples), -1).min(axis=1), 0.0)
@@ -557,7 +566,8 @@ class TrajectoryPlanner:
         st = self.settings
         E = (X[1:-1] - Xr[1:-1])
         U = (X[2:] - 2 * X[1:-1] + X[:-2]) / self.dt ** 2
-        return float(st.w1 * np.sum(E * E * self._Qw) + st.w2 * np.sum(U * U * (np.ones(self.n) if st.R is None else st.R)))
+        R = np.ones(self.n) if st.R is None else st.R
+        return float(st.w1 * np.sum(E * E * self._Qw) + st.w2 * np.sum(U * U * R))
 
     def cost_terms(self, start, goal, reference=None):
         """(P, q) of the QP in z = x_1..x_{N-1}: J = 1/2 z'Pz + q'z + const (also for the baselines)."""

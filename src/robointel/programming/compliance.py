@@ -55,8 +55,10 @@ class ComplianceGains:
 
 
 def shift_wrench(wrench, r) -> np.ndarray:
-    """Move a wrench [f; tau] (6,) to a point displaced by ``r`` (3,) metres from its reference
-    point (same axes): tau' = tau - r x f."""
+    """Move a wrench [f.
+
+    Tau] (6,) to a point displaced by ``r`` (3,) metres from its reference point (same axes): tau' = tau - r x f.
+    """
     w = as_array(wrench, "wrench", (6,))
     r = as_array(r, "r", (3,))
     out = w.copy()

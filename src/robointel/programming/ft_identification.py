@@ -68,8 +68,10 @@ class FTCalibration:
         return self.mass * float(np.linalg.norm(self.gravity))
 
     def payload_wrench(self, R_world_sensor) -> np.ndarray:
-        """Wrench the payload and biases put on the sensor at orientation(s) R: (3,3) -> (6,),
-        (N,3,3) -> (N,6) (the right-hand sides of (3.14)-(3.15))."""
+        """Wrench the payload and biases put on the sensor at orientation(s) R.
+
+        (3,3) -> (6,), (N,3,3) -> (N,6) (the right-hand sides of (3.14)-(3.15)).
+        """
         R = np.asarray(R_world_sensor, float)
         g_s = np.einsum("...ji,j->...i", R, self.gravity) * self.mass
         f = g_s + self.force_bias

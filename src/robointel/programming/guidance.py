@@ -281,8 +281,10 @@ class GuidanceController:
         return J
 
     def _solve(self, H, f, A, lb, ub, bl, bu, equality: bool) -> np.ndarray | None:
-        """DAQP on min 1/2 x'Hx + f'x, lb <= x <= ub, bl <= A x <= bu; None if it did not
-        report an optimum (the caller then holds: never pass garbage on)."""
+        """DAQP on min 1/2 x'Hx + f'x, lb <= x <= ub, bl <= A x <= bu.
+
+        None if it did not report an optimum (the caller then holds: never pass garbage on).
+        """
         k, n = A.shape[0], self.n
         BU, BL = self._bu[:n + k], self._bl[:n + k]
         BU[:n], BU[n:], BL[:n], BL[n:] = ub, bu, lb, bl
@@ -294,8 +296,10 @@ class GuidanceController:
 
     # ------------------------------------------------------------------ the loop
     def step(self, q, wrench) -> GuidanceStep:
-        """One control step: joint angles q (n,) and the handle wrench [f; tau] (6,) (world axes,
-        about the TCP, payload-compensated) -> joint velocity command.
+        """One control step.
+
+        Joint angles q (n,) and the handle wrench [f; tau] (6,) (world axes, about the TCP, payload-compensated) ->
+        joint velocity command.
 
         Raises:
             ShapeError: q or wrench of the wrong shape (a programming error, not a sensor fault).
@@ -431,8 +435,10 @@ def _blend_scalar(d: float, d0: float, alpha: float) -> float:
 
 @njit(cache=True)
 def _active_rows(dk, G, d0, x, A):  # pragma: no cover - compiled
-    """Copy the rows G[k] of obstacles with dk[k] < d0 into A[:nact]; return nact and whether x
-    satisfies all of them (A x >= 0)."""
+    """Copy the rows G[k] of obstacles with dk[k] < d0 into A[:nact].
+
+    Return nact and whether x satisfies all of them (A x >= 0).
+    """
     K, n = G.shape
     nact = 0
     feasible = True
@@ -474,8 +480,10 @@ def _check_wrench(w, last, has_last, max_f, max_t, spike_f, spike_t):  # pragma:
 
 @njit(cache=True)
 def _filter_lead(w, wf, beta, first, par, V):  # pragma: no cover - compiled
-    """Low-pass the wrench into wf (in place) and write V = C F (3.11) with deadbands and speed
-    limits. par = [band_f, band_t, K_d, K_r, v_max, w_max]."""
+    """Low-pass the wrench into wf (in place) and write V = C F (3.11) with deadbands and speed limits.
+
+    par = [band_f, band_t, K_d, K_r, v_max, w_max].
+    """
     for i in range(6):
         wf[i] = w[i] if first else wf[i] + beta * (w[i] - wf[i])
     for o in (0, 3):
@@ -492,9 +500,11 @@ def _filter_lead(w, wf, beta, first, par, V):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def _qp_terms(J, W, V, par, q, lower, upper, vmax, H, f, lb, ub, x):  # pragma: no cover - compiled
-    """Cost of (4.11): H = J^T W J + mu I (mu grows near singularities), f = -J^T W V; joint bounds
-    containing 0; x = the unconstrained minimiser. Returns whether x is within the bounds.
-    par = [mu_0, epsilon^2, lambda_max^2, k_limit]."""
+    """Cost of (4.11).
+
+    H = J^T W J + mu I (mu grows near singularities), f = -J^T W V; joint bounds containing 0; x = the unconstrained
+    minimiser. Returns whether x is within the bounds. par = [mu_0, epsilon^2, lambda_max^2, k_limit].
+    """
     n = J.shape[1]
     for i in range(n):
         s = 0.0
@@ -528,9 +538,12 @@ def _qp_terms(J, W, V, par, q, lower, upper, vmax, H, f, lb, ub, x):  # pragma: 
 
 @njit(cache=True)
 def _soft_min(D, G3, beta, dk, dh, rows, G):  # pragma: no cover - compiled
-    """Per obstacle k: hard minimum dh[k] over control points (row rows[k]), the smooth minimum
-    dk[k] = dh - log(sum exp(-beta (d - dh))) / beta and its gradient G[k] (softmax-weighted rows
-    of G3 (m, K, n)); beta = 0 takes the hard minimum's row."""
+    """Per obstacle k.
+
+    Hard minimum dh[k] over control points (row rows[k]), the smooth minimum dk[k] = dh - log(sum exp(-beta (d -
+    dh))) / beta and its gradient G[k] (softmax-weighted rows of G3 (m, K, n)); beta = 0 takes the hard minimum's
+    row.
+    """
     m, K = D.shape
     n = G3.shape[2]
     for k in range(K):

@@ -46,8 +46,11 @@ class WorkspaceMap:
 
 
 def fit_workspace(d: np.ndarray, lo=WORKSPACE_LO, hi=WORKSPACE_HI, *, max_scale: float = 1.0) -> WorkspaceMap:
-    """Uniform scale (<= ``max_scale``) and offset putting the hand-minus-hip path ``d`` (N, 3)
-    inside the box [lo, hi] (centred), preserving the shape of the motion."""
+    """Fit the workspace map: one uniform scale and an offset.
+
+    Uniform scale (<= ``max_scale``) and offset putting the hand-minus-hip path ``d`` (N, 3) inside the box [lo, hi]
+    (centred), preserving the shape of the motion.
+    """
     d = as_array(d, "d", (None, 3))
     lo, hi = as_array(lo, "lo", (3,)), as_array(hi, "hi", (3,))
     if np.any(hi <= lo):
@@ -91,8 +94,10 @@ def hand_targets(skel: Skeleton, *, side: str | None = None, mapping: WorkspaceM
 
 
 def solve_ik_path(robot, p: np.ndarray, R: np.ndarray, q0=None) -> tuple[np.ndarray, np.ndarray]:
-    """Closed-form IK for each target (N, 3) with fixed rotation R, each solution the one closest
-    to the previous (``q0`` for the first). Unreachable targets hold the previous solution.
+    """Closed-form IK for each target with a fixed tool rotation, continuous along the path.
+
+    Closed-form IK for each target (N, 3) with fixed rotation R, each solution the one closest to the previous
+    (``q0`` for the first). Unreachable targets hold the previous solution.
 
     Returns: (q (N, n), reachable (N,) bool).
     """
@@ -180,8 +185,11 @@ class LimitedFollower:
 
 def jerk_limited(t: np.ndarray, q: np.ndarray, vmax, amax, jmax, *, dt: float = 0.001,
                  lower=None, upper=None, gain: float = 12.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Follow the C2 spline through targets q (N, n) at times t (N,) within velocity, acceleration
-    and jerk limits with a :class:`LimitedFollower`. Returns (t_ref, q, qd, qdd) at 1/dt Hz."""
+    """Jerk-limited joint reference through joint targets.
+
+    Follow the C2 spline through targets q (N, n) at times t (N,) within velocity, acceleration and jerk limits with
+    a :class:`LimitedFollower`. Returns (t_ref, q, qd, qdd) at 1/dt Hz.
+    """
     from scipy.interpolate import CubicSpline
 
     t = as_array(t, "t", (None,))
@@ -205,8 +213,10 @@ def jerk_limited(t: np.ndarray, q: np.ndarray, vmax, amax, jmax, *, dt: float = 
 def kinematic_imitation(skel: Skeleton, robot, *, side: str | None = None, R_tool=None,
                         lo=WORKSPACE_LO, hi=WORKSPACE_HI, dt: float = 0.001, cutoff_hz: float = 6.0,
                         jerk_factor: float = 20.0) -> ImitationPlan:
-    """Skeleton -> cleaned hand path -> TCP targets (3.1) -> closed-form IK -> jerk-limited 1 kHz
-    joint reference within the robot's velocity and acceleration limits.
+    """Kinematic imitation (3.1): skeleton to a jerk-limited 1 kHz joint reference.
+
+    Skeleton -> cleaned hand path -> TCP targets (3.1) -> closed-form IK -> jerk-limited 1 kHz joint reference
+    within the robot's velocity and acceleration limits.
 
     Args:
         skel: raw skeleton (bridged and filtered here with :func:`clean`).
@@ -233,10 +243,12 @@ def kinematic_imitation(skel: Skeleton, robot, *, side: str | None = None, R_too
 
 @dataclass
 class ImitationRun:
-    """A plan tracked in MuJoCo: ``log`` is the Workcell's TrackingLog; ``rms`` (6,) RMS of the
-    simulated joints against the per-frame IK targets (the imitation error, rad);
-    ``tracking_rms`` (6,) against the 1 kHz reference (the controller's error);
-    ``tcp_rms`` RMS TCP distance to the hand targets [m]; ``tcp`` (N, 3) TCP at the frame times."""
+    """A plan tracked in MuJoCo.
+
+    ``log`` is the Workcell's TrackingLog; ``rms`` (6,) RMS of the simulated joints against the per-frame IK targets
+    (the imitation error, rad); ``tracking_rms`` (6,) against the 1 kHz reference (the controller's error);
+    ``tcp_rms`` RMS TCP distance to the hand targets [m]; ``tcp`` (N, 3) TCP at the frame times.
+    """
 
     plan: ImitationPlan
     log: object

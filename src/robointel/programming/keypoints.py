@@ -27,8 +27,10 @@ __all__ = ["BlendedTrajectory", "Reproduction", "blended_trajectory", "extract_k
 
 
 def rdp_indices(points: np.ndarray, tolerance: float) -> np.ndarray:
-    """Indices kept by the Ramer-Douglas-Peucker simplification of a polyline (N, d) within
-    ``tolerance`` (same units); always keeps the first and last point. Iterative, no recursion."""
+    """Indices kept by the Ramer-Douglas-Peucker simplification of a polyline (N, d) within ``tolerance`` (same units).
+
+    Always keeps the first and last point. Iterative, no recursion.
+    """
     P = np.asarray(points, float)
     n = len(P)
     if n <= 2:
@@ -122,8 +124,10 @@ class BlendedTrajectory:
         return float(self.times[-1] + self.blend[-1] / 2)
 
     def __call__(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position (M, 3), velocity (M, 3) and acceleration (M, 3) at times t (M,) (clipped to
-        [0, duration])."""
+        """Position, velocity and acceleration of the blended trajectory.
+
+        Position (M, 3), velocity (M, 3) and acceleration (M, 3) at times t (M,) (clipped to [0, duration]).
+        """
         t = np.clip(np.atleast_1d(np.asarray(t, float)), 0.0, self.duration)
         K = len(self.points)
         # which segment (line after key point k) or blend k each t falls in
@@ -195,8 +199,11 @@ def blended_trajectory(points, *, speed: float = 0.1, blend_time: float = 0.4,
 
 
 def orientation_reference(trajectory: BlendedTrajectory, rotations, t) -> np.ndarray:
-    """Tool orientation reference (M, 3, 3) at times t (M,): slerp between the key points'
-    orientations ``rotations`` (K, 3, 3), eased (smoothstep) so it rests at each key point."""
+    """Tool orientation reference (M, 3, 3) at times t (M,).
+
+    Slerp between the key points' orientations ``rotations`` (K, 3, 3), eased (smoothstep) so it rests at each key
+    point.
+    """
     from scipy.spatial.transform import Rotation, Slerp
 
     R = as_array(rotations, "rotations", (len(trajectory.points), 3, 3))
@@ -330,9 +337,11 @@ def reproduce_path(robot, t, positions, q0, *, rotations=None, tolerance: float 
 
 
 def plot_reproduction(guided: np.ndarray, rep: Reproduction, path, *, executed: np.ndarray | None = None):
-    """Guided path, key points and reproduced path (Fig. 3.11) beside the joint velocity
-    reference (Fig. 3.12). ``guided`` (N, 3) and ``executed`` (M, 3) are TCP positions, m.
-    Returns the PNG path."""
+    """Guided path, key points and reproduced path (Fig.
+
+    3.11) beside the joint velocity reference (Fig. 3.12). ``guided`` (N, 3) and ``executed`` (M, 3) are TCP
+    positions, m. Returns the PNG path.
+    """
     from pathlib import Path
 
     import matplotlib

@@ -26,9 +26,9 @@ tests). :func:`plot_scenario` draws the four panels of Fig. 4.6b.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -157,8 +157,10 @@ class SimulatedOperator:
 
     def wrench(self, t: float, T_tcp: np.ndarray, v_tcp: np.ndarray, R_hold: np.ndarray,
                target: np.ndarray | None = None) -> np.ndarray:
-        """Hand wrench [f; tau] (6,) on the handle, world axes, about the TCP (``target``: the
-        precomputed :meth:`target` at t)."""
+        """Hand wrench [f.
+
+        Tau] (6,) on the handle, world axes, about the TCP (``target``: the precomputed :meth:`target` at t).
+        """
         import pinocchio as pin
 
         p = self.target(t) if target is None else target
@@ -208,9 +210,11 @@ class ScenarioResult:
 
     @property
     def deviation(self) -> np.ndarray:
-        """||V_cmd - V_lead|| (translation), m/s, (T,). While the controller holds after an F/T
-        fault, V_cmd = 0 and V_lead is the lead twist of the reading (the operator's intent; NaN
-        for a NaN reading)."""
+        """||V_cmd - V_lead|| (translation), m/s, (T,).
+
+        While the controller holds after an F/T fault, V_cmd = 0 and V_lead is the lead twist of the reading (the
+        operator's intent; NaN for a NaN reading).
+        """
         return np.linalg.norm(self.v_cmd[:, :3] - self.v_lead[:, :3], axis=1)
 
     def metrics(self) -> dict:

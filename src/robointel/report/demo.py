@@ -4,9 +4,9 @@ from __future__ import annotations
 import base64
 import html
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -90,7 +90,8 @@ def write_report(results: list[StageResult], out: Path) -> Path:
         if r.text:
             parts.append(f"<p>{html.escape(r.text)}</p>")
         if r.figures:
-            parts.append("<table><tr><th>figure</th><th>robointel (this run)</th><th>dissertation</th><th>note</th></tr>")
+            parts.append("<table><tr><th>figure</th><th>robointel (this run)</th><th>dissertation</th>"
+                         "<th>note</th></tr>")
             for f in r.figures:
                 parts.append(f"<tr><td>{html.escape(f.name)}</td><td>{html.escape(f.ours)}</td>"
                              f"<td>{html.escape(f.paper or '-')}</td><td>{html.escape(f.note)}</td></tr>")

@@ -75,14 +75,14 @@ class SphereModel:
     joints: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     _in_joint: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), repr=False)
     self_pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), int), repr=False)
-    _robot: "Robot | None" = field(default=None, repr=False)
+    _robot: Robot | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return len(self.links)
 
     @classmethod
-    def from_robot(cls, robot: "Robot", *, count: int | None = None, inflate: float = 0.0,
-                   include_base: bool = True) -> "SphereModel":
+    def from_robot(cls, robot: Robot, *, count: int | None = None, inflate: float = 0.0,
+                   include_base: bool = True) -> SphereModel:
         """Generate spheres covering every collision primitive of ``robot``'s URDF.
 
         Args:
@@ -109,7 +109,7 @@ class SphereModel:
         m.bind(robot)
         return m
 
-    def bind(self, robot: "Robot") -> "SphereModel":
+    def bind(self, robot: Robot) -> SphereModel:
         """Attach to a robot: resolve joints, joint-frame centres and self-collision pairs."""
         self.centers = as_array(self.centers, "centers", (len(self.links), 3))
         self.radii = as_array(self.radii, "radii", (len(self.links),))
@@ -122,14 +122,18 @@ class SphereModel:
         self.self_pairs = self._self_pairs(robot)
         return self
 
-    def _self_pairs(self, robot: "Robot") -> np.ndarray:
-        """Sphere pairs to check for self-collision: not on the same or adjacent links, and not
-        already overlapping at the zero configuration (pairs that always touch by design)."""
+    def _self_pairs(self, robot: Robot) -> np.ndarray:
+        """Sphere pairs to check for self-collision.
+
+        Not on the same or adjacent links, and not already overlapping at the zero configuration (pairs that always
+        touch by design).
+        """
         m = len(self.links)
         if m == 0:
             return np.zeros((0, 2), int)
         parents = [int(p) for p in robot.model.parents]
-        P, _ = robot.points_kinematics(np.clip(np.zeros(robot.nq), robot.lower, robot.upper), self.joints, self._in_joint)
+        q_mid = np.clip(np.zeros(robot.nq), robot.lower, robot.upper)
+        P, _ = robot.points_kinematics(q_mid, self.joints, self._in_joint)
         pairs = []
         for i in range(m):
             for k in range(i + 1, m):
@@ -147,8 +151,10 @@ class SphereModel:
         return self.joints > 0
 
     def kinematics(self, q, *, angular: bool = False) -> tuple[np.ndarray, np.ndarray]:
-        """World centres (m, 3) and linear Jacobians (m, 3, n) of all spheres at ``q``
-        (``angular=True``: full (m, 6, n) Jacobians [v; w], for points offset from the centres)."""
+        """World centres (m, 3) and linear Jacobians (m, 3, n) of all spheres at ``q`` (``angular=True``.
+
+        Full (m, 6, n) Jacobians [v; w], for points offset from the centres).
+        """
         if self._robot is None:
             raise InvalidInput("sphere model is not bound to a robot; call bind(robot)")
         q = self._robot.check_q(q)
@@ -195,7 +201,7 @@ class SphereModel:
                             for l, c, r in zip(self.links, self.centers, self.radii)]}
 
     @classmethod
-    def from_dict(cls, d: dict, robot: "Robot") -> "SphereModel":
+    def from_dict(cls, d: dict, robot: Robot) -> SphereModel:
         """Inverse of :meth:`to_dict`, bound to ``robot``."""
         try:
             s = d["spheres"]
@@ -206,7 +212,7 @@ class SphereModel:
         return m.bind(robot)
 
 
-def _mesh_vertices(robot: "Robot", prim: dict) -> np.ndarray | None:
+def _mesh_vertices(robot: Robot, prim: dict) -> np.ndarray | None:
     """Vertices of a mesh collision primitive (scaled), or None if it cannot be loaded."""
     fn = prim.get("filename")
     if not fn:
@@ -223,7 +229,7 @@ def _mesh_vertices(robot: "Robot", prim: dict) -> np.ndarray | None:
         return None
 
 
-def _resolve_mesh(robot: "Robot", fn: str):
+def _resolve_mesh(robot: Robot, fn: str):
     from pathlib import Path
 
     if fn.startswith("package://"):

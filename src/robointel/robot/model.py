@@ -13,13 +13,12 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 import pinocchio as pin
 
 from robointel._validate import as_array, check_limits
-from robointel.errors import DescriptionError, IKFailure, InvalidInput, NotFinite, ShapeError, UnknownRobot
+from robointel.errors import DescriptionError, IKFailure, InvalidInput, NotFinite, UnknownRobot
 from robointel.robot._kernels import points_jacobians, points_jacobians_batch
 from robointel.robot.collision import SphereModel
 from robointel.robot.ik import LRMateIK
@@ -131,9 +130,11 @@ class Robot:
     # ------------------------------------------------------------------ loading
     @classmethod
     def load(cls, name_or_path: str | Path, *, flange_frame: str | None = None,
-             tool: np.ndarray | None = None) -> "Robot":
-        """Load a built-in robot (``"lrmate200id7l"``, ``"scara2"``), an ``example-robot-data``
-        arm (``"ur5"``, ``"panda"``) or a URDF file.
+             tool: np.ndarray | None = None) -> Robot:
+        """Load a built-in robot, an ``example-robot-data`` arm or a URDF file.
+
+        Load a built-in robot (``"lrmate200id7l"``, ``"scara2"``), an ``example-robot-data`` arm (``"ur5"``,
+        ``"panda"``) or a URDF file.
 
         Raises:
             UnknownRobot: the name is not built in and no such file exists.
@@ -259,8 +260,10 @@ class Robot:
 
     def points_kinematics_batch(self, Q, joints: np.ndarray, points: np.ndarray, *,
                                 angular: bool = False) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`points_kinematics` for many configurations Q (B, n): positions (B, m, 3) and
-        Jacobians (B, m, 3, n) (``angular=True``: (B, m, 6, n)). One compiled pass for all."""
+        """:meth:`points_kinematics` for many configurations Q (B, n).
+
+        Positions (B, m, 3) and Jacobians (B, m, 3, n) (``angular=True``: (B, m, 6, n)). One compiled pass for all.
+        """
         Q = as_array(Q, "Q", (None, self.nq))
         B, nj = len(Q), self.model.njoints
         Ts = np.empty((B, nj, 4, 4))
@@ -383,12 +386,12 @@ class Robot:
         return self.viscous * qd + self.coulomb * np.tanh(qd / smooth)
 
     def inverse_dynamics(self, q, qd, qdd, *, friction: bool = False) -> np.ndarray:
-        """tau = M qdd + C qd + G (+ friction) by RNEA."""
+        """Tau = M qdd + C qd + G (+ friction) by RNEA."""
         tau = pin.rnea(self.model, self.data, self.check_q(q), self.check_q(qd, "qd"), self.check_q(qdd, "qdd"))
         return tau + self.friction(qd) if friction else tau
 
     def forward_dynamics(self, q, qd, tau, *, friction: bool = False) -> np.ndarray:
-        """qdd = M^-1 (tau - C qd - G (- friction)) by ABA."""
+        """Qdd = M^-1 (tau - C qd - G (- friction)) by ABA."""
         q, qd, tau = self.check_q(q), self.check_q(qd, "qd"), self.check_q(tau, "tau")
         if friction:
             tau = tau - self.friction(qd)
@@ -396,8 +399,10 @@ class Robot:
 
     # ------------------------------------------------------------------ URDF geometry
     def collision_primitives(self) -> dict[str, list[dict]]:
-        """Collision geometry of each link from the URDF: dicts with ``type`` (box, cylinder,
-        sphere, capsule, mesh), ``size`` and ``origin`` (4x4 in the link frame)."""
+        """Collision geometry of each link from the URDF.
+
+        Dicts with ``type`` (box, cylinder, sphere, capsule, mesh), ``size`` and ``origin`` (4x4 in the link frame).
+        """
         out: dict[str, list[dict]] = {}
         for link in self._root.iter("link"):
             prims = []

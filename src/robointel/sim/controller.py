@@ -51,7 +51,7 @@ class PIDGains:
     i_limit: np.ndarray
 
     @classmethod
-    def from_inertia(cls, inertia, bandwidth_hz=None, *, effort_limit=None) -> "PIDGains":
+    def from_inertia(cls, inertia, bandwidth_hz=None, *, effort_limit=None) -> PIDGains:
         """Triple-pole gains Kp = 3 J w^2, Kd = 3 J w, Ki = J w^3 for inertias J (n,) kg m^2.
 
         ``bandwidth_hz`` (scalar or (n,)) defaults to :data:`DEFAULT_BANDWIDTH_HZ` (padded with its
@@ -143,8 +143,11 @@ class JointController:
         return tau
 
     def compute(self, q, qd, q_ref, qd_ref, qdd_ref) -> np.ndarray:
-        """One control period: the saturated joint torques (n,) N m. Inputs are (n,) arrays that
-        the caller has validated (finite, right shape)."""
+        """One control period.
+
+        The saturated joint torques (n,) N m. Inputs are (n,) arrays that the caller has validated (finite, right
+        shape).
+        """
         if self.feedforward:
             ff = np.array(pin.rnea(self.model, self._data, q_ref, qd_ref, qdd_ref))
         else:
@@ -166,15 +169,17 @@ class JointController:
 
 @njit(cache=True)
 def _add_friction(tau, qd, viscous, coulomb):
-    """tau += F_v qd + F_c tanh(qd / 1e-3) (in place)."""
+    """Tau += F_v qd + F_c tanh(qd / 1e-3) (in place)."""
     for i in range(tau.shape[0]):
         tau[i] += viscous[i] * qd[i] + coulomb[i] * np.tanh(qd[i] * 1e3)
 
 
 @njit(cache=True)
 def _schedule(Minv, w, kp, ki, kd):
-    """Triple-pole gains for the effective inertias J_i = 1 / (M^-1)_ii: Kp = 3 J w^2,
-    Kd = 3 J w, Ki = J w^3 (in place)."""
+    """Triple-pole gains for the effective inertias J_i = 1 / (M^-1)_ii.
+
+    Kp = 3 J w^2, Kd = 3 J w, Ki = J w^3 (in place).
+    """
     for i in range(w.shape[0]):
         J = 1.0 / Minv[i, i]
         kp[i] = 3.0 * J * w[i] * w[i]
@@ -185,9 +190,11 @@ def _schedule(Minv, w, kp, ki, kd):
 @njit(cache=True)
 def _pid(q, qd, q_ref, qd_ref, ff, viscous, coulomb, friction, kp, ki, kd, i_limit, effort, dt, integral,
          saturated, last_tau, out):
-    """PID + feed-forward (``ff`` gets the friction compensation added in place when ``friction``);
-    ``integral`` is the integral torque (clamped to +-i_limit), not integrated while the joint is
-    saturated in the direction that grows its error."""
+    """PID + feed-forward (``ff`` gets the friction compensation added in place when ``friction``).
+
+    ``integral`` is the integral torque (clamped to +-i_limit), not integrated while the joint is saturated in the
+    direction that grows its error.
+    """
     for i in range(q.shape[0]):
         if friction:
             ff[i] += viscous[i] * qd_ref[i] + coulomb[i] * np.tanh(qd_ref[i] * 1e3)
@@ -206,7 +213,8 @@ def max_inertia(model: pin.Model, samples: int = 64, seed: int = 0) -> np.ndarra
 
     For fixed gains (``PIDGains.from_inertia(max_inertia(model))``); note that fixed gains sized
     for the largest inertia can destabilise the discrete loop where the inertia is small (see the
-    module doc), which the default scheduled gains avoid."""
+    module doc), which the default scheduled gains avoid.
+    """
     data = model.createData()
     rng = np.random.default_rng(seed)
     lo = np.where(np.isfinite(model.lowerPositionLimit), model.lowerPositionLimit, -np.pi)

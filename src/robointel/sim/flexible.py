@@ -59,11 +59,11 @@ class FlexibleJointParams:
     gear_ratio: np.ndarray
 
     @classmethod
-    def lrmate(cls, **overrides) -> "FlexibleJointParams":
+    def lrmate(cls, **overrides) -> FlexibleJointParams:
         """The LR Mate estimates :data:`LRMATE_FLEXIBLE` (override any field)."""
         return cls(**{**LRMATE_FLEXIBLE, **overrides})
 
-    def checked(self, n: int) -> "FlexibleJointParams":
+    def checked(self, n: int) -> FlexibleJointParams:
         out = {}
         for name, positive in (("stiffness", True), ("damping", False), ("rotor_inertia", True),
                                ("motor_friction", False), ("gear_ratio", True)):
@@ -115,8 +115,11 @@ class FlexibleJointModel:
 
     # ------------------------------------------------------------------ state
     def reset(self, q, qd=None, *, theta=None, thetad=None) -> None:
-        """Set the state. ``theta`` defaults to the static equilibrium q + K^-1 G(q) (springs wound
-        up by gravity), ``thetad`` to ``qd``."""
+        """Set the state.
+
+        ``theta`` defaults to the static equilibrium q + K^-1 G(q) (springs wound up by gravity), ``thetad`` to
+        ``qd``.
+        """
         q = self.robot.check_q(q, "q")
         qd = np.zeros(self.n) if qd is None else self.robot.check_q(qd, "qd")
         self.q, self.qd = q.copy(), qd.copy()
@@ -125,7 +128,7 @@ class FlexibleJointModel:
         self.time = 0.0
 
     def equilibrium_motor_position(self, q) -> np.ndarray:
-        """theta with K (theta - q) = G(q): the motor position holding the arm still at q, (n,)."""
+        """Theta with K (theta - q) = G(q): the motor position holding the arm still at q, (n,)."""
         q = self.robot.check_q(q)
         return q + pin.computeGeneralizedGravity(self._model, self._data, q) / self._K
 
@@ -136,7 +139,7 @@ class FlexibleJointModel:
 
     @property
     def deflection(self) -> np.ndarray:
-        """theta - q, (n,) rad: the joint (spring) deflection."""
+        """Theta - q, (n,) rad: the joint (spring) deflection."""
         return self.theta - self.q
 
     @property
@@ -146,8 +149,10 @@ class FlexibleJointModel:
 
     # ------------------------------------------------------------------ dynamics
     def step(self, tau_m, tau_ext=None) -> None:
-        """Advance by ``dt`` with motor torques ``tau_m`` (n,) N m (motor side, held constant) and
-        an optional external joint torque ``tau_ext`` (n,) on the links.
+        """Advance the flexible-joint model by one step ``dt``.
+
+        Advance by ``dt`` with motor torques ``tau_m`` (n,) N m (motor side, held constant) and an optional external
+        joint torque ``tau_ext`` (n,) on the links.
 
         Raises:
             ShapeError, NotFinite: bad torques (the state is unchanged).
@@ -181,17 +186,21 @@ class FlexibleJointModel:
             raise SafetyStop("the flexible-joint simulation diverged (non-finite state); check the parameters")
 
     def controller(self, **kwargs):
-        """A Fig. 2.3 :class:`~robointel.sim.JointController` for this arm: feed-forward and gain
-        schedule from the rigid limit (M(q) + J, RNEA with the rotor inertia; keyword arguments go to
-        the controller). The URDF friction compensation is off (this model has motor friction B)."""
+        """A Fig.
+
+        2.3 :class:`~robointel.sim.JointController` for this arm: feed-forward and gain schedule from the rigid
+        limit (M(q) + J, RNEA with the rotor inertia; keyword arguments go to the controller). The URDF friction
+        compensation is off (this model has motor friction B).
+        """
         rigid = self.rigid_model()
         kwargs.setdefault("friction_compensation", False)
         return JointController(self.robot, dt=self.dt, model=rigid, gain_model=rigid, **kwargs)
 
     def track(self, controller, q_ref, qd_ref=None, qdd_ref=None, *, measure: str = "motor") -> np.ndarray:
-        """One control period of ``controller`` (a :class:`~robointel.sim.JointController`) on this
-        arm: it measures the motor encoders (``measure="motor"``, theta, as a real drive does) or the
-        links (``"link"``, q), its joint torque is sent as tau_m = tau / N. Returns tau (n,).
+        """One control period of ``controller`` (a :class:`~robointel.sim.JointController`) on this arm.
+
+        It measures the motor encoders (``measure="motor"``, theta, as a real drive does) or the links (``"link"``,
+        q), its joint torque is sent as tau_m = tau / N. Returns tau (n,).
 
         Raises:
             ShapeError, NotFinite: bad references.
@@ -211,8 +220,10 @@ class FlexibleJointModel:
         return tau
 
     def simulate(self, tau_m_fn, duration: float) -> dict:
-        """Run for ``duration`` s calling ``tau_m_fn(model) -> tau_m`` every ``dt``; returns arrays
-        ``t`` (N,), ``q``, ``qd``, ``theta``, ``thetad``, ``tau_m`` (N, n) sampled before each step."""
+        """Run for ``duration`` s calling ``tau_m_fn(model) -> tau_m`` every ``dt``.
+
+        Returns arrays ``t`` (N,), ``q``, ``qd``, ``theta``, ``thetad``, ``tau_m`` (N, n) sampled before each step.
+        """
         steps = int(round(float(duration) / self.dt))
         out = {k: np.empty((steps, self.n)) for k in ("q", "qd", "theta", "thetad", "tau_m")}
         t = np.empty(steps)
@@ -227,9 +238,10 @@ class FlexibleJointModel:
         return out
 
     def resonance_frequencies(self, q) -> np.ndarray:
-        """Natural frequencies (Hz, ascending, n of them) of the elastic modes of (2.1)-(2.2)
-        linearised at rest at q without damping: the nonzero roots of
-        det([[K - w^2 M, -K], [-K, K - w^2 J]]) = 0.
+        """Natural frequencies of the elastic modes of (2.1)-(2.2), Hz.
+
+        Natural frequencies (Hz, ascending, n of them) of the elastic modes of (2.1)-(2.2) linearised at rest at q
+        without damping: the nonzero roots of det([[K - w^2 M, -K], [-K, K - w^2 J]]) = 0.
 
         Raises:
             InvalidInput: bad q.
@@ -247,8 +259,11 @@ class FlexibleJointModel:
         return np.sqrt(np.maximum(w2, 0.0)) / (2 * np.pi)
 
     def rigid_model(self) -> pin.Model:
-        """The K -> inf limit as a Pinocchio model: ``robot.model`` with armature J = N^2 J_m
-        (its viscous friction B = N^2 B_m is :attr:`FlexibleJointParams.reflected_friction`)."""
+        """The K -> inf limit as a Pinocchio model.
+
+        ``robot.model`` with armature J = N^2 J_m (its viscous friction B = N^2 B_m is
+        :attr:`FlexibleJointParams.reflected_friction`).
+        """
         m = self._model.copy()
         m.armature = self._J.copy()
         return m

@@ -22,9 +22,10 @@ from __future__ import annotations
 
 import re
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -312,7 +313,7 @@ def build_spec(robot, *, table: bool = True, obstacles: Sequence[Any] = (), obje
         # make it behave like the URDF's dry friction.
         j.solref_friction = [2.0 * float(timestep), 1.0]
         j.solimp_friction = [0.9999, 0.9999, 0.001, 0.5, 2.0]
-    for j, name, eff in zip(joints, robot.joint_names, robot.effort_limit):
+    for _j, name, eff in zip(joints, robot.joint_names, robot.effort_limit):
         act = spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         act.set_to_motor()
         if np.isfinite(eff) and eff > 0:
@@ -407,8 +408,10 @@ def build_spec(robot, *, table: bool = True, obstacles: Sequence[Any] = (), obje
 
 
 def _flange_body(robot) -> tuple[str, np.ndarray]:
-    """The MuJoCo body of the flange frame (every URDF link is a body: no static fusing) and the
-    flange pose in it (identity)."""
+    """The MuJoCo body of the flange frame (every URDF link is a body.
+
+    No static fusing) and the flange pose in it (identity).
+    """
     return robot.flange_frame, np.eye(4)
 
 

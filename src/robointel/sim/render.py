@@ -71,9 +71,11 @@ def render(workcell, path=None, *, width: int = 640, height: int = 480, camera: 
 
 def render_frames(workcell, qpos, path=None, *, width: int = 480, height: int = 360, camera: dict | None = None,
                   columns: int | None = None) -> np.ndarray:
-    """Render several states of ``workcell`` (full MuJoCo ``qpos`` vectors, or robot joint
-    vectors (n,) with everything else as it is now) into one montage image, ``columns`` per row
-    (default all in one row); write a PNG when ``path``. Obstacles are drawn where they are now.
+    """Render several states of ``workcell`` into one montage image.
+
+    Render several states of ``workcell`` (full MuJoCo ``qpos`` vectors, or robot joint vectors (n,) with everything
+    else as it is now) into one montage image, ``columns`` per row (default all in one row); write a PNG when
+    ``path``. Obstacles are drawn where they are now.
 
     Returns:
         (rows * height, columns * width, 3) uint8 image.

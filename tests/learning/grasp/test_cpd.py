@@ -3,8 +3,14 @@ import numpy as np
 import pytest
 
 from robointel.errors import InvalidInput, ShapeError
-from robointel.learning.grasp.cpd import (cpd_affine, cpd_nonrigid, cpd_rigid, farthest_point_sample,
-                                          mean_nn_residual, register)
+from robointel.learning.grasp.cpd import (
+    cpd_affine,
+    cpd_nonrigid,
+    cpd_rigid,
+    farthest_point_sample,
+    mean_nn_residual,
+    register,
+)
 
 pycpd = pytest.importorskip("pycpd")
 

@@ -33,8 +33,11 @@ HERE = Path(__file__).resolve().parent
 
 @dataclass(frozen=True)
 class Prim:
-    """A collision primitive in its link frame: ``kind`` is "box" (size = full extents) or
-    "cylinder" (size = (radius, length)), ``axis`` the cylinder axis ("x", "y" or "z")."""
+    """A collision primitive in its link frame.
+
+    ``kind`` is "box" (size = full extents) or "cylinder" (size = (radius, length)), ``axis`` the cylinder axis
+    ("x", "y" or "z").
+    """
 
     kind: str
     size: tuple[float, ...]
