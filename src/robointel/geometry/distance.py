@@ -18,11 +18,12 @@ point clouds by one k-d tree query each. One robot-kinematics pass per configura
 """
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from robointel._validate import as_array
 from robointel.errors import CollisionAtStart, InvalidInput
@@ -61,14 +62,15 @@ class ObstacleSet:
         prim = [k for k, o in enumerate(obs) if not isinstance(o, PointCloud)]
         self.cols = np.array(prim, dtype=np.int64)
         self.types = np.array([obs[k]._code for k in prim], dtype=np.int64)
-        self.params = (np.array([obs[k]._packed for k in prim], dtype=float).reshape(-1, K.NPARAM))
+        packed = [obs[k]._packed for k in prim]  # type: ignore[attr-defined]  # every primitive packs its parameters
+        self.params = np.array(packed, dtype=np.float64).reshape(-1, K.NPARAM)
         self.clouds = [(k, o) for k, o in enumerate(obs) if isinstance(o, PointCloud)]
         self.labels = tuple(o.label(k) for k, o in enumerate(obs))
 
     def __len__(self) -> int:
         return len(self.obstacles)
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[Obstacle]:
         return iter(self.obstacles)
 
     def __getitem__(self, k: int) -> Obstacle:
@@ -78,7 +80,7 @@ class ObstacleSet:
 _CACHE: dict[tuple, tuple[tuple, ObstacleSet]] = {}
 
 
-def _obstacle_set(obstacles) -> ObstacleSet:
+def _obstacle_set(obstacles: Any) -> ObstacleSet:
     if isinstance(obstacles, ObstacleSet):
         return obstacles
     if isinstance(obstacles, Obstacle):
@@ -143,7 +145,8 @@ def _rows(sm: SphereModel, movable_only: bool) -> np.ndarray:
     return np.arange(len(sm.radii))
 
 
-def _fill(C, J, radii, rows, os_: ObstacleSet, D, N, RP, OP, G) -> None:
+def _fill(C: np.ndarray, J: np.ndarray, radii: np.ndarray, rows: np.ndarray, os_: ObstacleSet, D: Any, N: np.ndarray,
+          RP: np.ndarray, OP: np.ndarray, G: np.ndarray) -> None:
     """Fill the output arrays for the spheres ``rows`` of centres C (M,3), Jacobians J (M,>=3,n)."""
     if len(os_.types):
         K.sphere_pairs(C, J, radii, rows, os_.types, os_.params, os_.cols, D, N, RP, OP, G)
@@ -158,11 +161,11 @@ def _fill(C, J, radii, rows, os_: ObstacleSet, D, N, RP, OP, G) -> None:
         G[:, k] = np.einsum("mj,mjn->mn", nk, J[:, :3])
 
 
-def _alloc(m: int, k: int, n: int):
+def _alloc(m: int, k: int, n: int) -> tuple[NDArray[np.float64], ...]:
     return np.empty((m, k)), np.empty((m, k, 3)), np.empty((m, k, 3)), np.empty((m, k, 3)), np.empty((m, k, n))
 
 
-def sphere_distances(robot: Robot, q, obstacles, spheres: SphereModel | None = None, *,
+def sphere_distances(robot: Robot, q: ArrayLike, obstacles: Any, spheres: SphereModel | None = None, *,
                      movable_only: bool = False) -> SphereDistances:
     """Signed distances, closest points and exact gradients between every robot sphere and obstacle.
 
@@ -189,7 +192,7 @@ def sphere_distances(robot: Robot, q, obstacles, spheres: SphereModel | None = N
     return SphereDistances(D, G, N, RP, OP, rows, os_.obstacles)
 
 
-def sphere_distances_batch(robot: Robot, Q, obstacles, spheres: SphereModel | None = None, *,
+def sphere_distances_batch(robot: Robot, Q: ArrayLike, obstacles: Any, spheres: SphereModel | None = None, *,
                            movable_only: bool = False) -> SphereDistances:
     """:func:`sphere_distances` at T configurations ``Q`` (T, n) in one compiled call.
 
@@ -253,7 +256,7 @@ class MinDistance:
     jacobian: np.ndarray
 
 
-def _cloud_min(os_: ObstacleSet, C, radii, rows, best):
+def _cloud_min(os_: ObstacleSet, C: np.ndarray, radii: np.ndarray, rows: np.ndarray, best: Any) -> Any:
     """Update ``best`` = (d, i, k, o, n) with the point clouds (i indexes C)."""
     for k, cloud in os_.clouds:
         dk, ok, nk = cloud.distance(C[rows])
@@ -264,7 +267,7 @@ def _cloud_min(os_: ObstacleSet, C, radii, rows, best):
     return best
 
 
-def min_distance(robot: Robot, q, obstacles, spheres: SphereModel | None = None, *,
+def min_distance(robot: Robot, q: ArrayLike, obstacles: Any, spheres: SphereModel | None = None, *,
                  movable_only: bool = False) -> MinDistance:
     """Minimum signed distance between the robot spheres and the obstacles at ``q`` (n,).
 
@@ -290,6 +293,7 @@ def min_distance(robot: Robot, q, obstacles, spheres: SphereModel | None = None,
     if i < 0:
         z = np.zeros(3)
         return MinDistance(np.inf, -1, "", -1, "", z, z.copy(), z.copy(), np.zeros(n), np.zeros((3, n)))
+    assert o is not None and nrm is not None
     p, g, Jrep = K.rep_terms(C[i], J[i], radii[i], nrm)
     return MinDistance(float(d), int(i), sm.links[i], k, os_.labels[k], p, o, nrm, g, Jrep)
 
@@ -328,7 +332,7 @@ class ClosestPairs:
                            self.jacobian[k])
 
 
-def closest_pairs(robot: Robot, q, obstacles, spheres: SphereModel | None = None, *,
+def closest_pairs(robot: Robot, q: ArrayLike, obstacles: Any, spheres: SphereModel | None = None, *,
                   movable_only: bool = False) -> ClosestPairs:
     """For every obstacle, the closest robot sphere at ``q`` (n,).
 
@@ -377,7 +381,7 @@ class SelfDistance:
     gradient: np.ndarray
 
 
-def self_collision_distance(robot: Robot, q, spheres: SphereModel | None = None) -> SelfDistance:
+def self_collision_distance(robot: Robot, q: ArrayLike, spheres: SphereModel | None = None) -> SelfDistance:
     """Minimum signed distance over the robot's self-collision sphere pairs, with its gradient."""
     sm = _sphere_model(robot, spheres)
     C, J = sm.kinematics(q)
@@ -421,6 +425,7 @@ class Collision:
 
     @property
     def message(self) -> str:
+        """Human-readable verdict naming the closest link and obstacle."""
         if not np.isfinite(self.distance):
             return "no obstacles to collide with"
         what = "penetrates" if self.distance < 0 else ("is within the margin of" if self.colliding else "clears")
@@ -428,7 +433,7 @@ class Collision:
                 f"margin {self.margin * 1e3:.1f} mm)")
 
 
-def in_collision(robot: Robot, q, obstacles, margin: float = 0.0, *, spheres: SphereModel | None = None,
+def in_collision(robot: Robot, q: ArrayLike, obstacles: Any, margin: float = 0.0, *, spheres: SphereModel | None = None,
                  self_collision: bool = False) -> Collision:
     """Whether any robot sphere is closer than ``margin`` (m) to an obstacle or (optionally) another link.
 
@@ -445,8 +450,9 @@ def in_collision(robot: Robot, q, obstacles, margin: float = 0.0, *, spheres: Sp
     return res
 
 
-def check_collision_free(robot: Robot, q, obstacles, margin: float = 0.0, *, what: str = "start configuration",
-                         spheres: SphereModel | None = None, self_collision: bool = False) -> Collision:
+def check_collision_free(robot: Robot, q: ArrayLike, obstacles: Any, margin: float = 0.0, *,
+                         what: str = "start configuration", spheres: SphereModel | None = None,
+                         self_collision: bool = False) -> Collision:
     """Raise :class:`CollisionAtStart` naming link and obstacle when ``q`` is in collision.
 
     Returns the (non-colliding) :class:`Collision` result otherwise.
@@ -464,8 +470,8 @@ def warmup() -> None:
     Compile (or load from numba's on-disk cache) every distance kernel now, so that the first call inside a control
     loop does not pay the compilation (about a second per kernel, once).
     """
-    prims = [Sphere([0, 0, 0], 0.1), Capsule([0, 0, 0], [0, 0, 1], 0.1), Cylinder([0, 0, 0], [0, 0, 1], 0.1),
-             Box([0, 0, 0], [1, 1, 1])]
+    z, e = np.zeros(3), np.array([0.0, 0.0, 1.0])
+    prims = [Sphere(z, 0.1), Capsule(z, e, 0.1), Cylinder(z, e, 0.1), Box(z, np.ones(3))]
     os_ = ObstacleSet(prims)
     C = np.zeros((2, 3))
     radii = np.full(2, 0.05)

@@ -167,7 +167,8 @@ def dtw_distance(a, b, *, window: int | None = None) -> float:
     """DTW distance (5.1)-(5.4) between ``a`` (n, d) and ``b`` (m, d) (1-D series allowed).
 
     Args:
-        a, b: series; samples are compared with the Euclidean norm.
+        a: (n,) or (n, d) series; samples are compared with the Euclidean norm.
+        b: (m,) or (m, d) series of the same dimension d.
         window: Sakoe-Chiba band half-width r in samples (None = unconstrained).
 
     Returns:
@@ -243,7 +244,7 @@ def align(series: Sequence, reference: int | np.ndarray = 0, *, window: int | No
     dims = {a.shape[1] for a in arrs}
     if len(dims) != 1:
         raise ShapeError(f"demonstrations have different dimensions {sorted(dims)}", value=sorted(dims))
-    ref = arrs[int(reference)] if np.isscalar(reference) else as_array(reference, "reference")
+    ref = arrs[int(reference)] if np.isscalar(reference) else as_array(reference, "reference")  # type: ignore[arg-type]
     ref = ref[:, None] if ref.ndim == 1 else ref
     if ref.shape[1] != arrs[0].shape[1]:
         raise ShapeError(f"reference has dimension {ref.shape[1]}, series {arrs[0].shape[1]}")

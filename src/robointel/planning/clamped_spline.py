@@ -9,9 +9,15 @@ optimization (7.7)-(7.9) to check and stretch each segment.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numba import njit
+from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline
+
+#: any numpy array (the compiled kernels take contiguous float64/int64/bool arrays)
+Arr = NDArray[Any]
 
 __all__ = ["clamped_spline_knots", "knot_ratios", "knot_ratios_scipy", "limit_stretch", "spline_segment"]
 
@@ -21,7 +27,8 @@ def spline_segment(t: np.ndarray, path: np.ndarray) -> CubicSpline:
     return CubicSpline(t, path, axis=0, bc_type="clamped")
 
 
-def limit_stretch(spline: CubicSpline, duration: float, vmax, amax, dt: float = 1e-3) -> float:
+def limit_stretch(spline: CubicSpline, duration: float, vmax: ArrayLike, amax: ArrayLike,
+                  dt: float = 1e-3) -> float:
     """Uniform time factor s >= 1 so that the spline's |qd| <= vmax and |qdd| <= amax.
 
     Accelerations at the knots (exact, a cubic's acceleration is piecewise linear), velocities on a ``dt`` grid plus
@@ -44,7 +51,7 @@ def limit_stretch(spline: CubicSpline, duration: float, vmax, amax, dt: float = 
 
 
 @njit(cache=True)
-def _clamped_moments(h, y, M, cp, dp):  # pragma: no cover - compiled
+def _clamped_moments(h: Arr, y: Arr, M: Arr, cp: Arr, dp: Arr) -> None:  # pragma: no cover - compiled
     """Knot second derivatives M (N+1, n) of the clamped C2 cubic spline (zero end slopes).
 
     Knot second derivatives M (N+1, n) of the clamped C2 cubic spline (zero end slopes) through y with interval
@@ -77,7 +84,8 @@ def _clamped_moments(h, y, M, cp, dp):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _clamped_ratios(t, y, vmax, amax, sub):  # pragma: no cover - compiled
+def _clamped_ratios(t: Arr, y: Arr, vmax: Arr, amax: Arr,  # pragma: no cover - compiled
+                    sub: int) -> tuple[Arr, Arr]:
     """Limit ratios of the clamped C2 cubic spline at its knots and inside its pieces.
 
     Knot accelerations of the clamped C2 cubic spline (Thomas algorithm on the moment equations) over amax, and the
@@ -108,7 +116,8 @@ def _clamped_ratios(t, y, vmax, amax, sub):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def clamped_spline_knots(t, y, vmax, amax):  # pragma: no cover - compiled
+def clamped_spline_knots(t: Arr, y: Arr, vmax: Arr,  # pragma: no cover - compiled
+                         amax: Arr) -> tuple[Arr, Arr, float, float]:
     """Knot velocities and accelerations of the clamped C2 cubic spline and its exact peak limit ratios.
 
     Knot velocities V (N+1, n) and accelerations M (N+1, n) of the clamped C2 cubic spline through (t, y), and the
@@ -148,7 +157,8 @@ def clamped_spline_knots(t, y, vmax, amax):  # pragma: no cover - compiled
     return V, M, rv, ra
 
 
-def knot_ratios(t: np.ndarray, path: np.ndarray, vmax: np.ndarray, amax: np.ndarray, sub: int = 8):
+def knot_ratios(t: np.ndarray, path: np.ndarray, vmax: np.ndarray, amax: np.ndarray,
+                sub: int = 8) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Spline acceleration / limit at each knot (exact.
 
     A cubic's acceleration is piecewise linear) and the largest velocity / limit inside each interval (sampled at
@@ -158,7 +168,8 @@ def knot_ratios(t: np.ndarray, path: np.ndarray, vmax: np.ndarray, amax: np.ndar
                            np.asarray(vmax, float), np.asarray(amax, float), int(sub))
 
 
-def knot_ratios_scipy(t: np.ndarray, path: np.ndarray, vmax: np.ndarray, amax: np.ndarray, sub: int = 8):
+def knot_ratios_scipy(t: np.ndarray, path: np.ndarray, vmax: np.ndarray, amax: np.ndarray,
+                      sub: int = 8) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Reference implementation of :func:`knot_ratios` with scipy's CubicSpline (for tests)."""
     s = spline_segment(t, path)
     ra = np.max(np.abs(s(t, 2)) / amax, axis=1)

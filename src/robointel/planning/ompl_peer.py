@@ -10,11 +10,15 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from robointel.errors import RobointelError
 from robointel.geometry import min_distance
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.robot import Robot
 
 
 @dataclass
@@ -29,11 +33,13 @@ class OMPLResult:
 
     @property
     def total_ms(self) -> float:
+        """Planning plus simplification time, ms."""
         return self.plan_ms + self.simplify_ms
 
 
-def rrtconnect(robot, obstacles, start, goal, *, clearance: float, timeout: float = 10.0,
-               resolution: float = 0.005, simplify: bool = True, seed: int | None = 0) -> OMPLResult:
+def rrtconnect(robot: Robot, obstacles: Any, start: np.ndarray, goal: np.ndarray, *, clearance: float,
+               timeout: float = 10.0, resolution: float = 0.005, simplify: bool = True,
+               seed: int | None = 0) -> OMPLResult:
     """Plan from ``start`` to ``goal`` (n,) with OMPL's RRTConnect, then simplify the path."""
     try:
         from ompl import base as ob
@@ -57,7 +63,9 @@ def rrtconnect(robot, obstacles, start, goal, *, clearance: float, timeout: floa
     count = [0]
     q = np.empty(n)
 
-    def valid(s) -> bool:  # the fastest single-configuration check robointel has (compiled minimum)
+    # ``s`` stays unannotated: OMPL's bindings read the callback's annotations, and with one it is never called
+    def valid(s) -> bool:  # type: ignore[no-untyped-def]
+        """The fastest single-configuration check robointel has (compiled minimum)."""
         count[0] += 1
         for i in range(n):
             q[i] = s[i]

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from robointel.errors import IKFailure, InvalidInput, LimitViolation, RobointelError
 from robointel.geometry import obstacle_from_dict
@@ -108,7 +108,7 @@ def builtin_scenes() -> list[str]:
     return sorted(p.stem for p in SCENES.glob("*.yaml"))
 
 
-def _num(d: dict, key: str, default=None, *, positive: bool = False) -> float:
+def _num(d: dict, key: str, default: Any = None, *, positive: bool = False) -> float:
     v = d.get(key, default)
     try:
         v = float(v)
@@ -119,7 +119,7 @@ def _num(d: dict, key: str, default=None, *, positive: bool = False) -> float:
     return v
 
 
-def _vector(v, n: int, what: str) -> np.ndarray:
+def _vector(v: ArrayLike, n: int, what: str) -> np.ndarray:
     try:
         a = np.asarray(v, float).reshape(-1)
     except (TypeError, ValueError):
@@ -188,10 +188,10 @@ def scene_from_dict(d: dict, *, base: Path | None = None) -> Scene:
         W.append(q)
         names.append(name)
         prev = q
-    W = np.array(W)
-    nseg = len(W) - 1
-    steps = d.get("steps", 19)
-    steps = [int(steps)] * nseg if np.isscalar(steps) else [int(s) for s in steps]
+    Wa = np.array(W)
+    nseg = len(Wa) - 1
+    steps_in = d.get("steps", 19)
+    steps = [int(steps_in)] * nseg if np.isscalar(steps_in) else [int(s) for s in steps_in]  # type: ignore[arg-type]
     if len(steps) != nseg or any(s < 2 for s in steps):
         raise InvalidInput(f"steps must give {nseg} segment lengths >= 2, got {steps}", value=steps)
     if "dt" in d:
@@ -230,13 +230,13 @@ def scene_from_dict(d: dict, *, base: Path | None = None) -> Scene:
     unknown = set(planner) - known
     if unknown:
         raise InvalidInput(f"unknown planner settings {sorted(unknown)}; known: {sorted(known)}", value=planner)
-    return Scene(name=str(d.get("name", "scene")), robot=robot, waypoints=W, waypoint_names=names, steps=steps,
+    return Scene(name=str(d.get("name", "scene")), robot=robot, waypoints=Wa, waypoint_names=names, steps=steps,
                  dt=dt, obstacles=obstacles, vmax=np.asarray(vmax, float), amax=np.asarray(amax, float),
                  d_min=_num(d, "d_min", 0.05, positive=True), weights=weights, planner=planner,
                  description=str(d.get("description", "")))
 
 
-def load_scene(path_or_name) -> Scene:
+def load_scene(path_or_name: str | Path) -> Scene:
     """Read a scene YAML file, or a built-in scene by name (``"table71"``)."""
     p = Path(path_or_name)
     if not p.exists():

@@ -112,11 +112,14 @@ def temporal_optimize(path: ArrayLike, vmax: ArrayLike, amax: ArrayLike, *, dt: 
 
     Args:
         path: (N+1, n) path points (rad), N >= 1; zero velocity at both ends.
-        vmax, amax: (n,) or scalar velocity (rad/s) and acceleration (rad/s^2) limits.
+        vmax: (n,) or scalar velocity limits, rad/s.
+        amax: (n,) or scalar acceleration limits, rad/s^2.
         dt: the fixed time step of the input path (only rescaled when up-sampling; the CFS starts
             from the smallest feasible uniform step).
-        w3, w4: weights of total time and of time-step changes.
-        eps, max_iter: CFS stopping rule and cap (per solve).
+        w3: weight of the total time in (7.7).
+        w4: weight of the time-step changes in (7.7).
+        eps: CFS stopping rule on the step length, s (per solve).
+        max_iter: CFS iteration cap (per solve).
         refine: limit-rescaling rounds.
         upsample: the path is re-sampled with ``upsample`` points per input interval on its
             geometric spline (path parameter uniform over the input points; the input points are
@@ -208,7 +211,7 @@ def fixed_dt_segment(path: ArrayLike, dt: float) -> Trajectory:
     P = as_array(path, "path", (None, None))
     t = dt * np.arange(P.shape[0])
     s = spline_segment(t, P)
-    return Trajectory(t, P.copy(), s(t, 1), s(t, 2))
+    return Trajectory(t.astype(float), P.copy(), s(t, 1), s(t, 2))
 
 
 def concatenate_segments(parts: list[Trajectory], joint_names: list[str],

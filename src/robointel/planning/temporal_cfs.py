@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 from functools import lru_cache
+from typing import Any
 
 import daqp
 import numpy as np
@@ -25,13 +26,16 @@ from robointel.planning.qp import DenseQP, SparseQP
 from robointel.planning.temporal_settings import TemporalSettings
 from robointel.planning.temporal_start import step_bounds
 
+#: any numpy array (the compiled kernels take contiguous float64/int64/bool arrays)
+Arr = NDArray[Any]
+
 __all__ = ["cfs_tau", "solve_tau"]
 
 
 def solve_tau(dx: NDArray[np.float64], vmax: NDArray[np.float64], amax_k: NDArray[np.float64],
-              vscale: NDArray[np.float64] | None, tau0: NDArray[np.float64], w3: float, w4: float, eps: float,
-              max_iter: int, qp: DenseQP | SparseQP, trust: float | None = None, *, keep_iterates: bool = False,
-              settings: TemporalSettings | None = None) -> CFSResult:
+              vscale: NDArray[np.float64] | None, tau0: NDArray[np.float64], w3: float, w4: float,
+              eps: float, max_iter: int, qp: DenseQP | SparseQP, trust: float | None = None, *,
+              keep_iterates: bool = False, settings: TemporalSettings | None = None) -> CFSResult:
     """One CFS solve of (7.7)-(7.9) with per-knot acceleration limits and per-interval velocity factors.
 
     Args:
@@ -88,11 +92,11 @@ def solve_tau(dx: NDArray[np.float64], vmax: NDArray[np.float64], amax_k: NDArra
                        max_cuts=st.max_cuts, ftol=st.ftol, working_set=st.working_set, keep_iterates=keep_iterates)
     rows = np.arange(kk2.size)
 
-    def fun(tau):
+    def fun(tau: np.ndarray) -> NDArray[np.float64]:
         a, b = tau[kk2], tau[kk2 + 1]
         return 0.5 * A2 * (a + b) * a * b - sign * (d12 * a - d02 * b)
 
-    def jac(tau):
+    def jac(tau: np.ndarray) -> NDArray[np.float64]:
         a, b = tau[kk2], tau[kk2 + 1]
         J = np.zeros((rows.size, N))
         J[rows, kk2] = 0.5 * A2 * (2 * a * b + b * b) - sign * d12
@@ -126,10 +130,10 @@ def _row_pattern(K: int, n: int) -> tuple[np.ndarray, np.ndarray]:
     return kk, jj
 
 
-def cfs_tau(H: np.ndarray, f: np.ndarray, lb: np.ndarray, ub: np.ndarray, kk: np.ndarray, A2: np.ndarray,
-             d1: np.ndarray, d0: np.ndarray, sign: np.ndarray, mu: np.ndarray, z0: np.ndarray, *, eps: float,
-             max_iter: int, tol: float = 1e-9, max_cuts: int = 2, ftol: float = 0.0, working_set: float = 0.5,
-            keep_iterates: bool = False) -> CFSResult:
+def cfs_tau(H: np.ndarray, f: np.ndarray, lb: np.ndarray, ub: np.ndarray, kk: np.ndarray,
+            A2: np.ndarray, d1: np.ndarray, d0: np.ndarray, sign: np.ndarray, mu: np.ndarray,
+            z0: np.ndarray, *, eps: float, max_iter: int, tol: float = 1e-9, max_cuts: int = 2,
+            ftol: float = 0.0, working_set: float = 0.5, keep_iterates: bool = False) -> CFSResult:
     """Algorithm 2 specialised to (7.7)-(7.9).
 
     The same iteration as :func:`robointel.planning.cfs.cfs` for case-(7.6) constraints with a diagonal Hessian
@@ -156,10 +160,10 @@ def cfs_tau(H: np.ndarray, f: np.ndarray, lb: np.ndarray, ub: np.ndarray, kk: np
     INFV = 1e20
     up0 = np.concatenate([ub, np.full(R, INFV)])
 
-    def cost(z):
+    def cost(z: np.ndarray) -> float:
         return float(0.5 * z @ (Hc @ z) + f @ z)
 
-    def feasible(z):
+    def feasible(z: np.ndarray) -> bool:
         return bool(_feasible(z, lb, ub, kk, A2, d1, d0, sign, tol))
 
     z = np.clip(np.asarray(z0, float), lb, ub)
@@ -250,7 +254,9 @@ def cfs_tau(H: np.ndarray, f: np.ndarray, lb: np.ndarray, ub: np.ndarray, kk: np
 
 
 @njit(cache=True)
-def _rows_lin(z, kk, A2, d1, d0, sign, G, ws, act_r):  # pragma: no cover - compiled
+def _rows_lin(z: Arr, kk: Arr, A2: Arr, d1: Arr, d0: Arr,  # pragma: no cover - compiled
+              sign: Arr, G: Arr, ws: float,
+              act_r: Arr) -> tuple[Arr, Arr, Arr, Arr, Arr]:
     """phi_r(z), its two partials and the linearisation's right-hand side (writes G in place), and the working-set mask.
 
     Rows whose acceleration uses at least ``ws`` of the limit, or active.
@@ -275,7 +281,8 @@ def _rows_lin(z, kk, A2, d1, d0, sign, G, ws, act_r):  # pragma: no cover - comp
 
 
 @njit(cache=True)
-def _feasible(z, lb, ub, kk, A2, d1, d0, sign, tol):  # pragma: no cover - compiled
+def _feasible(z: Arr, lb: Arr, ub: Arr, kk: Arr, A2: Arr, d1: Arr,  # pragma: no cover - compiled
+              d0: Arr, sign: Arr, tol: float) -> bool:
     """Z within its bounds (1e-9) and every (7.8) row phi_r(z) >= -tol."""
     for i in range(z.size):
         if z[i] < lb[i] - 1e-9 or z[i] > ub[i] + 1e-9:
@@ -288,7 +295,8 @@ def _feasible(z, lb, ub, kk, A2, d1, d0, sign, tol):  # pragma: no cover - compi
 
 
 @njit(cache=True)
-def _rows_phi_min(z, kk, A2, d1, d0, sign):  # pragma: no cover - compiled
+def _rows_phi_min(z: Arr, kk: Arr, A2: Arr, d1: Arr, d0: Arr,  # pragma: no cover - compiled
+                  sign: Arr) -> float:
     """min_r phi_r(z)."""
     m = np.inf
     for r in range(kk.size):
@@ -298,7 +306,8 @@ def _rows_phi_min(z, kk, A2, d1, d0, sign):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _rows_cuts(x, z, kk, p, ga, gb, mu, tol, N):  # pragma: no cover - compiled
+def _rows_cuts(x: Arr, z: Arr, kk: Arr, p: Arr, ga: Arr, gb: Arr,  # pragma: no cover - compiled
+               mu: Arr, tol: float, N: int) -> tuple[Arr, Arr, Arr]:
     """Tangent cuts (rows C, lower bounds c) of the concave g_r of (7.6) at x where g_r(x) < -tol."""
     R = kk.size
     bad = np.zeros(R, dtype=np.bool_)
@@ -327,7 +336,8 @@ def _rows_cuts(x, z, kk, p, ga, gb, mu, tol, N):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _rows_lin_violated(x, kk, ga, gb, h, inW, tol):  # pragma: no cover - compiled
+def _rows_lin_violated(x: Arr, kk: Arr, ga: Arr, gb: Arr, h: Arr,  # pragma: no cover - compiled
+                       inW: Arr, tol: float) -> Arr:
     """Rows outside the working set whose linearisation ga x_a + gb x_b >= h fails at x."""
     out = []
     for r in range(kk.size):
@@ -337,7 +347,7 @@ def _rows_lin_violated(x, kk, ga, gb, h, inW, tol):  # pragma: no cover - compil
 
 
 @njit(cache=True)
-def _warm_sense(m, N, act_b, act_r, row_of):  # pragma: no cover - compiled
+def _warm_sense(m: int, N: int, act_b: Arr, act_r: Arr, row_of: Arr) -> Arr:  # pragma: no cover - compiled
     """DAQP constraint flags (m,) marking the last QP's active set.
 
     Simple bounds as given, and for every active constraint row its newest QP row (the latest tangent cut, else the
@@ -355,7 +365,7 @@ def _warm_sense(m, N, act_b, act_r, row_of):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _active_from(lam, N, row_of, R):  # pragma: no cover - compiled
+def _active_from(lam: Arr, N: int, row_of: Arr, R: int) -> tuple[Arr, Arr]:  # pragma: no cover - compiled
     """Active set of a DAQP solution by constraint row: bounds (3 lower, 1 upper) and rows."""
     act_b = np.zeros(N, dtype=np.int32)
     act_r = np.zeros(R, dtype=np.bool_)
@@ -368,7 +378,8 @@ def _active_from(lam, N, row_of, R):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _rows_pull_back(dz, kk, p, ga, gb, mu):  # pragma: no cover - compiled
+def _rows_pull_back(dz: Arr, kk: Arr, p: Arr, ga: Arr, gb: Arr,  # pragma: no cover - compiled
+                    mu: Arr) -> float:
     """Largest alpha in [0, 1] with g_r(z_r + alpha dz) >= 0 for every row (g_r(z_r) = phi_r >= 0)."""
     alpha = 1.0
     for r in range(kk.size):

@@ -8,16 +8,22 @@ the uniform step :func:`feasible_uniform_dt` are the alternatives (:class:`Tempo
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
 from robointel.planning.temporal_settings import TemporalSettings
 
+#: any numpy array (the compiled kernels take contiguous float64/int64/bool arrays)
+Arr = NDArray[Any]
+
 __all__ = ["accel_ratio", "feasible_uniform_dt", "pass_start", "scaled_start", "start_schedule", "step_bounds"]
 
 
-def feasible_uniform_dt(path: np.ndarray, vmax: np.ndarray, amax: np.ndarray, dt: float | None = None) -> float:
+def feasible_uniform_dt(path: np.ndarray, vmax: np.ndarray, amax: np.ndarray,
+                        dt: float | None = None) -> float:
     """Smallest uniform step (>= ``dt`` if given) meeting (7.7)-(7.9) on the path."""
     dx = np.diff(path, axis=0)
     need = [np.max(np.abs(dx) / vmax)]
@@ -46,7 +52,7 @@ def scaled_start(dx: np.ndarray, vmax: np.ndarray, amax: np.ndarray, h0: float) 
 
 
 @njit(cache=True)
-def _pass_x(dx, A, xcap, xlo):  # pragma: no cover - compiled
+def _pass_x(dx: Arr, A: Arr, xcap: Arr, xlo: float) -> Arr:  # pragma: no cover - compiled
     """Forward/backward pass over the squared interval speeds x_k = 1 / tau_k^2 in [xlo, xcap_k] (see pass_start).
 
     (xlo, xlo) must satisfy every pair constraint.
@@ -98,7 +104,8 @@ def _pass_x(dx, A, xcap, xlo):  # pragma: no cover - compiled
     return x
 
 
-def step_bounds(dx: np.ndarray, vmax: np.ndarray, amax_k: np.ndarray, vscale: np.ndarray | None = None) -> np.ndarray:
+def step_bounds(dx: np.ndarray, vmax: np.ndarray, amax_k: np.ndarray,
+                vscale: np.ndarray | None = None) -> np.ndarray:
     """(N,) smallest admissible steps.
 
     Velocity limits |dx_k| <= vmax tau_k and the start/stop constraints (7.9) on the first and last step.
@@ -118,7 +125,8 @@ def accel_ratio(dx: np.ndarray, tau: np.ndarray, amax_k: np.ndarray) -> float:
     return float(np.max(np.abs(v[1:] - v[:-1]) / (0.5 * (tau[1:] + tau[:-1]))[:, None] / amax_k[1:-1]))
 
 
-def pass_start(dx: np.ndarray, vmax: np.ndarray, amax_k: np.ndarray, vscale: np.ndarray | None = None) -> np.ndarray:
+def pass_start(dx: np.ndarray, vmax: np.ndarray, amax_k: np.ndarray,
+               vscale: np.ndarray | None = None) -> np.ndarray:
     """A feasible, nearly time-optimal starting schedule for the CFS of (7.7)-(7.9).
 
     With the squared interval speeds x_k = 1 / tau_k^2 and the approximations (valid for
@@ -133,8 +141,10 @@ def pass_start(dx: np.ndarray, vmax: np.ndarray, amax_k: np.ndarray, vscale: np.
     uniform step h_u is returned if it is shorter); CFS then solves (7.7)-(7.9) itself from there.
 
     Args:
-        dx: (N, n) path increments (rad). amax_k: (N+1, n) acceleration limit at each knot.
-        vmax: (n,) velocity limits; vscale: (N,) factors on them per interval.
+        dx: (N, n) path increments, rad.
+        vmax: (n,) velocity limits, rad/s.
+        amax_k: (N+1, n) acceleration limit at each knot, rad/s^2.
+        vscale: (N,) factors on the velocity limits per interval (None: 1).
 
     Returns:
         (N,) steps tau (s), >= the velocity and start/stop bounds and feasible for (7.8).

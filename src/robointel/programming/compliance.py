@@ -127,6 +127,9 @@ def compliance_velocity(robot, q, wrench_world, gains: ComplianceGains = Complia
         robot: a :class:`robointel.robot.Robot` (its TCP is the handle point).
         q: (n,) joint angles, rad.
         wrench_world: (6,) [f; tau] in world axes about the TCP, N and N m.
+        gains: the compliance gains C of (3.12).
+        epsilon: singular-value threshold of the damped pseudo-inverse J^#.
+        max_damping: largest damping of the pseudo-inverse near a singularity.
 
     Returns:
         (n,) joint velocities, rad/s.

@@ -147,6 +147,17 @@ def calibrate_in_workcell(wc, q0, *, poses: int = 12, settle: float = 0.25, aver
     Args:
         wc: a :class:`robointel.sim.Workcell` with an F/T sensor (payload, bias and noise as built).
         q0: (n,) central configuration, rad.
+        poses: number of wrist poses around ``q0`` (>= 3).
+        settle: time held at each pose before measuring, s.
+        average: F/T readings averaged per pose (1 kHz).
+        spread: range of the random wrist offsets (J4-J6), +- rad.
+        seed: seed of the random poses.
+
+    Returns:
+        The identified payload mass, centre of mass and sensor biases.
+
+    Raises:
+        InvalidInput: fewer than 3 poses or ``average`` < 1.
     """
     robot = wc.robot
     q0 = robot.check_q(q0, "q0")

@@ -64,7 +64,9 @@ def blend_weight(d, d0: float = 0.15, alpha: float = 6.0):
     lambda(d) = (1 + e^-alpha) / (1 + e^(alpha (2 d / d0 - 1))), clipped to [0, 1] (d < 0 gives 1).
 
     Args:
-        d: distance(s), m. d0: activation distance, m. alpha: steepness.
+        d: distance(s), m.
+        d0: activation distance, m.
+        alpha: steepness of the logistic blend.
     """
     d = np.asarray(d, float)
     x = np.minimum(alpha * (2.0 * d / d0 - 1.0), 700.0)
@@ -336,9 +338,10 @@ class GuidanceController:
         H, f, lb, ub, qd_free = self._H, self._f, self._lb, self._ub, np.empty(n)
         inside = _qp_terms(J, self._W, V, self._qp_par, q, self._lower, self._upper, self._vmax, H, f, lb, ub, qd_free)
         if not inside:  # free command: least squares within the joint bounds
-            qd_free = self._solve(H, f, self._A0, lb, ub, self._z0, self._z0, False)
-            if qd_free is None:
+            qd_sol = self._solve(H, f, self._A0, lb, ub, self._z0, self._z0, False)
+            if qd_sol is None:
                 return self._fault(f"QP solver failed (DAQP exit flag {self._solver_flag})", q, w)
+            qd_free = qd_sol
         # distances of every movable sphere to every obstacle, closest sphere per obstacle
         K = len(self.obstacles)
         if K == 0:
@@ -365,9 +368,10 @@ class GuidanceController:
                         qd_av = qd_free  # unconstrained optimum is feasible: it is the QP's optimum
                     else:
                         z = self._z[:nact]
-                        qd_av = self._solve(H, f, A, lb, ub, z, z if eq else self._inf[:nact], eq)
-                        if qd_av is None:
+                        qd_sol = self._solve(H, f, A, lb, ub, z, z if eq else self._inf[:nact], eq)
+                        if qd_sol is None:
                             return self._fault(f"QP solver failed (DAQP exit flag {self._solver_flag})", q, w)
+                        qd_av = qd_sol
                     self.last_qp = (H, f, A, lb, ub, qd_av)
                     qd = lam * qd_av + (1.0 - lam) * qd_free
             else:
@@ -397,7 +401,7 @@ class GuidanceController:
         if c.method == "repulsive":
             qd = qd_free.copy()
             for k in np.flatnonzero(act):
-                i = rows[k]
+                i = int(rows[k])
                 Jr = Js[mov[i]]  # (3, n) linear Jacobian of the closest sphere
                 vrep = float(repulsive_speed(dk[k], c.d0, c.alpha, c.repulsive_v_max))
                 qd += _dls(Jr, 1e-3) @ (vrep * sd.normals[i, k])
@@ -407,12 +411,12 @@ class GuidanceController:
             v = V[:3]
             qd = Jt_p @ v
             if act.any():
-                k = int(np.argmin(dk))
-                i = rows[k]
-                Jn = sd.normals[i, k] @ Js[mov[i]]  # (n,)
+                kc = int(np.argmin(dk))
+                ic = int(rows[kc])
+                Jn = sd.normals[ic, kc] @ Js[mov[ic]]  # (n,)
                 P = np.eye(self.n) - Jt_p @ Jt
                 JnP = Jn @ P
-                vrep = float(repulsive_speed(dk[k], c.d0, c.alpha, c.repulsive_v_max))
+                vrep = float(repulsive_speed(dk[kc], c.d0, c.alpha, c.repulsive_v_max))
                 # damped scalar pseudo-inverse of J_n P (bounded near its singularity)
                 qd = qd + JnP * ((vrep - Jn @ qd) / (JnP @ JnP + 1e-3))
         # joint bounds: uniform scaling keeps the direction

@@ -22,7 +22,7 @@ import numpy as np
 from robointel._validate import as_array
 from robointel.errors import IKFailure, InvalidInput
 from robointel.programming.skeleton import Skeleton, clean
-from robointel.sim import Workcell
+from robointel.sim import TrackingLog, Workcell
 from robointel.trajectory import Trajectory
 
 #: Default workspace box for the TCP (robot root frame, m): every point is reachable with the
@@ -42,6 +42,7 @@ class WorkspaceMap:
     center_robot: np.ndarray
 
     def __call__(self, p: np.ndarray) -> np.ndarray:
+        """Map hand positions ``p`` (..., 3), m, into the robot workspace, m."""
         return self.center_robot + self.scale * (np.asarray(p, float) - self.center_human)
 
 
@@ -158,6 +159,7 @@ class LimitedFollower:
         self.q = np.zeros(n)
 
     def reset(self, q, qd=None) -> None:
+        """Restart the follower at ``q`` (n,), rad, with velocity ``qd`` (n,), rad/s (default 0)."""
         self.q = np.array(q, float)
         self.inp.current_position = self.q.tolist()
         self.inp.current_velocity = [0.0] * self.n if qd is None else list(map(float, qd))
@@ -223,8 +225,15 @@ def kinematic_imitation(skel: Skeleton, robot, *, side: str | None = None, R_too
         robot: the LR Mate (any robot with ``ik``).
         R_tool: fixed 3x3 tool orientation (default ``TOOL_DOWN``; pointing forward, identity,
             puts the wrist at its singularity q5 = 0 in the middle of the workspace).
-        lo, hi: TCP workspace box [m].
+        side: "left" or "right" arm (default: the one that moves most).
+        lo: (3,) lower corner of the TCP workspace box, m.
+        hi: (3,) upper corner of the TCP workspace box, m.
+        dt: step of the joint reference, s (1 kHz).
+        cutoff_hz: low-pass cut-off of the skeleton filter, Hz.
         jerk_factor: jerk limit = jerk_factor * acceleration limit [rad/s^3].
+
+    Returns:
+        The plan: targets, per-frame IK and the jerk-limited joint reference (a :class:`Trajectory`).
     """
     side = side or skel.active_side()
     s = "Right" if side == "right" else "Left"
@@ -251,7 +260,7 @@ class ImitationRun:
     """
 
     plan: ImitationPlan
-    log: object
+    log: TrackingLog
     rms: np.ndarray
     tracking_rms: np.ndarray
     tcp_rms: float

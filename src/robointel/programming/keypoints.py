@@ -317,13 +317,21 @@ def reproduce_path(robot, t, positions, q0, *, rotations=None, tolerance: float 
 
     Args:
         robot: :class:`robointel.robot.Robot`.
-        t: (N,) times of the guided path, s. positions: (N, 3) TCP positions, m.
+        t: (N,) times of the guided path, s.
+        positions: (N, 3) TCP positions, m.
         q0: (n,) configuration at the path's start (its TCP at positions[0]).
         rotations: optional (N, 3, 3) tool orientations along the guided path; the reproduction
             then passes the key points with their orientations (else it holds the start one).
-        tolerance, keypoint_args: passed to :func:`extract_keypoints`.
-        speed, blend_time, kind: passed to :func:`blended_trajectory`.
+        tolerance: path tolerance of :func:`extract_keypoints`, m.
+        speed: TCP speed of :func:`blended_trajectory`, m/s.
+        blend_time: corner blend duration, s.
+        kind: ``"cubic"`` or ``"quintic"`` corner blends.
         dt: sample time of the joint reference, s.
+        **keypoint_args: further arguments of :func:`extract_keypoints`.
+
+    Returns:
+        The key points, the Cartesian trajectory, the joint reference (a :class:`Trajectory`) and
+        the largest distance to the guided path.
     """
     P = as_array(positions, "positions", (None, 3))
     k = extract_keypoints(t, P, tolerance=tolerance, **keypoint_args)

@@ -268,7 +268,9 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
         ft_noise: F/T noise std (N; torques get a tenth, N m).
         ft_bias: F/T bias [N, N m], identified away before guiding.
         identify: identify payload and bias first (3.14)-(3.19); else use the true values.
+        robot: the arm (default: a freshly loaded LR Mate 200iD/7L).
         progress: called with the fraction done.
+        seed: seed of the F/T sensor noise.
     """
     sc = scenario(number)
     robot = robot or Robot.load("lrmate200id7l")
@@ -317,6 +319,7 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
             wc.apply_wrench(hand[:3], hand[3:], point=T[:3, 3])
             raw = wc.ft_reading()
             Rs = wc.sensor_pose()[:3, :3]
+            assert cal is not None  # identified or given above whenever there is a workcell
             ext = cal.compensate(raw, Rs)
             w_world = np.concatenate([Rs @ ext[:3], Rs @ ext[3:]])
             # torque about the TCP (the sensor origin is the flange; TCP = flange + tool offset)

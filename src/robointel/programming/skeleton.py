@@ -22,6 +22,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
@@ -89,6 +90,7 @@ class Skeleton:
 
     @property
     def n(self) -> int:
+        """Number of frames."""
         return len(self.t)
 
     @property
@@ -98,6 +100,7 @@ class Skeleton:
 
     @property
     def duration(self) -> float:
+        """Recording length, s."""
         return float(self.t[-1] - self.t[0])
 
     def index(self, name: str) -> int:
@@ -135,7 +138,7 @@ class Skeleton:
             spread[side] = float(np.sum(np.var(a["hand"] - a["hip"], axis=0)))
         if not spread:
             raise InvalidInput(f"skeleton from {self.source!r} has no arm joints")
-        return max(spread, key=spread.get)
+        return max(spread, key=lambda k: spread[k])
 
 
 # ---------------------------------------------------------------------------------------- readers
@@ -221,7 +224,10 @@ def read_bvh(source: str | Path, *, scale: float = 0.01) -> Skeleton:
         m = tokens.index("MOTION")
     except ValueError:
         raise InvalidInput("BVH has no MOTION section") from None
-    names, parents, offsets, channels = [], [], [], []
+    names: list[str] = []
+    parents: list[int] = []
+    offsets: list[Any] = []
+    channels: list[list[str]] = []
     stack: list[int] = []
     i, last = 0, -1
     while i < m:

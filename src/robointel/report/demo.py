@@ -33,6 +33,7 @@ class Figure:
 
 @dataclass
 class StageResult:
+    """One stage of the demo report: its title, figures, images, text and run time (s)."""
     title: str
     figures: list[Figure] = field(default_factory=list)
     images: list[Path] = field(default_factory=list)

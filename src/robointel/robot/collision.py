@@ -6,9 +6,11 @@ Spheres are generated from each link's collision primitives so that they cover t
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
@@ -86,6 +88,7 @@ class SphereModel:
         """Generate spheres covering every collision primitive of ``robot``'s URDF.
 
         Args:
+            robot: The robot whose URDF collision primitives are covered.
             count: spheres per primitive (default: enough that spacing <= primitive radius).
             inflate: extra radius added to every sphere (m), a safety margin.
             include_base: keep spheres of links that never move.
@@ -150,7 +153,7 @@ class SphereModel:
         """Boolean mask of spheres that move with some joint."""
         return self.joints > 0
 
-    def kinematics(self, q, *, angular: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    def kinematics(self, q: ArrayLike, *, angular: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """World centres (m, 3) and linear Jacobians (m, 3, n) of all spheres at ``q`` (``angular=True``.
 
         Full (m, 6, n) Jacobians [v; w], for points offset from the centres).
@@ -160,24 +163,24 @@ class SphereModel:
         q = self._robot.check_q(q)
         return self._robot.points_kinematics(q, self.joints, self._in_joint, angular=angular)
 
-    def kinematics_batch(self, Q, *, angular: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    def kinematics_batch(self, Q: ArrayLike, *, angular: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Centres (B, m, 3) and Jacobians (B, m, 3, n) (or (B, m, 6, n)) for configurations Q (B, n)."""
         if self._robot is None:
             raise InvalidInput("sphere model is not bound to a robot; call bind(robot)")
         return self._robot.points_kinematics_batch(Q, self.joints, self._in_joint, angular=angular)
 
-    def positions(self, q) -> np.ndarray:
+    def positions(self, q: ArrayLike) -> np.ndarray:
         """World centres (m, 3) of all spheres."""
         return self.kinematics(q)[0]
 
-    def self_distances(self, q) -> np.ndarray:
+    def self_distances(self, q: ArrayLike) -> np.ndarray:
         """Signed distances between the spheres of every self-collision pair."""
         P = self.positions(q)
         i, k = self.self_pairs.T
         return np.linalg.norm(P[i] - P[k], axis=1) - self.radii[i] - self.radii[k]
 
     # editing -----------------------------------------------------------------
-    def add(self, link: str, center, radius: float) -> None:
+    def add(self, link: str, center: ArrayLike, radius: float) -> None:
         """Add a sphere on ``link`` (centre in the link frame)."""
         self.links.append(link)
         self.centers = np.vstack([self.centers, as_array(center, "center", (3,))])
@@ -224,13 +227,12 @@ def _mesh_vertices(robot: Robot, prim: dict) -> np.ndarray | None:
         import trimesh
 
         mesh = trimesh.load(path, force="mesh", process=False)
-        return np.asarray(mesh.vertices) * np.asarray(prim["size"], float)
+        return np.asarray(mesh.vertices) * np.asarray(prim["size"], float)  # type: ignore[union-attr,attr-defined]
     except Exception:
         return None
 
 
-def _resolve_mesh(robot: Robot, fn: str):
-    from pathlib import Path
+def _resolve_mesh(robot: Robot, fn: str) -> Path | None:
 
     if fn.startswith("package://"):
         rel = fn[len("package://"):]

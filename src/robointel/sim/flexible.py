@@ -64,6 +64,7 @@ class FlexibleJointParams:
         return cls(**{**LRMATE_FLEXIBLE, **overrides})
 
     def checked(self, n: int) -> FlexibleJointParams:
+        """These parameters validated for ``n`` joints."""
         out = {}
         for name, positive in (("stiffness", True), ("damping", False), ("rotor_inertia", True),
                                ("motor_friction", False), ("gear_ratio", True)):

@@ -73,6 +73,7 @@ class Payload:
     shape: Any = None
 
     def checked(self) -> tuple[float, np.ndarray, np.ndarray]:
+        """Mass (kg), centre of mass (3,) m and inertia (3, 3) kg m^2 about it, validated."""
         m = float(self.mass)
         if not np.isfinite(m) or m <= 0:
             raise InvalidInput(f"payload mass must be a positive number of kg, got {self.mass!r}", value=self.mass)
@@ -180,6 +181,7 @@ def shape_geoms(shape: Any, *, max_points: int = 2000) -> tuple[np.ndarray, list
 
 
 def shape_name(shape: Any, default: str) -> str:
+    """The name of an obstacle shape, or ``default`` if it has none."""
     n = getattr(shape, "name", None)
     return str(n) if n else default
 

@@ -122,13 +122,13 @@ def render_frames(workcell, qpos, path=None, *, width: int = 480, height: int = 
                     imgs.append(r.render().copy())
         except Exception as exc:
             raise RobointelError(f"offscreen rendering failed with MUJOCO_GL={backend}: {exc}") from None
-        imgs = np.array(imgs)
+        frames = np.array(imgs)
     else:
-        imgs = _render_subprocess(workcell, np.array(full), backend, width, height, c)
-    cols = len(imgs) if columns is None else max(1, int(columns))
-    rows = -(-len(imgs) // cols)
+        frames = _render_subprocess(workcell, np.array(full), backend, width, height, c)
+    cols = len(frames) if columns is None else max(1, int(columns))
+    rows = -(-len(frames) // cols)
     canvas = np.full((rows * height, cols * width, 3), 255, dtype=np.uint8)
-    for k, img in enumerate(imgs):
+    for k, img in enumerate(frames):
         r_, c_ = divmod(k, cols)
         canvas[r_ * height:(r_ + 1) * height, c_ * width:(c_ + 1) * width] = img
     if path is not None:
