@@ -4,14 +4,15 @@ Figures: ``modules`` (count of .py files), ``max_module_lines``, ``modules_over_
 ``functions`` and ``typed_fraction`` (the fraction of functions and methods whose parameters, except
 ``self``/``cls``, and return are all annotated).
 
-Usage: ``python tools/code_stats.py [ROOT]`` (ROOT defaults to ``src/robointel``).
+Usage: ``python tools/code_stats.py [ROOT] [--exclude PART ...]`` (ROOT defaults to ``src/robointel``;
+files whose path contains an excluded PART are left out).
 """
 
 from __future__ import annotations
 
+import argparse
 import ast
 import json
-import sys
 from pathlib import Path
 
 
@@ -28,17 +29,18 @@ def _fully_typed(fn: ast.FunctionDef | ast.AsyncFunctionDef) -> bool:
     return fn.returns is not None and all(p.annotation is not None for p in params)
 
 
-def code_stats(root: Path) -> dict[str, object]:
+def code_stats(root: Path, exclude: tuple[str, ...] = ()) -> dict[str, object]:
     """Measure the modules under ``root``.
 
     Args:
         root: Package directory to scan recursively for ``*.py`` files.
+        exclude: Files whose path contains any of these substrings are left out.
 
     Returns:
         A JSON-ready dict with ``modules``, ``max_module_lines``, ``modules_over_500``, ``functions``,
         ``typed_functions`` and ``typed_fraction``.
     """
-    files = sorted(root.rglob("*.py"))
+    files = sorted(f for f in root.rglob("*.py") if not any(x in str(f) for x in exclude))
     lines = {str(f): len(f.read_text().splitlines()) for f in files}
     n_fn = n_typed = 0
     for f in files:
@@ -57,4 +59,8 @@ def code_stats(root: Path) -> dict[str, object]:
 
 
 if __name__ == "__main__":
-    print(json.dumps(code_stats(Path(sys.argv[1] if len(sys.argv) > 1 else "src/robointel"))))
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("root", nargs="?", default="src/robointel")
+    ap.add_argument("--exclude", nargs="*", default=[])
+    args = ap.parse_args()
+    print(json.dumps(code_stats(Path(args.root), tuple(args.exclude))))

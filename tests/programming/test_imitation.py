@@ -54,7 +54,9 @@ def test_jerk_limited_reference_respects_limits():
     t = np.linspace(0, 2, 61)
     q = np.stack([0.5 + 0.5 * np.tanh(20 * (t - 0.8)), np.sin(4 * t)], 1)  # a quick move and a fast sine
     vmax, amax, jmax = np.array([3.0, 2.0]), np.array([6.0, 8.0]), np.array([80.0, 160.0])
-    tg, Q, QD, QDD = jerk_limited(t, q, vmax, amax, jmax)
+    ref = jerk_limited(t, q, vmax, amax, jmax)
+    assert ref.t[0] == t[0] and ref.t[-1] == pytest.approx(t[-1]) and ref.n_joints == 2
+    Q, QD, QDD = ref.q, ref.qd, ref.qdd
     assert np.all(np.abs(QD) <= vmax + 1e-9) and np.all(np.abs(QDD) <= amax + 1e-9)
     jerk = np.abs(np.diff(QDD, axis=0)) / 1e-3
     assert np.all(jerk <= jmax * (1 + 1e-6) + 1e-6)

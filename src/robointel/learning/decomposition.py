@@ -19,13 +19,18 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numba
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput, ShapeError
 from robointel.learning.demonstration import Demonstration
+
+#: any numpy array (the compiled kernels take contiguous float64/int64/bool arrays)
+Arr = NDArray[Any]
 
 
 def demo_features(demo: Demonstration, *, smooth: int = 5) -> np.ndarray:
@@ -52,7 +57,7 @@ def demo_features(demo: Demonstration, *, smooth: int = 5) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _windows(X, centers, w):
+def _windows(X: Arr, centers: Arr, w: int) -> Arr:
     n, f = X.shape
     out = np.empty((centers.shape[0], w, f))
     h = w // 2
@@ -64,7 +69,7 @@ def _windows(X, centers, w):
 
 
 @numba.njit(cache=True)
-def _warp_windows(W, R, band):
+def _warp_windows(W: Arr, R: Arr, band: int) -> Arr:
     """DTW-align each window W[i] (w, F) onto the reference R (w, F) with a Sakoe-Chiba band.
 
     Sample j of the result is the mean of the window samples matched to R[j] (5.9)-(5.10).
@@ -194,7 +199,7 @@ class ActionSegmenter:
         self.max_train_windows = int(max_train_windows)
         self.random_state = random_state
 
-    def _check_series(self, X, name):
+    def _check_series(self, X: ArrayLike, name: str) -> NDArray[np.float64]:
         X = as_array(X, name, (None, None))
         if hasattr(self, "n_features_") and X.shape[1] != self.n_features_:
             raise ShapeError(f"{name} has {X.shape[1]} features, the segmenter was trained on {self.n_features_}")
@@ -203,13 +208,13 @@ class ActionSegmenter:
                                "use a shorter window", value=X.shape[0])
         return X
 
-    def _descriptors(self, Xs, centers, a):
+    def _descriptors(self, Xs: np.ndarray, centers: np.ndarray, a: int) -> NDArray[np.float64]:
         W = _windows(Xs, centers, self.window)
         A = _warp_windows(W, self.references_[a], self.band)
         idx = np.linspace(0, self.window - 1, self.resample).round().astype(int)
         return A[:, idx].reshape(len(centers), self.resample * self.n_features_)
 
-    def _descriptor_all(self, Xs, centers):
+    def _descriptor_all(self, Xs: np.ndarray, centers: np.ndarray) -> NDArray[np.float64]:
         return np.concatenate([self._descriptors(Xs, centers, a) for a in range(self.n_actions_)], axis=1)
 
     def fit(self, series: Sequence, labels: Sequence) -> ActionSegmenter:
@@ -297,7 +302,7 @@ class ActionSegmenter:
         K[:, self.svm_.support_] = rbf_kernel(D, self.support_descriptors_, gamma=self.gamma_)
         return self.svm_.decision_function(K)
 
-    def score_map(self, X) -> tuple[np.ndarray, np.ndarray]:
+    def score_map(self, X: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Score map (5.12): (A, n_windows) SVM decision values and the window centres (n_windows,)."""
         if not hasattr(self, "svm_"):
             raise InvalidInput("the segmenter is not fitted; call fit first")
@@ -307,7 +312,7 @@ class ActionSegmenter:
         S = self._decision(self._descriptor_all(z, c)).T
         return S, c
 
-    def predict(self, X) -> Decomposition:
+    def predict(self, X: ArrayLike) -> Decomposition:
         """Decompose one demonstration (N, F) into the ordered actions (5.13)."""
         S, c = self.score_map(X)
         split_w = ordered_segmentation(S)

@@ -7,7 +7,7 @@ The same device is later mounted on the robot, so demonstration and reproduction
 """
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -41,7 +41,8 @@ class Demonstration:
     meta: dict = field(default_factory=dict)
 
     @classmethod
-    def create(cls, t, pose, wrench, labels=None, *, action_names=(), device: str = "hdd", name: str = "",
+    def create(cls, t: np.ndarray, pose: np.ndarray, wrench: np.ndarray, labels: np.ndarray | None = None, *,
+               action_names: Sequence[str] = (), device: str = "hdd", name: str = "",
                meta: dict | None = None) -> Demonstration:
         """Validated constructor.
 

@@ -21,8 +21,10 @@ insertion; pose -> force for grinding).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
 from scipy.special import logsumexp
 
@@ -79,7 +81,8 @@ class GaussianMixtureRegression:
         self.random_state = random_state
 
     @classmethod
-    def from_mixture(cls, priors, means, covariances, n_inputs: int) -> GaussianMixtureRegression:
+    def from_mixture(cls, priors: ArrayLike, means: ArrayLike, covariances: ArrayLike,
+                     n_inputs: int) -> GaussianMixtureRegression:
         """A model from a given mixture; the first ``n_inputs`` dimensions are the perception ``x``."""
         priors = as_array(priors, "priors", (None,))
         k = priors.shape[0]
@@ -93,7 +96,7 @@ class GaussianMixtureRegression:
         self._set(priors, means, covariances, int(n_inputs))
         return self
 
-    def _set(self, priors, means, covariances, n_inputs):
+    def _set(self, priors: np.ndarray, means: np.ndarray, covariances: np.ndarray, n_inputs: int) -> None:
         self.priors_ = np.asarray(priors, float)
         self.means_ = np.asarray(means, float)
         self.covariances_ = regularize_covariances(covariances)
@@ -114,7 +117,7 @@ class GaussianMixtureRegression:
         self._c = _Conditional(ix, iy, chol, np.array(log_norm), np.array(coef),
                                regularize_covariances(np.array(cond)))
 
-    def fit(self, X, Y) -> GaussianMixtureRegression:
+    def fit(self, X: ArrayLike, Y: ArrayLike) -> GaussianMixtureRegression:
         """Fit the joint GMM (5.14)-(5.15) by EM with k-means initialisation.
 
         Fit the joint GMM (5.14)-(5.15) on perception ``X`` (n, dx) and policy ``Y`` (n, dy) by EM with k-means
@@ -144,7 +147,7 @@ class GaussianMixtureRegression:
         self._set(gm.weights_, gm.means_, gm.covariances_, X.shape[1])
         return self
 
-    def _check(self, X):
+    def _check(self, X: ArrayLike) -> NDArray[np.float64]:
         if not hasattr(self, "_c"):
             raise InvalidInput("the model is not fitted; call fit(X, Y) first")
         X = as_array(X, "X")
@@ -153,7 +156,7 @@ class GaussianMixtureRegression:
             raise ShapeError(f"X must be (n, {self.n_inputs_}), got {X.shape}", value=X.shape)
         return X
 
-    def responsibilities(self, X) -> np.ndarray:
+    def responsibilities(self, X: ArrayLike) -> np.ndarray:
         """h_k(x) of (5.16): (n, K)."""
         X = self._check(X)
         c = self._c
@@ -163,7 +166,7 @@ class GaussianMixtureRegression:
             logp[:, k] = c.log_norm[k] - 0.5 * np.sum(z * z, axis=0)
         return np.exp(logp - logsumexp(logp, axis=1, keepdims=True))
 
-    def predict(self, X, *, return_cov: bool = False):
+    def predict(self, X: ArrayLike, *, return_cov: bool = False) -> Any:
         """Conditional mean (5.17) E[y|x] (n, dy), and with ``return_cov`` the covariance (n, dy, dy)."""
         X = self._check(X)
         c = self._c

@@ -40,7 +40,7 @@ class Contact:
     friction: float = 0.2
     margin: float = 0.0
 
-    def apply(self, geom) -> None:
+    def apply(self, geom: Any) -> None:
         """Set these parameters on an ``MjsGeom``."""
         geom.solref = list(self.solref)
         geom.solimp = list(self.solimp)

@@ -16,14 +16,22 @@ The reference is then tracked by the simulated robot (``robointel.sim.Workcell``
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
+from scipy.interpolate import CubicSpline
 
 from robointel._validate import as_array
 from robointel.errors import IKFailure, InvalidInput
 from robointel.programming.skeleton import Skeleton, clean
 from robointel.sim import TrackingLog, Workcell
 from robointel.trajectory import Trajectory
+
+if TYPE_CHECKING:  # pragma: no cover
+    from pathlib import Path
+
+    from robointel.robot import Robot
 
 #: Default workspace box for the TCP (robot root frame, m): every point is reachable with the
 #: default tool orientation, and J5 stays away from the wrist singularity there.
@@ -46,7 +54,8 @@ class WorkspaceMap:
         return self.center_robot + self.scale * (np.asarray(p, float) - self.center_human)
 
 
-def fit_workspace(d: np.ndarray, lo=WORKSPACE_LO, hi=WORKSPACE_HI, *, max_scale: float = 1.0) -> WorkspaceMap:
+def fit_workspace(d: np.ndarray, lo: ArrayLike = WORKSPACE_LO, hi: ArrayLike = WORKSPACE_HI, *,
+                  max_scale: float = 1.0) -> WorkspaceMap:
     """Fit the workspace map: one uniform scale and an offset.
 
     Uniform scale (<= ``max_scale``) and offset putting the hand-minus-hip path ``d`` (N, 3) inside the box [lo, hi]
@@ -85,7 +94,7 @@ class ImitationPlan:
 
 
 def hand_targets(skel: Skeleton, *, side: str | None = None, mapping: WorkspaceMap | None = None,
-                 lo=WORKSPACE_LO, hi=WORKSPACE_HI) -> tuple[np.ndarray, WorkspaceMap]:
+                 lo: ArrayLike = WORKSPACE_LO, hi: ArrayLike = WORKSPACE_HI) -> tuple[np.ndarray, WorkspaceMap]:
     """(N, 3) TCP targets p_d = map(p_h - p_c) (3.1) and the map used."""
     side = side or skel.active_side()
     a = skel.arm(side)
@@ -94,7 +103,8 @@ def hand_targets(skel: Skeleton, *, side: str | None = None, mapping: WorkspaceM
     return mapping(d), mapping
 
 
-def solve_ik_path(robot, p: np.ndarray, R: np.ndarray, q0=None) -> tuple[np.ndarray, np.ndarray]:
+def solve_ik_path(robot: Robot, p: np.ndarray, R: np.ndarray,
+                  q0: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Closed-form IK for each target with a fixed tool rotation, continuous along the path.
 
     Closed-form IK for each target (N, 3) with fixed rotation R, each solution the one closest to the previous
@@ -138,8 +148,8 @@ class LimitedFollower:
         n: joints.  vmax, amax, jmax: (n,) limits [rad/s, rad/s^2, rad/s^3].  dt: period [s].
     """
 
-    def __init__(self, n: int, vmax, amax, jmax, *, dt: float = 0.001, gain: float = 12.0,
-                 lower=None, upper=None) -> None:
+    def __init__(self, n: int, vmax: ArrayLike, amax: ArrayLike, jmax: ArrayLike, *, dt: float = 0.001,
+                 gain: float = 12.0, lower: ArrayLike | None = None, upper: ArrayLike | None = None) -> None:
         from ruckig import ControlInterface, InputParameter, OutputParameter, Ruckig
 
         self.n = n
@@ -158,14 +168,15 @@ class LimitedFollower:
         self.inp.target_acceleration = [0.0] * n
         self.q = np.zeros(n)
 
-    def reset(self, q, qd=None) -> None:
+    def reset(self, q: np.ndarray, qd: np.ndarray | None = None) -> None:
         """Restart the follower at ``q`` (n,), rad, with velocity ``qd`` (n,), rad/s (default 0)."""
         self.q = np.array(q, float)
         self.inp.current_position = self.q.tolist()
         self.inp.current_velocity = [0.0] * self.n if qd is None else list(map(float, qd))
         self.inp.current_acceleration = [0.0] * self.n
 
-    def step(self, target, target_velocity=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def step(self, target: ArrayLike,
+             target_velocity: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One period toward ``target`` (n,) moving at ``target_velocity`` (n,): (q, qd, qdd)."""
         from ruckig import Result
 
@@ -185,15 +196,32 @@ class LimitedFollower:
         return q, qd, qdd
 
 
-def jerk_limited(t: np.ndarray, q: np.ndarray, vmax, amax, jmax, *, dt: float = 0.001,
-                 lower=None, upper=None, gain: float = 12.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def jerk_limited(t: np.ndarray, q: np.ndarray, vmax: ArrayLike, amax: ArrayLike, jmax: ArrayLike, *, dt: float = 0.001,
+                 lower: ArrayLike | None = None, upper: ArrayLike | None = None, gain: float = 12.0,
+                 joint_names: list[str] | None = None) -> Trajectory:
     """Jerk-limited joint reference through joint targets.
 
-    Follow the C2 spline through targets q (N, n) at times t (N,) within velocity, acceleration and jerk limits with
-    a :class:`LimitedFollower`. Returns (t_ref, q, qd, qdd) at 1/dt Hz.
-    """
-    from scipy.interpolate import CubicSpline
+    Follows the C2 spline through the targets within velocity, acceleration and jerk limits with a
+    :class:`LimitedFollower` (ruckig).
 
+    Args:
+        t: (N,) target times, s.
+        q: (N, n) joint targets, rad.
+        vmax: (n,) velocity limits, rad/s.
+        amax: (n,) acceleration limits, rad/s^2.
+        jmax: (n,) jerk limits, rad/s^3.
+        dt: step of the reference, s.
+        lower: (n,) lower joint limits the targets are clipped to, rad (optional).
+        upper: (n,) upper joint limits, rad (with ``lower``).
+        gain: position feedback gain of the follower, 1/s.
+        joint_names: n names of the result (default ``joint_1``...).
+
+    Returns:
+        The reference at 1/dt Hz from t[0] to t[-1].
+
+    Raises:
+        ShapeError, NotFinite: bad ``t`` or ``q``.
+    """
     t = as_array(t, "t", (None,))
     q = as_array(q, "q", (len(t), None))
     n = q.shape[1]
@@ -209,12 +237,12 @@ def jerk_limited(t: np.ndarray, q: np.ndarray, vmax, amax, jmax, *, dt: float = 
     QDD = np.empty_like(Q)
     for k in range(len(tg)):
         Q[k], QD[k], QDD[k] = fol.step(S[k], SD[k])
-    return tg, Q, QD, QDD
+    return Trajectory(tg, Q, QD, QDD, list(joint_names or []))
 
 
-def kinematic_imitation(skel: Skeleton, robot, *, side: str | None = None, R_tool=None,
-                        lo=WORKSPACE_LO, hi=WORKSPACE_HI, dt: float = 0.001, cutoff_hz: float = 6.0,
-                        jerk_factor: float = 20.0) -> ImitationPlan:
+def kinematic_imitation(skel: Skeleton, robot: Robot, *, side: str | None = None, R_tool: ArrayLike | None = None,
+                        lo: ArrayLike = WORKSPACE_LO, hi: ArrayLike = WORKSPACE_HI, dt: float = 0.001,
+                        cutoff_hz: float = 6.0, jerk_factor: float = 20.0) -> ImitationPlan:
     """Kinematic imitation (3.1): skeleton to a jerk-limited 1 kHz joint reference.
 
     Skeleton -> cleaned hand path -> TCP targets (3.1) -> closed-form IK -> jerk-limited 1 kHz joint reference
@@ -244,9 +272,9 @@ def kinematic_imitation(skel: Skeleton, robot, *, side: str | None = None, R_too
     v = np.abs(np.gradient(q_ik, c.t, axis=0))
     a = np.abs(np.gradient(np.gradient(q_ik, c.t, axis=0), c.t, axis=0))
     hits = np.sum((v > robot.velocity_limit) | (a > robot.acceleration_limit), axis=0)
-    tg, Q, QD, QDD = jerk_limited(c.t, q_ik, robot.velocity_limit, robot.acceleration_limit,
-                                  jerk_factor * robot.acceleration_limit, dt=dt, lower=robot.lower, upper=robot.upper)
-    ref = Trajectory(tg, Q, QD, QDD, list(getattr(robot, "joint_names", [])))
+    ref = jerk_limited(c.t, q_ik, robot.velocity_limit, robot.acceleration_limit,
+                       jerk_factor * robot.acceleration_limit, dt=dt, lower=robot.lower, upper=robot.upper,
+                       joint_names=list(robot.joint_names))
     return ImitationPlan(c.t, p, R, q_ik, ok, hits, ref, mapping, skel.source)
 
 
@@ -267,7 +295,7 @@ class ImitationRun:
     tcp: np.ndarray
 
 
-def simulate_imitation(plan: ImitationPlan, robot, workcell=None) -> ImitationRun:
+def simulate_imitation(plan: ImitationPlan, robot: Robot, workcell: Workcell | None = None) -> ImitationRun:
     """Track the plan's reference in the MuJoCo workcell (1 kHz PID + feed-forward, Fig. 2.3)."""
     if workcell is None:
         workcell = Workcell(robot, ft_sensor=False)
@@ -281,7 +309,7 @@ def simulate_imitation(plan: ImitationPlan, robot, workcell=None) -> ImitationRu
     return ImitationRun(plan, log, rms, log.rms_error, float(np.sqrt(np.mean(d ** 2))), tcp)
 
 
-def plot_imitation(run: ImitationRun, path) -> None:
+def plot_imitation(run: ImitationRun, path: str | Path) -> None:
     """Joint targets vs simulated joints, and the TCP path against the hand targets."""
     import matplotlib
 

@@ -13,13 +13,19 @@ A path guided by hand is noisy and slow; the robot reproduces it from a few key 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
 from robointel.programming.compliance import damped_pinv
 from robointel.trajectory import Trajectory
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.robot import Robot
 
 __all__ = ["BlendedTrajectory", "Reproduction", "blended_trajectory", "extract_keypoints",
            "joint_velocity_reference", "orientation_reference", "plot_reproduction", "rdp_indices",
@@ -58,7 +64,7 @@ def rdp_indices(points: np.ndarray, tolerance: float) -> np.ndarray:
     return np.flatnonzero(keep)
 
 
-def extract_keypoints(t, positions, *, tolerance: float = 0.01, dwell_speed: float = 0.01,
+def extract_keypoints(t: ArrayLike, positions: ArrayLike, *, tolerance: float = 0.01, dwell_speed: float = 0.01,
                       dwell_time: float = 0.3, min_separation: float = 0.005) -> np.ndarray:
     """Key points of a guided path: start, end, dwells and direction changes.
 
@@ -123,7 +129,7 @@ class BlendedTrajectory:
         """Total time from rest to rest, s."""
         return float(self.times[-1] + self.blend[-1] / 2)
 
-    def __call__(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def __call__(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity and acceleration of the blended trajectory.
 
         Position (M, 3), velocity (M, 3) and acceleration (M, 3) at times t (M,) (clipped to [0, duration]).
@@ -160,7 +166,7 @@ class BlendedTrajectory:
         return p, v, a
 
 
-def blended_trajectory(points, *, speed: float = 0.1, blend_time: float = 0.4,
+def blended_trajectory(points: ArrayLike, *, speed: float = 0.1, blend_time: float = 0.4,
                        kind: str = "quintic") -> BlendedTrajectory:
     """Line segments through key points at ``speed`` with corner blends, from rest to rest.
 
@@ -198,7 +204,7 @@ def blended_trajectory(points, *, speed: float = 0.1, blend_time: float = 0.4,
     return BlendedTrajectory(points=P.copy(), times=times, blend=tau, velocities=V, kind=kind)
 
 
-def orientation_reference(trajectory: BlendedTrajectory, rotations, t) -> np.ndarray:
+def orientation_reference(trajectory: BlendedTrajectory, rotations: ArrayLike, t: ArrayLike) -> np.ndarray:
     """Tool orientation reference (M, 3, 3) at times t (M,).
 
     Slerp between the key points' orientations ``rotations`` (K, 3, 3), eased (smoothstep) so it rests at each key
@@ -216,7 +222,8 @@ def orientation_reference(trajectory: BlendedTrajectory, rotations, t) -> np.nda
     return Slerp(knots, Rotation.from_matrix(R))(tau).as_matrix()
 
 
-def joint_velocity_reference(robot, q0, trajectory: BlendedTrajectory, *, rotations=None, dt: float = 0.001,
+def joint_velocity_reference(robot: Robot, q0: ArrayLike, trajectory: BlendedTrajectory, *,
+                             rotations: ArrayLike | None = None, dt: float = 0.001,
                              gain: float = 20.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Joint velocity reference that makes the TCP follow ``trajectory`` (Fig. 3.12).
 
@@ -311,8 +318,10 @@ def _polyline_distance(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     return best
 
 
-def reproduce_path(robot, t, positions, q0, *, rotations=None, tolerance: float = 0.01, speed: float = 0.1,
-                   blend_time: float = 0.4, kind: str = "quintic", dt: float = 0.001, **keypoint_args) -> Reproduction:
+def reproduce_path(robot: Robot, t: ArrayLike, positions: ArrayLike, q0: ArrayLike, *,
+                   rotations: ArrayLike | None = None, tolerance: float = 0.01, speed: float = 0.1,
+                   blend_time: float = 0.4, kind: str = "quintic", dt: float = 0.001,
+                   **keypoint_args: Any) -> Reproduction:
     """Key points of a guided TCP path -> blended trajectory -> joint velocity reference.
 
     Args:
@@ -344,14 +353,13 @@ def reproduce_path(robot, t, positions, q0, *, rotations=None, tolerance: float 
     return Reproduction(k, tr, joints, err)
 
 
-def plot_reproduction(guided: np.ndarray, rep: Reproduction, path, *, executed: np.ndarray | None = None):
+def plot_reproduction(guided: np.ndarray, rep: Reproduction, path: str | Path, *,
+                      executed: np.ndarray | None = None) -> Path:
     """Guided path, key points and reproduced path (Fig.
 
     3.11) beside the joint velocity reference (Fig. 3.12). ``guided`` (N, 3) and ``executed`` (M, 3) are TCP
     positions, m. Returns the PNG path.
     """
-    from pathlib import Path
-
     import matplotlib
 
     matplotlib.use("Agg")

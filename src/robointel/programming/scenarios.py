@@ -31,6 +31,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robointel.errors import InvalidInput
 from robointel.geometry import Cylinder
@@ -143,7 +144,7 @@ class SimulatedOperator:
         """Target point (3,) at time t, s."""
         return self.targets(np.array([float(t)]))[0]
 
-    def targets(self, t) -> np.ndarray:
+    def targets(self, t: ArrayLike) -> np.ndarray:
         """Target points (M, 3) at times t (M,), s."""
         t = np.asarray(t, float)
         T1 = self.legs[0].duration
@@ -244,7 +245,7 @@ class ScenarioResult:
         }
 
 
-def _start_configuration(robot, p0: np.ndarray) -> np.ndarray:
+def _start_configuration(robot: Robot, p0: np.ndarray) -> np.ndarray:
     """IK of the start TCP position with the tool pointing down, elbow up, closest to q_home."""
     q_home = np.array([0.0, 0.0, 0.0, 0.0, -np.pi / 2, 0.0])
     T = robot.fk(q_home)
@@ -253,8 +254,8 @@ def _start_configuration(robot, p0: np.ndarray) -> np.ndarray:
 
 
 def run_scenario(number: int, method: str = "qp", *, duration: float | None = None, physics: bool = True,
-                 config: GuidanceConfig | None = None, robot=None, ft_noise: float = 0.05,
-                 ft_bias=(1.5, -0.8, 2.0, 0.05, -0.03, 0.02), identify: bool = True,
+                 config: GuidanceConfig | None = None, robot: Robot | None = None, ft_noise: float = 0.05,
+                 ft_bias: ArrayLike = (1.5, -0.8, 2.0, 0.05, -0.03, 0.02), identify: bool = True,
                  progress: Callable[[float], None] | None = None, seed: int = 0) -> ScenarioResult:
     """Run scenario ``number`` with a guidance ``method`` and a simulated operator.
 
@@ -299,8 +300,8 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
             extra["identified_mass"] = cal.mass
             extra["identified_com"] = cal.com.tolist()
         else:
-            cal = FTCalibration(payload.mass, np.asarray(payload.com, float), np.asarray(ft_bias[:3], float),
-                                np.asarray(ft_bias[3:], float), 0.0, 0.0)
+            bias = np.asarray(ft_bias, float)
+            cal = FTCalibration(payload.mass, np.asarray(payload.com, float), bias[:3], bias[3:], 0.0, 0.0)
         wc.reset(q0)
         wc.hold(0.05)
     q = q0.copy()
@@ -360,14 +361,14 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
                           extra=extra, step_cpu_us=cpu)
 
 
-def _obstacle_contacts(wc) -> int:
+def _obstacle_contacts(wc: Workcell) -> int:
     d = wc.data
     if d.ncon == 0:
         return 0
     return sum(1 for c in wc.contacts() if c.kind == "obstacle" and c.distance < 0)
 
 
-def plot_scenario(result: ScenarioResult, path, *, d0: float = 0.15) -> Path:
+def plot_scenario(result: ScenarioResult, path: str | Path, *, d0: float = 0.15) -> Path:
     """Four panels like Fig. 4.6b: distance, lead vs commanded speed, deviation, approach rate.
 
     Returns the PNG path.

@@ -7,6 +7,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -57,7 +58,7 @@ def run_demo(stages: list[Stage], out: Path, *, quick: bool = False, console: Co
             name = getattr(stage, "__module__", "stage").rsplit(".", 1)[-1]
             task = progress.add_task(name, total=1.0, status="")
 
-            def advance(frac: float, status: str = "", _t=task) -> None:
+            def advance(frac: float, status: str = "", _t: Any = task) -> None:
                 progress.update(_t, completed=max(0.0, min(1.0, frac)), status=status)
 
             sub = out / name

@@ -20,14 +20,20 @@ lets very stiff joints run at 1 kHz; numerical damping of a mode of frequency w 
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput, SafetyStop
 from robointel.sim.controller import JointController
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.robot import Robot
 
 #: ESTIMATES for the LR Mate 200iD/7L (no public data): joint stiffness (N m/rad), joint damping
 #: (N m s/rad), rotor inertia (kg m^2), motor viscous friction (N m s/rad), gear ratio.
@@ -59,7 +65,7 @@ class FlexibleJointParams:
     gear_ratio: np.ndarray
 
     @classmethod
-    def lrmate(cls, **overrides) -> FlexibleJointParams:
+    def lrmate(cls, **overrides: Any) -> FlexibleJointParams:
         """The LR Mate estimates :data:`LRMATE_FLEXIBLE` (override any field)."""
         return cls(**{**LRMATE_FLEXIBLE, **overrides})
 
@@ -98,7 +104,7 @@ class FlexibleJointModel:
         substeps: internal integration steps per :meth:`step`.
     """
 
-    def __init__(self, robot, params: FlexibleJointParams | None = None, *, dt: float = 0.001,
+    def __init__(self, robot: Robot, params: FlexibleJointParams | None = None, *, dt: float = 0.001,
                  substeps: int = 1) -> None:
         if not (np.isfinite(dt) and dt > 0) or int(substeps) < 1:
             raise InvalidInput(f"dt must be > 0 and substeps >= 1, got {dt!r}, {substeps!r}", value=(dt, substeps))
@@ -115,7 +121,8 @@ class FlexibleJointModel:
         self.reset(np.clip(np.zeros(self.n), robot.lower, robot.upper))
 
     # ------------------------------------------------------------------ state
-    def reset(self, q, qd=None, *, theta=None, thetad=None) -> None:
+    def reset(self, q: ArrayLike, qd: ArrayLike | None = None, *, theta: ArrayLike | None = None,
+              thetad: ArrayLike | None = None) -> None:
         """Set the state.
 
         ``theta`` defaults to the static equilibrium q + K^-1 G(q) (springs wound up by gravity), ``thetad`` to
@@ -128,12 +135,12 @@ class FlexibleJointModel:
         self.thetad = qd.copy() if thetad is None else self.robot.check_q(thetad, "thetad").copy()
         self.time = 0.0
 
-    def equilibrium_motor_position(self, q) -> np.ndarray:
+    def equilibrium_motor_position(self, q: ArrayLike) -> np.ndarray:
         """Theta with K (theta - q) = G(q): the motor position holding the arm still at q, (n,)."""
         q = self.robot.check_q(q)
         return q + pin.computeGeneralizedGravity(self._model, self._data, q) / self._K
 
-    def holding_torque(self, q) -> np.ndarray:
+    def holding_torque(self, q: ArrayLike) -> np.ndarray:
         """Motor torque tau_m (motor side, N m) that holds the arm at rest at q: G(q) / N."""
         q = self.robot.check_q(q)
         return pin.computeGeneralizedGravity(self._model, self._data, q) / self._N
@@ -149,7 +156,7 @@ class FlexibleJointModel:
         return self._K * (self.theta - self.q) + self._D * (self.thetad - self.qd)
 
     # ------------------------------------------------------------------ dynamics
-    def step(self, tau_m, tau_ext=None) -> None:
+    def step(self, tau_m: ArrayLike, tau_ext: ArrayLike | None = None) -> None:
         """Advance the flexible-joint model by one step ``dt``.
 
         Advance by ``dt`` with motor torques ``tau_m`` (n,) N m (motor side, held constant) and an optional external
@@ -186,7 +193,7 @@ class FlexibleJointModel:
         if not (np.all(np.isfinite(self.q)) and np.all(np.isfinite(self.theta))):
             raise SafetyStop("the flexible-joint simulation diverged (non-finite state); check the parameters")
 
-    def controller(self, **kwargs):
+    def controller(self, **kwargs: Any) -> JointController:
         """A Fig.
 
         2.3 :class:`~robointel.sim.JointController` for this arm: feed-forward and gain schedule from the rigid
@@ -197,7 +204,8 @@ class FlexibleJointModel:
         kwargs.setdefault("friction_compensation", False)
         return JointController(self.robot, dt=self.dt, model=rigid, gain_model=rigid, **kwargs)
 
-    def track(self, controller, q_ref, qd_ref=None, qdd_ref=None, *, measure: str = "motor") -> np.ndarray:
+    def track(self, controller: JointController, q_ref: ArrayLike, qd_ref: ArrayLike | None = None,
+              qdd_ref: ArrayLike | None = None, *, measure: str = "motor") -> np.ndarray:
         """One control period of ``controller`` (a :class:`~robointel.sim.JointController`) on this arm.
 
         It measures the motor encoders (``measure="motor"``, theta, as a real drive does) or the links (``"link"``,
@@ -220,25 +228,25 @@ class FlexibleJointModel:
         self.step(tau / self._N)
         return tau
 
-    def simulate(self, tau_m_fn, duration: float) -> dict:
+    def simulate(self, tau_m_fn: Callable[[FlexibleJointModel], np.ndarray], duration: float) -> dict[str, np.ndarray]:
         """Run for ``duration`` s calling ``tau_m_fn(model) -> tau_m`` every ``dt``.
 
         Returns arrays ``t`` (N,), ``q``, ``qd``, ``theta``, ``thetad``, ``tau_m`` (N, n) sampled before each step.
         """
         steps = int(round(float(duration) / self.dt))
-        out = {k: np.empty((steps, self.n)) for k in ("q", "qd", "theta", "thetad", "tau_m")}
+        out: dict[str, np.ndarray] = {k: np.empty((steps, self.n)) for k in ("q", "qd", "theta", "thetad", "tau_m")}
         t = np.empty(steps)
         for k in range(steps):
             t[k] = self.time
             out["q"][k], out["qd"][k] = self.q, self.qd
             out["theta"][k], out["thetad"][k] = self.theta, self.thetad
-            tau = np.asarray(tau_m_fn(self), dtype=float)
+            tau = np.asarray(tau_m_fn(self), dtype=np.float64)
             out["tau_m"][k] = tau
             self.step(tau)
         out["t"] = t
         return out
 
-    def resonance_frequencies(self, q) -> np.ndarray:
+    def resonance_frequencies(self, q: ArrayLike) -> np.ndarray:
         """Natural frequencies of the elastic modes of (2.1)-(2.2), Hz.
 
         Natural frequencies (Hz, ascending, n of them) of the elastic modes of (2.1)-(2.2) linearised at rest at q

@@ -25,13 +25,17 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robointel._validate import as_array
 from robointel.errors import DescriptionError, InvalidInput
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.robot import Robot
 
 #: Height of the table top above the floor (m). The table top is z = 0 of the world frame.
 TABLE_HEIGHT = 0.75
@@ -186,7 +190,7 @@ def shape_name(shape: Any, default: str) -> str:
     return str(n) if n else default
 
 
-def _prepare_urdf(robot) -> str:
+def _prepare_urdf(robot: Robot) -> str:
     """URDF text with the MuJoCo compiler options that keep the model exactly as written.
 
     ``package://`` mesh paths are resolved next to the URDF file when possible; mesh geoms MuJoCo
@@ -205,7 +209,7 @@ def _prepare_urdf(robot) -> str:
     return text
 
 
-def _resolve_meshes(text: str, urdf_path) -> str:
+def _resolve_meshes(text: str, urdf_path: str | Path | None) -> str:
     import xml.etree.ElementTree as ET
 
     root = ET.fromstring(text)
@@ -251,9 +255,9 @@ def _find_mesh(fn: str, base: Path) -> Path | None:
 
 
 # ---------------------------------------------------------------------------------------- builder
-def build_spec(robot, *, table: bool = True, obstacles: Sequence[Any] = (), objects: Sequence[SimObject] = (),
+def build_spec(robot: Robot, *, table: bool = True, obstacles: Sequence[Any] = (), objects: Sequence[SimObject] = (),
                ft_sensor: bool = True, payload: Payload | None = None, timestep: float = 0.001,
-               armature=None, self_collision: bool = False) -> tuple[mujoco.MjSpec, dict]:
+               armature: ArrayLike | None = None, self_collision: bool = False) -> tuple[mujoco.MjSpec, dict]:
     """Build the MuJoCo spec of the workcell from ``robot.urdf``.
 
     Args:
@@ -409,7 +413,7 @@ def build_spec(robot, *, table: bool = True, obstacles: Sequence[Any] = (), obje
     return spec, {"obstacles": names, "objects": onames, "flange_body": flange_body}
 
 
-def _flange_body(robot) -> tuple[str, np.ndarray]:
+def _flange_body(robot: Robot) -> tuple[str, np.ndarray]:
     """The MuJoCo body of the flange frame (every URDF link is a body.
 
     No static fusing) and the flange pose in it (identity).
@@ -462,7 +466,7 @@ def _add_object(spec: mujoco.MjSpec, obj: SimObject) -> None:
                   contype=ENV_CONTYPE, conaffinity=ENV_CONAFFINITY)
 
 
-def build_model(robot, **kwargs) -> tuple[mujoco.MjModel, dict]:
+def build_model(robot: Robot, **kwargs: Any) -> tuple[mujoco.MjModel, dict]:
     """Compile :func:`build_spec` into an ``MjModel`` (same arguments)."""
     spec, info = build_spec(robot, **kwargs)
     try:
