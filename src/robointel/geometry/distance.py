@@ -145,8 +145,8 @@ def _rows(sm: SphereModel, movable_only: bool) -> np.ndarray:
     return np.arange(len(sm.radii))
 
 
-def _fill(C: np.ndarray, J: np.ndarray, radii: np.ndarray, rows: np.ndarray, os_: ObstacleSet, D: Any, N: np.ndarray,
-          RP: np.ndarray, OP: np.ndarray, G: np.ndarray) -> None:
+def _fill(C: np.ndarray, J: np.ndarray, radii: np.ndarray, rows: np.ndarray, os_: ObstacleSet, D: np.ndarray,
+          N: np.ndarray, RP: np.ndarray, OP: np.ndarray, G: np.ndarray) -> None:
     """Fill the output arrays for the spheres ``rows`` of centres C (M,3), Jacobians J (M,>=3,n)."""
     if len(os_.types):
         K.sphere_pairs(C, J, radii, rows, os_.types, os_.params, os_.cols, D, N, RP, OP, G)

@@ -6,8 +6,6 @@ parent frame; roll-pitch-yaw is ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (the URDF con
 """
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike
@@ -72,7 +70,7 @@ def so3_log(R: ArrayLike) -> np.ndarray:
     return np.asarray(pin.log3(check_rotation(R)), float)
 
 
-def project_to_rotation(M: Any) -> np.ndarray:
+def project_to_rotation(M: ArrayLike) -> np.ndarray:
     """Nearest proper rotation (Frobenius norm) to a 3x3 matrix, via SVD with det = +1."""
     M = as_array(M, "matrix", (3, 3))
     U, _, Vt = np.linalg.svd(M)

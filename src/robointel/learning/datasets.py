@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.io import loadmat
 
 from robointel.errors import DataMissing, InvalidInput
 from robointel.io.reference import data_path
@@ -58,8 +59,6 @@ def load_lasa(name: str) -> LasaShape:
     Raises:
         InvalidInput: unknown shape name (the message lists the valid ones).
     """
-    from scipy.io import loadmat
-
     path = lasa_folder() / f"{name}.mat"
     if not path.exists():
         raise InvalidInput(f"unknown LASA shape {name!r}; choose one of {lasa_names(include_multi=True)}", value=name)

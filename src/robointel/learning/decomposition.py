@@ -24,6 +24,8 @@ from typing import Any
 import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from sklearn.metrics.pairwise import rbf_kernel
+from sklearn.svm import SVC
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput, ShapeError
@@ -226,9 +228,6 @@ class ActionSegmenter:
             ShapeError: different feature dimensions or label lengths. NotFinite: NaN samples.
             InvalidInput: a window longer than a demonstration, an action never labelled.
         """
-        from sklearn.metrics.pairwise import rbf_kernel
-        from sklearn.svm import SVC
-
         if len(series) == 0 or len(series) != len(labels):
             raise InvalidInput("give as many label arrays as demonstrations (at least one)")
         dims = {np.shape(s)[1] if np.ndim(s) == 2 else -1 for s in series}
@@ -296,8 +295,6 @@ class ActionSegmenter:
         Only the support vectors enter an SVM's decision function, so only their kernel columns are evaluated (the
         others multiply zero dual coefficients and are left at zero).
         """
-        from sklearn.metrics.pairwise import rbf_kernel
-
         K = np.zeros((len(D), self.n_train_windows_))
         K[:, self.svm_.support_] = rbf_kernel(D, self.support_descriptors_, gamma=self.gamma_)
         return self.svm_.decision_function(K)

@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
 from scipy.special import logsumexp
+from sklearn.mixture import GaussianMixture
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput, ShapeError
@@ -127,8 +128,6 @@ class GaussianMixtureRegression:
             ShapeError: X and Y of different lengths. NotFinite: NaN samples.
             InvalidInput: fewer samples than ``n_components`` (or than the joint dimension + 1 per component).
         """
-        from sklearn.mixture import GaussianMixture
-
         X = as_array(X, "X")
         Y = as_array(Y, "Y")
         X = X[:, None] if X.ndim == 1 else X

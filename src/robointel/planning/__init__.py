@@ -11,7 +11,6 @@
 - Baselines: :func:`slsqp`, :func:`slsqp_segment` (SQP), :func:`rrtconnect` (OMPL, dev extra).
 """
 
-from typing import Any
 
 from robointel.planning.cfs import CFSResult, NonlinearConstraint, cfs
 from robointel.planning.frmp import (
@@ -24,6 +23,7 @@ from robointel.planning.frmp import (
     plan_scene,
     planner_settings,
 )
+from robointel.planning.ompl_peer import OMPLResult, rrtconnect
 from robointel.planning.qp import DenseQP, SparseQP
 from robointel.planning.replan import ReplanResult, receding_horizon
 from robointel.planning.scene import Scene, builtin_scenes, load_scene, scene_from_dict
@@ -37,17 +37,6 @@ from robointel.planning.temporal import (
 )
 from robointel.planning.trajectory import PlannerSettings, SegmentPlan, TrajectoryPlanner, straight_reference
 
-
-def rrtconnect(*args: Any, **kwargs: Any) -> Any:
-    """OMPL RRTConnect + simplification peer (see :mod:`robointel.planning.ompl_peer`; needs ``ompl``).
-
-    Imported on call: ``ompl`` is an optional (dev extra) dependency.
-    """
-    from robointel.planning.ompl_peer import rrtconnect as _r
-
-    return _r(*args, **kwargs)
-
-
 __all__ = [
     "cfs", "CFSResult", "NonlinearConstraint", "SparseQP", "DenseQP",
     "TrajectoryPlanner", "PlannerSettings", "SegmentPlan", "straight_reference",
@@ -55,5 +44,5 @@ __all__ = [
     "Scene", "load_scene", "scene_from_dict", "builtin_scenes",
     "plan_scene", "execute", "check_trajectory", "make_planners", "planner_settings",
     "FRMPResult", "Execution", "TrajectoryCheck",
-    "receding_horizon", "ReplanResult", "slsqp", "slsqp_segment", "SQPResult", "rrtconnect",
+    "receding_horizon", "ReplanResult", "slsqp", "slsqp_segment", "SQPResult", "rrtconnect", "OMPLResult",
 ]

@@ -329,7 +329,8 @@ class TrajectoryPlanner:
         a_off = self._D2_end @ ends
         return (np.r_[lo, -vb - v_off, -ab - a_off], np.r_[up, vb - v_off, ab - a_off])
 
-    def _collision_rows(self, X: np.ndarray, D: Any, d_req: float) -> tuple[Any, NDArray[np.float64]]:
+    def _collision_rows(self, X: np.ndarray, D: SphereDistances | None,
+                        d_req: float) -> tuple[Any, NDArray[np.float64]]:
         """Fill A's collision entries and bounds from distances D at the samples of X."""
         st = self.settings
         K, n = int(st.slots), self.n
@@ -486,7 +487,8 @@ class TrajectoryPlanner:
                            min_distance=float(dmin), seconds=time.perf_counter() - t0, blocked=bool(blocked),
                            iterates=iterates)
 
-    def _solve_qp(self, qz: np.ndarray, l: np.ndarray, u: np.ndarray, data: Any, z0: np.ndarray) -> Any:
+    def _solve_qp(self, qz: np.ndarray, l: np.ndarray, u: np.ndarray, data: np.ndarray,
+                  z0: np.ndarray) -> QPSolution:
         """Solve one CFS QP.
 
         ``solver="daqp"`` (default): DAQP (dual active set, dense, exact) on a working set of rows
@@ -541,7 +543,8 @@ class TrajectoryPlanner:
                 sol.x = x
                 return sol
             work |= viol
-        if sol is not None and not elastic:
+        assert sol is not None  # the loop ran at least once
+        if not elastic:
             sol.x = np.r_[sol.x, np.zeros(self.nz - self.nv)]
         return sol
 
@@ -565,7 +568,7 @@ class TrajectoryPlanner:
         w[1:-1] = Xr[1:-1] * self._Qw[None]
         return -2 * self.settings.w1 * w.ravel()
 
-    def _merit(self, X: np.ndarray, Xr: np.ndarray, D: Any, d_req: float) -> float:
+    def _merit(self, X: np.ndarray, Xr: np.ndarray, D: SphereDistances | None, d_req: float) -> float:
         """Exact-penalty merit of the elastic phase.
 
         J + elastic * sum over samples of the clearance shortfall (the QP's slack objective evaluated with the true

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
+from ruckig import ControlInterface, InputParameter, OutputParameter, Result, Ruckig
 from scipy.interpolate import CubicSpline
 
 from robointel._validate import as_array
@@ -150,8 +151,6 @@ class LimitedFollower:
 
     def __init__(self, n: int, vmax: ArrayLike, amax: ArrayLike, jmax: ArrayLike, *, dt: float = 0.001,
                  gain: float = 12.0, lower: ArrayLike | None = None, upper: ArrayLike | None = None) -> None:
-        from ruckig import ControlInterface, InputParameter, OutputParameter, Ruckig
-
         self.n = n
         self.vmax, self.amax, self.jmax = (np.broadcast_to(as_array(x, "limit"), (n,)).astype(float)
                                            for x in (vmax, amax, jmax))
@@ -178,8 +177,6 @@ class LimitedFollower:
     def step(self, target: ArrayLike,
              target_velocity: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One period toward ``target`` (n,) moving at ``target_velocity`` (n,): (q, qd, qdd)."""
-        from ruckig import Result
-
         e = np.asarray(target, float) - self.q
         fb = np.sign(e) * np.minimum(self.gain * np.abs(e), np.sqrt(0.5 * self.amax * np.abs(e)))
         tv = np.zeros(self.n) if target_velocity is None else np.asarray(target_velocity, float)

@@ -17,7 +17,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import pinocchio as pin
 from numpy.typing import ArrayLike
+from scipy.spatial.transform import Rotation, Slerp
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
@@ -210,8 +212,6 @@ def orientation_reference(trajectory: BlendedTrajectory, rotations: ArrayLike, t
     Slerp between the key points' orientations ``rotations`` (K, 3, 3), eased (smoothstep) so it rests at each key
     point.
     """
-    from scipy.spatial.transform import Rotation, Slerp
-
     R = as_array(rotations, "rotations", (len(trajectory.points), 3, 3))
     knots = trajectory.times.copy()
     knots[0], knots[-1] = 0.0, trajectory.duration
@@ -243,8 +243,6 @@ def joint_velocity_reference(robot: Robot, q0: ArrayLike, trajectory: BlendedTra
     Returns:
         t (M,), q (M, n), dq (M, n).
     """
-    import pinocchio as pin
-
     q = robot.check_q(q0).copy()
     t = np.arange(0.0, trajectory.duration + dt / 2, dt)
     pd, vd, _ = trajectory(t)

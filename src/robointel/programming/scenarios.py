@@ -31,6 +31,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 from numpy.typing import ArrayLike
 
 from robointel.errors import InvalidInput
@@ -162,8 +163,6 @@ class SimulatedOperator:
 
         Tau] (6,) on the handle, world axes, about the TCP (``target``: the precomputed :meth:`target` at t).
         """
-        import pinocchio as pin
-
         p = self.target(t) if target is None else target
         f = self.stiffness * (p - T_tcp[:3, 3]) - self.damping * v_tcp
         nf = np.linalg.norm(f)

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike
+from scipy.linalg import eigh
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput, SafetyStop
@@ -255,8 +256,6 @@ class FlexibleJointModel:
         Raises:
             InvalidInput: bad q.
         """
-        from scipy.linalg import eigh
-
         q = self.robot.check_q(q)
         M = pin.crba(self._model, self._data, q)
         M = np.triu(M) + np.triu(M, 1).T

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import re
 import warnings
+import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -210,8 +211,6 @@ def _prepare_urdf(robot: Robot) -> str:
 
 
 def _resolve_meshes(text: str, urdf_path: str | Path | None) -> str:
-    import xml.etree.ElementTree as ET
-
     root = ET.fromstring(text)
     base = Path(urdf_path).resolve().parent if urdf_path else Path.cwd()
     dropped = []
