@@ -37,6 +37,9 @@ def test_table71_scene_shape(scene):
 def test_frmp_plan_is_collision_free_within_limits_and_faster(scene, result):
     assert result.blocked == [False, False, True, True, False]
     assert all(s.feasible for s in result.segments)
+    # every segment ran CFS, and the blocked ones needed more than one iteration
+    assert all(s.iterations >= 1 for s in result.segments)
+    assert all(s.iterations >= 2 for s, b in zip(result.segments, result.blocked) if b)
     assert result.check.min_clearance >= scene.d_min - 1e-3
     assert result.check.limit_violations == 0
     assert result.operational_time_fixed == pytest.approx(15.0)

@@ -438,7 +438,7 @@ class TrajectoryPlanner:
         up_coll = np.full(self._coll_nrows, INF)
         nS = len(self.samples)
         qz = np.r_[q, np.full(nS, st.elastic)]
-        for _it in range(1, st.max_iter + 1):
+        for it in range(1, st.max_iter + 1):  # noqa: B007 - the count is reported after the loop
             data, lo_c = self._collision_rows(X, D, d_req)
             # elastic slacks only while the reference is infeasible (Sec. 7.2: CFS from an infeasible start)
             smax = INF if not feas else 0.0
