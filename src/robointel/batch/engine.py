@@ -19,6 +19,7 @@ from rich.console import Console
 
 from robointel.batch.execute import Fault, execute
 from robointel.batch.progress import BatchProgress, Counts
+from robointel.batch.registry import get_kind
 from robointel.batch.spec import TaskSpec, unique
 from robointel.batch.store import ResultStore
 from robointel.errors import EngineUnavailable, InvalidInput
@@ -113,6 +114,7 @@ def run_batch(specs: Sequence[TaskSpec], results: str | Path, *, engine: str = "
 
     Raises:
         InvalidInput: unknown engine, or bad numbers of workers, CPUs or retries.
+        UnknownTaskKind: a spec names a kind that is not registered.
         EngineUnavailable: Ray is not installed or the cluster cannot be joined.
     """
     if engine not in ENGINES:
@@ -123,6 +125,8 @@ def run_batch(specs: Sequence[TaskSpec], results: str | Path, *, engine: str = "
                                   "flush_rows": flush_rows})
     if fault is not None and engine != "ray":
         raise InvalidInput("fault injection kills a worker process: use it with the Ray engine only", value=fault)
+    for kind in sorted({s.kind for s in specs}):
+        get_kind(kind)  # an unknown kind fails here, before anything runs
     t0 = time.perf_counter()
     store = ResultStore(results)
     specs = unique(specs)
