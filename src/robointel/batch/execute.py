@@ -113,9 +113,13 @@ def execute(spec_dict: dict[str, Any], fault: Fault | None = None, engine: str =
     try:
         kind = get_kind(spec.kind)
         category = spec.category or kind.category(spec)
+        numba_threads = numba.get_num_threads()
         numba.set_num_threads(1)
-        with threadpool_limits(limits=1):
-            outcome = kind.run(spec)
+        try:
+            with threadpool_limits(limits=1):
+                outcome = kind.run(spec)
+        finally:
+            numba.set_num_threads(numba_threads)
         if not isinstance(outcome, TrialOutcome):
             raise TypeError(f"trial kind {spec.kind!r} returned {type(outcome).__name__}, not a TrialOutcome")
     except Exception as exc:
