@@ -22,19 +22,29 @@ def _netns_ok() -> str:
     return "" if r.returncode == 0 else f"cannot create a network namespace (needs root): {r.stderr.strip()}"
 
 
-@pytest.fixture(scope="module")
-def ray_results(tmp_path_factory):
+def _in_netns(script: str, root: Path) -> dict:
+    """Run ``script`` ROOT inside ``unshare --net`` with only ``lo`` up; return its RESULT JSON."""
     why = _netns_ok()
     if why:
         pytest.skip(why)
-    root = tmp_path_factory.mktemp("ray")
     env = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", ""),
            "RAY_USAGE_STATS_ENABLED": "0"}
-    cmd = f"ip link set lo up && exec {sys.executable} {HERE / 'ray_scenarios.py'} {root}"
+    cmd = f"ip link set lo up && exec {sys.executable} {HERE / script} {root}"
     r = subprocess.run(["unshare", "--net", "sh", "-c", cmd], capture_output=True, text=True, env=env, timeout=400)
     line = next((ln for ln in r.stdout.splitlines() if ln.startswith("RESULT ")), None)
-    assert r.returncode == 0 and line, f"ray scenarios failed:\n{r.stdout[-3000:]}\n{r.stderr[-5000:]}"
+    assert r.returncode == 0 and line, f"{script} failed:\n{r.stdout[-3000:]}\n{r.stderr[-5000:]}"
     return json.loads(line[len("RESULT "):])
+
+
+@pytest.fixture(scope="module")
+def ray_results(tmp_path_factory):
+    return _in_netns("ray_scenarios.py", tmp_path_factory.mktemp("ray"))
+
+
+def test_join_a_cluster_through_ray_client(tmp_path):
+    r = _in_netns("ray_client_scenario.py", tmp_path)
+    assert r["done"] == 6 and r["engines"] == ["ray"] and r["same_as_inprocess"]
+    assert all(not w.endswith(f":{r['driver_pid']}") for w in r["workers"])  # ran in the cluster's workers
 
 
 def test_ray_ran_on_loopback_only(ray_results):
