@@ -11,7 +11,9 @@ runs four times in one process, each into a fresh result folder:
   the insertion cell, the grasp planner);
 * Ray with 1 worker (``ray.init(num_cpus=1)``) and Ray with 2 workers, each after a warm-up round;
   ``throughput_*`` = tasks / wall time of the run; ``speedup_2_workers`` = 2-worker over 1-worker
-  throughput; ``overhead_per_task_ms`` = (Ray 1-worker wall - in-process wall) / tasks;
+  throughput; ``overhead_per_task_ms`` = (Ray 1-worker wall - in-process wall) / tasks on these
+  trials, and ``overhead_per_task_ms_empty_tasks`` the same on ``--empty`` zero-work synthetic tasks
+  (Ray's dispatch and the store alone, without the trials' noise on a shared machine);
 * Ray with 2 workers on the insertion trials again, with the worker of one task killed (SIGKILL)
   0.3 s into its first attempt: ``lost`` = keys missing from the Parquet files, ``duplicated`` =
   extra rows over all files (no store deduplication counted), and whether the outcomes equal the
@@ -76,6 +78,7 @@ def main() -> None:
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--insertion", type=int, default=12)
     ap.add_argument("--grasp", type=int, default=2)
+    ap.add_argument("--empty", type=int, default=200, help="empty synthetic tasks for the pure dispatch overhead")
     ap.add_argument("--no-netns", action="store_true", help="do not re-execute inside unshare --net")
     args = ap.parse_args()
     if not args.no_netns and os.environ.get("ROBOINTEL_NETNS") != "1":
@@ -103,6 +106,8 @@ def main() -> None:
     out["throughput_inprocess"] = n / t_in
     out["trial_s_median"] = float(np.nanmedian(trial_s))
     out["successes_inprocess"] = n - r_in.counts.failed
+    empty = [TaskSpec("synthetic", s, {"work_s": 0.0}) for s in range(args.empty)]
+    t_empty_in, _ = timed(empty, root / "empty-inproc")
 
     runs = {}
     for w in (1, 2):
@@ -114,6 +119,10 @@ def main() -> None:
         out[f"warmup_s_{w}_workers"] = time.perf_counter() - t0
         t, r = timed(specs, root / f"ray{w}", engine="ray", workers=w)
         runs[w] = t
+        if w == 1:
+            timed(empty[:10], root / "empty-warm", engine="ray", workers=1)
+            t_empty_ray, _ = timed(empty, root / "empty-ray1", engine="ray", workers=1)
+            out["overhead_per_task_ms_empty_tasks"] = (t_empty_ray - t_empty_in) / len(empty) * 1e3
         out[f"throughput_{w}_worker" + ("s" if w > 1 else "")] = n / t
         out[f"identical_to_inprocess_{w}_workers"] = outcomes(root / f"ray{w}") == outcomes(root / "inproc")
         if w == 2:  # a worker killed during the run

@@ -46,3 +46,25 @@ def test_guidance_kinematic_scenario():
 ])
 def test_grasp_reasons_map_to_the_shared_enum(reason, failure):
     assert grasp_failure(reason) is failure
+
+
+def _threads_trial(spec):
+    import numba
+    import threadpoolctl
+
+    from robointel.outcome import TrialOutcome
+
+    blas = max(x["num_threads"] for x in threadpoolctl.threadpool_info())
+    return TrialOutcome(True, figures={"blas_threads": blas, "numba_threads": numba.get_num_threads()})
+
+
+def test_a_task_runs_with_one_thread_per_library():
+    import numba
+
+    from robointel.batch import register_kind
+
+    register_kind("test-threads", _threads_trial, replace=True)
+    before = numba.get_num_threads()
+    row = execute(TaskSpec("test-threads", 0).to_dict())
+    assert row["figures"] == {"blas_threads": 1.0, "numba_threads": 1.0}
+    assert numba.get_num_threads() == before  # the driver's setting is restored

@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import numba
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 from robointel.batch.registry import get_kind
 from robointel.batch.spec import TaskSpec
@@ -33,6 +33,16 @@ __all__ = ["Fault", "THREAD_ENV", "execute", "failure_row"]
 #: Environment of a worker process: one thread for every numerical library (set before they load).
 THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
               "NUMBA_NUM_THREADS": "1", "VECLIB_MAXIMUM_THREADS": "1"}
+
+_CONTROLLERS: dict[str, ThreadpoolController] = {}  # per kind: the thread pools loaded once its module is
+
+
+def _pools(kind: str) -> ThreadpoolController:
+    """The BLAS/OpenMP thread pools of this process after ``kind``'s module loaded (inspected once)."""
+    if kind not in _CONTROLLERS:
+        _CONTROLLERS[kind] = ThreadpoolController()
+    return _CONTROLLERS[kind]
+
 
 _ERRORS = ((CollisionAtStart, Failure.COLLISION), (InfeasibleProblem, Failure.INFEASIBLE),
            (IKFailure, Failure.IK), (LimitViolation, Failure.LIMIT), (SafetyStop, Failure.FAULT))
@@ -116,7 +126,7 @@ def execute(spec_dict: dict[str, Any], fault: Fault | None = None, engine: str =
         numba_threads = numba.get_num_threads()
         numba.set_num_threads(1)
         try:
-            with threadpool_limits(limits=1):
+            with _pools(spec.kind).limit(limits=1):
                 outcome = kind.run(spec)
         finally:
             numba.set_num_threads(numba_threads)
