@@ -52,6 +52,17 @@ def main(root: Path) -> None:
     run_batch(specs, inproc, progress=False)
     out["kill"]["same_as_inprocess"] = outcomes(root / "kill") == outcomes(inproc)
 
+    # 1b. no retries left: the task becomes a "fault" row with Ray's error, the others are unaffected
+    few = [TaskSpec("synthetic", s, {"work_s": 0.4, "p_success": 1.0}) for s in range(3)]
+    (root / "markers0").mkdir()
+    fk = f"{few[1].spec_hash}:{few[1].seed}"
+    r0 = run_batch(few, root / "noretry", engine="ray", workers=2, max_retries=0, progress=False,
+                   fault=Fault((fk,), str(root / "markers0"), after_s=0.15))
+    rows0 = {f"{r['spec_hash']}:{r['seed']}": r for r in ResultStore(root / "noretry").rows()}
+    out["no_retry"] = {"errors": r0.counts.errors, "n": len(rows0), "victim_reason": rows0[fk]["reason"],
+                       "victim_traceback": rows0[fk]["traceback"][:300],
+                       "others": sorted(r["reason"] for k, r in rows0.items() if k != fk)}
+
     # 2. the same outcomes in-process and on Ray, real trials included
     mixed = [TaskSpec("synthetic", s, {"p_success": 0.5}) for s in range(6)]
     mixed += [TaskSpec("insertion", s, {"controller": "impedance"}) for s in (0, 1)]

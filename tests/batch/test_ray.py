@@ -61,6 +61,13 @@ def test_killed_worker_task_is_retried_and_stored_once(ray_results):
     assert k["same_as_inprocess"]
 
 
+def test_a_task_out_of_retries_is_a_fault_row(ray_results):
+    r = ray_results["no_retry"]
+    assert r["n"] == 3 and r["errors"] == 1
+    assert r["victim_reason"] == "fault" and r["victim_traceback"]  # Ray's error text is kept
+    assert r["others"] == ["none", "none"]
+
+
 def test_ray_and_inprocess_give_identical_outcomes(ray_results):
     i = ray_results["identical"]
     assert i["n_ray"] == i["n_inprocess"] == 9
