@@ -14,6 +14,8 @@ runs four times in one process, each into a fresh result folder:
   throughput; ``overhead_per_task_ms`` = (Ray 1-worker wall - in-process wall) / tasks on these
   trials, and ``overhead_per_task_ms_empty_tasks`` the same on ``--empty`` zero-work synthetic tasks
   (Ray's dispatch and the store alone, without the trials' noise on a shared machine);
+  ``cores_used_*`` = the tasks' CPU seconds over the run's wall time (what the run actually got of
+  the 2 cores while other jobs ran);
 * Ray with 2 workers on the insertion trials again, with the worker of one task killed (SIGKILL)
   0.3 s into its first attempt: ``lost`` = keys missing from the Parquet files, ``duplicated`` =
   extra rows over all files (no store deduplication counted), and whether the outcomes equal the
@@ -73,6 +75,11 @@ def timed(specs, folder, **kw):
     return r.wall_s, r
 
 
+def cores_used(folder, wall: float) -> float:
+    """CPU seconds the tasks got over the run's wall time: the cores the run effectively had."""
+    return sum(r["cpu_s"] for r in ResultStore(folder).rows()) / wall
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--json", action="store_true")
@@ -104,6 +111,7 @@ def main() -> None:
     t_in, r_in = timed(specs, root / "inproc")
     trial_s = [r["timings"].get("trial_s", np.nan) for r in ResultStore(root / "inproc").rows()]
     out["throughput_inprocess"] = n / t_in
+    out["cores_used_inprocess"] = cores_used(root / "inproc", t_in)
     out["trial_s_median"] = float(np.nanmedian(trial_s))
     out["successes_inprocess"] = n - r_in.counts.failed
     empty = [TaskSpec("synthetic", s, {"work_s": 0.0}) for s in range(args.empty)]
@@ -124,6 +132,7 @@ def main() -> None:
             t_empty_ray, _ = timed(empty, root / "empty-ray1", engine="ray", workers=1)
             out["overhead_per_task_ms_empty_tasks"] = (t_empty_ray - t_empty_in) / len(empty) * 1e3
         out[f"throughput_{w}_worker" + ("s" if w > 1 else "")] = n / t
+        out[f"cores_used_{w}_worker" + ("s" if w > 1 else "")] = cores_used(root / f"ray{w}", t)
         out[f"identical_to_inprocess_{w}_workers"] = outcomes(root / f"ray{w}") == outcomes(root / "inproc")
         if w == 2:  # a worker killed during the run
             ins = [s for s in specs if s.kind == "insertion"]

@@ -97,7 +97,7 @@ def failure_row(spec: TaskSpec, reason: Failure, detail: str, tb: str = "", *, e
         category = spec.category or spec.kind
     row = _base(spec, category)
     row.update(TrialOutcome(False, reason, detail).to_record())
-    row.update({"traceback": tb, "worker": "", "engine": engine, "wall_s": 0.0,
+    row.update({"traceback": tb, "worker": "", "engine": engine, "wall_s": 0.0, "cpu_s": 0.0,
                 "finished_at": datetime.now(UTC)})
     return row
 
@@ -113,10 +113,11 @@ def execute(spec_dict: dict[str, Any], fault: Fault | None = None, engine: str =
     Returns:
         The result row: ``spec_hash``, ``seed``, ``kind``, ``category``, ``spec``, the outcome record
         (``success``, ``reason``, ``detail``, ``figures``, ``timings``), ``traceback`` (empty unless
-        the trial raised), ``worker`` (host:pid), ``engine``, ``wall_s`` and ``finished_at`` (UTC).
+        the trial raised), ``worker`` (host:pid), ``engine``, ``wall_s``, ``cpu_s`` (CPU time of the
+        worker process during the task) and ``finished_at`` (UTC).
     """
     spec = TaskSpec.from_dict(spec_dict)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     timer = fault.arm(spec) if fault else None
     tb = ""
     category = spec.category or spec.kind
@@ -142,5 +143,6 @@ def execute(spec_dict: dict[str, Any], fault: Fault | None = None, engine: str =
     row = _base(spec, category)
     row.update(outcome.to_record())
     row.update({"traceback": tb, "worker": f"{socket.gethostname()}:{os.getpid()}", "engine": engine,
-                "wall_s": time.perf_counter() - t0, "finished_at": datetime.now(UTC)})
+                "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
+                "finished_at": datetime.now(UTC)})
     return row

@@ -10,8 +10,8 @@ ever hold it (two drivers on one folder).
 Schema (:data:`SCHEMA`): ``spec_hash`` string, ``seed`` int64, ``kind``, ``category``,
 ``spec`` (JSON of the :class:`TaskSpec`), ``success`` bool, ``reason`` (a :class:`Failure` value),
 ``detail``, ``figures`` and ``timings`` (map string -> float64, SI units / seconds),
-``traceback`` (empty unless the trial raised), ``worker`` (host:pid), ``engine``, ``wall_s``,
-``finished_at`` (timestamp, UTC).
+``traceback`` (empty unless the trial raised), ``worker`` (host:pid), ``engine``, ``wall_s`` and
+``cpu_s`` (wall and CPU seconds of the task in its worker), ``finished_at`` (timestamp, UTC).
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ SCHEMA = pa.schema([
     ("spec", pa.string()), ("success", pa.bool_()), ("reason", pa.string()), ("detail", pa.string()),
     ("figures", pa.map_(pa.string(), pa.float64())), ("timings", pa.map_(pa.string(), pa.float64())),
     ("traceback", pa.string()), ("worker", pa.string()), ("engine", pa.string()), ("wall_s", pa.float64()),
-    ("finished_at", pa.timestamp("us", tz="UTC")),
+    ("cpu_s", pa.float64()), ("finished_at", pa.timestamp("us", tz="UTC")),
 ])
 
 
