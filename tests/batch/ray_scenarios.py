@@ -14,6 +14,7 @@ import ray
 
 from robointel.batch import Fault, ResultStore, TaskSpec, run_batch
 from robointel.batch.ray_engine import start_ray
+from robointel.errors import InvalidInput
 
 
 def outcomes(folder):
@@ -62,6 +63,12 @@ def main(root: Path) -> None:
     out["no_retry"] = {"errors": r0.counts.errors, "n": len(rows0), "victim_reason": rows0[fk]["reason"],
                        "victim_traceback": rows0[fk]["traceback"][:300],
                        "others": sorted(r["reason"] for k, r in rows0.items() if k != fk)}
+
+    try:
+        run_batch(few, root / "toobig", engine="ray", cpus_per_task=3.0, progress=False)
+        out["too_many_cpus"] = "no error"
+    except InvalidInput as exc:
+        out["too_many_cpus"] = str(exc)
 
     # 2. the same outcomes in-process and on Ray, real trials included
     mixed = [TaskSpec("synthetic", s, {"p_success": 0.5}) for s in range(6)]

@@ -66,6 +66,7 @@ def test_a_task_out_of_retries_is_a_fault_row(ray_results):
     assert r["n"] == 3 and r["errors"] == 1
     assert r["victim_reason"] == "fault" and r["victim_traceback"]  # Ray's error text is kept
     assert r["others"] == ["none", "none"]
+    assert "exceeds the cluster's 2 CPUs" in ray_results["too_many_cpus"]
 
 
 def test_ray_and_inprocess_give_identical_outcomes(ray_results):

@@ -22,7 +22,7 @@ from ray.exceptions import RayError
 
 from robointel.batch.execute import THREAD_ENV, Fault, execute, failure_row
 from robointel.batch.spec import TaskSpec
-from robointel.errors import EngineUnavailable
+from robointel.errors import EngineUnavailable, InvalidInput
 from robointel.outcome import Failure
 
 __all__ = ["run_on_ray", "start_ray"]
@@ -60,10 +60,15 @@ def run_on_ray(todo: Sequence[TaskSpec], on_row: Callable[[dict[str, Any]], None
 
     Raises:
         EngineUnavailable: see :func:`start_ray`.
+        InvalidInput: ``cpus_per_task`` exceeds the cluster's CPUs.
     """
     started = start_ray(workers=workers, address=address)
     try:
-        slots = max(1, int(ray.cluster_resources().get("CPU", workers) // cpus_per_task))
+        cpus = float(ray.cluster_resources().get("CPU", 0.0))
+        if cpus_per_task > cpus:
+            raise InvalidInput(f"cpus_per_task {cpus_per_task} exceeds the cluster's {cpus:g} CPUs: no task could "
+                               "ever start", value=cpus_per_task)
+        slots = max(1, int(cpus // cpus_per_task))
         remote = ray.remote(execute).options(num_cpus=cpus_per_task, max_retries=max_retries,
                                              retry_exceptions=False)
         queue = list(todo)[::-1]
