@@ -65,3 +65,19 @@ class DataMissing(RobointelError, FileNotFoundError):
 
 class SafetyStop(RobointelError):
     """A controller refused a command (bad sensor data, stalled stream) and held the robot."""
+
+
+class SweepFileError(InvalidInput):
+    """A batch sweep file (YAML) or task spec is malformed; ``.value`` holds the offending part."""
+
+
+class UnknownTaskKind(InvalidInput):
+    """A batch task names a trial kind that is not registered; ``.value`` is the kind."""
+
+
+class ResultStoreError(RobointelError):
+    """A batch result store (Parquet dataset folder) cannot be read or written."""
+
+
+class EngineUnavailable(RobointelError):
+    """A batch engine cannot start (Ray not installed, cluster unreachable); the message says what to do."""

@@ -1,0 +1,44 @@
+"""A guidance scenario (Table 4.1) with the simulated operator as a batch task.
+
+Params: ``scenario`` [1] (1, 2 or 3), ``method`` [qp], ``physics`` [true] (MuJoCo workcell with
+the F/T sensor in the loop), ``duration`` [null: the operator's whole path]. The F/T noise is
+drawn from the seed. Success: the robot never touched the obstacle.
+"""
+
+from __future__ import annotations
+
+import time
+
+from robointel.batch.kinds.params import param
+from robointel.batch.registry import TrialKind
+from robointel.batch.spec import TaskSpec
+from robointel.outcome import Failure, TrialOutcome
+from robointel.programming.scenarios import run_scenario
+
+FIGURES = ("min_distance_m", "max_penetration_m", "robot_obstacle_contacts", "mean_velocity_deviation",
+           "held_steps", "duration_s")
+
+
+def guidance(spec: TaskSpec) -> TrialOutcome:
+    """Run one guidance scenario.
+
+    Returns:
+        Success without obstacle contact or penetration; figures from ``ScenarioResult.metrics``.
+
+    Raises:
+        InvalidInput: unknown scenario number or method.
+    """
+    t0 = time.perf_counter()
+    r = run_scenario(param(spec, "scenario", 1, int), param(spec, "method", "qp", str),
+                     duration=param(spec, "duration", None, float), physics=param(spec, "physics", True, bool),
+                     seed=spec.seed)
+    m = r.metrics()
+    figures = {k: float(m[k]) for k in FIGURES}
+    ok = m["robot_obstacle_contacts"] == 0 and m["max_penetration_m"] <= 0.0
+    detail = f"min distance {1000 * m['min_distance_m']:.1f} mm, {m['robot_obstacle_contacts']} contacts"
+    return TrialOutcome(ok, Failure.NONE if ok else Failure.COLLISION, detail, figures,
+                        {"trial_s": time.perf_counter() - t0})
+
+
+KIND = TrialKind("guidance", guidance, lambda s: f"scenario {s.params.get('scenario', 1)}",
+                 "guidance scenario with a simulated operator (Table 4.1)")

@@ -1,0 +1,98 @@
+"""The Ray engine: trials as Ray tasks on a local Ray or a cluster (``pip install robointel[cluster]``).
+
+Each task reserves ``cpus_per_task`` CPUs and runs :func:`robointel.batch.execute.execute` with
+one thread per numerical library (the worker environment sets ``OMP_NUM_THREADS=1`` and friends
+before numpy loads). A task whose worker process dies (killed, out of memory, node lost) is re-run
+by Ray up to ``max_retries`` times; trials are pure functions of their spec, so a re-run is
+harmless, and the driver stores the one result Ray returns. A task that still has no result after
+its retries becomes a ``fault`` row with Ray's error text.
+
+A local Ray binds the machine's routable address; on a machine where that must not happen (tests,
+CI) run the driver inside a loopback-only network namespace (``unshare --net``, ``ip link set lo up``).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import ray
+from ray.exceptions import RayError
+
+from robointel.batch.execute import THREAD_ENV, Fault, execute, failure_row
+from robointel.batch.spec import TaskSpec
+from robointel.errors import EngineUnavailable, InvalidInput
+from robointel.outcome import Failure
+
+__all__ = ["run_on_ray", "start_ray"]
+
+
+def start_ray(*, workers: int, address: str | None) -> bool:
+    """Start a local Ray with ``workers`` CPUs, or join ``address``; return True if this call started it.
+
+    Raises:
+        EngineUnavailable: joining the cluster or starting Ray failed.
+    """
+    if ray.is_initialized():
+        return False
+    env = {"env_vars": dict(THREAD_ENV)}
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    try:
+        if address:
+            ray.init(address=address, runtime_env=env, log_to_driver=False)
+        else:
+            ray.init(address="local", num_cpus=workers, include_dashboard=False, runtime_env=env, log_to_driver=False)
+    except (ConnectionError, RuntimeError, ValueError) as exc:
+        where = address or "a local Ray"
+        raise EngineUnavailable(f"could not start or join {where}: {exc}", value=address) from None
+    return True
+
+
+def run_on_ray(todo: Sequence[TaskSpec], on_row: Callable[[dict[str, Any]], None],
+               on_running: Callable[[int], None], *, workers: int, address: str | None, cpus_per_task: float,
+               max_retries: int, fault: Fault | None = None) -> None:
+    """Run ``todo`` as Ray tasks and hand each finished row to ``on_row`` (in completion order).
+
+    At most twice the cluster's task slots are in flight, so a sweep of any size streams.
+    On an exception (e.g. KeyboardInterrupt) the pending tasks are cancelled and it propagates;
+    a Ray started here is shut down on the way out.
+
+    Raises:
+        EngineUnavailable: see :func:`start_ray`.
+        InvalidInput: ``cpus_per_task`` exceeds the cluster's CPUs.
+    """
+    started = start_ray(workers=workers, address=address)
+    try:
+        cpus = float(ray.cluster_resources().get("CPU", 0.0))
+        if cpus_per_task > cpus:
+            raise InvalidInput(f"cpus_per_task {cpus_per_task} exceeds the cluster's {cpus:g} CPUs: no task could "
+                               "ever start", value=cpus_per_task)
+        slots = max(1, int(cpus // cpus_per_task))
+        remote = ray.remote(execute).options(num_cpus=cpus_per_task, max_retries=max_retries,
+                                             retry_exceptions=False)
+        queue = list(todo)[::-1]
+        pending: dict[Any, TaskSpec] = {}
+        try:
+            while queue or pending:
+                while queue and len(pending) < 2 * slots:
+                    s = queue.pop()
+                    pending[remote.remote(s.to_dict(), fault, "ray")] = s
+                on_running(min(len(pending), slots))
+                ready, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
+                for ref in ready:
+                    s = pending.pop(ref)
+                    try:
+                        row = ray.get(ref)
+                    except RayError as exc:
+                        row = failure_row(s, Failure.FAULT, f"no result after {max_retries} retries: "
+                                          f"{type(exc).__name__}", str(exc), engine="ray")
+                    on_row(row)
+            on_running(0)
+        except BaseException:
+            for ref in pending:
+                ray.cancel(ref, force=True)
+            raise
+    finally:
+        if started:
+            ray.shutdown()
