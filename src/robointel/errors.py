@@ -65,3 +65,29 @@ class DataMissing(RobointelError, FileNotFoundError):
 
 class SafetyStop(RobointelError):
     """A controller refused a command (bad sensor data, stalled stream) and held the robot."""
+
+
+class UnsafeCommand(SafetyStop, InvalidInput):
+    """A robot command was refused before it reached the robot.
+
+    Outside the joint limits, NaN, or a jump larger than one controller period allows at the maximum
+    joint speed; ``.value`` is the target.
+    """
+
+
+class ControllerFault(SafetyStop):
+    """The robot controller stopped (e-stop, alarm, stalled command stream); commanding has stopped.
+
+    ``.value`` is the last known :class:`robointel.interface.RobotState`; ``reason`` says why.
+    """
+
+    def __init__(self, message: str, *, value: Any = None, reason: str = "") -> None:
+        super().__init__(message, value=value)
+        self.reason = reason
+
+
+class ConnectionLost(ControllerFault):
+    """The connection to the robot controller was lost; ``.value`` is the last known state.
+
+    Never retried into motion: reconnect explicitly.
+    """
