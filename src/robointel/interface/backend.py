@@ -55,7 +55,7 @@ class ExecutionResult:
     cycle_us: npt.NDArray[np.float64]
     missed_cycles: int
     completed: bool
-    extra: dict[str, float] = field(default_factory=dict)
+    extra: dict[str, object] = field(default_factory=dict)
 
     @property
     def tracking_rms_rad(self) -> float:

@@ -20,8 +20,8 @@ from airo_fanuc.exceptions import FanucConnectionError, FanucError, RobotFaulted
 
 from robointel.errors import ConnectionLost, ControllerFault, InvalidInput, UnsafeCommand
 from robointel.interface.backend import Backend, ExecutionResult, Recorder, sleep_until
-from robointel.interface.protocol import CycleCallback
 from robointel.interface.profile import lrmate_profile
+from robointel.interface.protocol import CycleCallback
 from robointel.interface.state import RobotMode, RobotState
 from robointel.io.trajectory import Trajectory
 
