@@ -30,7 +30,7 @@ from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
 from robointel._validate import as_array, check_limits
 from robointel.errors import InvalidInput, NotFinite, SafetyStop, ShapeError
-from robointel.sim.controller import JointController, PIDGains, model_with_payload
+from robointel.control.servo import JointController, PIDGains, model_with_payload
 from robointel.sim.mjcf import (FT_SITE, OBJECT_PREFIX, OBSTACLE_PREFIX, TOOL_BODY, Payload, SimObject,
                                 build_spec, shape_geoms)
 
