@@ -1,0 +1,54 @@
+"""Run a trajectory on ``--robot sim|fanuc://HOST`` with an optional ``--record run.mcap`` (shared by commands)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+from robointel.interface import ExecutionResult, RobotState, open_robot
+from robointel.io.mcap_log import McapRecorder
+from robointel.io.trajectory import Trajectory
+
+
+def run_on_robot(trajectory: Trajectory, url: str, record: Path | None, console: Console, *,
+                 sim_kwargs: dict[str, Any] | None = None) -> ExecutionResult:
+    """Execute ``trajectory`` on the robot at ``url`` with a progress bar, recording to ``record``.
+
+    Args:
+        trajectory: the trajectory (rad); the robot must already be at its start (``fanuc``), the
+            simulation is reset there (``sim``).
+        url: ``"sim"`` or ``"fanuc://HOST[:RMI_PORT][?sm_port=N]"``.
+        record: ``.mcap`` file to record the run to, or None.
+        console: rich console for the progress bar and the summary.
+        sim_kwargs: extra arguments of :class:`~robointel.interface.sim.SimRobot` (e.g. a workcell).
+
+    Returns:
+        The :class:`~robointel.interface.ExecutionResult`.
+
+    Raises:
+        RobointelError: refused trajectory, controller fault, lost connection, bad URL or path.
+    """
+    rec = McapRecorder(record, list(trajectory.joint_names)) if record is not None else None
+    kw: dict[str, Any] = dict(sim_kwargs or {}, q0=trajectory.q[0]) if url == "sim" else {}
+    try:
+        with open_robot(url, recorder=rec, **kw) as robot:
+            cycles = int(np.ceil(trajectory.duration / robot.period)) + 1
+            with Progress(TextColumn("executing on " + url.split("?")[0]), BarColumn(), TimeRemainingColumn(),
+                          console=console) as bar:
+                task = bar.add_task("run", total=cycles)
+
+                def tick(k: int, state: RobotState) -> None:
+                    bar.update(task, completed=min(k + 1, cycles))
+
+                res = robot.execute(trajectory, on_cycle=tick)
+    finally:
+        if rec is not None:
+            rec.close()
+    console.print(f"{url.split('?')[0]}: {len(res.q_cmd)} cycles of {robot.period * 1e3:.0f} ms, RMS measured - "
+                  f"commanded {np.degrees(res.tracking_rms_rad):.4f} deg, missed cycles {res.missed_cycles}, "
+                  f"compute per cycle median {np.median(res.cycle_us):.0f} us"
+                  + (f"; recorded to {record}" if record is not None else ""))
+    return res
