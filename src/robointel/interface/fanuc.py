@@ -45,6 +45,8 @@ class FanucRobot(Backend):
         recorder: optional recorder of states and commands.
         connect_timeout: RMI connect timeout, s.
         lock_path: ``airo-fanuc`` single-owner lock file (None: no ownership lock).
+        sched_fifo: run the driver's 125 Hz real-time thread under ``SCHED_FIFO`` (ignored without
+            the privilege, ``CAP_SYS_NICE``), so a loaded machine does not delay its packets.
 
     Raises:
         ConnectionLost: bring-up failed (the controller is unreachable or refuses motion).
@@ -53,7 +55,7 @@ class FanucRobot(Backend):
     def __init__(self, host: str, *, rmi_port: int = DEFAULT_RMI_PORT, sm_port: int = DEFAULT_SM_PORT,
                  profile: RobotProfile | None = None, robot: Any = None, stall_periods: int | None = 10,
                  recorder: Recorder | None = None, connect_timeout: float = 5.0,
-                 lock_path: str | None = None) -> None:
+                 lock_path: str | None = None, sched_fifo: bool = True) -> None:
         if robot is None:
             from robointel.robot import Robot
 
@@ -62,7 +64,7 @@ class FanucRobot(Backend):
         if profile.ndof != robot.nq:
             raise InvalidInput(f"profile has {profile.ndof} joints, the robot {robot.nq}", value=profile)
         config = DriverConfig(profile=profile, sm_port=int(sm_port), rmi_port=int(rmi_port),
-                              rmi_connect_timeout=float(connect_timeout))
+                              rmi_connect_timeout=float(connect_timeout), sched_fifo=bool(sched_fifo))
         kw: dict[str, Any] = {"enable_ownership": lock_path is not None}
         if lock_path is not None:
             kw["lock_path"] = lock_path
