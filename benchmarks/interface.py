@@ -281,7 +281,8 @@ def main() -> None:
     from robointel.interface import open_robot
     from robointel.interface.sim import SimRobot
 
-    out: dict = {"seconds": args.seconds, "streaming_thread_fifo": args.fifo, "period_ms": PERIOD * 1e3, "switch_interval_s": sys.getswitchinterval()}
+    out: dict = {"seconds": args.seconds, "streaming_thread_fifo": args.fifo, "period_ms": PERIOD * 1e3,
+                 "switch_interval_s": sys.getswitchinterval()}
     fake = Fake()
     try:
         fan = _streaming_run(lambda: open_robot(fake.url), args.seconds)
