@@ -153,3 +153,34 @@ def test_stalled_stream_stops_the_robot(fake_controller):
         robot.hold()
         time.sleep(0.1)  # holding is not a stall
         assert robot.state().mode is RobotMode.HOLDING
+
+
+def test_teleop_targets_through_the_follower_and_the_deadman_stop(fake_controller):
+    """Operator targets jump; the jerk-limited follower turns them into per-period targets the gate
+    accepts; releasing the deadman (no more targets) stops the robot at the controller."""
+    from robointel.control import JerkLimitedFollower
+    from robointel.robot import Robot
+
+    lr = Robot.load("lrmate200id7l")
+    with FanucRobot("127.0.0.1", rmi_port=fake_controller.rmi_port, sm_port=fake_controller.sm_port,
+                    stall_periods=5) as robot:
+        fol = JerkLimitedFollower(0.5 * lr.velocity_limit, lr.acceleration_limit, 20 * lr.acceleration_limit,
+                                  dt=PERIOD, lower=lr.lower, upper=lr.upper)
+        q0 = robot.state().q
+        fol.reset(q0)
+        goals = [q0 + np.radians([15, -10, 10, 20, 15, 30]), q0 + np.radians([-10, 5, -5, -20, 0, -30])]
+        t0 = time.perf_counter()
+        for k in range(150):  # 1.2 s, the operator's target jumps at 0.6 s
+            robot.stream(fol.step(goals[k // 75])[0])
+            time.sleep(max(0.0, t0 + (k + 1) * PERIOD - time.perf_counter()))
+        time.sleep(0.3)  # deadman released: no targets
+        st = robot.state()
+        assert st.mode is RobotMode.STOPPED and "stalled" in st.why_stopped
+        time.sleep(0.2)  # the core's brake (stop_j) has finished
+        cmd_a = robot.state().q_cmd
+        time.sleep(1.0)  # 8 time constants of the plant
+        cmd_b = robot.state().q_cmd
+        q_b = np.radians(fake_controller.q_meas_deg[:6])
+    np.testing.assert_allclose(cmd_b, cmd_a, atol=1e-9)  # the controller is commanded to stand still
+    np.testing.assert_allclose(q_b, cmd_b, atol=np.radians(0.05))  # and the emulated arm stands there
+    assert np.max(np.abs(q_b - q0)) > np.radians(2)  # it did move before
