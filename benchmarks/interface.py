@@ -123,7 +123,9 @@ def _stream(send, targets, robot=None):
             stalls.append(exc.reason)
             robot.recover()
             offset = robot.state().q_cmd - targets[k]
+            c0 = time.perf_counter()  # the recovery is not robointel's per-command compute
             send(targets[k] + offset)
+            t0 += c0 - (t0 + k * PERIOD)  # the schedule restarts after the recovery
         c1 = time.perf_counter()
         cyc[k] = (c1 - c0) * 1e6
         late[k] = (c1 - (t0 + (k + 1) * PERIOD)) * 1e3

@@ -98,6 +98,7 @@ class Backend:
         self._closed = False
         self._watch_stop = threading.Event()
         self._watch: threading.Thread | None = None
+        self._stall_check = True  # off while a backend's own deadman supervises (fanuc execute)
         self.sent_times: list[float] = []
         """Wall (``time.perf_counter``) times of every command that reached the backend."""
 
@@ -315,8 +316,15 @@ class Backend:
         return False
 
     def _watch_loop(self) -> None:
+        """Stop a stalled stream; poll the backend for faults while streaming.
+
+        Without fault polling the thread sleeps until the stall deadline (few wake-ups, little
+        contention with the streaming thread); with polling (``fanuc``) it wakes every period.
+        """
         period = self.period
-        while not self._watch_stop.wait(period):
+        timeout = period
+        while not self._watch_stop.wait(timeout):
+            timeout = period if self._needs_monitor() or self.stall_periods is None else self.stall_periods * period
             with self._lock:
                 if self._closed:
                     return
@@ -327,7 +335,7 @@ class Backend:
                     if fault is not None:
                         self._latch_fault(*fault)
                         continue
-                if self.stall_periods is not None:
+                if self.stall_periods is not None and self._stall_check:
                     gap = time.perf_counter() - self._last_cmd_wall
                     if gap > self.stall_periods * period:
                         self._halt()
@@ -336,6 +344,9 @@ class Backend:
                         self._why = (f"command stream stalled: no target for {gap * 1e3:.0f} ms "
                                      f"(> {self.stall_periods} periods)")
                         self._last_cmd = None
+                    elif not self._needs_monitor():
+                        timeout = max(0.001, self._last_cmd_wall + self.stall_periods * period - time.perf_counter()
+                                      + 0.1 * period)
 
 
 def sleep_until(deadline: float) -> None:

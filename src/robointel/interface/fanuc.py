@@ -45,6 +45,9 @@ class FanucRobot(Backend):
         recorder: optional recorder of states and commands.
         connect_timeout: RMI connect timeout, s.
         lock_path: ``airo-fanuc`` single-owner lock file (None: no ownership lock).
+        deadman_s: during :meth:`execute` the controller's core stops the trajectory when this process
+            has not fed its deadman for this long, s (the core plays the trajectory back by itself, so a
+            busy interpreter must not stop it, a dead one must).
         sched_fifo: run the driver's 125 Hz real-time thread under ``SCHED_FIFO`` (ignored without
             the privilege, ``CAP_SYS_NICE``), so a loaded machine does not delay its packets.
 
@@ -55,7 +58,7 @@ class FanucRobot(Backend):
     def __init__(self, host: str, *, rmi_port: int = DEFAULT_RMI_PORT, sm_port: int = DEFAULT_SM_PORT,
                  profile: RobotProfile | None = None, robot: Any = None, stall_periods: int | None = 10,
                  recorder: Recorder | None = None, connect_timeout: float = 5.0,
-                 lock_path: str | None = None, sched_fifo: bool = True) -> None:
+                 lock_path: str | None = None, deadman_s: float = 0.5, sched_fifo: bool = True) -> None:
         if robot is None:
             from robointel.robot import Robot
 
@@ -75,6 +78,9 @@ class FanucRobot(Backend):
                          profile.velocity_limits, config.itp_s, paced=True, stall_periods=stall_periods,
                          recorder=recorder)
         self.host = host
+        if not (np.isfinite(deadman_s) and deadman_s > 0):
+            raise InvalidInput(f"deadman_s must be > 0 s, got {deadman_s}", value=deadman_s)
+        self.deadman_s = float(deadman_s)
         self._snap: dict[str, Any] = {}
         self._last_state: RobotState | None = None
         try:
@@ -172,9 +178,8 @@ class FanucRobot(Backend):
         The trajectory is resampled at the period (``Trajectory.resample``) and checked whole by the
         safety gate; the knots (t, q, qd) go to ``FanucDriver.move_trajectory`` (Hermite playback in
         the 8 ms core, so the commanded path is the planned one, not a servo's lagging chase of it).
-        Every period this process feeds the core's deadman (``stall_periods`` periods: if this
-        process stalls, the core stops), reads the state, stops at once on a fault and calls
-        ``on_cycle``.
+        Every period this process feeds the core's deadman (``deadman_s``: if this process dies or
+        hangs, the core stops), reads the state, stops at once on a fault and calls ``on_cycle``.
 
         Returns:
             The :class:`ExecutionResult`; ``q_cmd`` is the core's commanded position each period.
@@ -187,7 +192,6 @@ class FanucRobot(Backend):
             raise InvalidInput(f"execute needs a Trajectory with {self.n} joints", value=trajectory)
         rs = trajectory.resample(self.period)
         times_ns = np.round((rs.t - rs.t[0]) * 1e9).astype(np.int64)
-        deadman = None if self.stall_periods is None else self.stall_periods * self.period
         with self._lock:
             self._refuse_if_stopped()
             st = self._read()
@@ -200,14 +204,23 @@ class FanucRobot(Backend):
             if self.recorder is not None:
                 self.recorder.trajectory(st.t, trajectory)
             try:
-                handle = self.driver.move_trajectory(times_ns, rs.q, rs.qd, deadman_s=deadman, asynchronous=True)
+                handle = self.driver.move_trajectory(times_ns, rs.q, rs.qd, deadman_s=self.deadman_s,
+                                                     asynchronous=True)
             except TrajectoryValidationError as exc:
                 raise UnsafeCommand(f"the controller driver refused the trajectory: {exc}", value=rs.q) from exc
             except RobotFaultedError as exc:
                 self._latch_fault(RobotMode.FAULTED, f"controller refused motion: {exc}", ("faulted",))
                 raise ControllerFault(self._why, value=self._read(), reason=self._why) from exc
             self._mode, self._last_cmd, self._last_cmd_wall = RobotMode.STREAMING, None, time.perf_counter()
+            self._stall_check = False  # the core's deadman supervises this process during playback
             self._ensure_watchdog()
+        try:
+            return self._supervise(handle, rs, on_cycle)
+        finally:
+            self._stall_check = True
+
+    def _supervise(self, handle: Any, rs: Trajectory, on_cycle: CycleCallback | None) -> ExecutionResult:
+        """Feed the deadman, read and record the state, stop on a fault, once per period."""
         K = len(rs.t) + int(2.0 / self.period)  # playback plus up to 2 s of capture and settle
         ts, qs, qc, cyc = np.zeros(K), np.zeros((K, self.n)), np.zeros((K, self.n)), np.zeros(K)
         missed, k = 0, 0
