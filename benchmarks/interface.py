@@ -92,6 +92,13 @@ def _planner_thread(stop: threading.Event, counter: list):
         i += 1
 
 
+def _wait_warm(counter, segments=5, timeout=120.0):
+    """Wait until the planner thread has planned a few segments (imports and JIT compilation done)."""
+    t = time.perf_counter()
+    while counter[0] < segments and time.perf_counter() - t < timeout:
+        time.sleep(0.05)
+
+
 def _targets(q0, seconds):
     k = np.arange(int(round(seconds / PERIOD)))
     amp = np.radians([20, 10, 10, 30, 20, 45])
@@ -141,7 +148,7 @@ def _streaming_run(make_robot, seconds, planner=True):
     try:
         if planner:
             th.start()
-            time.sleep(1.0)  # the planner is warm and running
+            _wait_warm(counter)
         targets = _targets(robot.state().q, seconds)
         with _fifo():
             cyc, missed, late, stalls = _stream(robot.stream, targets, robot)
@@ -198,7 +205,7 @@ def _peer_run(url_fake, seconds):
     drv = FanucDriver("127.0.0.1", policy)
     try:
         th.start()
-        time.sleep(1.0)
+        _wait_warm(counter)
         targets = _targets(drv.get_joint_configuration(), seconds)
         with _fifo():
             cyc, missed, late, _ = _stream(lambda q: drv.servo_j(q, PERIOD), targets)
