@@ -4,7 +4,8 @@ in the simulated cell, with a planner running in another thread; e-stop reaction
     python benchmarks/interface.py --json [--seconds 60]
 
 The emulator (airo_fanuc.testing.FakeCRXController, strict conformance, 127.0.0.1) runs in a child
-process so that its own Python real-time loop does not share our interpreter lock. Peer: the same
+process (robointel.interface.emulator) so that its Python real-time loop does not share our
+interpreter lock. Peer: the same
 stream sent straight through ``FanucDriver.servo_j`` (no robointel gate, state read or recording),
 measured in the same run.
 """
@@ -14,68 +15,15 @@ import argparse
 import contextlib
 import json
 import math
-import multiprocessing as mp
 import sys
 import threading
 import time
 
 import numpy as np
 
+from robointel.interface.emulator import EmulatorProcess
+
 PERIOD = 0.008
-
-
-def _fake_process(conn, q0_deg):
-    import os
-
-    from airo_fanuc.testing import FakeCRXConfig, FakeCRXController, WallClock
-
-    try:  # the emulator stands for a dedicated controller: give it real-time priority where allowed
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
-    except (PermissionError, AttributeError, OSError):
-        pass
-
-    fake = FakeCRXController(FakeCRXConfig(strict=True), host="127.0.0.1", clock=WallClock(),
-                             initial_q_deg=None if q0_deg is None else list(q0_deg) + [0.0] * 3).start()
-    fake.start_realtime()
-    conn.send((fake.rmi_port, fake.sm_port))
-    while True:
-        cmd = conn.recv()
-        if cmd == "estop":
-            fake.press_estop()
-            conn.send(time.perf_counter())
-        elif cmd == "release":
-            fake.release_estop()
-            conn.send(True)
-        elif cmd == "violations":
-            conn.send(list(fake.violations))
-        elif cmd == "close":
-            fake.stop_realtime()
-            fake.close()
-            conn.send(True)
-            return
-
-
-class Fake:
-    """A FakeCRXController in a child process (perf_counter is CLOCK_MONOTONIC: comparable across processes)."""
-
-    def __init__(self, q0=None):
-        ctx = mp.get_context("spawn")
-        self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_fake_process, args=(child, None if q0 is None else np.degrees(q0).tolist()),
-                                daemon=True)
-        self.proc.start()
-        self.rmi_port, self.sm_port = self.conn.recv()
-        self.url = f"fanuc://127.0.0.1:{self.rmi_port}?sm_port={self.sm_port}"
-
-    def call(self, cmd):
-        self.conn.send(cmd)
-        return self.conn.recv()
-
-    def close(self):
-        violations = self.call("violations")
-        self.call("close")
-        self.proc.join(5)
-        return violations
 
 
 def _planner_thread(stop: threading.Event, counter: list):
@@ -229,7 +177,7 @@ def _estop_run(fake):
         for k in range(len(targets)):
             sleep_until(t0 + k * PERIOD)
             if k == 150:
-                t_press = fake.call("estop")
+                t_press = fake.timed("press_estop")[1]
             try:
                 robot.stream(targets[k])
             except ControllerFault as exc:
@@ -242,7 +190,7 @@ def _estop_run(fake):
                "state_mode": st.mode.value, "state_why": st.why_stopped}
     finally:
         robot.close()
-    fake.call("release")
+    fake.call("release_estop")
     return out
 
 
@@ -253,7 +201,7 @@ def _frmp_run():
 
     res = plan_scene(load_scene("table71"))
     tr = res.trajectory
-    fake = Fake(tr.q[0])
+    fake = EmulatorProcess(tr.q[0])
     try:
         with open_robot(fake.url) as robot:
             ex = robot.execute(tr)
@@ -292,7 +240,7 @@ def main() -> None:
 
     out: dict = {"seconds": args.seconds, "streaming_thread_fifo": args.fifo, "period_ms": PERIOD * 1e3,
                  "switch_interval_s": sys.getswitchinterval()}
-    fake = Fake()
+    fake = EmulatorProcess()
     try:
         fan = _streaming_run(lambda: open_robot(fake.url), args.seconds)
         peer = _peer_run(fake, args.seconds)

@@ -1,11 +1,10 @@
 import contextlib
 import dataclasses
 
-import numpy as np
 import pytest
-from airo_fanuc.testing import FakeCRXConfig, FakeCRXController, WallClock
 
 from robointel.interface import open_robot
+from robointel.interface.emulator import EmulatorProcess
 
 
 @pytest.fixture(scope="session")
@@ -19,17 +18,33 @@ def frmp_segment():
     return plan_scene(short).trajectory
 
 
+class FakeProxy:
+    """The FakeCRXController API used by the tests, on an EmulatorProcess (a child process)."""
+
+    PROPERTIES = {"q_meas_deg", "qd_meas_deg_s", "violations", "motion_possible", "tx_silent"}
+
+    def __init__(self, emu):
+        self._emu = emu
+        self.rmi_port, self.sm_port = emu.rmi_port, emu.sm_port
+
+    def timed(self, name, *args):
+        """(value, child's perf_counter just before the call)."""
+        return self._emu.timed(name, *args)
+
+    def __getattr__(self, name):
+        if name in self.PROPERTIES:
+            return self._emu.call(name)
+        return lambda *args: self._emu.call(name, *args)
+
+
 @contextlib.contextmanager
 def running_fake(q0=None):
-    """FakeCRXController in strict-conformance mode on 127.0.0.1, wall-paced, its joints at ``q0`` (rad)."""
-    fake = FakeCRXController(FakeCRXConfig(strict=True), host="127.0.0.1", clock=WallClock(),
-                             initial_q_deg=None if q0 is None else list(np.degrees(q0)) + [0.0] * 3).start()
-    fake.start_realtime()
+    """FakeCRXController in strict-conformance mode on 127.0.0.1, wall-paced, in a child process, at ``q0`` (rad)."""
+    emu = EmulatorProcess(q0)
     try:
-        yield fake
+        yield FakeProxy(emu)
     finally:
-        fake.stop_realtime()
-        fake.close()
+        emu.close()
 
 
 def fanuc_url(fake) -> str:
@@ -39,9 +54,12 @@ def fanuc_url(fake) -> str:
 @pytest.fixture
 def fake_controller():
     """A running fake controller; asserts zero strict-conformance violations at teardown."""
-    with running_fake() as fake:
-        yield fake
-    assert fake.violations == []
+    emu = EmulatorProcess()
+    try:
+        yield FakeProxy(emu)
+    finally:
+        violations = emu.close()
+    assert violations == []
 
 
 @pytest.fixture

@@ -16,17 +16,18 @@ PERIOD = 0.008
 
 
 def _stream_until_error(robot, targets, *, at=None, inject=None):
-    """Stream ``targets`` paced at the period; call ``inject()`` before cycle ``at``. Return (error, t_inject)."""
-    t0, t_inj = time.perf_counter(), None
-    for k, q in enumerate(targets):
-        if k == at:
-            inject()
-            t_inj = time.perf_counter()
+    """Stream ``targets`` at the period (a late cycle is skipped, not sent in a burst); call
+    ``inject()`` before cycle ``at``; it returns the emulator's time of the injection. Return (error, t_inject)."""
+    t0, t_inj, k = time.perf_counter(), None, 0
+    for i, q in enumerate(targets):
+        if i == at:
+            t_inj = inject()
         try:
             robot.stream(q)
         except ControllerFault as exc:
             return exc, t_inj
-        time.sleep(max(0.0, t0 + (k + 1) * PERIOD - time.perf_counter()))
+        k = max(k + 1, int((time.perf_counter() - t0) / PERIOD) + 1)
+        time.sleep(max(0.0, t0 + k * PERIOD - time.perf_counter()))
     return None, t_inj
 
 
@@ -70,7 +71,7 @@ def test_frmp_segment_follows_within_the_plant_lag(frmp_segment):
 
 def test_estop_mid_stream_stops_commanding(fanuc, fake_controller):
     q0 = fanuc.state().q
-    exc, t_inj = _stream_until_error(fanuc, _ramp(q0), at=60, inject=fake_controller.press_estop)
+    exc, t_inj = _stream_until_error(fanuc, _ramp(q0), at=60, inject=lambda: fake_controller.timed("press_estop")[1])
     assert exc is not None and not isinstance(exc, ConnectionLost)
     late = [t for t in fanuc.sent_times if t > t_inj]
     assert len(late) <= 2, f"{len(late)} commands after the e-stop"
@@ -92,8 +93,8 @@ def test_estop_mid_stream_stops_commanding(fanuc, fake_controller):
 
 def test_fault_mid_stream_then_recover(fanuc, fake_controller):
     q0 = fanuc.state().q
-    exc, t_inj = _stream_until_error(fanuc, _ramp(q0), at=40,
-                                     inject=lambda: fake_controller.inject_alarm("SRVO-050", "Collision detect"))
+    alarm = ("inject_alarm", "SRVO-050", "Collision detect")
+    exc, t_inj = _stream_until_error(fanuc, _ramp(q0), at=40, inject=lambda: fake_controller.timed(*alarm)[1])
     assert exc is not None
     assert len([t for t in fanuc.sent_times if t > t_inj]) <= 2
     st = fanuc.state()
@@ -106,7 +107,7 @@ def test_fault_mid_stream_then_recover(fanuc, fake_controller):
 
 def test_lost_connection_reports_last_state_then_reconnects(fanuc, fake_controller):
     q0 = fanuc.state().q
-    exc, _ = _stream_until_error(fanuc, _ramp(q0), at=30, inject=lambda: fake_controller.drop_status(40))
+    exc, _ = _stream_until_error(fanuc, _ramp(q0), at=30, inject=lambda: fake_controller.timed("drop_status", 40)[1])
     assert isinstance(exc, ConnectionLost)
     st = fanuc.state()
     assert st.mode is RobotMode.DISCONNECTED and "connection lost" in st.why_stopped
