@@ -26,3 +26,10 @@ def test_bad_robot_url_is_a_clear_error(tmp_path):
     out = CliRunner().invoke(app, ["plan", "table71", "--out", str(tmp_path / "t.npz"), "--no-plots", "--execute",
                                    "--robot", "ur5://x"])
     assert out.exit_code == 2 and "unknown robot" in out.output
+
+
+def test_guide_on_fanuc_without_force_telemetry_says_why():
+    with running_fake() as fake:
+        out = CliRunner().invoke(app, ["guide", "--robot", fanuc_url(fake), "--duration", "1"])
+        assert fake.violations == []
+    assert out.exit_code == 2 and "no F/T wrench" in out.output

@@ -170,7 +170,7 @@ def register(app) -> None:
                 run_on_robot(res.trajectory, robot, record, console, sim_kwargs=wc)
             except RobointelError as exc:
                 console.print(f"[red]error:[/red] {exc}")
-                raise typer.Exit(2)
+                raise typer.Exit(2) from None
         elif execute:
             with console.status("tracking in MuJoCo"):
                 ex = run_in_sim(res)

@@ -52,3 +52,32 @@ def run_on_robot(trajectory: Trajectory, url: str, record: Path | None, console:
                   f"compute per cycle median {np.median(res.cycle_us):.0f} us"
                   + (f"; recorded to {record}" if record is not None else ""))
     return res
+
+
+def guide_on_robot(url: str, record: Path | None, duration: float, method: str, console: Console) -> None:
+    """Lead-through on the robot at ``url`` for ``duration`` s (guidance ``method``), with a progress bar.
+
+    Raises:
+        RobointelError: no F/T wrench from the robot, a fault, a bad URL or method.
+    """
+    from robointel.programming.guidance import GuidanceConfig
+    from robointel.programming.lead_through import lead_through
+    from robointel.robot import Robot
+
+    robot = Robot.load("lrmate200id7l")
+    cfg = GuidanceConfig(method=method)
+    rec = McapRecorder(record, list(robot.joint_names)) if record is not None else None
+    try:
+        with open_robot(url, recorder=rec) as arm:
+            cycles = int(round(duration / arm.period))
+            with Progress(TextColumn("guiding " + url.split("?")[0]), BarColumn(), TimeRemainingColumn(),
+                          console=console) as bar:
+                task = bar.add_task("guide", total=cycles)
+                res = lead_through(arm, robot, duration, config=cfg,
+                                   on_cycle=lambda k, s: bar.update(task, completed=k + 1))
+    finally:
+        if rec is not None:
+            rec.close()
+    moved = float(np.linalg.norm(robot.fk(res.q[-1])[:3, 3] - robot.fk(res.q[0])[:3, 3]))
+    console.print(f"guided {len(res.t)} cycles: TCP moved {moved * 1000:.1f} mm, held {int(res.held.sum())} cycles, "
+                  f"min obstacle distance {np.min(res.distance):.3f} m")
