@@ -185,3 +185,26 @@ def test_teleop_targets_through_the_follower_and_the_deadman_stop(fake_controlle
     np.testing.assert_allclose(cmd_b, cmd_a, atol=1e-9)  # the controller is commanded to stand still
     np.testing.assert_allclose(q_b, cmd_b, atol=np.radians(0.05))  # and the emulated arm stands there
     assert np.max(np.abs(q_b - q0)) > np.radians(2)  # it did move before
+
+
+def test_an_aborted_execution_stops_the_core(frmp_segment):
+    tr = frmp_segment
+    with running_fake(tr.q[0]) as fake:
+        with open_robot(fanuc_url(fake)) as robot:
+            def boom(k, state):
+                if k == 30:
+                    raise RuntimeError("operator abort")
+
+            with pytest.raises(RuntimeError, match="operator abort"):
+                robot.execute(tr, on_cycle=boom)
+            st = robot.state()
+            assert st.mode is RobotMode.STOPPED and "operator abort" in st.why_stopped
+            time.sleep(1.5)  # the core brakes and re-anchors its command on the lagging arm
+            a = robot.state().q
+            time.sleep(0.3)
+            np.testing.assert_allclose(robot.state().q, a, atol=2e-3)  # the arm is at rest
+            assert np.max(np.abs(a - tr.q[-1])) > 0.05  # well before the goal: playback stopped
+            from airo_fanuc import Mode
+
+            assert Mode(int(robot.driver.core.get_snapshot()["mode"])) != Mode.TRAJECTORY
+        assert fake.violations == []

@@ -216,6 +216,11 @@ class FanucRobot(Backend):
             self._ensure_watchdog()
         try:
             return self._supervise(handle, rs, on_cycle)
+        except ControllerFault:
+            raise
+        except BaseException as exc:  # on_cycle raised or the caller interrupted: the core must not play on
+            self.stop(f"execution aborted: {type(exc).__name__}: {exc}")
+            raise
         finally:
             self._stall_check = True
 
