@@ -81,3 +81,28 @@ class ResultStoreError(RobointelError):
 
 class EngineUnavailable(RobointelError):
     """A batch engine cannot start (Ray not installed, cluster unreachable); the message says what to do."""
+
+class UnsafeCommand(SafetyStop, InvalidInput):
+    """A robot command was refused before it reached the robot.
+
+    Outside the joint limits, NaN, or a jump larger than one controller period allows at the maximum
+    joint speed; ``.value`` is the target.
+    """
+
+
+class ControllerFault(SafetyStop):
+    """The robot controller stopped (e-stop, alarm, stalled command stream); commanding has stopped.
+
+    ``.value`` is the last known :class:`robointel.interface.RobotState`; ``reason`` says why.
+    """
+
+    def __init__(self, message: str, *, value: Any = None, reason: str = "") -> None:
+        super().__init__(message, value=value)
+        self.reason = reason
+
+
+class ConnectionLost(ControllerFault):
+    """The connection to the robot controller was lost; ``.value`` is the last known state.
+
+    Never retried into motion: reconnect explicitly.
+    """

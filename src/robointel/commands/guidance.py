@@ -26,6 +26,8 @@ def register(app: typer.Typer) -> None:
               out: Path = typer.Option(Path("robointel-guide"), help="output folder for the plot and JSON"),
               duration: float = typer.Option(None, help="simulated seconds (default: the whole operator path)"),
               physics: bool = typer.Option(True, help="MuJoCo with the F/T sensor in the loop (else kinematic)"),
+              robot: str = typer.Option("sim", help="'sim' (the scenario) or 'fanuc://HOST': guide the arm by hand"),
+              record: Path = typer.Option(None, help="with --robot fanuc://...: record the run as a ROS 2 bag (.mcap)"),
               ) -> None:
         """Run a guidance scenario with a simulated operator and write Fig. 4.6b-style plots."""
         from rich.console import Console
@@ -37,6 +39,15 @@ def register(app: typer.Typer) -> None:
         from robointel.programming.scenarios import plot_scenario, run_scenario
 
         console = Console()
+        if robot != "sim":  # lead-through on a real arm through the robot interface (issue 14)
+            from robointel.commands.robot_run import guide_on_robot
+
+            try:
+                guide_on_robot(robot, record, duration or 30.0, method, console)
+            except RobointelError as exc:
+                console.print(f"[red]error:[/red] {exc}")
+                raise typer.Exit(2) from None
+            return
         if method not in METHODS:
             console.print(f"[red]error:[/red] --method must be one of {', '.join(METHODS)}, got {method!r}")
             raise typer.Exit(2)

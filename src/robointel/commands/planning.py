@@ -126,6 +126,8 @@ def register(app) -> None:
              out: Path = typer.Option(Path("traj.npz"), help="trajectory file (.npz or .json)"),
              plots: bool = typer.Option(True, help="write <out>_profiles.png and <out>_path3d.png"),
              execute: bool = typer.Option(False, "--execute", help="track the trajectory in the MuJoCo workcell"),
+             robot: str = typer.Option("sim", help="with --execute: 'sim' or 'fanuc://HOST[:RMI_PORT][?sm_port=N]'"),
+             record: Path = typer.Option(None, help="with --execute: record the run as a ROS 2 bag (.mcap)"),
              ) -> None:
         """Plan a scene with the FRMP (CFS path + temporal optimization) and save the trajectory."""
         from robointel.errors import RobointelError
@@ -159,7 +161,17 @@ def register(app) -> None:
             a = plot_joint_profiles(res, Path(f"{stem}_profiles.png"))
             b = plot_path_3d(res, Path(f"{stem}_path3d.png"))
             console.print(f"plots: {a}, {b}")
-        if execute:
+        if execute and (robot != "sim" or record is not None):  # the robot interface (issue 14)
+            from robointel.commands.robot_run import run_on_robot
+            from robointel.sim import Workcell
+
+            try:
+                wc = {"workcell": Workcell(sc.robot, obstacles=sc.obstacles)} if robot == "sim" else {}
+                run_on_robot(res.trajectory, robot, record, console, sim_kwargs=wc)
+            except RobointelError as exc:
+                console.print(f"[red]error:[/red] {exc}")
+                raise typer.Exit(2) from None
+        elif execute:
             with console.status("tracking in MuJoCo"):
                 ex = run_in_sim(res)
             console.print(f"MuJoCo: RMS tracking error {np.degrees(ex.rms_error_rad):.4f} deg, max "

@@ -9,7 +9,7 @@ Public API:
 * :class:`FlexibleJointModel`, :class:`FlexibleJointParams` - the flexible-joint model (2.1)-(2.2).
 * :func:`build_spec`, :func:`build_model` - the MuJoCo model from the robot's own URDF.
 """
-from robointel.sim.controller import JointController, PIDGains, model_with_payload
+from robointel.control.servo import JointController, PIDGains, model_with_payload
 from robointel.sim.flexible import FlexibleJointModel, FlexibleJointParams
 from robointel.sim.mjcf import TABLE_HEIGHT, Payload, SimObject, build_model, build_spec
 from robointel.sim.workcell import CONTROL_DT, Contact, FTSensor, TrackingLog, Workcell

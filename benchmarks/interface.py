@@ -1,0 +1,275 @@
+"""Robot interface benchmark (issue 14): streaming at the controller's period on the FANUC emulator and
+in the simulated cell, with a planner running in another thread; e-stop reaction; FRMP tracking.
+
+    python benchmarks/interface.py --json [--seconds 60]
+
+The emulator (airo_fanuc.testing.FakeCRXController, strict conformance, 127.0.0.1) runs in a child
+process (robointel.interface.emulator) so that its Python real-time loop does not share our
+interpreter lock. Peer: the same
+stream sent straight through ``FanucDriver.servo_j`` (no robointel gate, state read or recording),
+measured in the same run.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import math
+import sys
+import threading
+import time
+
+import numpy as np
+
+from robointel.interface.emulator import EmulatorProcess
+
+PERIOD = 0.008
+
+
+def _planner_thread(stop: threading.Event, counter: list):
+    from robointel.io.scene import load_scene
+    from robointel.planning import make_planners
+
+    sc = load_scene("table71")
+    planners = make_planners(sc)
+    i = 0
+    while not stop.is_set():
+        seg = i % len(sc.steps)
+        planners[sc.steps[seg]].plan_segment(sc.waypoints[seg], sc.waypoints[seg + 1])
+        counter[0] += 1
+        i += 1
+
+
+def _wait_warm(counter, segments=5, timeout=120.0):
+    """Wait until the planner thread has planned a few segments (imports and JIT compilation done)."""
+    t = time.perf_counter()
+    while counter[0] < segments and time.perf_counter() - t < timeout:
+        time.sleep(0.05)
+
+
+def _targets(q0, seconds):
+    k = np.arange(int(round(seconds / PERIOD)))
+    amp = np.radians([20, 10, 10, 30, 20, 45])
+    return q0 + amp * np.sin(2 * np.pi * 0.25 * k[:, None] * PERIOD) * np.array([1, 1, -1, 1, 1, 1])
+
+
+def _stream(send, targets, robot=None):
+    """Send targets paced at the period.
+
+    Returns (cycle compute us, missed cycles, late ms per cycle, stall stops). A stall stop (the
+    watchdog stopped the robot because this thread got no CPU for N periods) is counted, recovered,
+    and the rest of the path is shifted to start where the robot stopped.
+    """
+    from robointel.errors import ControllerFault
+    from robointel.interface.backend import sleep_until
+
+    K = len(targets)
+    cyc, late, missed, stalls = np.zeros(K), np.zeros(K), 0, []
+    offset = np.zeros(targets.shape[1])
+    t0 = time.perf_counter() + 0.02
+    for k in range(K):
+        sleep_until(t0 + k * PERIOD)
+        c0 = time.perf_counter()
+        try:
+            send(targets[k] + offset)
+        except ControllerFault as exc:
+            if robot is None:
+                raise
+            stalls.append(exc.reason)
+            robot.recover()
+            offset = robot.state().q_cmd - targets[k]
+            c0 = time.perf_counter()  # the recovery is not robointel's per-command compute
+            send(targets[k] + offset)
+            t0 += c0 - (t0 + k * PERIOD)  # the schedule restarts after the recovery
+        c1 = time.perf_counter()
+        cyc[k] = (c1 - c0) * 1e6
+        late[k] = (c1 - (t0 + (k + 1) * PERIOD)) * 1e3
+        if late[k] > 0:
+            missed += 1
+    return cyc, missed, late, stalls
+
+
+def _streaming_run(make_robot, seconds, planner=True):
+    stop, counter = threading.Event(), [0]
+    th = threading.Thread(target=_planner_thread, args=(stop, counter), daemon=True)
+    robot = make_robot()
+    try:
+        if planner:
+            th.start()
+            _wait_warm(counter)
+        targets = _targets(robot.state().q, seconds)
+        with _fifo():
+            cyc, missed, late, stalls = _stream(robot.stream, targets, robot)
+        robot.hold()
+        extra = robot.timing_stats() if hasattr(robot, "timing_stats") else {}
+    finally:
+        stop.set()
+        if planner:
+            th.join()
+        robot.close()
+    return {"cycles": len(cyc), "missed_cycles": int(missed), "per_cycle_us": _stats(cyc),
+            "planner_segments_meanwhile": counter[0], "core": extra, "max_late_ms": float(late.max()),
+            "stall_stops": len(stalls)}
+
+
+FIFO = [True]
+
+
+@contextlib.contextmanager
+def _fifo():
+    """Run the calling (streaming) thread under SCHED_FIFO where allowed (--no-fifo: normal priority)."""
+    import os
+
+    old = os.sched_getscheduler(0), os.sched_getparam(0)
+    try:
+        if FIFO[0]:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(40))
+    except (PermissionError, OSError):
+        pass
+    try:
+        yield
+    finally:
+        try:
+            os.sched_setscheduler(0, old[0], old[1])
+        except (PermissionError, OSError):
+            pass
+
+
+def _stats(us):
+    return {"median": float(np.median(us)), "p99": float(np.percentile(us, 99)), "max": float(np.max(us))}
+
+
+def _peer_run(url_fake, seconds):
+    """The same stream straight through FanucDriver.servo_j (the peer), same planner load."""
+    from airo_fanuc import FanucDriver
+
+    from robointel.interface.fanuc import FanucRobot
+
+    stop, counter = threading.Event(), [0]
+    th = threading.Thread(target=_planner_thread, args=(stop, counter), daemon=True)
+    robot = FanucRobot("127.0.0.1", rmi_port=url_fake.rmi_port, sm_port=url_fake.sm_port)
+    policy = robot.policy
+    robot.close()
+    drv = FanucDriver("127.0.0.1", policy)
+    try:
+        th.start()
+        _wait_warm(counter)
+        targets = _targets(drv.get_joint_configuration(), seconds)
+        with _fifo():
+            cyc, missed, late, _ = _stream(lambda q: drv.servo_j(q, PERIOD), targets)
+    finally:
+        stop.set()
+        th.join()
+        drv.close()
+    return {"cycles": len(cyc), "missed_cycles": int(missed), "per_cycle_us": _stats(cyc),
+            "max_late_ms": float(late.max())}
+
+
+def _estop_run(fake):
+    from robointel.errors import ControllerFault
+    from robointel.interface import open_robot
+    from robointel.interface.backend import sleep_until
+
+    robot = open_robot(fake.url)
+    try:
+        targets = _targets(robot.state().q, 3.0)
+        t0, t_press, err = time.perf_counter(), None, None
+        for k in range(len(targets)):
+            sleep_until(t0 + k * PERIOD)
+            if k == 150:
+                t_press = fake.timed("press_estop")[1]
+            try:
+                robot.stream(targets[k])
+            except ControllerFault as exc:
+                err = exc
+                break
+        after = [t for t in robot.sent_times if t > t_press]
+        st = robot.state()
+        out = {"estop_to_last_command_ms": (max(after) - t_press) * 1e3 if after else 0.0,
+               "commands_after_estop": len(after), "raised": type(err).__name__ if err else None,
+               "state_mode": st.mode.value, "state_why": st.why_stopped}
+    finally:
+        robot.close()
+    fake.call("release_estop")
+    return out
+
+
+def _frmp_run():
+    from robointel.interface import open_robot
+    from robointel.io.scene import load_scene
+    from robointel.planning import plan_scene
+
+    res = plan_scene(load_scene("table71"))
+    tr = res.trajectory
+    fake = EmulatorProcess(tr.q[0])
+    try:
+        with open_robot(fake.url) as robot:
+            ex = robot.execute(tr)
+            time.sleep(1.0)
+            final = robot.state().q
+    finally:
+        violations = fake.close()
+    a = 1 - math.exp(-PERIOD / 0.125)  # the emulator's first-order plant lag (MEASURED_FACTS.tracking_lag_s)
+    x, model = tr.q[0].copy(), np.empty_like(ex.q_cmd)
+    for k, u in enumerate(ex.q_cmd):
+        x = x + (u - x) * a
+        model[k] = x
+    with open_robot("sim", q0=tr.q[0]) as sim:
+        sx = sim.execute(tr)
+    return {"frmp_tracking_rms_rad": ex.tracking_rms_rad,
+            "frmp_lag_model_rms_rad": float(np.sqrt(np.mean((ex.q - model) ** 2))),
+            "frmp_final_error_rad": float(np.max(np.abs(final - tr.q[-1]))),
+            "frmp_completed": ex.completed, "frmp_duration_s": tr.duration, "frmp_cycles": len(ex.q_cmd),
+            "frmp_monitor_per_cycle_us": _stats(ex.cycle_us),
+            "sim_frmp_tracking_rms_rad": sx.tracking_rms_rad}, violations
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--seconds", type=float, default=60.0)
+    ap.add_argument("--switch-interval", type=float, default=0.0005,
+                    help="sys.setswitchinterval for this process (the interpreter lock hand-over), s")
+    ap.add_argument("--fifo", action=argparse.BooleanOptionalAction, default=True,
+                    help="stream from a SCHED_FIFO thread (needs CAP_SYS_NICE; else normal priority)")
+    args = ap.parse_args()
+    sys.setswitchinterval(args.switch_interval)
+    FIFO[0] = args.fifo
+    from robointel.interface import open_robot
+    from robointel.interface.sim import SimRobot
+
+    out: dict = {"seconds": args.seconds, "streaming_thread_fifo": args.fifo, "period_ms": PERIOD * 1e3,
+                 "switch_interval_s": sys.getswitchinterval()}
+    fake = EmulatorProcess()
+    try:
+        fan = _streaming_run(lambda: open_robot(fake.url), args.seconds)
+        peer = _peer_run(fake, args.seconds)
+        est = _estop_run(fake)
+    finally:
+        violations = fake.close()
+    frmp, v2 = _frmp_run()
+    sim = _streaming_run(lambda: SimRobot(paced=True, stall_periods=10), args.seconds)
+    out.update({
+        "fanuc_cycles": fan["cycles"], "fanuc_missed_cycles": fan["missed_cycles"],
+        "conformance_violations": len(violations) + len(v2),
+        "estop_to_last_command_ms": est["estop_to_last_command_ms"],
+        "per_cycle_us": fan["per_cycle_us"],
+        "peer_servo_j_per_cycle_us": peer["per_cycle_us"], "peer_missed_cycles": peer["missed_cycles"],
+        "per_cycle_ratio_median": fan["per_cycle_us"]["median"] / peer["per_cycle_us"]["median"],
+        **frmp,
+        "fanuc_stall_stops": fan["stall_stops"], "fanuc_max_late_ms": fan["max_late_ms"],
+        "peer_max_late_ms": peer["max_late_ms"],
+        "sim_cycles": sim["cycles"], "sim_missed_cycles": sim["missed_cycles"], "sim_per_cycle_us": sim["per_cycle_us"],
+        "sim_stall_stops": sim["stall_stops"], "sim_max_late_ms": sim["max_late_ms"],
+        "estop": est, "planner_segments_during_fanuc_stream": fan["planner_segments_meanwhile"],
+        "planner_segments_during_sim_stream": sim["planner_segments_meanwhile"],
+        "fanuc_core_timing": {k: fan["core"].get(k) for k in ("tx_count", "tick_count", "skipped_tick_windows",
+                                                               "missed_rx_ticks", "tx_interval_p99_ms",
+                                                               "tx_interval_max_ms", "double_send_guard")},
+        "violations": violations + v2,
+    })
+    print(json.dumps(out, indent=None if args.json else 1))
+
+
+if __name__ == "__main__":
+    main()

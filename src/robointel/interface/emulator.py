@@ -1,0 +1,102 @@
+"""A FANUC controller emulator (``airo_fanuc.testing.FakeCRXController``) in a child process, on 127.0.0.1.
+
+The emulator's status stream paces the driver's transmissions, so it must not share an interpreter
+lock with the process that streams to it: a delayed status burst makes the driver send twice in one
+window (a strict-conformance violation that is the test rig's, not the driver's). The child runs at
+``SCHED_FIFO`` where allowed, like the dedicated computer a controller is.
+"""
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import time
+from multiprocessing.connection import Connection
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from robointel.errors import InvalidInput
+
+
+def _serve(conn: Connection, q0_deg: list[float] | None) -> None:
+    from airo_fanuc.testing import FakeCRXConfig, FakeCRXController, WallClock
+
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
+    except (PermissionError, AttributeError, OSError):
+        pass
+    fake = FakeCRXController(FakeCRXConfig(strict=True), host="127.0.0.1", clock=WallClock(),
+                             initial_q_deg=None if q0_deg is None else q0_deg + [0.0] * 3).start()
+    fake.start_realtime()
+    conn.send((fake.rmi_port, fake.sm_port))
+    while True:
+        name, args = conn.recv()
+        if name == "__close__":
+            fake.stop_realtime()
+            fake.close()
+            conn.send(list(fake.violations))
+            return
+        try:
+            attr = getattr(fake, name)
+            t = time.perf_counter()
+            value = attr(*args) if callable(attr) else attr
+            conn.send((True, value, t))
+        except Exception as exc:  # reported to the caller, the emulator keeps running
+            conn.send((False, repr(exc), 0.0))
+
+
+class EmulatorProcess:
+    """``FakeCRXController`` (strict conformance, wall clock) in a child process on 127.0.0.1.
+
+    Args:
+        q0: (6,) initial joint positions of the emulated arm, rad (default zeros).
+
+    Attributes:
+        url: the ``fanuc://`` URL for :func:`~robointel.interface.open_robot`.
+    """
+
+    def __init__(self, q0: npt.ArrayLike | None = None) -> None:
+        ctx = mp.get_context("spawn")
+        self._conn, child = ctx.Pipe()
+        q0_deg = None if q0 is None else np.degrees(np.asarray(q0, dtype=float)).tolist()
+        self._proc = ctx.Process(target=_serve, args=(child, q0_deg), daemon=True)
+        self._proc.start()
+        self.rmi_port, self.sm_port = self._conn.recv()
+        self.url = f"fanuc://127.0.0.1:{self.rmi_port}?sm_port={self.sm_port}"
+        self.violations: list[str] | None = None
+
+    def call(self, name: str, *args: Any) -> Any:
+        """Call ``FakeCRXController.name(*args)`` (or read the attribute ``name``) in the child.
+
+        Raises:
+            InvalidInput: the emulator raised (its message is included).
+        """
+        return self.timed(name, *args)[0]
+
+    def timed(self, name: str, *args: Any) -> tuple[Any, float]:
+        """As :meth:`call`, with the child's ``time.perf_counter()`` just before the call, s.
+
+        It is CLOCK_MONOTONIC, the same clock as this process's ``perf_counter``.
+        """
+        self._conn.send((name, args))
+        ok, value, t = self._conn.recv()
+        if not ok:
+            raise InvalidInput(f"emulator call {name}{args} failed: {value}", value=name)
+        return value, float(t)
+
+    def close(self) -> list[str]:
+        """Stop the emulator; return its strict-conformance violations (idempotent)."""
+        if self.violations is None:
+            self._conn.send(("__close__", ()))
+            self.violations = list(self._conn.recv())
+            self._proc.join(5)
+        return self.violations
+
+    def __enter__(self) -> EmulatorProcess:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()

@@ -1,0 +1,288 @@
+"""The ``fanuc`` backend: a FANUC controller over Stream Motion + RMI through ``airo-fanuc``.
+
+Targets go out with ``FanucDriver.servo_j(q, period)`` (the driver's compiled real-time core owns
+the 8 ms Stream Motion timeline). The controller is polled every period by the interface's
+watchdog thread and before every target: an e-stop, an alarm or a lost status stream stops
+commanding at once (``stop_j``), and the next call raises :class:`~robointel.errors.ControllerFault`
+(:class:`~robointel.errors.ConnectionLost` for a lost link) with the last known state. The
+driver's automatic recovery is off: only :meth:`FanucRobot.recover` or :meth:`FanucRobot.reconnect`
+re-arms motion.
+"""
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from airo_fanuc import DriverConfig, DriverPolicy, FanucDriver, FaultReason, MotionResult, RobotProfile
+from airo_fanuc.exceptions import FanucConnectionError, FanucError, RobotFaultedError, TrajectoryValidationError
+
+from robointel.errors import ConnectionLost, ControllerFault, InvalidInput, UnsafeCommand
+from robointel.interface.backend import Backend, ExecutionResult, Recorder, sleep_until
+from robointel.interface.profile import lrmate_profile
+from robointel.interface.protocol import CycleCallback
+from robointel.interface.state import RobotMode, RobotState
+from robointel.io.trajectory import Trajectory
+
+DEFAULT_RMI_PORT = 16001
+DEFAULT_SM_PORT = 60015
+STALE_STATUS_PERIODS = 12
+"""Status older than this many periods counts as a lost connection (the core's own RX-silence hold
+starts earlier)."""
+
+
+class FanucRobot(Backend):
+    """A :class:`~robointel.interface.protocol.RobotInterface` on a FANUC controller.
+
+    Args:
+        host: controller address.
+        rmi_port: RMI port (16001 on a controller).
+        sm_port: Stream Motion UDP port (60015 on a controller).
+        profile: the arm's motion envelope (default :func:`~robointel.interface.profile.lrmate_profile`).
+        robot: the :class:`robointel.robot.Robot` for joint names (default: the LR Mate).
+        stall_periods: stop when a stream gives no target for this many controller periods.
+        recorder: optional recorder of states and commands.
+        connect_timeout: RMI connect timeout, s.
+        lock_path: ``airo-fanuc`` single-owner lock file (None: no ownership lock).
+        deadman_s: during :meth:`execute` the controller's core stops the trajectory when this process
+            has not fed its deadman for this long, s (the core plays the trajectory back by itself, so a
+            busy interpreter must not stop it, a dead one must).
+        sched_fifo: run the driver's 125 Hz real-time thread under ``SCHED_FIFO`` (ignored without
+            the privilege, ``CAP_SYS_NICE``), so a loaded machine does not delay its packets.
+
+    Raises:
+        ConnectionLost: bring-up failed (the controller is unreachable or refuses motion).
+    """
+
+    def __init__(self, host: str, *, rmi_port: int = DEFAULT_RMI_PORT, sm_port: int = DEFAULT_SM_PORT,
+                 profile: RobotProfile | None = None, robot: Any = None, stall_periods: int | None = 10,
+                 recorder: Recorder | None = None, connect_timeout: float = 5.0,
+                 lock_path: str | None = None, deadman_s: float = 0.5, sched_fifo: bool = True) -> None:
+        if robot is None:
+            from robointel.robot import Robot
+
+            robot = Robot.load("lrmate200id7l")
+        profile = profile if profile is not None else lrmate_profile(robot)
+        if profile.ndof != robot.nq:
+            raise InvalidInput(f"profile has {profile.ndof} joints, the robot {robot.nq}", value=profile)
+        config = DriverConfig(profile=profile, sm_port=int(sm_port), rmi_port=int(rmi_port),
+                              rmi_connect_timeout=float(connect_timeout), sched_fifo=bool(sched_fifo))
+        kw: dict[str, Any] = {"enable_ownership": lock_path is not None}
+        if lock_path is not None:
+            kw["lock_path"] = lock_path
+        self.policy = DriverPolicy(config=config, enable_gripper=False, auto_recover=False, connect_retries=2,
+                                   bringup_settle_s=0.2, hold_wait_s=2.0, recovery_delay_s=0.0,
+                                   recovery_motion_probe_s=2.0, ready_wait_s=5.0, **kw)
+        super().__init__(robot.joint_names, profile.position_limits_lower, profile.position_limits_upper,
+                         profile.velocity_limits, config.itp_s, paced=True, stall_periods=stall_periods,
+                         recorder=recorder)
+        self.host = host
+        if not (np.isfinite(deadman_s) and deadman_s > 0):
+            raise InvalidInput(f"deadman_s must be > 0 s, got {deadman_s}", value=deadman_s)
+        self.deadman_s = float(deadman_s)
+        self._snap: dict[str, Any] = {}
+        self._last_state: RobotState | None = None
+        try:
+            self.driver = FanucDriver(host, self.policy)
+        except FanucError as exc:
+            raise ConnectionLost(f"could not bring up the FANUC controller at {host}:{rmi_port}: {exc}",
+                                 reason=str(exc)) from exc
+
+    # ------------------------------------------------------------------ backend hooks
+    def _read(self) -> RobotState:
+        core = self.driver.core if not self._closed else None
+        if core is None:
+            if self._last_state is not None:
+                return self._make_state(self._last_state.t, self._last_state.q, self._last_state.qd,
+                                        self._last_state.wrench, self._last_state.q_cmd)
+            z = np.zeros(self.n)
+            return self._make_state(0.0, z, z.copy(), None, None)
+        s = core.get_snapshot()
+        self._snap = s  # type: ignore[assignment]
+        wrench = (np.array([s["fx"], s["fy"], s["fz"], s["mx"], s["my"], s["mz"]], dtype=float)
+                  if s.get("wrench_valid") else None)
+        st = self._make_state(int(s["rx_mono_ns"]) * 1e-9, np.array(s["q_meas"], dtype=float),  # type: ignore
+                              np.array(s["qd_est"], dtype=float), wrench,  # type: ignore[arg-type]
+                              np.array(s["q_cmd"], dtype=float))  # type: ignore[arg-type]
+        self._last_state = st
+        return st
+
+    def _fault_of(self, state: RobotState) -> tuple[RobotMode, str, tuple[str, ...]] | None:
+        s = self._snap
+        core = self.driver.core
+        if core is None or not core.running:
+            return RobotMode.DISCONNECTED, "connection lost: the Stream Motion session is down", ("disconnected",)
+        age = float(s.get("rx_age_ms", 0.0))
+        fault = FaultReason(int(s.get("fault", 0)))  # type: ignore[call-overload]
+        if age > STALE_STATUS_PERIODS * self.period * 1e3 or fault == FaultReason.RX_SILENT:
+            return (RobotMode.DISCONNECTED, f"connection lost: no controller status for {age:.0f} ms",
+                    ("rx_silent",))
+        faults = []
+        if s.get("e_stopped"):
+            faults.append("e_stop")
+        if s.get("in_error"):
+            faults.append("in_error")
+        if s.get("tp_enabled"):
+            faults.append("teach_pendant_enabled")
+        if fault != FaultReason.NONE and fault.name.lower() not in faults:
+            faults.append(fault.name.lower())
+        if not s.get("motion_possible", False):
+            faults.append("motion_not_possible")
+        if not faults:
+            return None
+        why = {"e_stop": "e-stop pressed", "in_error": "controller alarm (in error)",
+               "teach_pendant_enabled": "teach pendant enabled"}.get(faults[0], faults[0].replace("_", " "))
+        return RobotMode.FAULTED, f"controller stopped: {why} [{', '.join(faults)}]", tuple(faults)
+
+    def _needs_monitor(self) -> bool:
+        return True
+
+    def _send(self, q: npt.NDArray[np.float64]) -> None:
+        try:
+            self.driver.servo_j(q, self.period)
+        except RobotFaultedError as exc:
+            self._latch_fault(RobotMode.FAULTED, f"controller refused motion: {exc}", ("faulted",))
+            raise ControllerFault(self._why, value=self._read(), reason=self._why) from exc
+        except FanucConnectionError as exc:
+            self._latch_fault(RobotMode.DISCONNECTED, f"connection lost: {exc}", ("disconnected",))
+            raise ConnectionLost(self._why, value=self._read(), reason=self._why) from exc
+
+    def _hold(self) -> None:
+        try:
+            self.driver.hold()
+        except FanucError:  # the fault is reported by the next state check
+            pass
+
+    def _halt(self) -> None:
+        self.driver.stop_j()  # never raises; the core brakes within one tick
+
+    def _recover(self) -> None:
+        ok = self.driver.recover(escalate_reconnect=False)
+        self.driver.arm()
+        fault = self._fault_of(self._read())
+        if not ok or fault is not None:
+            why = fault[1] if fault is not None else "the recovery ladder did not reach streaming"
+            raise ControllerFault(f"recovery failed: {why}", value=self._read(), reason=why)
+
+    def _close(self) -> None:
+        self.driver.close()
+
+    def _commanded(self) -> npt.NDArray[np.float64] | None:
+        self._read()
+        return np.array(self._snap["q_cmd"], dtype=float) if self._snap else None
+
+    def execute(self, trajectory: Trajectory, *, on_cycle: CycleCallback | None = None) -> ExecutionResult:
+        """Play ``trajectory`` back on the controller's real-time core, supervised every period.
+
+        The trajectory is resampled at the period (``Trajectory.resample``) and checked whole by the
+        safety gate; the knots (t, q, qd) go to ``FanucDriver.move_trajectory`` (Hermite playback in
+        the 8 ms core, so the commanded path is the planned one, not a servo's lagging chase of it).
+        Every period this process feeds the core's deadman (``deadman_s``: if this process dies or
+        hangs, the core stops), reads the state, stops at once on a fault and calls ``on_cycle``.
+
+        Returns:
+            The :class:`ExecutionResult`; ``q_cmd`` is the core's commanded position each period.
+
+        Raises:
+            InvalidInput: wrong joint count. UnsafeCommand: the gate or the driver refused the path.
+            ControllerFault, ConnectionLost: the robot stopped mid-run (``.value`` is (state, partial result)).
+        """
+        if not isinstance(trajectory, Trajectory) or trajectory.q.shape[1] != self.n:
+            raise InvalidInput(f"execute needs a Trajectory with {self.n} joints", value=trajectory)
+        rs = trajectory.resample(self.period)
+        times_ns = np.round((rs.t - rs.t[0]) * 1e9).astype(np.int64)
+        with self._lock:
+            self._refuse_if_stopped()
+            st = self._read()
+            fault = self._fault_of(st)
+            if fault is not None:
+                self._latch_fault(*fault)
+                self._refuse_if_stopped()
+            ref = self._last_cmd if self._last_cmd is not None else self._commanded()
+            self.gate.check_path(rs.q, ref)
+            if self.recorder is not None:
+                self.recorder.trajectory(st.t, trajectory)
+            try:
+                handle = self.driver.move_trajectory(times_ns, rs.q, rs.qd, deadman_s=self.deadman_s,
+                                                     asynchronous=True)
+            except TrajectoryValidationError as exc:
+                raise UnsafeCommand(f"the controller driver refused the trajectory: {exc}", value=rs.q) from exc
+            except RobotFaultedError as exc:
+                self._latch_fault(RobotMode.FAULTED, f"controller refused motion: {exc}", ("faulted",))
+                raise ControllerFault(self._why, value=self._read(), reason=self._why) from exc
+            self._mode, self._last_cmd, self._last_cmd_wall = RobotMode.STREAMING, None, time.perf_counter()
+            self._stall_check = False  # the core's deadman supervises this process during playback
+            self._ensure_watchdog()
+        try:
+            return self._supervise(handle, rs, on_cycle)
+        except ControllerFault:
+            raise
+        except BaseException as exc:  # on_cycle raised or the caller interrupted: the core must not play on
+            self.stop(f"execution aborted: {type(exc).__name__}: {exc}")
+            raise
+        finally:
+            self._stall_check = True
+
+    def _supervise(self, handle: Any, rs: Trajectory, on_cycle: CycleCallback | None) -> ExecutionResult:
+        """Feed the deadman, read and record the state, stop on a fault, once per period."""
+        K = len(rs.t) + int(2.0 / self.period)  # playback plus up to 2 s of capture and settle
+        ts, qs, qc, cyc = np.zeros(K), np.zeros((K, self.n)), np.zeros((K, self.n)), np.zeros(K)
+        missed, k = 0, 0
+        t0 = time.perf_counter()
+        while k < K:
+            sleep_until(t0 + k * self.period)
+            c0 = time.perf_counter()
+            with self._lock:
+                self.driver.kick()
+                st = self._read()
+                fault = self._fault_of(st) if self._mode is RobotMode.STREAMING else (self._mode, self._why, ())
+                if fault is not None:
+                    if self._mode is RobotMode.STREAMING:
+                        self._latch_fault(*fault)
+                    cls = ConnectionLost if self._mode is RobotMode.DISCONNECTED else ControllerFault
+                    part = ExecutionResult(ts[:k], qc[:k], qs[:k], cyc[:k], missed, False)
+                    raise cls(f"execution stopped: {self._why}", value=(self._read(), part), reason=self._why)
+                self._last_cmd_wall = time.perf_counter()
+                if self.recorder is not None:
+                    self.recorder.joint_state(st)
+                    if st.q_cmd is not None:
+                        self.recorder.command(st.t, st.q_cmd)
+            c1 = time.perf_counter()
+            ts[k], qs[k], qc[k], cyc[k] = st.t, st.q, st.q_cmd if st.q_cmd is not None else st.q, (c1 - c0) * 1e6
+            if c1 > t0 + (k + 1) * self.period:
+                missed += 1
+            k += 1
+            if on_cycle is not None:
+                on_cycle(k - 1, st)
+            if handle.done():
+                break
+        result = handle.result()
+        self.hold()
+        return ExecutionResult(ts[:k], qc[:k], qs[:k], cyc[:k], missed, result is MotionResult.DONE,
+                               extra={"motion_result": str(result.value if result is not None else "running")})
+
+    # ------------------------------------------------------------------ FANUC only
+    def reconnect(self) -> None:
+        """Close the Stream Motion + RMI session and bring a new one up; the robot holds.
+
+        Raises:
+            ConnectionLost: the controller cannot be brought up.
+        """
+        with self._lock:
+            if self._closed:
+                raise ConnectionLost("the robot interface is closed; open a new one", reason="closed")
+            try:
+                self.driver.close()
+            except FanucError:
+                pass  # the old session is gone either way
+            try:
+                self.driver = FanucDriver(self.host, self.policy)
+            except FanucError as exc:
+                self._latch_fault(RobotMode.DISCONNECTED, f"reconnect failed: {exc}", ("disconnected",))
+                raise ConnectionLost(self._why, value=self._read(), reason=self._why) from exc
+            self._mode, self._why, self._faults, self._last_cmd = RobotMode.IDLE, "", (), None
+
+    def timing_stats(self) -> dict[str, Any]:
+        """The driver's real-time core statistics (tick intervals, TX counts, missed RX ticks)."""
+        return dict(self.driver.timing_stats())

@@ -1,0 +1,110 @@
+"""The safety gate every joint command passes before it reaches a backend (shared by all backends).
+
+A target is refused when it is not finite, has the wrong shape, lies outside the joint position
+limits, or is farther from the previous command than one controller period allows at the joint's
+maximum speed: ``|q_k - q_{k-1}| <= margin * qd_max * period``.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+from robointel.errors import InvalidInput, UnsafeCommand
+
+
+class SafetyGate:
+    """Check joint position targets against the limits and the largest per-period jump.
+
+    Args:
+        joint_names: n joint names (for messages).
+        lower: (n,) lower joint limits, rad.
+        upper: (n,) upper joint limits, rad.
+        velocity_limit: (n,) maximum joint speeds, rad/s.
+        period: controller period, s.
+        margin: allowed factor over ``velocity_limit * period`` (>= 1; rounding of resampled paths).
+
+    Raises:
+        InvalidInput: inconsistent shapes or non-positive limits.
+    """
+
+    def __init__(self, joint_names: Sequence[str], lower: npt.ArrayLike, upper: npt.ArrayLike,
+                 velocity_limit: npt.ArrayLike, period: float, *, margin: float = 1.05) -> None:
+        self.joint_names = list(joint_names)
+        n = len(self.joint_names)
+        self.lower = np.asarray(lower, dtype=float).reshape(-1)
+        self.upper = np.asarray(upper, dtype=float).reshape(-1)
+        self.velocity_limit = np.asarray(velocity_limit, dtype=float).reshape(-1)
+        if not (self.lower.shape == self.upper.shape == self.velocity_limit.shape == (n,)):
+            raise InvalidInput(f"limits must have {n} values each", value=(lower, upper, velocity_limit))
+        if not (np.all(self.velocity_limit > 0) and np.all(self.lower < self.upper)):
+            raise InvalidInput("velocity limits must be positive and lower < upper", value=(lower, upper))
+        if not (np.isfinite(period) and period > 0) or not margin >= 1.0:
+            raise InvalidInput(f"period must be > 0 and margin >= 1, got {period}, {margin}", value=period)
+        self.period = float(period)
+        self.max_step = margin * self.velocity_limit * self.period
+        self.n = n
+
+    def check(self, q_target: npt.ArrayLike, q_previous: npt.NDArray[np.float64] | None) -> npt.NDArray[np.float64]:
+        """Return ``q_target`` as a fresh (n,) float array if it is safe to send.
+
+        Args:
+            q_target: (n,) joint position target, rad.
+            q_previous: (n,) previous command (or the measured position before the first), rad; None
+                skips the jump check.
+
+        Returns:
+            (n,) the target, rad.
+
+        Raises:
+            UnsafeCommand: wrong shape, NaN/inf, outside the limits, or a jump over ``max_step``;
+                ``.value`` is the target.
+        """
+        try:
+            q = np.array(q_target, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise UnsafeCommand(f"joint target must be {self.n} numbers, got {q_target!r}", value=q_target) from None
+        if q.shape != (self.n,):
+            raise UnsafeCommand(f"joint target must have {self.n} values, got shape {np.shape(q_target)}",
+                                value=q_target)
+        if not np.all(np.isfinite(q)):
+            raise UnsafeCommand(f"joint target contains NaN or inf: {q.tolist()}; refused", value=q)
+        out = (q < self.lower) | (q > self.upper)
+        if out.any():
+            i = int(np.flatnonzero(out)[0])
+            raise UnsafeCommand(f"joint target {self.joint_names[i]} = {q[i]:.6g} rad is outside its limits "
+                                f"[{self.lower[i]:.6g}, {self.upper[i]:.6g}]; refused", value=q)
+        if q_previous is not None:
+            step = np.abs(q - q_previous)
+            far = step > self.max_step
+            if far.any():
+                i = int(np.flatnonzero(far)[0])
+                raise UnsafeCommand(
+                    f"joint target {self.joint_names[i]} jumps {step[i]:.4g} rad in one {self.period * 1e3:.3g} ms "
+                    f"period; at most {self.max_step[i]:.4g} rad (the maximum speed) is allowed; refused", value=q)
+        return q
+
+    def check_path(self, q: npt.NDArray[np.float64], q_previous: npt.NDArray[np.float64] | None) -> None:
+        """Check a whole (K, n) path sampled at the period before any of it is sent.
+
+        Raises:
+            UnsafeCommand: the first sample that :meth:`check` would refuse (message names its index).
+        """
+        q = np.asarray(q, dtype=float)
+        if q.ndim != 2 or q.shape[1] != self.n:
+            raise UnsafeCommand(f"path must have shape (K, {self.n}), got {q.shape}", value=q)
+        bad = ~np.all(np.isfinite(q), axis=1) | np.any((q < self.lower) | (q > self.upper), axis=1)
+        prev = q[:-1] if q_previous is None else np.vstack([q_previous[None], q[:-1]])
+        steps = np.abs(q[1:] - q[:-1]) if q_previous is None else np.abs(q - prev)
+        jump = np.any(steps > self.max_step, axis=1)
+        if q_previous is None:
+            jump = np.concatenate([[False], jump])
+        bad |= jump
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            try:
+                self.check(q[k], None if (k == 0 and q_previous is None) else (prev[k - 1] if q_previous is None
+                                                                               else prev[k]))
+            except UnsafeCommand as exc:
+                raise UnsafeCommand(f"trajectory sample {k}: {exc}", value=q[k]) from None
