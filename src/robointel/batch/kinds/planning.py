@@ -12,9 +12,9 @@ import time
 from robointel.batch.kinds.params import param
 from robointel.batch.registry import TrialKind
 from robointel.batch.spec import TaskSpec
-from robointel.planning.scene import load_scene
 from robointel.outcome import Failure, TrialOutcome
 from robointel.planning.frmp import plan_scene
+from robointel.planning.scene import load_scene
 
 
 def planning(spec: TaskSpec) -> TrialOutcome:
