@@ -65,3 +65,8 @@ class DataMissing(RobointelError, FileNotFoundError):
 
 class SafetyStop(RobointelError):
     """A controller refused a command (bad sensor data, stalled stream) and held the robot."""
+
+
+class TargetInCollision(SafetyStop):
+    """A target configuration (or the motion to it) would hit the table, the floor, an obstacle or the
+    robot itself; the message names the link, ``.value`` holds link, obstacle and distance."""

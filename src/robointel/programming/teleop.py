@@ -160,6 +160,9 @@ class TeleopApp:
         self._threads: list[threading.Thread] = []
         self.server = None
         self._authed = token is None
+        self.client = "teleop-page"  # the page's client id at the controller (it acquires control to move)
+        self.refused = 0
+        self.last_error: str | None = None
 
     # ------------------------------------------------------------------ logic (no browser needed)
     def move_hand(self, position, wxyz) -> bool:
@@ -186,11 +189,23 @@ class TeleopApp:
         return True
 
     def _send(self, q) -> None:
+        """Stream a joint target through the controller's checks (control, latch, limits, table,
+        floor and self-collision); a refusal is shown on the page and nothing moves."""
         if not self._authed:
             return
-        reply = self.controller.submit({"type": "joint_target", "q": [float(v) for v in q]})
+        if self.controller.owner != self.client:
+            reply = self.controller.submit({"type": "acquire"}, client=self.client)
+            if reply is not None and reply["type"] == "error":
+                self.last_error = reply["message"]
+                self._status(f"not sent: {reply['message']}")
+                return
+        reply = self.controller.submit({"type": "joint_target", "q": [float(v) for v in q]}, client=self.client)
         if reply is None:
             self.sent += 1
+        else:
+            self.refused += 1
+            self.last_error = reply["message"]
+            self._status(f"not sent ({reply['code']}): {reply['message']}")
 
     def record(self) -> int:
         """Record the current target (or the robot's pose) as a waypoint; returns the count."""
@@ -422,3 +437,4 @@ class TeleopApp:
         if self.server is not None:
             self.server.stop()
             self.server = None
+        self.controller.release(self.client)

@@ -1,0 +1,90 @@
+"""A small synchronous client of the streaming protocol (:mod:`robointel.programming.streaming`).
+
+Stamps every target and heartbeat with the send time ``t`` from ``time.perf_counter`` (the server
+only needs a steady clock), and filters replies by type.
+"""
+from __future__ import annotations
+
+import json
+import time
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+
+class StreamClient:
+    """One WebSocket connection to a streaming server (``websockets`` sync client).
+
+    Args:
+        url: ``ws://host:port``.
+        token: sent in ``hello`` right after connecting when given.
+        timeout: seconds to wait for a reply.
+
+    Attributes:
+        welcome: the server's ``welcome`` (and, with a token, ``hello``) message.
+    """
+
+    def __init__(self, url: str, *, token: str | None = None, timeout: float = 5.0) -> None:
+        from websockets.sync.client import connect
+
+        self.timeout = float(timeout)
+        self.ws = connect(url, compression=None, open_timeout=timeout)
+        self.welcome: dict[str, Any] = json.loads(self.ws.recv(timeout=timeout))
+        self.seen: list[dict[str, Any]] = []  # replies skipped while waiting for another type
+        if token is not None:
+            self.send({"type": "hello", "token": token})
+            self.welcome = self.recv("hello")
+
+    def send(self, msg: dict[str, Any]) -> None:
+        """Send one message as JSON (``t`` added to targets and heartbeats when missing)."""
+        if msg.get("type") in ("joint_target", "pose_target", "heartbeat") and "t" not in msg:
+            msg = {**msg, "t": time.perf_counter()}
+        self.ws.send(json.dumps(msg))
+
+    def send_raw(self, text: str) -> None:
+        """Send a text frame as is."""
+        self.ws.send(text)
+
+    def recv(self, typ: str | None = None, timeout: float | None = None) -> dict[str, Any]:
+        """The next reply (of type ``typ`` if given; ``error`` replies are always returned).
+
+        Raises:
+            TimeoutError: nothing of that type within ``timeout`` seconds.
+        """
+        end = time.monotonic() + (self.timeout if timeout is None else timeout)
+        while True:
+            left = end - time.monotonic()
+            if left <= 0:
+                raise TimeoutError(f"no {typ or 'reply'} within the timeout")
+            m = json.loads(self.ws.recv(timeout=left))
+            if typ is None or m.get("type") in (typ, "error"):
+                return m
+            self.seen.append(m)
+
+    def request(self, msg: dict[str, Any], typ: str) -> dict[str, Any]:
+        """Send ``msg`` and return the reply of type ``typ`` (or the error)."""
+        self.send(msg)
+        return self.recv(typ)
+
+    def acquire(self) -> dict[str, Any]:
+        """Take control (``ok`` or an ``error`` reply)."""
+        return self.request({"type": "acquire"}, "ok")
+
+    def joint_target(self, q: npt.ArrayLike, **extra: Any) -> None:
+        """Stream a joint target (n,) rad, stamped with the send time."""
+        self.send({"type": "joint_target", "q": [float(v) for v in np.asarray(q, float)], **extra})
+
+    def state(self) -> dict[str, Any]:
+        """The server's ``state`` reply."""
+        return self.request({"type": "get_state"}, "state")
+
+    def close(self) -> None:
+        """Close the connection (the server releases control and the robot stops)."""
+        self.ws.close()
+
+    def __enter__(self) -> StreamClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
