@@ -77,23 +77,27 @@ class CollisionGuard:
         sm = self.robot.spheres
         P = self.robot.points_kinematics_batch(Q, sm.joints, sm._in_joint)[0]  # (B, m, 3)
         r = sm.radii
-        for b in range(len(Q)):
-            for k, o in enumerate(self.obstacles):
-                d = o.distance(P[b, self._movable])[0] - r[self._movable]
-                w = int(np.argmin(d))
-                if d[w] < self.clearance:
-                    link = sm.links[int(self._movable[w])]
-                    raise TargetInCollision(
-                        f"{what} rejected: link {link!r} would be {d[w] * 1000:.1f} mm from {o.label(k)!r} "
-                        f"(required {self.clearance * 1000:.0f} mm); the robot holds", value={
-                            "link": link, "obstacle": o.label(k), "distance": float(d[w]), "q": Q[b].tolist()})
-            if len(self._pairs):
-                pa, pb = self._pairs[:, 0], self._pairs[:, 1]
-                ds = np.linalg.norm(P[b, pa] - P[b, pb], axis=1) - r[pa] - r[pb]
-                m = int(np.argmin(ds))
-                if ds[m] < self.self_clearance:
-                    la, lb = sm.links[int(pa[m])], sm.links[int(pb[m])]
-                    raise TargetInCollision(
-                        f"{what} rejected: link {la!r} would hit link {lb!r} (self-collision, spheres "
-                        f"{-ds[m] * 1000:.1f} mm into each other); the robot holds",
-                        value={"link": la, "obstacle": lb, "distance": float(ds[m]), "q": Q[b].tolist()})
+        B, mv = len(Q), self._movable
+        for k, o in enumerate(self.obstacles):
+            d = o.distance(P[:, mv].reshape(-1, 3))[0].reshape(B, len(mv)) - r[mv]  # (B, movable)
+            hit = np.argwhere(d < self.clearance)
+            if len(hit):
+                b = int(hit[0, 0])
+                w = int(np.argmin(d[b]))
+                link = sm.links[int(mv[w])]
+                raise TargetInCollision(
+                    f"{what} rejected: link {link!r} would be {d[b, w] * 1000:.1f} mm from {o.label(k)!r} "
+                    f"(required {self.clearance * 1000:.0f} mm); the robot holds", value={
+                        "link": link, "obstacle": o.label(k), "distance": float(d[b, w]), "q": Q[b].tolist()})
+        if len(self._pairs):
+            pa, pb = self._pairs[:, 0], self._pairs[:, 1]
+            ds = np.linalg.norm(P[:, pa] - P[:, pb], axis=2) - r[pa] - r[pb]  # (B, pairs)
+            hit = np.argwhere(ds < self.self_clearance)
+            if len(hit):
+                b = int(hit[0, 0])
+                m = int(np.argmin(ds[b]))
+                la, lb = sm.links[int(pa[m])], sm.links[int(pb[m])]
+                raise TargetInCollision(
+                    f"{what} rejected: link {la!r} would hit link {lb!r} (self-collision, spheres "
+                    f"{-ds[b, m] * 1000:.1f} mm into each other); the robot holds",
+                    value={"link": la, "obstacle": lb, "distance": float(ds[b, m]), "q": Q[b].tolist()})

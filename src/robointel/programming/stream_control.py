@@ -237,11 +237,15 @@ class StreamingController:
             i = int(bad[0])
             raise Rejected("out_of_limits", f"q[{i}] ({self.robot.joint_names[i]}) = {q[i]:.4g} is outside "
                                             f"[{self.robot.lower[i]:.4g}, {self.robot.upper[i]:.4g}]")
-        try:
-            with self._ik_lock:
-                self.guard.check_motion(self.q_ref.copy(), q)
-        except TargetInCollision as exc:
-            raise Rejected("collision", str(exc)) from None
+        with self._lock:
+            cur = self._pending or self._target
+            same = cur is not None and np.array_equal(cur.q, q)  # the move to it is being checked/followed
+        if not same:
+            try:
+                with self._ik_lock:
+                    self.guard.check_motion(self.q_ref.copy(), q)
+            except TargetInCollision as exc:
+                raise Rejected("collision", str(exc)) from None
         with self._lock:
             self.may_command(client, sent, time.perf_counter())  # again: a stop may have come meanwhile
             self._pending = Target(q, seq, ack, sent, client)

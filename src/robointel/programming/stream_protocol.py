@@ -165,6 +165,9 @@ class SendClock:
 class RateLimit:
     """A token bucket: ``rate`` messages per second sustained, bursts of ``burst``.
 
+    A client over its rate is not read from until it is back under it: the server waits, the
+    connection's receive queue fills, and TCP backpressure slows the sender at no cost to the server.
+
     Attributes:
         rate: sustained messages per second.
         burst: bucket size (messages).
@@ -172,16 +175,13 @@ class RateLimit:
 
     rate: float = 1000.0
     burst: float = 200.0
-    _tokens: float = -1.0
+    _tokens: float | None = None
     _last: float = 0.0
 
-    def allow(self, now: float) -> bool:
-        """Take one token at time ``now`` (s); False when the client is over its rate."""
-        if self._tokens < 0:
+    def delay(self, now: float) -> float:
+        """Take one token at time ``now`` (s); the seconds to wait before handling the message."""
+        if self._tokens is None:
             self._tokens, self._last = self.burst, now
-        self._tokens = min(self.burst, self._tokens + (now - self._last) * self.rate)
+        self._tokens = min(self.burst, self._tokens + (now - self._last) * self.rate) - 1.0
         self._last = now
-        if self._tokens >= 1.0:
-            self._tokens -= 1.0
-            return True
-        return False
+        return 0.0 if self._tokens >= 0 else -self._tokens / self.rate

@@ -16,8 +16,9 @@ Safety rules
   ``t + deadman``; a target older than ``deadman`` on arrival is dropped (``stale``), never
   replayed. A stall therefore stops the robot ``deadman`` after the client's last send, however
   long the server's backlog.
-* **bounded work per client**: frames over the rate limit (1000/s, bursts of 200) are dropped (one
-  ``rate_limited`` error per second); each client has a one-target mailbox (a newer target
+* **bounded work per client**: a client over the rate limit (1000 messages/s, bursts of 200) is
+  not read from until it is back under it (TCP backpressure slows it; one ``rate_limited`` error
+  per second tells it), so its late messages arrive stale and are dropped; each client has a one-target mailbox (a newer target
   replaces an unprocessed one); IK and collision checks run in a worker thread, one target at a
   time, never on the event loop; the loop yields after every message.
 * **checks**: JSON, type, shapes, finiteness (also ``10**400``), booleans (``"ack": "false"`` is an
@@ -105,6 +106,7 @@ __all__ = ["StreamingController", "StreamingServer", "check_bind", "is_loopback"
 AUTH_FAILURES = 5        # failed hellos per address ...
 AUTH_WINDOW = 60.0       # ... within this many seconds lock the address out
 AUTH_DELAY = 0.5         # s before a wrong token is answered
+RECEIVE_BUFFER = 64 * 1024  # bytes of kernel receive buffer per connection: a bounded backlog per client
 
 
 def is_loopback(host: str) -> bool:
@@ -145,7 +147,7 @@ class _Client:
     slot: tuple | None = None  # the newest unprocessed target: (kind, payload, seq, ack, sent)
     wake: asyncio.Event = field(default_factory=asyncio.Event)
     limited_reply: float = -1e9
-    dropped: int = 0
+    throttled: int = 0
 
 
 class StreamingServer:
@@ -207,12 +209,14 @@ class StreamingServer:
             async for raw in ws:
                 await asyncio.sleep(0)  # one message per turn: a flooding client cannot starve the others
                 now = time.perf_counter()
-                if not c.limit.allow(now):
-                    c.dropped += 1
+                wait = c.limit.delay(now)
+                if wait > 0:  # over the rate: stop reading this client (TCP backpressure slows it down)
+                    c.throttled += 1
                     if now - c.limited_reply > 1.0:
                         c.limited_reply = now
-                        await self._error_to(c, "rate_limited", "over 1000 messages/s: messages dropped", None)
-                    continue
+                        await self._error_to(c, "rate_limited", "over 1000 messages/s: reading paused", None)
+                    await asyncio.sleep(wait)
+                    now = time.perf_counter()
                 if isinstance(raw, bytes) or len(raw) > MAX_MESSAGE_BYTES:
                     await self._error_to(c, "malformed", "send JSON text frames under 64 kB", None)
                     continue
@@ -367,8 +371,9 @@ class StreamingServer:
             async with serve(self._handler, self.host, self.port, max_size=MAX_MESSAGE_BYTES * 2, max_queue=32,
                              compression=None) as server:
                 self.port = server.sockets[0].getsockname()[1] if self.port == 0 else self.port
-                for s in server.sockets:
+                for s in server.sockets:  # accepted connections inherit these
                     s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                    s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER)
                 self._ready.set()
                 await self._stop.wait()
         except BaseException as exc:  # bind failure etc.
