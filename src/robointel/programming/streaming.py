@@ -18,9 +18,10 @@ Safety rules
   long the server's backlog.
 * **bounded work per client**: a client over the rate limit (1000 messages/s, bursts of 200) is
   not read from until it is back under it (TCP backpressure slows it; one ``rate_limited`` error
-  per second tells it), so its late messages arrive stale and are dropped; each client has a one-target mailbox (a newer target
-  replaces an unprocessed one); IK and collision checks run in a worker thread, one target at a
-  time, never on the event loop; the loop yields after every message.
+  per second tells it), so its late messages arrive stale and are dropped; a 64 kB kernel
+  receive buffer bounds each client's backlog; each client has a one-target mailbox (a newer
+  target replaces an unprocessed one); IK and collision checks run in a worker thread, one target
+  at a time, never on the event loop; the loop yields after every message.
 * **checks**: JSON, type, shapes, finiteness (also ``10**400``), booleans (``"ack": "false"`` is an
   error), joint limits, IK reachability, and the straight joint-space move to the target clear of
   the table, the floor and the robot itself (``collision``, naming the link). A bad message gets
