@@ -13,6 +13,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from robointel.commands.failure import fail
 from robointel.errors import RobointelError
 from robointel.report.demo import Figure, StageContext, StageResult
 
@@ -154,8 +155,7 @@ def teach(out: Path = typer.Option(Path("grasps.h5"), help="grasp database file 
             t.add_row(tm.name, tm.category, str(len(tm.points)), ", ".join(g.name for g in tm.grasps))
         console.print(t)
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2)
+        fail(exc)
 
 
 def _one_target(source, category, seed, db):
@@ -170,8 +170,7 @@ def _one_target(source, category, seed, db):
     p = random_placements([obj], rng)[0]
     clouds = _static_clouds([p], rng)
     if not clouds:
-        console.print("[red]error:[/red] the cameras saw nothing")
-        raise typer.Exit(2)
+        fail("the cameras saw nothing")
     return objs, obj, p, clouds[0], _templates(objs, db, sampled=source == 'ycb')
 
 
@@ -196,8 +195,7 @@ def classify_cmd(category: str = typer.Option("cup", help="category of the rando
         console.print(t)
         console.print(f"classification time {ms:.0f} ms for {len(templates)} templates")
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2)
+        fail(exc)
 
 
 @grasp_app.command()
@@ -222,8 +220,7 @@ def transfer(category: str = typer.Option("cup"), seed: int = typer.Option(0), s
         console.print("timings [ms]: " + ", ".join(f"{k} {1000 * v:.0f}" for k, v in plan.timings.items()))
         console.print(f"picture: {plot_transfer(plan, cloud, out)}")
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2)
+        fail(exc)
 
 
 @grasp_app.command()
@@ -257,8 +254,7 @@ def trial(category: str = typer.Option("all", help="a category or 'all'"), n: in
         console.print(t)
         console.print(f"total {tot}/{n * len(cats)} (dissertation: 18.8/20)")
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2)
+        fail(exc)
 
 
 def register(app: typer.Typer) -> None:

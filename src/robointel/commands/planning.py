@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robointel.commands.failure import fail
 from robointel.report.demo import Figure, StageContext, StageResult
 
 
@@ -140,8 +141,7 @@ def register(app) -> None:
             out.parent.mkdir(parents=True, exist_ok=True)
             res.trajectory.save(out)
         except RobointelError as exc:
-            console.print(f"[red]error:[/red] {exc}")
-            raise typer.Exit(2)
+            fail(exc)
         t = Table(title=f"{sc.name}: {len(sc.steps)} segments, {sc.total_steps} steps, d_min {sc.d_min * 1000:.0f} mm")
         for c in ("segment", "blocked", "CFS [ms]", "iterations", "status", "min dist [mm]", "temporal [ms]", "time [s]"):
             t.add_column(c, justify="right")
@@ -160,6 +160,14 @@ def register(app) -> None:
             b = plot_path_3d(res, Path(f"{stem}_path3d.png"))
             console.print(f"plots: {a}, {b}")
         if execute:
+            from robointel.geometry.table import table_obstacles
+            from robointel.programming.collision_guard import CollisionGuard
+
+            try:  # the table, the floor, the obstacles and self-collision on a 10 ms resample, before moving
+                env = list(sc.obstacles) + ([] if getattr(sc, "table", False) else table_obstacles())
+                CollisionGuard(sc.robot, env).check_many(res.trajectory.resample(0.01).q, "planned trajectory")
+            except RobointelError as exc:
+                fail(exc)
             with console.status("tracking in MuJoCo"):
                 ex = run_in_sim(res)
             console.print(f"MuJoCo: RMS tracking error {np.degrees(ex.rms_error_rad):.4f} deg, max "

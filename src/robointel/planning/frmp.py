@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from robointel.errors import InvalidInput
+from robointel.geometry.table import ENVIRONMENT_NAMES
 from robointel.io.scene import Scene
 from robointel.io.trajectory import Trajectory
 from robointel.planning.temporal import TemporalResult, concatenate_segments, fixed_dt_segment, temporal_optimize
@@ -208,7 +209,10 @@ def execute(result: FRMPResult, *, workcell=None) -> Execution:
     from robointel.sim import Workcell
 
     scene = result.scene
-    wc = workcell or Workcell(scene.robot, obstacles=scene.obstacles, ft_sensor=False)
+    # the workcell builds its own table and floor: pass only the scene's other obstacles
+    obstacles = [o for o in scene.obstacles if not (getattr(scene, "table", False)
+                                                    and getattr(o, "name", None) in ENVIRONMENT_NAMES)]
+    wc = workcell or Workcell(scene.robot, obstacles=obstacles, ft_sensor=False)
     tr = result.trajectory
     log = wc.run_trajectory(tr.t, tr.q, tr.qd, tr.qdd, record_ft=False)
     err = log.error
@@ -224,5 +228,6 @@ def execute(result: FRMPResult, *, workcell=None) -> Execution:
          for a, b in zip(log.q_ref[::step], log.q[::step])])
     return Execution(rms_error_rad=float(np.sqrt(np.mean(err ** 2))), max_error_rad=float(np.max(np.abs(err))),
                      max_tcp_error_m=float(np.max(tcp)), obstacle_contacts=contacts,
-                     min_distance_m=float(log.min_distance), collided=bool(contacts > 0 or log.min_distance < 0),
+                     min_distance_m=float(log.min_distance),
+                     collided=bool(contacts > 0 or log.min_distance < 0 or np.any(log.contacts > 0)),
                      log=log)

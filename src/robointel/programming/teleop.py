@@ -139,6 +139,8 @@ class TeleopApp:
                  obstacles: Sequence = (), program_path="teleop_program.yaml", stream_hz: float = 50.0,
                  reach_tol: float = 2e-3, token: str | None = None) -> None:
         check_bind(host, token)
+        if not 0 <= int(port) <= 65535:
+            raise InvalidInput(f"port must be in 0..65535, got {port}", value=port)
         from robointel.robot import Robot
 
         self.controller = controller
