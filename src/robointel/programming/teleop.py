@@ -185,29 +185,33 @@ class TeleopApp:
                 return False
             self.reachable = True
             if not self.replaying:
+                if not self._send(q):  # refused (table, floor, self-collision, control): not kept either
+                    self._show_reachability(False)
+                    return False
                 self.desired = q
-                self._send(q)
         self._show_reachability(True)
         return True
 
-    def _send(self, q) -> None:
+    def _send(self, q) -> bool:
         """Stream a joint target through the controller's checks (control, latch, limits, table,
-        floor and self-collision); a refusal is shown on the page and nothing moves."""
+        floor and self-collision); a refusal is shown on the page and nothing moves. Returns whether
+        the controller accepted it."""
         if not self._authed:
-            return
+            return False
         if self.controller.owner != self.client:
             reply = self.controller.submit({"type": "acquire"}, client=self.client)
             if reply is not None and reply["type"] == "error":
                 self.last_error = reply["message"]
                 self._status(f"not sent: {reply['message']}")
-                return
+                return False
         reply = self.controller.submit({"type": "joint_target", "q": [float(v) for v in q]}, client=self.client)
         if reply is None:
             self.sent += 1
-        else:
-            self.refused += 1
-            self.last_error = reply["message"]
-            self._status(f"not sent ({reply['code']}): {reply['message']}")
+            return True
+        self.refused += 1
+        self.last_error = reply["message"]
+        self._status(f"not sent ({reply['code']}): {reply['message']}")
+        return False
 
     def record(self) -> int:
         """Record the current target (or the robot's pose) as a waypoint; returns the count."""
