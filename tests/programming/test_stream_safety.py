@@ -19,52 +19,11 @@ READY = [0.0, 0.0, 0.0, 0.0, -np.pi / 2, 0.0]
 LEFT = [-2.5, 0.0, 0.0, 0.0, -np.pi / 2, 0.0]
 RIGHT = [2.5, 0.0, 0.0, 0.0, -np.pi / 2, 0.0]
 
-# a client in its own process: connects, (optionally) takes control, waits for a line on stdin, floods
-# for SECONDS, prints the perf_counter time of its last send, stays connected and silent for HOLD s.
-FLOOD = r"""
-import json, sys, threading, time
-from websockets.sync.client import connect
-url, mode, seconds, hold = sys.argv[1], sys.argv[2], float(sys.argv[3]), float(sys.argv[4])
-ws = connect(url, compression=None)
-ws.recv(timeout=5)
-def drain():
-    try:
-        while True:
-            ws.recv(timeout=60)
-    except Exception:
-        pass
-if mode.startswith("command"):
-    ws.send(json.dumps({"type": "acquire"}))
-threading.Thread(target=drain, daemon=True).start()
-print("ready", flush=True)
-sys.stdin.readline()
-left, right = [-2.5, 0, 0, 0, -1.5707963, 0], [2.5, 0, 0, 0, -1.5707963, 0]
-junk = ['{"type": "joint_target", "q": [0, 0, 0, 0, -1.5, 0], "t": %r}',
-        '{"type": "pose_target", "position": [3.0, 0, 0.3], "quaternion": [1, 0, 0, 0], "t": %r}',
-        '{"type": "get_state"}', '{not json', '{"type": "heartbeat", "t": %r}']
-k, t0 = 0, time.perf_counter()
-last = t0
-while time.perf_counter() - t0 < seconds:
-    last = time.perf_counter()
-    if mode == "command":
-        ws.send(json.dumps({"type": "joint_target", "q": right, "t": last, "seq": k}))
-    elif mode == "command_poses":  # unreachable poses keep the IK worker busy
-        ws.send(json.dumps({"type": "pose_target", "position": [3.0, 0.1 * (k % 7), 0.3],
-                            "quaternion": [1, 0, 0, 0], "t": last, "seq": k}))
-    else:
-        m = junk[k % len(junk)]
-        ws.send(m % last if "%r" in m else m)
-    k += 1
-print(json.dumps({"last_send": last, "sent": k}), flush=True)
-time.sleep(hold)
-ws.close()
-"""
-
-
 def _flooders(url: str, modes: list[str], seconds: float, hold: float) -> list[subprocess.Popen]:
     # the flooders run at the lowest CPU priority: on a 2-core machine five busy senders would otherwise
     # measure the OS scheduler, not the server (real attackers do not share the robot's computer)
-    procs = [subprocess.Popen(["nice", "-n", "19", sys.executable, "-c", FLOOD, url, m, str(seconds), str(hold)],
+    procs = [subprocess.Popen(["nice", "-n", "19", sys.executable, "-m", "robointel.programming.stream_client", url, m,
+                               str(seconds), str(hold)],
                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True) for m in modes]
     for p in procs:
         assert p.stdout.readline().strip() == "ready"

@@ -88,3 +88,75 @@ class StreamClient:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+JUNK = ('{"type": "joint_target", "q": [0, 0, 0, 0, -1.5, 0], "t": %r}',
+        '{"type": "pose_target", "position": [3.0, 0, 0.3], "quaternion": [1, 0, 0, 0], "t": %r}',
+        '{"type": "get_state"}', '{not json', '{"type": "heartbeat", "t": %r}')
+
+
+def flood(url: str, mode: str, seconds: float, hold: float, *, start: Any = None) -> dict[str, float]:
+    """A misbehaving client for load tests: send as fast as the link takes for ``seconds``.
+
+    Modes: ``command`` (takes control, streams a joint target at J1's far end), ``command_poses``
+    (takes control, streams unreachable poses: IK work), ``junk`` (no control: a mix of refused
+    targets, state requests, bad JSON and heartbeats). Replies are read and discarded.
+
+    Args:
+        url: the server, ``ws://127.0.0.1:port``.
+        mode: ``command``, ``command_poses`` or ``junk``.
+        seconds: flood duration, s.
+        hold: stay connected and silent this long afterwards, s.
+        start: called (no arguments) once connected, before flooding (e.g. to wait for a go signal).
+
+    Returns:
+        ``{"last_send": perf_counter time of the last send, s, "sent": messages}``.
+    """
+    import threading
+
+    from websockets.sync.client import connect
+
+    ws = connect(url, compression=None)
+    ws.recv(timeout=5)
+
+    def drain() -> None:
+        try:
+            while True:
+                ws.recv(timeout=60)
+        except Exception:
+            pass
+
+    if mode.startswith("command"):
+        ws.send(json.dumps({"type": "acquire"}))
+    threading.Thread(target=drain, daemon=True).start()
+    if start is not None:
+        start()
+    right = [2.5, 0.0, 0.0, 0.0, -1.5707963, 0.0]
+    k, t0 = 0, time.perf_counter()
+    last = t0
+    while time.perf_counter() - t0 < seconds:
+        last = time.perf_counter()
+        if mode == "command":
+            ws.send(json.dumps({"type": "joint_target", "q": right, "t": last, "seq": k}))
+        elif mode == "command_poses":
+            ws.send(json.dumps({"type": "pose_target", "position": [3.0, 0.1 * (k % 7), 0.3],
+                                "quaternion": [1, 0, 0, 0], "t": last, "seq": k}))
+        else:
+            m = JUNK[k % len(JUNK)]
+            ws.send(m % last if "%r" in m else m)
+        k += 1
+    out = {"last_send": last, "sent": float(k)}
+    print(json.dumps(out), flush=True)
+    time.sleep(hold)
+    ws.close()
+    return out
+
+
+if __name__ == "__main__":  # python -m robointel.programming.stream_client URL MODE SECONDS HOLD
+    import sys
+
+    def _wait_for_go() -> None:
+        print("ready", flush=True)
+        sys.stdin.readline()
+
+    flood(sys.argv[1], sys.argv[2], float(sys.argv[3]), float(sys.argv[4]), start=_wait_for_go)

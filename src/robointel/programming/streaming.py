@@ -18,10 +18,13 @@ Safety rules
   long the server's backlog.
 * **bounded work per client**: a client over the rate limit (1000 messages/s, bursts of 200) is
   not read from until it is back under it (TCP backpressure slows it; one ``rate_limited`` error
-  per second tells it), so its late messages arrive stale and are dropped; a 64 kB kernel
+  per second tells it), so its late messages arrive stale and are dropped; at most 100 error
+  replies per second go back to one client (the rest are counted); a 64 kB kernel
   receive buffer bounds each client's backlog; each client has a one-target mailbox (a newer
   target replaces an unprocessed one); IK and collision checks run in a worker thread, one target
-  at a time, never on the event loop; the loop yields after every message.
+  at a time, never on the event loop; the loop yields after every message; while the server runs
+  the interpreter's thread switch interval is 1 ms (the control thread and the loop wait for the
+  GIL at most that long).
 * **checks**: JSON, type, shapes, finiteness (also ``10**400``), booleans (``"ack": "false"`` is an
   error), joint limits, IK reachability, and the straight joint-space move to the target clear of
   the table, the floor and the robot itself (``collision``, naming the link). A bad message gets
@@ -77,6 +80,7 @@ import ipaddress
 import itertools
 import json
 import socket
+import sys
 import threading
 import time
 from dataclasses import dataclass, field
@@ -107,6 +111,8 @@ __all__ = ["StreamingController", "StreamingServer", "check_bind", "is_loopback"
 AUTH_FAILURES = 5        # failed hellos per address ...
 AUTH_WINDOW = 60.0       # ... within this many seconds lock the address out
 AUTH_DELAY = 0.5         # s before a wrong token is answered
+ERROR_REPLIES = 100.0    # error replies per second and client (more are counted, not sent)
+SWITCH_INTERVAL = 0.001  # s: the control thread and the event loop get the GIL within 1 ms while serving
 RECEIVE_BUFFER = 64 * 1024  # bytes of kernel receive buffer per connection: a bounded backlog per client
 
 
@@ -149,6 +155,8 @@ class _Client:
     wake: asyncio.Event = field(default_factory=asyncio.Event)
     limited_reply: float = -1e9
     throttled: int = 0
+    error_budget: RateLimit = field(default_factory=lambda: RateLimit(rate=ERROR_REPLIES, burst=ERROR_REPLIES))
+    suppressed: int = 0
 
 
 class StreamingServer:
@@ -183,6 +191,7 @@ class StreamingServer:
         self._auth_failures: dict[str, collections.deque] = collections.defaultdict(collections.deque)
         self._pool = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="robointel-ik")
         self._error: BaseException | None = None
+        self._switch: float | None = None
 
     @property
     def url(self) -> str:
@@ -242,7 +251,7 @@ class StreamingServer:
                     reply = {"type": "error", "code": "internal", "message": f"{type(exc).__name__}: {exc}",
                              "seq": None}
                 if reply is not None:
-                    await self._send(ws, reply)
+                    await self._reply(c, reply)
         except Exception:  # connection dropped: release control, the robot stops
             pass
         finally:
@@ -354,7 +363,15 @@ class StreamingServer:
     async def _error_to(self, c: _Client, code: str, message: str, seq: int | None) -> None:
         if code != "rate_limited":
             self.controller.rejected += 1
-        await self._send(c.ws, {"type": "error", "code": code, "message": message, "seq": seq})
+        await self._reply(c, {"type": "error", "code": code, "message": message, "seq": seq})
+
+    async def _reply(self, c: _Client, obj: dict[str, Any]) -> None:
+        """Send a reply; error replies beyond ERROR_REPLIES per second are counted, not sent."""
+        if obj.get("type") == "error" and obj.get("code") not in ("unauthorized", "rate_limited") \
+                and c.error_budget.delay(time.perf_counter()) > 0:
+            c.suppressed += 1
+            return
+        await self._send(c.ws, obj)
 
     @staticmethod
     async def _send(ws: Any, obj: dict[str, Any]) -> None:
@@ -388,6 +405,8 @@ class StreamingServer:
             InvalidInput: the server could not bind (port in use, bad address) or did not start.
         """
         self.controller.on_applied = self._on_applied
+        self._switch = sys.getswitchinterval()
+        sys.setswitchinterval(min(self._switch, SWITCH_INTERVAL))
         self.controller.start()
 
         def run() -> None:
@@ -418,6 +437,9 @@ class StreamingServer:
             self._thread = None
         self._pool.shutdown(wait=False, cancel_futures=True)
         self.controller.stop()
+        if self._switch is not None:
+            sys.setswitchinterval(self._switch)
+            self._switch = None
 
     def __enter__(self) -> StreamingServer:
         return self.start()
