@@ -96,6 +96,7 @@ class StreamingController:
         self._ik_robot = Robot(r.urdf, name=r.name, urdf_path=r.urdf_path, flange_frame=r.flange_frame, tool=r.tool)
         self._ik_lock = threading.Lock()
         self.guard = guard or CollisionGuard(r)
+        self._guard_lock = threading.Lock()
         if workcell is None:
             from robointel.sim import Workcell
 
@@ -107,7 +108,7 @@ class StreamingController:
             q0 = np.clip(np.array([0.0, 0.0, 0.0, 0.0, -np.pi / 2, 0.0][:n] + [0.0] * max(0, n - 6)),
                          self.robot.lower, self.robot.upper)
         q0 = self.robot.check_q(q0, "q0", limits=True)
-        with self._ik_lock:
+        with self._guard_lock:
             self.guard.check(q0, "q0")
         self.wc.reset(q0)
         self.dt = 0.001
@@ -217,7 +218,7 @@ class StreamingController:
             raise Rejected("unreachable", str(exc)) from None
 
     def command(self, q: npt.NDArray[np.float64], *, client: str, sent: float, seq: int | None = None,
-                ack: bool = False) -> None:
+                ack: bool = False, guard: CollisionGuard | None = None) -> None:
         """Hand a joint target (n,) rad to the generator after every check (worker thread).
 
         Args:
@@ -226,6 +227,7 @@ class StreamingController:
             sent: the client's send time on the server's ``perf_counter`` clock, s.
             seq: the client's sequence number.
             ack: reply ``applied`` when the controller first acts on it.
+            guard: a collision guard owned by the calling thread (default: the controller's, locked).
 
         Raises:
             Rejected: ``stopped``, ``not_in_control``, ``stale``, ``out_of_limits`` or ``collision``
@@ -242,8 +244,11 @@ class StreamingController:
             same = cur is not None and np.array_equal(cur.q, q)  # the move to it is being checked/followed
         if not same:
             try:
-                with self._ik_lock:
-                    self.guard.check_motion(self.q_ref.copy(), q)
+                if guard is not None:
+                    guard.check_motion(self.q_ref.copy(), q)
+                else:
+                    with self._guard_lock:
+                        self.guard.check_motion(self.q_ref.copy(), q)
             except TargetInCollision as exc:
                 raise Rejected("collision", str(exc)) from None
         with self._lock:
