@@ -108,7 +108,7 @@ def test_one_commanding_client_and_acks_to_the_sender(server):
         assert a.acquire()["in_control"]
         _settle(a, LEFT)
         with StreamClient(server.url) as b:
-            err = b.acquire()
+            err = b.acquire(wait=0.0)
             assert err["type"] == "error" and err["code"] == "control_held"
             qd = []
             for k in range(150):                 # both stream at 100 Hz toward opposite ends

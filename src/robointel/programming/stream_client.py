@@ -67,9 +67,19 @@ class StreamClient:
         self.send(msg)
         return self.recv(typ)
 
-    def acquire(self) -> dict[str, Any]:
-        """Take control (``ok`` or an ``error`` reply)."""
-        return self.request({"type": "acquire"}, "ok")
+    def acquire(self, wait: float = 2.0) -> dict[str, Any]:
+        """Take control: the ``ok`` reply, or the last ``error`` reply.
+
+        Args:
+            wait: keep asking this long (s) while another client holds control (a client that has
+                just disconnected is released when the server notices the close).
+        """
+        end = time.monotonic() + wait
+        while True:
+            reply = self.request({"type": "acquire"}, "ok")
+            if reply.get("code") != "control_held" or time.monotonic() > end:
+                return reply
+            time.sleep(0.02)
 
     def joint_target(self, q: npt.ArrayLike, **extra: Any) -> None:
         """Stream a joint target (n,) rad, stamped with the send time."""
