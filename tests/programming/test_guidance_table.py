@@ -2,8 +2,6 @@
 table top is held at the guard (table, floor, self-collision checked before each command)."""
 from __future__ import annotations
 
-import numpy as np
-
 from robointel.programming import scenarios as S
 from robointel.programming.collision_guard import CollisionGuard
 

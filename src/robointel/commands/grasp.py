@@ -158,6 +158,20 @@ def teach(out: Path = typer.Option(Path("grasps.h5"), help="grasp database file 
         fail(exc)
 
 
+def _check_db(db: Path | None) -> None:
+    """Refuse a missing, foreign or corrupt ``--db`` before any work (one line, exit code 2)."""
+    if db is None:
+        return
+    from robointel.io.grasp_db import GraspDatabase
+
+    if not Path(db).exists():
+        fail(f"grasp database {db} does not exist; build it with `robointel grasp build --out {db}` or leave out --db")
+    try:
+        GraspDatabase(db).names()
+    except RobointelError as exc:
+        fail(exc)
+
+
 def _one_target(source, category, seed, db):
     from robointel.learning.grasp import random_placements
 
@@ -181,6 +195,7 @@ def classify_cmd(category: str = typer.Option("cup", help="category of the rando
     """Place a held-out object at random, perceive it and classify it by registration residual (6.17)-(6.19)."""
     from robointel.learning.grasp import classify
 
+    _check_db(db)
     try:
         _, obj, _, cloud, templates = _one_target(source, category, seed, db)
         t0 = time.perf_counter()
@@ -205,6 +220,7 @@ def transfer(category: str = typer.Option("cup"), seed: int = typer.Option(0), s
     orientation search (6.21) with the LR Mate's IK; draws template, warped template, target and grasps."""
     from robointel.learning.grasp import GraspPlanner
 
+    _check_db(db)
     try:
         _, obj, _, cloud, templates = _one_target(source, category, seed, db)
         plan = GraspPlanner(templates).plan(cloud)
@@ -232,6 +248,7 @@ def trial(category: str = typer.Option("all", help="a category or 'all'"), n: in
 
     from robointel.learning.grasp import GraspPlanner, grasp_trial, random_placements
 
+    _check_db(db)
     try:
         objs = _objects(source)
         planner = GraspPlanner(_templates(objs, db, sampled=source == 'ycb'))
