@@ -234,12 +234,18 @@ class StreamingServer:
                     await asyncio.sleep(wait)
                     now = time.perf_counter()
                 if isinstance(raw, bytes) or len(raw) > MAX_MESSAGE_BYTES:
+                    msg = None
                     await self._error_to(c, "malformed", "send JSON text frames under 64 kB", None)
-                    continue
-                try:
-                    msg = json.loads(raw, parse_constant=lambda _c: float("nan"))
-                except (ValueError, RecursionError):
-                    await self._error_to(c, "malformed", "not valid JSON", None)
+                else:
+                    try:
+                        msg = json.loads(raw, parse_constant=lambda _c: float("nan"))
+                    except (ValueError, RecursionError):
+                        msg = None
+                        await self._error_to(c, "malformed", "not valid JSON", None)
+                if msg is None:
+                    if not c.authed:  # before authentication only a valid hello keeps the connection
+                        await ws.close(code=1008, reason="unauthorized")
+                        return
                     continue
                 if not c.authed:
                     if not await self._authenticate(c, msg):
