@@ -85,3 +85,16 @@ def test_learn_insertion_refuses_a_truncated_demonstration_file_before_the_work(
     bad = tmp_path / "truncated.h5"
     bad.write_bytes(raw[: len(raw) // 2])
     assert "truncated" in _one_line_error(["learn", "insertion", "--save", str(bad)])
+
+
+def test_plan_execute_checks_the_table_even_when_the_scene_leaves_it_out(tmp_path):
+    scene = {"name": "no_table", "robot": "lrmate200id7l", "table": False, "dt": 0.1, "steps": 10,
+             "waypoints": [{"name": "home", "q_deg": [0, 0, -20, 0, -70, 0]},
+                           {"name": "under", "q_deg": [0, 86, 0, 0, -29, 0]}]}
+    p = tmp_path / "no_table.yaml"
+    p.write_text(yaml.safe_dump(scene))
+    r = runner.invoke(app, ["plan", str(p), "--no-plots", "--out", str(tmp_path / "t.npz"), "--execute"])
+    lines = [ln for ln in (r.stdout + r.stderr).splitlines() if ln.strip()]
+    assert r.exit_code == 2 and r.exception is None or isinstance(r.exception, SystemExit)
+    assert lines[-1].startswith("error: planned trajectory rejected") and "'table'" in lines[-1]
+    assert "MuJoCo" not in r.stdout                   # never tracked
