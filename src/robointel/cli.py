@@ -7,14 +7,32 @@ from __future__ import annotations
 
 import importlib
 from pathlib import Path
+from typing import Any
 
 import typer
 from rich.console import Console
 from rich.table import Table
+from typer.core import TyperGroup
 
+from robointel.commands.failure import fail
 from robointel.errors import RobointelError
 
-app = typer.Typer(add_completion=False, no_args_is_help=True,
+
+class _Commands(TyperGroup):
+    """The top-level group: errors escaping a command become one ``error: ...`` line and exit code 2.
+
+    Caught: every :class:`RobointelError` and ``OSError`` (an unreadable or unwritable file), never
+    shown as a traceback.
+    """
+
+    def invoke(self, ctx: Any) -> Any:
+        try:
+            return super().invoke(ctx)
+        except (RobointelError, OSError) as exc:
+            fail(exc)
+
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, cls=_Commands,
                   help="robointel: teach, learn and plan for an industrial arm (simulated in MuJoCo).")
 console = Console()
 
@@ -47,8 +65,7 @@ def info(robot: str = typer.Argument("lrmate200id7l", help="built-in name, 'ur5'
     try:
         r = Robot.load(robot)
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2) from None
+        fail(exc)
     t = Table(title=f"{r.name}: {r.nq} joints, flange frame {r.flange_frame!r}")
     for c in ("joint", "lower [deg]", "upper [deg]", "max speed [deg/s]", "effort [N m]", "viscous", "Coulomb [N m]"):
         t.add_column(c, justify="right")
@@ -78,8 +95,7 @@ def demo(out: Path = typer.Option(Path("robointel-report"), help="report folder"
     try:
         index = run_demo(stages, out, quick=quick, console=console)
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2) from None
+        fail(exc)
     console.print(f"report: [bold]{index}[/bold]")
 
 

@@ -106,3 +106,7 @@ class ConnectionLost(ControllerFault):
 
     Never retried into motion: reconnect explicitly.
     """
+
+class TargetInCollision(SafetyStop):
+    """A target configuration (or the motion to it) would hit the table, the floor, an obstacle or the
+    robot itself; the message names the link, ``.value`` holds link, obstacle and distance."""

@@ -31,7 +31,7 @@ def raw():
 def test_table71_scene_shape(scene):
     assert len(scene.waypoints) == 6 and scene.steps == [19] * 5 and scene.total_steps == 95
     assert scene.fixed_time == pytest.approx(15.0)
-    assert [o.name for o in scene.obstacles] == ["box_A", "box_B"]
+    assert [o.name for o in scene.obstacles] == ["box_A", "box_B", "table", "floor"]  # + the workcell
 
 
 def test_frmp_plan_is_collision_free_within_limits_and_faster(scene, result):

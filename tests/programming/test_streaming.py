@@ -9,6 +9,7 @@ import pytest
 from websockets.sync.client import connect
 
 from robointel.errors import InvalidInput
+from robointel.programming.stream_client import StreamClient
 from robointel.programming.streaming import StreamingController, StreamingServer, check_bind
 
 READY = [0.0, 0.0, 0.0, 0.0, -np.pi / 2, 0.0]
@@ -21,31 +22,22 @@ def server(lrmate):
     srv.stop()
 
 
-def _recv(ws, typ, timeout=5.0):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        m = json.loads(ws.recv(timeout=max(0.01, end - time.monotonic())))
-        if m["type"] == typ:
-            return m
-    raise TimeoutError(typ)
-
-
-def _state(ws):
-    ws.send(json.dumps({"type": "get_state"}))
-    return _recv(ws, "state")
-
-
 def test_welcome_and_tracking(server):
-    with connect(server.url) as ws:
-        w = json.loads(ws.recv(timeout=5))
+    with StreamClient(server.url) as c:
+        w = c.welcome
         assert w["type"] == "welcome" and w["robot"] == "lrmate200id7l" and w["deadman"] == 0.1
+        assert w["protocol"] == 2
+        assert c.acquire()["in_control"] is True
         goal = [0.2, 0.1, -0.1, 0.0, -1.4, 0.3]
         for k in range(150):  # stream the same goal at ~100 Hz for 1.5 s
-            ws.send(json.dumps({"type": "joint_target", "q": goal, "seq": k}))
+            c.joint_target(goal, seq=k)
             time.sleep(0.01)
-        s = _state(ws)
+        s = c.state()
         np.testing.assert_allclose(s["q"], goal, atol=2e-3)
-        assert s["mode"] == "tracking"
+        assert s["mode"] == "tracking" and s["in_control"]
+
+
+T = "__T__"  # replaced by the send time
 
 
 @pytest.mark.parametrize("raw, code", [
@@ -53,56 +45,68 @@ def test_welcome_and_tracking(server):
     ("[1, 2, 3]", "malformed"),
     ('{"q": [0, 0, 0, 0, 0, 0]}', "malformed"),
     ('{"type": "fly"}', "unknown_type"),
-    ('{"type": "joint_target", "q": [0, 0, 0]}', "bad_shape"),
-    ('{"type": "joint_target", "q": [0, 0, "a", 0, 0, 0]}', "bad_shape"),
-    ('{"type": "joint_target", "q": [0, 0, NaN, 0, 0, 0]}', "not_finite"),
-    ('{"type": "joint_target", "q": [0, 0, Infinity, 0, 0, 0]}', "not_finite"),
-    ('{"type": "joint_target", "q": [4.0, 0, 0, 0, 0, 0]}', "out_of_limits"),
-    ('{"type": "pose_target", "position": [3.0, 0, 0.3], "quaternion": [0.7071068, 0, 0.7071068, 0]}', "unreachable"),
-    ('{"type": "pose_target", "position": [0.4, 0, 0.3], "quaternion": [3, 0, 0, 0]}', "bad_shape"),
+    ('{"type": "joint_target", "q": [0, 0, 0], "t": __T__}', "bad_shape"),
+    ('{"type": "joint_target", "q": [0, 0, "a", 0, 0, 0], "t": __T__}', "bad_shape"),
+    ('{"type": "joint_target", "q": [0, 0, NaN, 0, 0, 0], "t": __T__}', "not_finite"),
+    ('{"type": "joint_target", "q": [0, 0, Infinity, 0, 0, 0], "t": __T__}', "not_finite"),
+    ('{"type": "joint_target", "q": [0, 0, 1' + "0" * 400 + ', 0, -1.5, 0], "t": __T__}', "not_finite"),
+    ('{"type": "joint_target", "q": [0, 0, 0, 0, -1.5, 0], "t": 1' + "0" * 400 + '}', "not_finite"),
+    ('{"type": "joint_target", "q": [0, 0, 0, 0, -1.5, 0], "t": __T__, "ack": "false"}', "malformed"),
+    ('{"type": "joint_target", "q": [0, 0, 0, 0, -1.5, 0], "t": __T__, "seq": "7"}', "malformed"),
+    ('{"type": "joint_target", "q": [0, 0, 0, 0, -1.5, 0]}', "malformed"),          # no send time
+    ('{"type": "joint_target", "q": [4.0, 0, 0, 0, 0, 0], "t": __T__}', "out_of_limits"),
+    ('{"type": "joint_target", "q": [0, 1.5, 0, 0, -0.5, 0], "t": __T__}', "collision"),  # TCP under the table
+    ('{"type": "joint_target", "q": [0, 0, 0, 0, -1.5, 0], "t": 0.0}', "stale"),
+    ('{"type": "pose_target", "position": [3.0, 0, 0.3], "quaternion": [0.7071068, 0, 0.7071068, 0], "t": __T__}',
+     "unreachable"),
+    ('{"type": "pose_target", "position": [0.4, 0, 0.3], "quaternion": [3, 0, 0, 0], "t": __T__}', "bad_shape"),
+    ('{"type": "\u00e9\u00e9"}', "unknown_type"),
 ])
 def test_bad_messages_get_error_and_never_reach_robot(server, raw, code):
-    with connect(server.url) as ws:
-        ws.recv(timeout=5)
+    with StreamClient(server.url) as c:
+        assert c.acquire()["in_control"]
+        c.joint_target(READY, seq=1, ack=True)  # a fresh clock offset for this connection
+        assert c.recv("applied", timeout=10)["type"] == "applied"
         before = server.controller.accepted
         tgt = server.controller.state()["target"]
-        ws.send(raw)
-        err = _recv(ws, "error")
+        c.send_raw(raw.replace(T, repr(time.perf_counter())))
+        err = c.recv("error")
         assert err["code"] == code and err["message"]
         assert server.controller.accepted == before
         assert server.controller.state()["target"] == tgt
+        assert c.state()["type"] == "state"  # the connection stays open after the error
 
 
 def test_pose_target_reaches_pose(server, lrmate):
     T = lrmate.fk(np.array([0.3, 0.2, -0.2, 0.1, -1.2, 0.2]))
     from scipy.spatial.transform import Rotation
     x, y, z, w = Rotation.from_matrix(T[:3, :3]).as_quat()
-    with connect(server.url) as ws:
-        ws.recv(timeout=5)
+    with StreamClient(server.url) as c:
+        c.acquire()
         for _ in range(150):
-            ws.send(json.dumps({"type": "pose_target", "position": T[:3, 3].tolist(), "quaternion": [w, x, y, z]}))
+            c.send({"type": "pose_target", "position": T[:3, 3].tolist(), "quaternion": [w, x, y, z]})
             time.sleep(0.01)
-        s = _state(ws)
+        s = c.state()
     np.testing.assert_allclose(lrmate.fk(np.array(s["q"]))[:3, 3], T[:3, 3], atol=2e-3)
 
 
 def test_stalled_stream_decelerates_to_stop(server):
-    with connect(server.url) as ws:
-        ws.recv(timeout=5)
+    with StreamClient(server.url) as c:
+        c.acquire()
         start = [-2.5, 0.0, 0.0, 0.0, -np.pi / 2, 0.0]
         for _ in range(150):  # settle at one end of J1's range
-            ws.send(json.dumps({"type": "joint_target", "q": start}))
+            c.joint_target(start)
             time.sleep(0.01)
         far = [2.5, 0.0, 0.0, 0.0, -np.pi / 2, 0.0]
         for _ in range(20):  # stream the other end for 0.2 s: the robot is moving fast
-            ws.send(json.dumps({"type": "joint_target", "q": far}))
+            c.joint_target(far)
             time.sleep(0.01)
         wc = server.controller.wc
         speeds, t0 = [], time.monotonic()
         while time.monotonic() - t0 < 1.0:  # the stream has stalled
             speeds.append(abs(wc.qd[0]))
             time.sleep(0.01)
-        s = _state(ws)
+        s = c.state()
     assert max(speeds[:5]) > 1.0                       # it was moving when the stream stopped
     assert s["mode"] == "stopped" and abs(s["qd"][0]) < 1e-2
     assert s["q"][0] < 2.0                             # stopped well short of the far goal
@@ -122,20 +126,51 @@ def test_remote_bind_without_token_refused():
     check_bind("0.0.0.0", "a-long-enough-secret-token")
     check_bind("127.0.0.1", None)
     check_bind("localhost", None)
+    with pytest.raises(InvalidInput, match="port"):
+        StreamingServer(StreamingController.__new__(StreamingController), port=99999)
 
 
 def test_token_required_when_set(lrmate):
-    srv = StreamingServer(StreamingController(lrmate), port=0, token="s3cret-token-0123456789").start()
+    token = "s3cret-token-0123456789"
+    srv = StreamingServer(StreamingController(lrmate), port=0, token=token).start()
     try:
         with connect(srv.url) as ws:
-            assert json.loads(ws.recv(timeout=5))["auth"] is True
-            ws.send(json.dumps({"type": "joint_target", "q": READY}))
-            assert _recv(ws, "error")["code"] == "unauthorized"
-        assert srv.controller.accepted == 0
-        with connect(srv.url) as ws:
+            w = json.loads(ws.recv(timeout=5))
+            assert w == {"type": "welcome", "protocol": 2, "auth": True}  # nothing but the version
+            ws.send(json.dumps({"type": "joint_target", "q": READY, "t": time.perf_counter()}))
+            assert json.loads(ws.recv(timeout=5))["code"] == "unauthorized"
+        with connect(srv.url) as ws:  # a non-ASCII token: an error reply, not a dropped connection
             ws.recv(timeout=5)
-            ws.send(json.dumps({"type": "hello", "token": "s3cret-token-0123456789"}))
-            ws.send(json.dumps({"type": "joint_target", "q": READY}))
-            assert _state(ws)["accepted"] == 1
+            ws.send(json.dumps({"type": "hello", "token": "\u00e9t\u00e9-\u2603-0123456789abcdef"}))
+            assert json.loads(ws.recv(timeout=5))["code"] == "unauthorized"
+        assert srv.controller.accepted == 0
+        with StreamClient(srv.url, token=token) as c:
+            assert c.welcome["type"] == "hello" and c.welcome["robot"] == "lrmate200id7l"
+            c.acquire()
+            c.joint_target(READY)
+            assert c.state()["accepted"] == 1
+    finally:
+        srv.stop()
+
+
+def test_failed_authentication_is_rate_limited(lrmate):
+    token = "s3cret-token-0123456789"
+    srv = StreamingServer(StreamingController(lrmate), port=0, token=token).start()
+    try:
+        codes = []
+        t0 = time.monotonic()
+        for k in range(7):
+            with connect(srv.url) as ws:
+                ws.recv(timeout=5)
+                ws.send(json.dumps({"type": "hello", "token": f"guess-{k:02d}-0123456789"}))
+                codes.append(json.loads(ws.recv(timeout=5))["code"])
+        elapsed = time.monotonic() - t0
+        assert codes[:5] == ["unauthorized"] * 5 and codes[5:] == ["rate_limited"] * 2
+        assert elapsed >= 5 * 0.5                    # each wrong guess costs the guesser 0.5 s
+        with connect(srv.url) as ws:                 # locked out: even the right token is refused now
+            ws.recv(timeout=5)
+            ws.send(json.dumps({"type": "hello", "token": token}))
+            assert json.loads(ws.recv(timeout=5))["code"] == "rate_limited"
+        assert srv.controller.accepted == 0
     finally:
         srv.stop()

@@ -112,3 +112,15 @@ def test_saved_program_plans_with_robointel_plan(lrmate, tmp_path):
     assert res.exit_code == 0, res.output
     traj = np.load(tmp_path / "traj.npz")
     np.testing.assert_allclose(traj["q"][-1], [0.5, 0.3, -0.2, 0.0, -1.2, 0.3], atol=1e-6)
+
+
+def test_hand_under_the_table_is_not_sent(app, lrmate):
+    """Probe 4 on the teleoperation page: a reachable pose under the table top is refused, named."""
+    assert app.move_hand([0.45, 0.1, 0.4], _wxyz_down())
+    sent = app.sent
+    q_before = app.desired.copy()
+    assert not app.move_hand([0.55, 0.0, -0.10], _wxyz_down())   # IK finds it; the guard refuses it
+    assert app.sent == sent and app.refused >= 1
+    np.testing.assert_array_equal(app.desired, q_before)          # neither streamed nor recordable
+    assert "table" in app.last_error and "link_" in app.last_error
+    assert lrmate.fk(app.controller.state()["target"] or app.controller.q_ref)[2, 3] > 0.0

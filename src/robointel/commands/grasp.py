@@ -13,6 +13,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from robointel.commands.failure import fail
 from robointel.errors import RobointelError
 from robointel.report.demo import Figure, StageContext, StageResult
 
@@ -154,8 +155,21 @@ def teach(out: Path = typer.Option(Path("grasps.h5"), help="grasp database file 
             t.add_row(tm.name, tm.category, str(len(tm.points)), ", ".join(g.name for g in tm.grasps))
         console.print(t)
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2)
+        fail(exc)
+
+
+def _check_db(db: Path | None) -> None:
+    """Refuse a missing, foreign or corrupt ``--db`` before any work (one line, exit code 2)."""
+    if db is None:
+        return
+    from robointel.io.grasp_db import GraspDatabase
+
+    if not Path(db).exists():
+        fail(f"grasp database {db} does not exist; build it with `robointel grasp build --out {db}` or leave out --db")
+    try:
+        GraspDatabase(db).names()
+    except RobointelError as exc:
+        fail(exc)
 
 
 def _one_target(source, category, seed, db):
@@ -170,8 +184,7 @@ def _one_target(source, category, seed, db):
     p = random_placements([obj], rng)[0]
     clouds = _static_clouds([p], rng)
     if not clouds:
-        console.print("[red]error:[/red] the cameras saw nothing")
-        raise typer.Exit(2)
+        fail("the cameras saw nothing")
     return objs, obj, p, clouds[0], _templates(objs, db, sampled=source == 'ycb')
 
 
@@ -182,6 +195,7 @@ def classify_cmd(category: str = typer.Option("cup", help="category of the rando
     """Place a held-out object at random, perceive it and classify it by registration residual (6.17)-(6.19)."""
     from robointel.learning.grasp import classify
 
+    _check_db(db)
     try:
         _, obj, _, cloud, templates = _one_target(source, category, seed, db)
         t0 = time.perf_counter()
@@ -196,8 +210,7 @@ def classify_cmd(category: str = typer.Option("cup", help="category of the rando
         console.print(t)
         console.print(f"classification time {ms:.0f} ms for {len(templates)} templates")
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2)
+        fail(exc)
 
 
 @grasp_app.command()
@@ -207,6 +220,7 @@ def transfer(category: str = typer.Option("cup"), seed: int = typer.Option(0), s
     orientation search (6.21) with the LR Mate's IK; draws template, warped template, target and grasps."""
     from robointel.learning.grasp import GraspPlanner
 
+    _check_db(db)
     try:
         _, obj, _, cloud, templates = _one_target(source, category, seed, db)
         plan = GraspPlanner(templates).plan(cloud)
@@ -222,8 +236,7 @@ def transfer(category: str = typer.Option("cup"), seed: int = typer.Option(0), s
         console.print("timings [ms]: " + ", ".join(f"{k} {1000 * v:.0f}" for k, v in plan.timings.items()))
         console.print(f"picture: {plot_transfer(plan, cloud, out)}")
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2)
+        fail(exc)
 
 
 @grasp_app.command()
@@ -235,6 +248,7 @@ def trial(category: str = typer.Option("all", help="a category or 'all'"), n: in
 
     from robointel.learning.grasp import GraspPlanner, grasp_trial, random_placements
 
+    _check_db(db)
     try:
         objs = _objects(source)
         planner = GraspPlanner(_templates(objs, db, sampled=source == 'ycb'))
@@ -257,8 +271,7 @@ def trial(category: str = typer.Option("all", help="a category or 'all'"), n: in
         console.print(t)
         console.print(f"total {tot}/{n * len(cats)} (dissertation: 18.8/20)")
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2)
+        fail(exc)
 
 
 def register(app: typer.Typer) -> None:

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
+from robointel.commands.failure import fail
 from robointel.report.demo import Figure, StageContext, StageResult
 
 METHOD_HELP = ("qp: relaxed QP (4.11); equality: (4.10); repulsive: repulsive vector (4.1); "
@@ -39,18 +40,20 @@ def register(app: typer.Typer) -> None:
         from robointel.programming.scenarios import plot_scenario, run_scenario
 
         console = Console()
+        if scenario not in (1, 2, 3):
+            fail(f"--scenario must be 1, 2 or 3 (Table 4.1), got {scenario}")
+        if duration is not None and not (np.isfinite(duration) and duration > 0):
+            fail(f"--duration must be a positive number of simulated seconds, got {duration}")
         if robot != "sim":  # lead-through on a real arm through the robot interface (issue 14)
             from robointel.commands.robot_run import guide_on_robot
 
             try:
                 guide_on_robot(robot, record, duration or 30.0, method, console)
             except RobointelError as exc:
-                console.print(f"[red]error:[/red] {exc}")
-                raise typer.Exit(2) from None
+                fail(exc)
             return
         if method not in METHODS:
-            console.print(f"[red]error:[/red] --method must be one of {', '.join(METHODS)}, got {method!r}")
-            raise typer.Exit(2)
+            fail(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
         try:
             with Progress(console=console) as prog:
                 task = prog.add_task(f"scenario {scenario} / {method}", total=1.0)
@@ -58,8 +61,7 @@ def register(app: typer.Typer) -> None:
                                    progress=lambda f: prog.update(task, completed=f))
                 prog.update(task, completed=1.0)
         except RobointelError as exc:
-            console.print(f"[red]error:[/red] {exc}")
-            raise typer.Exit(2)
+            fail(exc)
         out.mkdir(parents=True, exist_ok=True)
         png = plot_scenario(res, out / f"guidance_s{scenario}_{method}.png")
         m = res.metrics()

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robointel.commands.failure import fail
 from robointel.report.demo import Figure, StageContext, StageResult
 
 PHASE_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red")
@@ -229,16 +230,21 @@ def register(app) -> None:
         from robointel.errors import RobointelError
 
         if labelled >= demos:
-            console.print("[red]error:[/red] --labelled must be smaller than --demos")
-            raise typer.Exit(2)
+            fail("--labelled must be smaller than --demos")
+        if save is not None and save.exists():  # a corrupt or foreign file is refused before the work
+            from robointel.io.demonstrations import DemonstrationFile
+
+            try:
+                DemonstrationFile(save).names()
+            except RobointelError as exc:
+                fail(exc)
         try:
             with Progress(console=console) as prog:
                 task_id = prog.add_task("insertion", total=1.0)
                 r = run_insertion(out, demos=demos, labelled=labelled, trials=trials, seed=seed, save=save,
                                   progress=lambda f, m: prog.update(task_id, completed=f, description=m))
         except RobointelError as exc:
-            console.print(f"[red]error:[/red] {exc}")
-            raise typer.Exit(2)
+            fail(exc)
         t = Table(title=f"insertion, clearance {r['task'].clearance * 1e6:.0f} um")
         for c in ("trial", "skill", "reason", "time [s]", "max force [N]", "penetration [um]", "position-only"):
             t.add_column(c, justify="right")

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robointel.commands.failure import fail
 from robointel.report.demo import Figure, StageContext, StageResult
 
 
@@ -131,7 +132,7 @@ def register(app) -> None:
              ) -> None:
         """Plan a scene with the FRMP (CFS path + temporal optimization) and save the trajectory."""
         from robointel.errors import RobointelError
-        from robointel.io.scene import load_scene
+        from robointel.planning.scene import load_scene
         from robointel.planning.frmp import execute as run_in_sim
         from robointel.planning.frmp import plan_scene
 
@@ -142,8 +143,7 @@ def register(app) -> None:
             out.parent.mkdir(parents=True, exist_ok=True)
             res.trajectory.save(out)
         except RobointelError as exc:
-            console.print(f"[red]error:[/red] {exc}")
-            raise typer.Exit(2)
+            fail(exc)
         t = Table(title=f"{sc.name}: {len(sc.steps)} segments, {sc.total_steps} steps, d_min {sc.d_min * 1000:.0f} mm")
         for c in ("segment", "blocked", "CFS [ms]", "iterations", "status", "min dist [mm]", "temporal [ms]", "time [s]"):
             t.add_column(c, justify="right")
@@ -161,6 +161,15 @@ def register(app) -> None:
             a = plot_joint_profiles(res, Path(f"{stem}_profiles.png"))
             b = plot_path_3d(res, Path(f"{stem}_path3d.png"))
             console.print(f"plots: {a}, {b}")
+        if execute:
+            from robointel.geometry.table import table_obstacles
+            from robointel.programming.collision_guard import CollisionGuard
+
+            try:  # the table, the floor, the obstacles and self-collision on a 10 ms resample, before moving
+                env = list(sc.obstacles) + ([] if getattr(sc, "table", False) else table_obstacles())
+                CollisionGuard(sc.robot, env).check_many(res.trajectory.resample(0.01).q, "planned trajectory")
+            except RobointelError as exc:
+                fail(exc)
         if execute and (robot != "sim" or record is not None):  # the robot interface (issue 14)
             from robointel.commands.robot_run import run_on_robot
             from robointel.sim import Workcell
@@ -169,8 +178,7 @@ def register(app) -> None:
                 wc = {"workcell": Workcell(sc.robot, obstacles=sc.obstacles)} if robot == "sim" else {}
                 run_on_robot(res.trajectory, robot, record, console, sim_kwargs=wc)
             except RobointelError as exc:
-                console.print(f"[red]error:[/red] {exc}")
-                raise typer.Exit(2) from None
+                fail(exc)
         elif execute:
             with console.status("tracking in MuJoCo"):
                 ex = run_in_sim(res)
@@ -185,7 +193,7 @@ def demo_stage(ctx: StageContext) -> StageResult:
     import time
 
     from robointel.geometry import Sphere
-    from robointel.io.scene import load_scene
+    from robointel.planning.scene import load_scene
     from robointel.planning.frmp import execute, make_planners, plan_scene, planner_settings
     from robointel.planning.replan import receding_horizon
 

@@ -10,6 +10,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from robointel.commands.failure import fail
 from robointel.errors import RobointelError
 from robointel.report.demo import Figure, StageContext, StageResult
 
@@ -44,6 +45,8 @@ def register(app: typer.Typer) -> None:
         from robointel.programming.imitation import kinematic_imitation, plot_imitation, simulate_imitation
         from robointel.robot import Robot
 
+        if not (np.isfinite(latency) and 0.0 <= latency <= 2.0):
+            fail(f"--latency must be in [0, 2] s (the Kinect's delay), got {latency}")
         try:
             skel = resolve_recording(recording)
             out.mkdir(parents=True, exist_ok=True)
@@ -92,8 +95,7 @@ def register(app: typer.Typer) -> None:
                               "follower)")
                 console.print(f"plot: {out / 'scara_imitation.png'}")
         except RobointelError as exc:
-            console.print(f"[red]error:[/red] {exc}")
-            raise typer.Exit(2)
+            fail(exc)
 
     @app.command()
     def teleop(host: str = typer.Option("127.0.0.1", help="bind address (others need --token)"),
@@ -107,6 +109,13 @@ def register(app: typer.Typer) -> None:
         from robointel.programming.streaming import StreamingController, StreamingServer
         from robointel.programming.teleop import TeleopApp
 
+        for opt, p in (("--port", port), ("--stream-port", stream_port)):
+            if not 1 <= p <= 65535:
+                fail(f"{opt} must be a TCP port in 1..65535, got {p}")
+        if port == stream_port:
+            fail(f"--port and --stream-port must differ, both are {port}")
+        if not np.isfinite(duration) or duration < 0:
+            fail(f"--duration must be >= 0 s (0: until Ctrl-C), got {duration}")
         try:
             ctrl = StreamingController()
             srv = StreamingServer(ctrl, host=host, port=stream_port, token=token)
@@ -114,8 +123,7 @@ def register(app: typer.Typer) -> None:
             srv.start()
             page.start()
         except RobointelError as exc:
-            console.print(f"[red]error:[/red] {exc}")
-            raise typer.Exit(2)
+            fail(exc)
         console.print(f"teleoperation page: [bold]{page.url}[/bold]   streaming interface: [bold]{srv.url}[/bold]")
         try:
             t0 = time.monotonic()

@@ -85,6 +85,15 @@ class DemonstrationRecord:
     meta: dict[str, Any] = field(default_factory=dict)
 
 
+def _check_name(name: str) -> str:
+    """A demonstration name: one HDF5 group name (no '/', not '.', not empty, printable)."""
+    if not isinstance(name, str) or not name or name in (".", "..") or "/" in name \
+            or not name.isprintable() or len(name) > 200:
+        raise InvalidInput(f"demonstration name {name!r} is not allowed: use 1-200 printable characters without "
+                           "'/' (a '/' would store it outside the file's index)", value=name)
+    return name
+
+
 class DemonstrationFile:
     """An HDF5 file of demonstrations: ``append``, ``names``, ``load``, ``load_all`` (plain records).
 
@@ -98,6 +107,14 @@ class DemonstrationFile:
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
 
+    def _open(self, mode: str) -> h5py.File:
+        """Open the file; a truncated or non-HDF5 file is an :class:`InvalidInput` saying so."""
+        try:
+            return h5py.File(self.path, mode)
+        except OSError as exc:
+            raise InvalidInput(f"{self.path} is not a readable HDF5 demonstration file (corrupt, truncated or "
+                               f"another format: {str(exc).splitlines()[0][:120]})", value=str(self.path)) from None
+
     def _check(self, f: h5py.File) -> None:
         if f.attrs.get("schema") != SCHEMA:
             raise InvalidInput(f"{self.path} is not a robointel demonstration file (schema attr "
@@ -107,15 +124,16 @@ class DemonstrationFile:
         """Add one demonstration as a new group; returns its name.
 
         Raises:
-            InvalidInput: a demonstration with that name is already stored.
+            InvalidInput: a demonstration with that name is already stored, the name contains '/'
+                (or is empty, '.', '..', unprintable), or the file is not a readable HDF5 file.
         """
-        with h5py.File(self.path, "a") as f:
+        with self._open("a") as f:
             if "schema" not in f.attrs:
                 f.attrs["schema"] = SCHEMA
                 f.attrs["version"] = VERSION
             self._check(f)
             root = f.require_group("demonstrations")
-            name = name or demo.name or f"demo_{len(root):04d}"
+            name = _check_name(name or demo.name or f"demo_{len(root):04d}")
             if name in root:
                 raise InvalidInput(f"demonstration {name!r} already in {self.path}; choose another name", value=name)
             g = root.create_group(name)
@@ -139,7 +157,7 @@ class DemonstrationFile:
         """Stored demonstration names in insertion order."""
         if not self.path.exists():
             return []
-        with h5py.File(self.path, "r") as f:
+        with self._open("r") as f:
             self._check(f)
             root = f.get("demonstrations", {})
             return sorted(root, key=lambda n: int(root[n].attrs.get("order", 0)))
@@ -155,17 +173,22 @@ class DemonstrationFile:
         """
         if not self.path.exists():
             raise DataMissing(f"demonstration file {self.path} does not exist", value=str(self.path))
-        with h5py.File(self.path, "r") as f:
+        with self._open("r") as f:
             self._check(f)
             root = f.get("demonstrations")
             if root is None or name not in root:
                 raise DataMissing(f"no demonstration {name!r} in {self.path}", value=name)
             g = root[name]
-            labels = g["labels"][()] if "labels" in g else None
-            return DemonstrationRecord(g["t"][()], g["pose"][()], g["wrench"][()], labels,
-                                       action_names=tuple(json.loads(g.attrs["action_names"])),
-                                       device=str(g.attrs["device"]), name=name,
-                                       meta=json.loads(g.attrs.get("meta", "{}")))
+            try:
+                labels = g["labels"][()] if "labels" in g else None
+                t, pose, wrench = g["t"][()], g["pose"][()], g["wrench"][()]
+                attrs = (tuple(json.loads(g.attrs["action_names"])), str(g.attrs["device"]),
+                         json.loads(g.attrs.get("meta", "{}")))
+            except (OSError, KeyError, ValueError, TypeError) as exc:
+                raise InvalidInput(f"demonstration {name!r} in {self.path} is corrupt or truncated "
+                                   f"({type(exc).__name__}: {str(exc)[:120]})", value=name) from None
+            return DemonstrationRecord(t, pose, wrench, labels, action_names=attrs[0], device=attrs[1], name=name,
+                                       meta=attrs[2])
 
     def load_all(self) -> list[DemonstrationRecord]:
         """All demonstrations in insertion order."""

@@ -100,7 +100,11 @@ class GraspDatabaseFile:
     def _open(self, mode: str) -> h5py.File:
         if mode == "r" and not self.path.exists():
             raise DataMissing(f"grasp database {self.path} does not exist; add templates first", value=str(self.path))
-        f = h5py.File(self.path, mode)
+        try:
+            f = h5py.File(self.path, mode)
+        except OSError as exc:
+            raise InvalidInput(f"{self.path} is not a readable HDF5 grasp database (corrupt, truncated or another "
+                               f"format: {str(exc).splitlines()[0][:120]})", value=str(self.path)) from None
         if mode != "r" and "schema" not in f.attrs:
             f.attrs["schema"] = SCHEMA
             f.attrs["version"] = VERSION

@@ -33,7 +33,9 @@ def read_scene_file(path: str | Path) -> Any:
     try:
         return yaml.safe_load(p.read_text())
     except yaml.YAMLError as exc:
-        raise InvalidInput(f"{p}: not valid YAML: {exc}", value=str(p)) from None
+        raise InvalidInput(f"{p}: not valid YAML: {' '.join(str(exc).split())}", value=str(p)) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InvalidInput(f"cannot read scene {p}: {exc}", value=str(p)) from None
 
 
 def write_scene_file(data: dict[str, Any], path: str | Path) -> Path:

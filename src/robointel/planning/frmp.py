@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from robointel.errors import InvalidInput
+from robointel.geometry.table import ENVIRONMENT_NAMES
 from robointel.planning.scene import Scene
 from robointel.planning.temporal import TemporalResult, concatenate_segments, fixed_dt_segment, temporal_optimize
 from robointel.planning.trajectory import PlannerSettings, SegmentPlan, TrajectoryPlanner, sphere_clearances
@@ -221,7 +222,10 @@ class Execution:
 def execute(result: FRMPResult, *, workcell: Workcell | None = None) -> Execution:
     """Track the FRMP trajectory with the workcell's 1 kHz controller (Fig. 2.3) and report."""
     scene = result.scene
-    wc = workcell or Workcell(scene.robot, obstacles=scene.obstacles, ft_sensor=False)
+    # the workcell builds its own table and floor: pass only the scene's other obstacles
+    obstacles = [o for o in scene.obstacles if not (getattr(scene, "table", False)
+                                                    and getattr(o, "name", None) in ENVIRONMENT_NAMES)]
+    wc = workcell or Workcell(scene.robot, obstacles=obstacles, ft_sensor=False)
     tr = result.trajectory
     log = wc.run_trajectory(tr, record_ft=False)
     err = log.error
@@ -237,5 +241,6 @@ def execute(result: FRMPResult, *, workcell: Workcell | None = None) -> Executio
          for a, b in zip(log.q_ref[::step], log.q[::step])])
     return Execution(rms_error_rad=float(np.sqrt(np.mean(err ** 2))), max_error_rad=float(np.max(np.abs(err))),
                      max_tcp_error_m=float(np.max(tcp)), obstacle_contacts=contacts,
-                     min_distance_m=float(log.min_distance), collided=bool(contacts > 0 or log.min_distance < 0),
+                     min_distance_m=float(log.min_distance),
+                     collided=bool(contacts > 0 or log.min_distance < 0 or np.any(log.contacts > 0)),
                      log=log)

@@ -12,6 +12,7 @@ Format (all keys but ``robot``, ``waypoints`` and a step size optional)::
       acceleration_scale: 0.3
     weights: {w1: 1.0, w2: 0.02, w3: 1.0, w4: 1.0}   # (7.1) tracking/acceleration, (7.7) time/smoothness
     planner: {safety: 0.005, margin: 0.15, slots: 8, substeps: 1, eps: 0.001, max_iter: 30}
+    table: true                   # the workcell's table (top z = 0) and floor are obstacles (default true)
     obstacles:                    # robointel.geometry shapes: box, sphere, capsule, cylinder, pointcloud
       - {type: box, name: box_A, center: [0.5, 0.0, 0.15], size: [0.3, 0.1, 0.3]}
     waypoints:                    # q (rad), q_deg (deg), or pose: {xyz: [m], rpy_deg: [deg]} solved by IK
@@ -29,6 +30,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from robointel.geometry.table import ENVIRONMENT_NAMES, table_obstacles
 
 from robointel.errors import IKFailure, InvalidInput, LimitViolation, RobointelError
 from robointel.geometry import obstacle_from_dict
@@ -55,7 +57,8 @@ class Scene:
         waypoint_names: W names.
         steps: W-1 step counts, one per segment.
         dt: the fixed time step (s).
-        obstacles: list of :mod:`robointel.geometry` obstacles.
+        obstacles: list of :mod:`robointel.geometry` obstacles (with ``table``: the table and floor
+            boxes of :func:`robointel.geometry.table.table_obstacles` last, named "table", "floor").
         vmax, amax: (n,) joint velocity / acceleration limits (rad/s, rad/s^2).
         d_min: clearance (m).
         weights: w1, w2 of (7.1), w3, w4 of (7.7).
@@ -77,6 +80,7 @@ class Scene:
     planner: dict[str, Any] = field(default_factory=dict)
     source: Path | None = None
     description: str = ""
+    table: bool = True
 
     @property
     def total_steps(self) -> int:
@@ -94,7 +98,9 @@ class Scene:
                 "dt": self.dt, "steps": list(self.steps), "d_min": self.d_min,
                 "limits": {"velocity": self.vmax.tolist(), "acceleration": self.amax.tolist()},
                 "weights": dict(self.weights), "planner": dict(self.planner),
-                "obstacles": [o.to_dict() for o in self.obstacles],
+                "table": self.table,
+                "obstacles": [o.to_dict() for o in self.obstacles
+                              if not (self.table and getattr(o, "name", None) in ENVIRONMENT_NAMES)],
                 "waypoints": [{"name": n, "q_deg": np.degrees(q).round(6).tolist()}
                               for n, q in zip(self.waypoint_names, self.waypoints)]}
 
@@ -112,7 +118,7 @@ def _num(d: dict, key: str, default: Any = None, *, positive: bool = False) -> f
     v = d.get(key, default)
     try:
         v = float(v)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InvalidInput(f"scene key {key!r} must be a number, got {v!r}", value=v) from None
     if not np.isfinite(v) or (positive and v <= 0):
         raise InvalidInput(f"scene key {key!r} must be finite{' and positive' if positive else ''}, got {v}", value=v)
@@ -122,7 +128,7 @@ def _num(d: dict, key: str, default: Any = None, *, positive: bool = False) -> f
 def _vector(v: ArrayLike, n: int, what: str) -> np.ndarray:
     try:
         a = np.asarray(v, float).reshape(-1)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InvalidInput(f"{what} must be a list of {n} numbers, got {v!r}", value=v) from None
     if a.size != n:
         raise InvalidInput(f"{what} must have {n} entries, got {a.size}", value=v)
@@ -163,6 +169,9 @@ def scene_from_dict(d: dict, *, base: Path | None = None) -> Scene:
             q = np.radians(_vector(w["q_deg"], n, f"waypoint {name!r} q_deg"))
         elif "pose" in w:
             p = w["pose"]
+            if not isinstance(p, dict):
+                raise InvalidInput(f"waypoint {name!r} pose must be a mapping {{xyz: [m], rpy_deg: [deg]}}, got {p!r}",
+                                   value=p)
             T = np.eye(4)
             T[:3, 3] = _vector(p.get("xyz"), 3, f"waypoint {name!r} pose.xyz")
             if "rpy_deg" in p:
@@ -191,7 +200,11 @@ def scene_from_dict(d: dict, *, base: Path | None = None) -> Scene:
     Wa = np.array(W)
     nseg = len(Wa) - 1
     steps_in = d.get("steps", 19)
-    steps = [int(steps_in)] * nseg if np.isscalar(steps_in) else [int(s) for s in steps_in]  # type: ignore[arg-type]
+    items = [steps_in] * nseg if not isinstance(steps_in, list) else steps_in
+    if any(not isinstance(s, int) or isinstance(s, bool) for s in items):
+        raise InvalidInput(f"steps must be an integer or a list of {nseg} integers (steps per segment), got "
+                           f"{steps_in!r}", value=steps_in)
+    steps = [int(s) for s in items]
     if len(steps) != nseg or any(s < 2 for s in steps):
         raise InvalidInput(f"steps must give {nseg} segment lengths >= 2, got {steps}", value=steps)
     if "dt" in d:
@@ -201,6 +214,11 @@ def scene_from_dict(d: dict, *, base: Path | None = None) -> Scene:
     else:
         raise InvalidInput("scene needs dt or operational_time", value=sorted(d))
     lim = d.get("limits") or {}
+    for key in ("limits", "weights", "planner"):
+        if not isinstance(d.get(key) or {}, dict):
+            raise InvalidInput(f"scene key {key!r} must be a mapping, got {d.get(key)!r}", value=d.get(key))
+    if not isinstance(d.get("obstacles") or [], list):
+        raise InvalidInput(f"scene key 'obstacles' must be a list, got {d.get('obstacles')!r}", value=d.get("obstacles"))
     if "velocity" in lim:
         vmax = _vector(lim["velocity"], n, "limits.velocity")
     else:
@@ -218,6 +236,11 @@ def scene_from_dict(d: dict, *, base: Path | None = None) -> Scene:
             obstacles.append(obstacle_from_dict(o))
         except RobointelError as exc:
             raise InvalidInput(f"obstacle {k}: {exc}", value=o) from None
+    table = d.get("table", True)
+    if not isinstance(table, bool):
+        raise InvalidInput(f"scene key 'table' must be true or false, got {table!r}", value=table)
+    if table:
+        obstacles += table_obstacles()
     weights = {"w1": 1.0, "w2": 0.02, "w3": 1.0, "w4": 1.0}
     for k in d.get("weights") or {}:
         if k not in weights:
@@ -233,7 +256,7 @@ def scene_from_dict(d: dict, *, base: Path | None = None) -> Scene:
     return Scene(name=str(d.get("name", "scene")), robot=robot, waypoints=Wa, waypoint_names=names, steps=steps,
                  dt=dt, obstacles=obstacles, vmax=np.asarray(vmax, float), amax=np.asarray(amax, float),
                  d_min=_num(d, "d_min", 0.05, positive=True), weights=weights, planner=planner,
-                 description=str(d.get("description", "")))
+                 description=str(d.get("description", "")), table=table)
 
 
 def load_scene(path_or_name: str | Path) -> Scene:

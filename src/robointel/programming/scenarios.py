@@ -34,8 +34,9 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike
 
-from robointel.errors import InvalidInput
+from robointel.errors import InvalidInput, TargetInCollision
 from robointel.geometry import Cylinder
+from robointel.programming.collision_guard import CollisionGuard
 from robointel.programming.ft_identification import FTCalibration, calibrate_in_workcell
 from robointel.programming.guidance import GuidanceConfig, GuidanceController
 from robointel.programming.keypoints import blended_trajectory
@@ -49,6 +50,8 @@ __all__ = ["BASE_HEIGHT", "OBSTACLE_RADIUS", "SCENARIOS", "Scenario", "ScenarioR
 
 BASE_HEIGHT = 0.330  # FANUC world frame ("base") above the mounting plane (base_link), m
 OBSTACLE_RADIUS = 0.035  # 70 mm diameter
+#: how far ahead (s) each guidance command is checked against the table, the floor and self-collision
+GUARD_LOOKAHEAD = 0.02
 _TABLE_4_1_MM = {1: ((480, -500, 13), (480, 500, 13)),
                  2: ((710, -500, 546), (710, 500, 546)),
                  3: ((230, 430, -330), (230, 430, 670))}
@@ -279,6 +282,9 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
     op = SimulatedOperator(sc.waypoints, speed=sc.speed, dwell=sc.dwell)
     q0 = _start_configuration(robot, sc.waypoints[0])
     R_hold = robot.fk(q0)[:3, :3]
+    if duration is not None and not (np.isfinite(duration) and duration > 0):
+        raise InvalidInput(f"duration must be a positive number of simulated seconds, got {duration}", value=duration)
+    guard = CollisionGuard(robot)
     T_end = op.duration + 0.5 if duration is None else float(duration)
     N = int(round(T_end / 0.001))
     n = robot.nq
@@ -334,6 +340,12 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
         s = ctl.step(q, w_world)
         c1, k1 = time.perf_counter_ns(), time.thread_time_ns()
         us[i], cpu[i] = (c1 - c0) / 1e3, (k1 - k0) / 1e3
+        try:  # the table, the floor and self-collision: checked GUARD_LOOKAHEAD ahead, else hold
+            guard.check(q + s.qd * GUARD_LOOKAHEAD, "guidance command")
+        except TargetInCollision as exc:
+            s = replace(s, qd=np.zeros(n))
+            extra["guard_holds"] = extra.get("guard_holds", 0) + 1
+            extra.setdefault("guard_reason", str(exc))
         if wc is not None:
             wc.command_velocity(s.qd)
             ncon = _obstacle_contacts(wc)

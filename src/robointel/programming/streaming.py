@@ -1,79 +1,121 @@
-"""The robot streaming interface (Ch. 3.4): a WebSocket server that owns the (simulated) robot
-controller and accepts streamed targets.
+"""The robot streaming interface (Ch. 3.4): a WebSocket server in front of the robot controller.
 
-The server runs the MuJoCo workcell in real time at 1 kHz in a control thread. Between targets an
-online trajectory generator (``ruckig``: jerk-limited, within the joint velocity and acceleration
-limits) moves the reference; the workcell's joint controller tracks it. Safety:
+The controller is :class:`~robointel.programming.stream_control.StreamingController` (simulated).
 
-* **validation**: every message is checked (JSON, type, shapes, finiteness, joint limits, IK
-  reachability) before anything reaches the controller; a bad message gets an ``error`` reply and
-  changes nothing;
-* **deadman**: if no valid target arrives for ``deadman`` seconds (default 0.1 s) while the robot
-  is moving toward one, the generator switches to a jerk-limited stop (velocity -> 0) and the
-  robot holds where it stopped (mode ``"stopped"``) until a new target arrives;
-* **binding**: 127.0.0.1 by default; any other address needs a token, checked before binding;
-  with a token every connection must first send ``hello`` with it.
+Safety rules
+------------
+* **one commanding client**: a client sends ``acquire`` to take control; targets, heartbeats and
+  ``resume`` from any other client get ``not_in_control`` / ``control_held`` errors (they stay
+  read-only: ``get_state``). ``release`` or a disconnect gives control up and stops the robot.
+* **stop latches**: ``stop`` (from any authenticated client: an emergency stop) decelerates the
+  robot and forgets its target; no heartbeat, old target or other client moves it again until the
+  client in control sends ``resume`` and then a new target.
+* **deadman from the sender's clock**: targets and heartbeats carry ``t``, the client's send time
+  (s, any steady clock). The server maps it to its own clock (:class:`SendClock`: the smallest
+  arrival-minus-send offset seen on the connection) and lets a target move the robot only until
+  ``t + deadman``; a target older than ``deadman`` on arrival is dropped (``stale``), never
+  replayed. A stall therefore stops the robot ``deadman`` after the client's last send, however
+  long the server's backlog.
+* **bounded work per client**: a client over the rate limit (1000 messages/s, bursts of 200) is
+  not read from until it is back under it (TCP backpressure slows it; one ``rate_limited`` error
+  per second tells it), so its late messages arrive stale and are dropped; at most 100 error
+  replies per second go back to one client (the rest are counted); a 64 kB kernel
+  receive buffer bounds each client's backlog; each client has a one-target mailbox (a newer
+  target replaces an unprocessed one); IK and collision checks run in a worker thread, one target
+  at a time, never on the event loop (except the one-sample check, ~0.1 ms, of a joint target
+  within 0.05 rad of the reference: the usual small streaming step); the loop yields after every
+  message; while the server runs the interpreter's thread switch interval is 1 ms (the control
+  thread and the loop wait for the GIL at most that long).
+* **checks**: JSON, type, shapes, finiteness (also ``10**400``), booleans (``"ack": "false"`` is an
+  error), joint limits, IK reachability, and the straight joint-space move to the target clear of
+  the table, the floor and the robot itself (``collision``, naming the link). A bad message gets
+  an ``error`` reply and changes nothing; acks go to the client that asked.
+* **binding and authentication**: 127.0.0.1 by default; any other address needs a token of >= 16
+  characters, checked before binding. With a token, the server says only its protocol version
+  until ``hello`` carries the token; a wrong token closes the connection after 0.5 s, and after 5
+  failures in 60 s from one address its connections are refused (``rate_limited``).
 
-Message schema (JSON text frames; angles in rad, positions in m, times in s)
---------------------------------------------------------------------------------
+Messages (JSON text frames < 64 kB; angles rad, positions m, times s), protocol version 2
+------------------------------------------------------------------------------------------
 Client -> server:
 
-``{"type": "hello", "token": "..."}``
-    authenticate (required first when the server has a token).
-``{"type": "joint_target", "q": [n floats], "seq": int?, "ack": bool?}``
-    move to joint positions (within limits).
+``{"type": "hello", "token": "..."?}``
+    authenticate (first, when the server has a token); answered by ``hello``.
+``{"type": "acquire"}`` / ``{"type": "release"}``
+    take / give up control; answered by ``ok``.
+``{"type": "joint_target", "q": [n floats], "t": send time, "seq": int?, "ack": bool?}``
+    move to joint positions (within limits; needs control).
 ``{"type": "pose_target", "position": [x, y, z], "quaternion": [w, x, y, z] | "rotation": 3x3,
-"seq": int?, "ack": bool?}``
-    move the TCP to a pose (robot root frame); solved by IK closest to the current target.
-``{"type": "heartbeat"}``
-    keep the current target alive without changing it (resets the deadman).
+"t": send time, "seq": int?, "ack": bool?}``
+    move the TCP to a pose (robot root frame), solved by IK closest to the current target.
+``{"type": "heartbeat", "t": send time}``
+    keep the current target alive until ``t + deadman`` (never restarts a stopped robot).
 ``{"type": "get_state"}``
     ask for a ``state`` reply.
-``{"type": "stop"}``
-    decelerate to a stop now.
+``{"type": "stop"}`` / ``{"type": "resume"}``
+    latched stop (any client) / clear the latch (the client in control); answered by ``ok``.
 
 Server -> client:
 
-``{"type": "welcome", "robot": name, "joint_names": [...], "lower": [...], "upper": [...],
-"deadman": s, "auth": bool}``  on connect;
-``{"type": "applied", "seq": int, "t": sim time}``  when the controller first acts on a target
-that asked for ``"ack": true``;
+``{"type": "welcome", "protocol": 2, "auth": bool, ...}`` on connect; without a token (or after
+``hello``) also ``"robot", "joint_names", "lower", "upper", "deadman", "client"``;
+``{"type": "hello", "protocol": 2, "client": id, "robot": ..., ...}`` the answer to ``hello``;
+``{"type": "ok", "of": type, "seq": int | null, "in_control": bool, "latched": bool}``;
+``{"type": "applied", "seq": int, "t": sim time}`` to the sender of a target with ``"ack": true``
+when the controller first acts on it;
 ``{"type": "state", "t": s, "q": [...], "qd": [...], "target": [...] | null, "mode": "idle" |
-"tracking" | "stopping" | "stopped", "accepted": int, "rejected": int}``;
+"tracking" | "stopping" | "stopped", "latched": bool, "in_control": bool, "controlled": bool,
+"accepted": int, "rejected": int}``;
 ``{"type": "error", "code": "malformed" | "unknown_type" | "bad_shape" | "not_finite" |
-"out_of_limits" | "unreachable" | "unauthorized", "message": "...", "seq": int | null}``.
+"out_of_limits" | "unreachable" | "collision" | "stale" | "superseded" | "stopped" |
+"not_in_control" | "control_held" | "rate_limited" | "unauthorized" | "internal", "message": "...",
+"seq": int | null}``.
 """
 from __future__ import annotations
 
 import asyncio
-import atexit
+import collections
+import concurrent.futures
 import hmac
 import ipaddress
+import itertools
 import json
-import math
 import socket
+import sys
 import threading
 import time
-import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-from robointel.errors import IKFailure, InvalidInput
+from robointel.errors import InvalidInput
+from robointel.programming.collision_guard import CollisionGuard
+from robointel.programming.stream_control import StreamingController, Target
+from robointel.programming.stream_protocol import (
+    MAX_MESSAGE_BYTES,
+    MESSAGE_TYPES,
+    PROTOCOL_VERSION,
+    TIMED_TYPES,
+    RateLimit,
+    Rejected,
+    SendClock,
+    flag,
+    number,
+    numbers,
+    pose,
+    sequence,
+)
 
-PROTOCOL_VERSION = 1
-MAX_MESSAGE_BYTES = 64 * 1024
-_LIVE: "weakref.WeakSet[StreamingController]" = weakref.WeakSet()
+__all__ = ["StreamingController", "StreamingServer", "check_bind", "is_loopback", "PROTOCOL_VERSION",
+           "MAX_MESSAGE_BYTES", "Rejected"]
 
-
-@atexit.register
-def _release_generators() -> None:
-    """Stop (join) the control threads still running at exit, then drop the ruckig objects of
-    controllers still alive (e.g. held by a web server's callbacks) before the extension module is
-    torn down. A daemon thread left inside MuJoCo when the interpreter finalises would crash it."""
-    for c in list(_LIVE):
-        c.stop()
-        c.otg = c.inp = c.out = None
+AUTH_FAILURES = 5        # failed hellos per address ...
+AUTH_WINDOW = 60.0       # ... within this many seconds lock the address out
+AUTH_DELAY = 0.5         # s before a wrong token is answered
+ERROR_REPLIES = 100.0    # error replies per second and client (more are counted, not sent)
+SWITCH_INTERVAL = 0.001  # s: the control thread and the event loop get the GIL within 1 ms while serving
+RECEIVE_BUFFER = 64 * 1024  # bytes of kernel receive buffer per connection: a bounded backlog per client
 
 
 def is_loopback(host: str) -> bool:
@@ -99,258 +141,24 @@ def check_bind(host: str, token: str | None) -> None:
                 "Bind 127.0.0.1 (default) or pass a token of at least 16 characters", value=host)
 
 
-class Rejected(Exception):
-    """A message that must not reach the robot; carries the error code for the reply."""
-
-    def __init__(self, code: str, message: str) -> None:
-        super().__init__(message)
-        self.code = code
+def _same_token(given: str, token: str) -> bool:
+    """Constant-time comparison of two tokens of any characters."""
+    return hmac.compare_digest(given.encode("utf-8", "surrogatepass"), token.encode("utf-8", "surrogatepass"))
 
 
 @dataclass
-class Target:
-    q: np.ndarray
-    seq: int | None
-    ack: bool
-    received: float  # perf_counter
-
-
-def _quat_to_matrix(qw, qx, qy, qz) -> np.ndarray:
-    n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
-    if not (0.5 < n < 1.5):
-        raise Rejected("bad_shape", f"quaternion must be unit length, got norm {n:.3g}")
-    qw, qx, qy, qz = qw / n, qx / n, qy / n, qz / n
-    return np.array([[1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qz * qw), 2 * (qx * qz + qy * qw)],
-                     [2 * (qx * qy + qz * qw), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qx * qw)],
-                     [2 * (qx * qz - qy * qw), 2 * (qy * qz + qx * qw), 1 - 2 * (qx * qx + qy * qy)]])
-
-
-def _numbers(x, n: int, what: str) -> np.ndarray:
-    if not isinstance(x, list) or len(x) != n:
-        raise Rejected("bad_shape", f"{what} must be a list of {n} numbers")
-    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in x):
-        raise Rejected("bad_shape", f"{what} must contain numbers only")
-    a = np.array(x, dtype=float)
-    if not np.all(np.isfinite(a)):
-        raise Rejected("not_finite", f"{what} contains NaN or inf")
-    return a
-
-
-class StreamingController:
-    """The robot side: a real-time 1 kHz loop over a ``Workcell`` with a ruckig generator, a
-    deadman and message validation. Usable without the network (:meth:`submit`).
-
-    Args:
-        robot: a :class:`robointel.robot.Robot` (default: the LR Mate).
-        workcell: a ``robointel.sim.Workcell`` of the robot (default: built here).
-        deadman: stall time [s] after which the robot decelerates to a stop.
-        q0: initial configuration (default: a ready pose within limits).
-        jerk_factor: jerk limit = jerk_factor * acceleration limit.
-        realtime: pace the simulation with the wall clock (False: step only via :meth:`advance`).
-    """
-
-    def __init__(self, robot=None, workcell=None, *, deadman: float = 0.1, q0=None, jerk_factor: float = 20.0,
-                 realtime: bool = True) -> None:
-        from ruckig import InputParameter, OutputParameter, Ruckig
-
-        from robointel.robot import Robot
-
-        self.robot = robot or Robot.load("lrmate200id7l")
-        r = self.robot
-        # IK runs in the network thread: its own Pinocchio data, never shared with the control thread
-        self._ik_robot = Robot(r.urdf, name=r.name, urdf_path=r.urdf_path, flange_frame=r.flange_frame, tool=r.tool)
-        self._ik_lock = threading.Lock()
-        if workcell is None:
-            from robointel.sim import Workcell
-
-            workcell = Workcell(self.robot, ft_sensor=False)
-        self.wc = workcell
-        if not (0.0 < deadman <= 5.0):
-            raise InvalidInput(f"deadman must be in (0, 5] s, got {deadman}", value=deadman)
-        self.deadman = float(deadman)
-        n = self.robot.nq
-        self.n = n
-        if q0 is None:
-            q0 = np.clip(np.array([0.0, 0.0, 0.0, 0.0, -np.pi / 2, 0.0][:n] + [0.0] * max(0, n - 6)),
-                         self.robot.lower, self.robot.upper)
-        q0 = self.robot.check_q(q0, "q0", limits=True)
-        self.wc.reset(q0)
-        self.dt = 0.001
-        self.otg = Ruckig(n, self.dt)
-        self.inp, self.out = InputParameter(n), OutputParameter(n)
-        self.inp.max_velocity = self.robot.velocity_limit.tolist()
-        self.inp.max_acceleration = self.robot.acceleration_limit.tolist()
-        self.inp.max_jerk = (jerk_factor * self.robot.acceleration_limit).tolist()
-        self.inp.current_position = q0.tolist()
-        self.inp.current_velocity = [0.0] * n
-        self.inp.current_acceleration = [0.0] * n
-        self.q_ref, self.qd_ref, self.qdd_ref = q0.copy(), np.zeros(n), np.zeros(n)
-        self.mode = "idle"
-        self._lock = threading.Lock()
-        self._pending: Target | None = None
-        self._target: Target | None = None
-        self._last_valid = time.perf_counter()
-        self.accepted = 0
-        self.rejected = 0
-        self.on_applied = None  # callback(seq, sim_time) from the control thread
-        self.realtime = realtime
-        self._thread: threading.Thread | None = None
-        self._running = False
-        self.steps = 0
-        self.overruns = 0
-        _LIVE.add(self)
-
-    # ------------------------------------------------------------------ validation
-    def validate(self, msg) -> tuple[str, object]:
-        """Check one decoded message; return (type, payload). Raises :class:`Rejected`."""
-        if not isinstance(msg, dict):
-            raise Rejected("malformed", "a message must be a JSON object")
-        typ = msg.get("type")
-        seq = msg.get("seq")
-        if seq is not None and (not isinstance(seq, int) or isinstance(seq, bool)):
-            raise Rejected("malformed", "seq must be an integer")
-        ack = bool(msg.get("ack", False))
-        if typ == "joint_target":
-            q = _numbers(msg.get("q"), self.n, "q")
-            bad = np.flatnonzero((q < self.robot.lower) | (q > self.robot.upper))
-            if bad.size:
-                i = int(bad[0])
-                raise Rejected("out_of_limits", f"q[{i}] ({self.robot.joint_names[i]}) = {q[i]:.4g} is outside "
-                                                f"[{self.robot.lower[i]:.4g}, {self.robot.upper[i]:.4g}]")
-            return typ, Target(q, seq, ack, time.perf_counter())
-        if typ == "pose_target":
-            p = _numbers(msg.get("position"), 3, "position")
-            if "quaternion" in msg:
-                R = _quat_to_matrix(*_numbers(msg.get("quaternion"), 4, "quaternion"))
-            elif "rotation" in msg:
-                rot = msg.get("rotation")
-                if not isinstance(rot, list) or len(rot) != 3:
-                    raise Rejected("bad_shape", "rotation must be a 3x3 list")
-                R = np.array([_numbers(r, 3, "rotation row") for r in rot])
-                if not np.allclose(R.T @ R, np.eye(3), atol=1e-4) or np.linalg.det(R) < 0:
-                    raise Rejected("bad_shape", "rotation must be a proper rotation matrix")
-            else:
-                raise Rejected("bad_shape", "pose_target needs 'quaternion' [w, x, y, z] or 'rotation' 3x3")
-            T = np.eye(4)
-            T[:3, :3], T[:3, 3] = R, p
-            with self._lock:
-                ref = (self._pending or self._target).q if (self._pending or self._target) else self.q_ref
-            try:
-                with self._ik_lock:
-                    q = self._ik_robot.ik(T, q_ref=ref)[0]
-            except IKFailure as exc:
-                raise Rejected("unreachable", str(exc)) from None
-            return "joint_target", Target(q, seq, ack, time.perf_counter())
-        if typ in ("heartbeat", "get_state", "stop", "hello"):
-            return typ, None
-        if typ is None:
-            raise Rejected("malformed", "a message needs a 'type'")
-        raise Rejected("unknown_type", f"unknown message type {typ!r}")
-
-    def submit(self, msg) -> dict | None:
-        """Handle one decoded message: returns the reply (``error`` / ``state``) or None."""
-        try:
-            typ, payload = self.validate(msg)
-        except Rejected as exc:
-            self.rejected += 1
-            return {"type": "error", "code": exc.code, "message": str(exc),
-                    "seq": msg.get("seq") if isinstance(msg, dict) else None}
-        if typ == "joint_target":
-            with self._lock:
-                self._pending = payload
-                self._last_valid = payload.received
-            self.accepted += 1
-        elif typ == "heartbeat":
-            with self._lock:
-                self._last_valid = time.perf_counter()
-        elif typ == "stop":
-            with self._lock:
-                self._last_valid = -1e9
-        elif typ == "get_state":
-            return self.state()
-        return None
-
-    def state(self) -> dict:
-        with self._lock:
-            tgt = None if self._target is None else self._target.q.tolist()
-        return {"type": "state", "t": self.wc.time, "q": self.wc.q.tolist(), "qd": self.wc.qd.tolist(),
-                "target": tgt, "mode": self.mode, "accepted": self.accepted, "rejected": self.rejected}
-
-    # ------------------------------------------------------------------ control
-    def advance(self, steps: int = 1) -> None:
-        """Run ``steps`` 1 kHz control periods (the control thread calls this)."""
-        from ruckig import ControlInterface, Result
-
-        for _ in range(steps):
-            applied = None
-            now = time.perf_counter()
-            with self._lock:
-                if self._pending is not None:
-                    self._target, self._pending = self._pending, None
-                    applied = self._target
-                stalled = now - self._last_valid > self.deadman
-            if self._target is not None and not stalled:
-                self.inp.control_interface = ControlInterface.Position
-                self.inp.target_position = self._target.q.tolist()
-                self.inp.target_velocity = [0.0] * self.n
-                self.inp.target_acceleration = [0.0] * self.n
-                self.mode = "tracking"
-            elif self.mode in ("tracking", "stopping"):
-                self.inp.control_interface = ControlInterface.Velocity
-                self.inp.target_velocity = [0.0] * self.n
-                self.inp.target_acceleration = [0.0] * self.n
-                self.mode = "stopping"
-            if self.mode in ("tracking", "stopping"):
-                res = self.otg.update(self.inp, self.out)
-                if res not in (Result.Working, Result.Finished):  # pragma: no cover - defensive
-                    self.inp.control_interface = ControlInterface.Velocity
-                    self.inp.target_velocity = [0.0] * self.n
-                    self.mode = "stopping"
-                    res = self.otg.update(self.inp, self.out)
-                q = np.clip(np.array(self.out.new_position), self.robot.lower, self.robot.upper)
-                qd, qdd = np.array(self.out.new_velocity), np.array(self.out.new_acceleration)
-                self.out.pass_to_input(self.inp)
-                if self.mode == "stopping" and np.max(np.abs(qd)) < 1e-9 and np.max(np.abs(qdd)) < 1e-9:
-                    self.mode = "stopped"
-                    with self._lock:
-                        self._target = None
-                self.q_ref, self.qd_ref, self.qdd_ref = q, qd, qdd
-            else:
-                self.qd_ref, self.qdd_ref = np.zeros(self.n), np.zeros(self.n)
-            self.wc.track(self.q_ref, self.qd_ref, self.qdd_ref)
-            self.steps += 1
-            if applied is not None and applied.ack and self.on_applied is not None:
-                self.on_applied(applied.seq, self.wc.time)
-
-    def _loop(self) -> None:
-        t0 = time.perf_counter()
-        done = 0
-        while self._running:
-            due = int((time.perf_counter() - t0) / self.dt)
-            k = due - done
-            if k > 50:  # fell behind (machine busy): drop real time rather than burst
-                self.overruns += 1
-                t0 += (k - 50) * self.dt
-                k = 50
-            if k > 0:
-                self.advance(k)
-                done += k
-            else:
-                time.sleep(0.0003)
-
-    def start(self) -> None:
-        """Start the real-time control thread."""
-        if self._thread is not None:
-            return
-        self._running = True
-        self._thread = threading.Thread(target=self._loop, name="robointel-control", daemon=True)
-        self._thread.start()
-
-    def stop(self) -> None:
-        self._running = False
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
-            self._thread = None
+class _Client:
+    id: str
+    ws: Any
+    authed: bool
+    clock: SendClock = field(default_factory=SendClock)
+    limit: RateLimit = field(default_factory=RateLimit)
+    slot: tuple | None = None  # the newest unprocessed target: (kind, payload, seq, ack, sent)
+    wake: asyncio.Event = field(default_factory=asyncio.Event)
+    limited_reply: float = -1e9
+    throttled: int = 0
+    error_budget: RateLimit = field(default_factory=lambda: RateLimit(rate=ERROR_REPLIES, burst=ERROR_REPLIES))
+    suppressed: int = 0
 
 
 class StreamingServer:
@@ -361,107 +169,264 @@ class StreamingServer:
         host: bind address (default 127.0.0.1); anything else needs ``token``.
         port: TCP port (0: pick a free one; see :attr:`port` after :meth:`start`).
         token: shared secret clients send in ``hello``.
+        max_clients: connections served at once (more are closed with ``rate_limited``).
 
     Raises:
-        InvalidInput: a non-loopback ``host`` without a token (before binding).
+        InvalidInput: a non-loopback ``host`` without a token (before binding), or a port outside
+            0..65535.
     """
 
     def __init__(self, controller: StreamingController | None = None, *, host: str = "127.0.0.1", port: int = 0,
-                 token: str | None = None) -> None:
+                 token: str | None = None, max_clients: int = 32) -> None:
         check_bind(host, token)
+        if not (0 <= int(port) <= 65535):
+            raise InvalidInput(f"port must be in 0..65535, got {port}", value=port)
         self.host, self.port, self.token = host, int(port), token
+        self.max_clients = int(max_clients)
         self.controller = controller or StreamingController()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
-        self._server = None
         self._ready = threading.Event()
         self._stop: asyncio.Event | None = None
-        self._clients: set = set()
+        self._clients: dict[str, _Client] = {}
+        self._ids = itertools.count(1)
+        self._auth_failures: dict[str, collections.deque] = collections.defaultdict(collections.deque)
+        self._pool = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="robointel-ik")
+        # the event loop's own collision guard (own kinematic data) for small steps checked inline
+        self._guard = CollisionGuard(self.controller.robot, self.controller.guard.obstacles,
+                                     clearance=self.controller.guard.clearance,
+                                     self_clearance=self.controller.guard.self_clearance)
         self._error: BaseException | None = None
+        self._switch: float | None = None
 
     @property
     def url(self) -> str:
+        """``ws://host:port``."""
         return f"ws://{self.host}:{self.port}"
 
-    def _welcome(self) -> dict:
+    def _robot_info(self, client: str) -> dict[str, Any]:
         r = self.controller.robot
-        return {"type": "welcome", "protocol": PROTOCOL_VERSION, "robot": r.name, "joint_names": r.joint_names,
+        return {"protocol": PROTOCOL_VERSION, "client": client, "robot": r.name, "joint_names": r.joint_names,
                 "lower": r.lower.tolist(), "upper": r.upper.tolist(), "deadman": self.controller.deadman,
                 "auth": self.token is not None}
 
-    async def _handler(self, ws) -> None:
-        loop = asyncio.get_running_loop()
-        authed = self.token is None
-        acks: dict = {}
-
-        def on_applied(seq, t, _ws=ws):
-            loop.call_soon_threadsafe(asyncio.ensure_future, self._send(_ws, {"type": "applied", "seq": seq, "t": t}))
-
-        self._clients.add(ws)
-        self.controller.on_applied = on_applied
+    # ------------------------------------------------------------------ per connection
+    async def _handler(self, ws: Any) -> None:
+        c = _Client(f"c{next(self._ids)}", ws, authed=self.token is None)
+        if len(self._clients) >= self.max_clients:
+            await self._send(ws, {"type": "error", "code": "rate_limited", "message": "too many clients", "seq": None})
+            await ws.close(code=1013, reason="too many clients")
+            return
+        self._clients[c.id] = c
+        worker = asyncio.ensure_future(self._worker(c))
         try:
-            await ws.send(json.dumps(self._welcome()))
+            await self._send(ws, {"type": "welcome", **self._robot_info(c.id)} if c.authed else
+                             {"type": "welcome", "protocol": PROTOCOL_VERSION, "auth": True})
             async for raw in ws:
+                await asyncio.sleep(0)  # one message per turn: a flooding client cannot starve the others
+                now = time.perf_counter()
+                wait = c.limit.delay(now)
+                if wait > 0:  # over the rate: stop reading this client (TCP backpressure slows it down)
+                    c.throttled += 1
+                    if now - c.limited_reply > 1.0:
+                        c.limited_reply = now
+                        await self._error_to(c, "rate_limited", "over 1000 messages/s: reading paused", None)
+                    await asyncio.sleep(wait)
+                    now = time.perf_counter()
                 if isinstance(raw, bytes) or len(raw) > MAX_MESSAGE_BYTES:
-                    await self._send(ws, {"type": "error", "code": "malformed",
-                                          "message": "send JSON text frames under 64 kB", "seq": None})
-                    self.controller.rejected += 1
+                    msg = None
+                    await self._error_to(c, "malformed", "send JSON text frames under 64 kB", None)
+                else:
+                    try:
+                        msg = json.loads(raw, parse_constant=lambda _c: float("nan"))
+                    except (ValueError, RecursionError):
+                        msg = None
+                        await self._error_to(c, "malformed", "not valid JSON", None)
+                if msg is None:
+                    if not c.authed:  # before authentication only a valid hello keeps the connection
+                        await ws.close(code=1008, reason="unauthorized")
+                        return
+                    continue
+                if not c.authed:
+                    if not await self._authenticate(c, msg):
+                        await ws.close(code=1008, reason="unauthorized")
+                        return
                     continue
                 try:
-                    msg = json.loads(raw, parse_constant=lambda c: float("nan"))
-                except (ValueError, RecursionError):
+                    reply = self._dispatch(c, msg, now)
+                except Rejected as exc:
                     self.controller.rejected += 1
-                    await self._send(ws, {"type": "error", "code": "malformed", "message": "not valid JSON",
-                                          "seq": None})
-                    continue
-                if not authed:
-                    tok = msg.get("token") if isinstance(msg, dict) and msg.get("type") == "hello" else None
-                    if isinstance(tok, str) and hmac.compare_digest(tok, self.token):
-                        authed = True
-                        continue
+                    seq = msg.get("seq") if isinstance(msg, dict) and type(msg.get("seq")) is int else None
+                    reply = {"type": "error", "code": exc.code, "message": str(exc), "seq": seq}
+                except Exception as exc:  # never drop the connection on a bug: say so
                     self.controller.rejected += 1
-                    await self._send(ws, {"type": "error", "code": "unauthorized",
-                                          "message": "send {'type': 'hello', 'token': ...} first", "seq": None})
-                    await ws.close(code=1008, reason="unauthorized")
-                    return
-                reply = self.controller.submit(msg)
+                    reply = {"type": "error", "code": "internal", "message": f"{type(exc).__name__}: {exc}",
+                             "seq": None}
                 if reply is not None:
-                    await self._send(ws, reply)
-        except Exception:  # connection dropped: the deadman stops the robot
+                    await self._reply(c, reply)
+        except Exception:  # connection dropped: release control, the robot stops
             pass
         finally:
-            self._clients.discard(ws)
-            del acks
+            worker.cancel()
+            self._clients.pop(c.id, None)
+            self.controller.release(c.id)
+
+    async def _authenticate(self, c: _Client, msg: Any) -> bool:
+        peer = str((c.ws.remote_address or ("?",))[0])
+        fails = self._auth_failures[peer]
+        now = time.monotonic()
+        while fails and now - fails[0] > AUTH_WINDOW:
+            fails.popleft()
+        if len(fails) >= AUTH_FAILURES:
+            await self._error_to(c, "rate_limited", f"too many failed authentications from {peer}; retry in "
+                                                    f"{AUTH_WINDOW - (now - fails[0]):.0f} s", None)
+            return False
+        tok = msg.get("token") if isinstance(msg, dict) and msg.get("type") == "hello" else None
+        assert self.token is not None
+        if isinstance(tok, str) and _same_token(tok, self.token):
+            c.authed = True
+            await self._send(c.ws, {"type": "hello", **self._robot_info(c.id)})
+            return True
+        fails.append(now)
+        await asyncio.sleep(AUTH_DELAY)
+        await self._error_to(c, "unauthorized", "send {'type': 'hello', 'token': ...} first", None)
+        return False
+
+    def _dispatch(self, c: _Client, msg: Any, now: float) -> dict[str, Any] | None:
+        """Cheap handling on the event loop; targets go to the client's mailbox. Raises Rejected."""
+        ctrl = self.controller
+        if not isinstance(msg, dict):
+            raise Rejected("malformed", "a message must be a JSON object")
+        typ = msg.get("type")
+        if typ is None:
+            raise Rejected("malformed", "a message needs a 'type'")
+        if typ not in MESSAGE_TYPES:
+            raise Rejected("unknown_type", f"unknown message type {str(typ)[:40]!r}")
+        seq = sequence(msg)
+        sent = now
+        if "t" in msg:
+            sent = c.clock.to_server(number(msg["t"], "t"), now)
+        elif typ in TIMED_TYPES:
+            raise Rejected("malformed", f"{typ} needs 't': the client's send time [s] (any steady clock)")
+        if typ in ("joint_target", "pose_target"):
+            ack = flag(msg, "ack")
+            payload = numbers(msg.get("q"), ctrl.n, "q") if typ == "joint_target" else pose(msg)
+            ctrl.may_command(c.id, sent, now)
+            if typ == "joint_target" and c.slot is None and \
+                    float(np.max(np.abs(payload - ctrl.q_ref))) <= self._guard.step:
+                # a small step (the usual stream): one collision sample, checked here (~0.1 ms)
+                ctrl.command(payload, client=c.id, sent=sent, seq=seq, ack=ack, guard=self._guard)
+                return None
+            if c.slot is not None and c.slot[3]:
+                self._post(c, {"type": "error", "code": "superseded", "message": "replaced by a newer target "
+                                                                                 "before it was checked",
+                               "seq": c.slot[2]})
+            c.slot = (typ, payload, seq, ack, sent)
+            c.wake.set()
+            return None
+        if typ == "heartbeat":
+            ctrl.heartbeat(c.id, sent)
+            return None
+        if typ == "get_state":
+            return ctrl.state(c.id)
+        if typ == "hello":
+            return {"type": "hello", **self._robot_info(c.id)}
+        if typ == "stop":
+            ctrl.emergency_stop()
+        elif typ == "resume":
+            ctrl.resume(c.id)
+        elif typ == "acquire":
+            ctrl.acquire(c.id)
+        elif typ == "release":
+            ctrl.release(c.id)
+        return {"type": "ok", "of": typ, "seq": seq, "in_control": ctrl.owner == c.id, "latched": ctrl.latched}
+
+    def _heavy(self, client: str, item: tuple) -> None:
+        """IK (pose targets) and the collision check, in the worker thread."""
+        kind, payload, seq, ack, sent = item
+        ctrl = self.controller
+        if kind == "pose_target":
+            ctrl.may_command(client, sent, time.perf_counter())
+            payload = ctrl.solve_pose(payload)
+        ctrl.command(np.asarray(payload, float), client=client, sent=sent, seq=seq, ack=ack)
+
+    async def _worker(self, c: _Client) -> None:
+        loop = asyncio.get_running_loop()
+        while True:
+            await c.wake.wait()
+            c.wake.clear()
+            item, c.slot = c.slot, None
+            if item is None:
+                continue
+            try:
+                await loop.run_in_executor(self._pool, self._heavy, c.id, item)
+            except Rejected as exc:
+                self.controller.rejected += 1
+                await self._error_to(c, exc.code, str(exc), item[2])
+
+    def _on_applied(self, target: Target, t: float) -> None:
+        """Control thread: route the ``applied`` ack to the client that sent the target."""
+        c = self._clients.get(target.client)
+        if c is not None:
+            self._post(c, {"type": "applied", "seq": target.seq, "t": t})
+
+    def _post(self, c: _Client, obj: dict[str, Any]) -> None:
+        if self._loop is not None and not self._loop.is_closed():
+            try:
+                self._loop.call_soon_threadsafe(asyncio.ensure_future, self._send(c.ws, obj))
+            except RuntimeError:
+                pass
+
+    async def _error_to(self, c: _Client, code: str, message: str, seq: int | None) -> None:
+        if code != "rate_limited":
+            self.controller.rejected += 1
+        await self._reply(c, {"type": "error", "code": code, "message": message, "seq": seq})
+
+    async def _reply(self, c: _Client, obj: dict[str, Any]) -> None:
+        """Send a reply; error replies beyond ERROR_REPLIES per second are counted, not sent."""
+        if obj.get("type") == "error" and obj.get("code") not in ("unauthorized", "rate_limited") \
+                and c.error_budget.delay(time.perf_counter()) > 0:
+            c.suppressed += 1
+            return
+        await self._send(c.ws, obj)
 
     @staticmethod
-    async def _send(ws, obj) -> None:
+    async def _send(ws: Any, obj: dict[str, Any]) -> None:
         try:
             await ws.send(json.dumps(obj))
         except Exception:
             pass
 
+    # ------------------------------------------------------------------ lifecycle
     async def _main(self) -> None:
         from websockets.asyncio.server import serve
 
         self._stop = asyncio.Event()
         try:
-            async with serve(self._handler, self.host, self.port, max_size=MAX_MESSAGE_BYTES * 2,
+            async with serve(self._handler, self.host, self.port, max_size=MAX_MESSAGE_BYTES * 2, max_queue=32,
                              compression=None) as server:
-                self._server = server
                 self.port = server.sockets[0].getsockname()[1] if self.port == 0 else self.port
-                for s in server.sockets:
+                for s in server.sockets:  # accepted connections inherit these
                     s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                    s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER)
                 self._ready.set()
                 await self._stop.wait()
         except BaseException as exc:  # bind failure etc.
             self._error = exc
             self._ready.set()
 
-    def start(self, timeout: float = 10.0) -> "StreamingServer":
-        """Start the control thread and the server thread; return when listening."""
+    def start(self, timeout: float = 10.0) -> StreamingServer:
+        """Start the control thread and the server thread; return when listening.
+
+        Raises:
+            InvalidInput: the server could not bind (port in use, bad address) or did not start.
+        """
+        self.controller.on_applied = self._on_applied
+        self._switch = sys.getswitchinterval()
+        sys.setswitchinterval(min(self._switch, SWITCH_INTERVAL))
         self.controller.start()
 
-        def run():
+        def run() -> None:
             self._loop = asyncio.new_event_loop()
             self._loop.run_until_complete(self._main())
             self._loop.close()
@@ -469,13 +434,16 @@ class StreamingServer:
         self._thread = threading.Thread(target=run, name="robointel-stream", daemon=True)
         self._thread.start()
         if not self._ready.wait(timeout):
+            self.stop()
             raise InvalidInput("streaming server did not start in time")
         if self._error is not None:
             self.stop()
-            raise InvalidInput(f"could not start the streaming server on {self.host}:{self.port}: {self._error}")
+            raise InvalidInput(f"could not start the streaming server on {self.host}:{self.port}: {self._error}",
+                               value=self.port)
         return self
 
     def stop(self) -> None:
+        """Close the server, join its thread and the control thread."""
         if self._loop is not None and self._stop is not None and not self._loop.is_closed():
             try:
                 self._loop.call_soon_threadsafe(self._stop.set)
@@ -484,10 +452,14 @@ class StreamingServer:
         if self._thread is not None:
             self._thread.join(timeout=5.0)
             self._thread = None
+        self._pool.shutdown(wait=False, cancel_futures=True)
         self.controller.stop()
+        if self._switch is not None:
+            sys.setswitchinterval(self._switch)
+            self._switch = None
 
-    def __enter__(self) -> "StreamingServer":
+    def __enter__(self) -> StreamingServer:
         return self.start()
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.stop()

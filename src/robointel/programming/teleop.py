@@ -139,6 +139,8 @@ class TeleopApp:
                  obstacles: Sequence = (), program_path="teleop_program.yaml", stream_hz: float = 50.0,
                  reach_tol: float = 2e-3, token: str | None = None) -> None:
         check_bind(host, token)
+        if not 0 <= int(port) <= 65535:
+            raise InvalidInput(f"port must be in 0..65535, got {port}", value=port)
         from robointel.robot import Robot
 
         self.controller = controller
@@ -160,6 +162,9 @@ class TeleopApp:
         self._threads: list[threading.Thread] = []
         self.server = None
         self._authed = token is None
+        self.client = "teleop-page"  # the page's client id at the controller (it acquires control to move)
+        self.refused = 0
+        self.last_error: str | None = None
 
     # ------------------------------------------------------------------ logic (no browser needed)
     def move_hand(self, position, wxyz) -> bool:
@@ -180,17 +185,33 @@ class TeleopApp:
                 return False
             self.reachable = True
             if not self.replaying:
+                if not self._send(q):  # refused (table, floor, self-collision, control): not kept either
+                    self._show_reachability(False)
+                    return False
                 self.desired = q
-                self._send(q)
         self._show_reachability(True)
         return True
 
-    def _send(self, q) -> None:
+    def _send(self, q) -> bool:
+        """Stream a joint target through the controller's checks (control, latch, limits, table,
+        floor and self-collision); a refusal is shown on the page and nothing moves. Returns whether
+        the controller accepted it."""
         if not self._authed:
-            return
-        reply = self.controller.submit({"type": "joint_target", "q": [float(v) for v in q]})
+            return False
+        if self.controller.owner != self.client:
+            reply = self.controller.submit({"type": "acquire"}, client=self.client)
+            if reply is not None and reply["type"] == "error":
+                self.last_error = reply["message"]
+                self._status(f"not sent: {reply['message']}")
+                return False
+        reply = self.controller.submit({"type": "joint_target", "q": [float(v) for v in q]}, client=self.client)
         if reply is None:
             self.sent += 1
+            return True
+        self.refused += 1
+        self.last_error = reply["message"]
+        self._status(f"not sent ({reply['code']}): {reply['message']}")
+        return False
 
     def record(self) -> int:
         """Record the current target (or the robot's pose) as a waypoint; returns the count."""
@@ -422,3 +443,4 @@ class TeleopApp:
         if self.server is not None:
             self.server.stop()
             self.server = None
+        self.controller.release(self.client)

@@ -34,15 +34,10 @@ from numpy.typing import ArrayLike
 
 from robointel._validate import as_array
 from robointel.errors import DescriptionError, InvalidInput
+from robointel.geometry.table import TABLE_EXTENTS, TABLE_HEIGHT, TABLE_THICKNESS  # noqa: F401 (re-exported)
 
 if TYPE_CHECKING:  # pragma: no cover
     from robointel.robot import Robot
-
-#: Height of the table top above the floor (m). The table top is z = 0 of the world frame.
-TABLE_HEIGHT = 0.75
-#: Table top extents (x_min, x_max, y_min, y_max) in the world frame (m) and thickness (m).
-TABLE_EXTENTS = (-0.4, 1.0, -0.7, 0.7)
-TABLE_THICKNESS = 0.05
 GRAVITY = (0.0, 0.0, -9.81)
 
 ROBOT_RGBA = (1.0, 0.78, 0.05, 1.0)  # FANUC yellow

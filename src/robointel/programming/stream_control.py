@@ -1,0 +1,408 @@
+"""The robot side of the streaming interface: a 1 kHz control thread over the MuJoCo workcell.
+
+It has a jerk-limited generator (``ruckig``), one commanding client, a latched stop and a deadman
+that counts from the client's send time (protocol: :mod:`robointel.programming.streaming`).
+
+Between targets the generator moves the reference within the joint velocity, acceleration and jerk
+limits; the workcell's joint controller tracks it. A target reaches the generator only after the
+checks of :meth:`StreamingController.command`: the sender holds control, the stop is not latched,
+the target is fresh (sent less than ``deadman`` ago), inside the joint limits and the straight
+joint-space move to it is clear of the table, the floor and the robot itself
+(:class:`~robointel.programming.collision_guard.CollisionGuard`).
+"""
+from __future__ import annotations
+
+import atexit
+import threading
+import time
+import weakref
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from robointel.errors import IKFailure, InvalidInput, TargetInCollision
+from robointel.programming.collision_guard import CollisionGuard
+from robointel.programming.stream_protocol import Rejected, flag, numbers, pose, sequence
+
+_LIVE: weakref.WeakSet[StreamingController] = weakref.WeakSet()
+LOCAL = "local"  # the client id of in-process callers (the teleoperation page uses its own)
+
+
+@atexit.register
+def _release_generators() -> None:
+    """Join the control threads still running at exit, drop the ruckig objects of live controllers.
+
+    A daemon thread left inside MuJoCo when the interpreter finalises would crash it.
+    """
+    for c in list(_LIVE):
+        c.stop()
+        c.otg = c.inp = c.out = None
+
+
+@dataclass
+class Target:
+    """A checked joint target on its way to the generator.
+
+    Attributes:
+        q: (n,) joint positions, rad.
+        seq: the client's sequence number (None if not given).
+        ack: send an ``applied`` reply when the controller first acts on it.
+        sent: the client's send time on the server clock (``time.perf_counter``), s.
+        client: id of the client that sent it.
+    """
+
+    q: npt.NDArray[np.float64]
+    seq: int | None
+    ack: bool
+    sent: float
+    client: str
+
+
+class StreamingController:
+    """A real-time 1 kHz loop over a ``Workcell``: ruckig generator, deadman, one owner, latched stop.
+
+    Usable without the network (:meth:`submit`, :meth:`advance`).
+
+    Args:
+        robot: a :class:`robointel.robot.Robot` (default: the LR Mate).
+        workcell: a ``robointel.sim.Workcell`` of the robot (default: built here, with its table).
+        deadman: the longest time [s] a target or heartbeat keeps the robot moving after the client
+            sent it; then the robot decelerates to a stop.
+        q0: (n,) initial configuration, rad (default: a ready pose within limits).
+        jerk_factor: jerk limit = jerk_factor * acceleration limit.
+        realtime: pace the simulation with the wall clock (False: step only via :meth:`advance`).
+        guard: the environment check of every target (default: the workcell's table and floor and
+            self-collision, :class:`CollisionGuard`).
+
+    Raises:
+        InvalidInput: ``deadman`` outside (0, 5] s, or ``q0`` outside the limits or in collision.
+    """
+
+    def __init__(self, robot: Any = None, workcell: Any = None, *, deadman: float = 0.1,
+                 q0: npt.ArrayLike | None = None, jerk_factor: float = 20.0, realtime: bool = True,
+                 guard: CollisionGuard | None = None) -> None:
+        from ruckig import InputParameter, OutputParameter, Ruckig
+
+        from robointel.robot import Robot
+
+        if not (0.0 < deadman <= 5.0):
+            raise InvalidInput(f"deadman must be in (0, 5] s, got {deadman}", value=deadman)
+        self.robot = robot or Robot.load("lrmate200id7l")
+        r = self.robot
+        # IK and collision checks run in worker threads: their own Pinocchio data, never the control thread's
+        self._ik_robot = Robot(r.urdf, name=r.name, urdf_path=r.urdf_path, flange_frame=r.flange_frame, tool=r.tool)
+        self._ik_lock = threading.Lock()
+        self.guard = guard or CollisionGuard(r)
+        self._guard_lock = threading.Lock()
+        if workcell is None:
+            from robointel.sim import Workcell
+
+            workcell = Workcell(self.robot, ft_sensor=False)
+        self.wc = workcell
+        self.deadman = float(deadman)
+        n = self.n = self.robot.nq
+        if q0 is None:
+            q0 = np.clip(np.array([0.0, 0.0, 0.0, 0.0, -np.pi / 2, 0.0][:n] + [0.0] * max(0, n - 6)),
+                         self.robot.lower, self.robot.upper)
+        q0 = self.robot.check_q(q0, "q0", limits=True)
+        with self._guard_lock:
+            self.guard.check(q0, "q0")
+        self.wc.reset(q0)
+        self.dt = 0.001
+        self.otg = Ruckig(n, self.dt)
+        self.inp, self.out = InputParameter(n), OutputParameter(n)
+        self.inp.max_velocity = self.robot.velocity_limit.tolist()
+        self.inp.max_acceleration = self.robot.acceleration_limit.tolist()
+        self.inp.max_jerk = (jerk_factor * self.robot.acceleration_limit).tolist()
+        self.inp.current_position = q0.tolist()
+        self.inp.current_velocity = [0.0] * n
+        self.inp.current_acceleration = [0.0] * n
+        self.q_ref, self.qd_ref, self.qdd_ref = q0.copy(), np.zeros(n), np.zeros(n)
+        self.mode = "idle"
+        self._lock = threading.Lock()
+        self._pending: Target | None = None
+        self._target: Target | None = None
+        self._deadline = -np.inf       # server time after which the current target no longer moves the robot
+        self._drop_target = False      # begin a stop at the next control period
+        self.owner: str | None = None  # the client in control
+        self.latched = False           # a stop holds until the owner sends resume
+        self.accepted = 0
+        self.rejected = 0
+        self.stop_began: float | None = None  # perf_counter time the last stop began
+        self.rest_at: float | None = None     # ... and when the robot was at rest again
+        self.on_applied: Callable[[Target, float], None] | None = None  # (target, sim time), control thread
+        self.realtime = realtime
+        self._thread: threading.Thread | None = None
+        self._running = False
+        self.steps = 0
+        self.overruns = 0
+        _LIVE.add(self)
+
+    # ------------------------------------------------------------------ control of the robot
+    def acquire(self, client: str) -> None:
+        """Make ``client`` the one commanding client.
+
+        Raises:
+            Rejected: ``control_held`` when another client holds control.
+        """
+        with self._lock:
+            if self.owner not in (None, client):
+                raise Rejected("control_held", "another client holds control; this connection is read-only until "
+                                               "it sends release or disconnects")
+            self.owner = client
+
+    def release(self, client: str) -> None:
+        """Give up control (nothing if ``client`` does not hold it); the robot decelerates to a stop."""
+        with self._lock:
+            if self.owner == client:
+                self.owner = None
+                self._pending = None
+                self._drop_target = True
+
+    def emergency_stop(self) -> None:
+        """Decelerate to a stop now and latch.
+
+        No target, heartbeat or client moves the robot until the client in control sends :meth:`resume`.
+        """
+        with self._lock:
+            self.latched = True
+            self._pending = None
+            self._drop_target = True
+
+    def resume(self, client: str) -> None:
+        """Clear a latched stop. The robot stays where it stopped until a new target arrives.
+
+        Raises:
+            Rejected: ``not_in_control`` when ``client`` does not hold control.
+        """
+        with self._lock:
+            if self.owner != client:
+                raise Rejected("not_in_control", "only the client in control may resume; send acquire first")
+            self.latched = False
+
+    def may_command(self, client: str, sent: float, now: float) -> None:
+        """Cheap checks of a target or heartbeat before any heavy work.
+
+        Args:
+            client: the sender's id.
+            sent: its send time on the server clock, s.
+            now: the server time, s.
+
+        Raises:
+            Rejected: ``stopped`` (latched), ``not_in_control`` or ``stale`` (older than the deadman).
+        """
+        if self.latched:
+            raise Rejected("stopped", "the robot is stopped (latched): the client in control must send resume")
+        if self.owner != client:
+            raise Rejected("not_in_control", "send acquire first (one client commands the robot at a time)")
+        if now - sent > self.deadman:
+            raise Rejected("stale", f"target sent {1e3 * (now - sent):.0f} ms ago, older than the deadman "
+                                    f"({1e3 * self.deadman:.0f} ms): dropped")
+
+    def solve_pose(self, T: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """IK of a TCP pose (4x4, robot root frame) closest to the current target (worker thread).
+
+        Raises:
+            Rejected: ``unreachable``.
+        """
+        with self._lock:
+            cur = self._pending or self._target
+            ref = cur.q if cur is not None else self.q_ref
+        try:
+            with self._ik_lock:
+                return np.asarray(self._ik_robot.ik(T, q_ref=ref)[0], float)
+        except IKFailure as exc:
+            raise Rejected("unreachable", str(exc)) from None
+
+    def command(self, q: npt.NDArray[np.float64], *, client: str, sent: float, seq: int | None = None,
+                ack: bool = False, guard: CollisionGuard | None = None) -> None:
+        """Hand a joint target (n,) rad to the generator after every check (worker thread).
+
+        Args:
+            q: (n,) joint target, rad, finite.
+            client: the sender's id; it must hold control.
+            sent: the client's send time on the server's ``perf_counter`` clock, s.
+            seq: the client's sequence number.
+            ack: reply ``applied`` when the controller first acts on it.
+            guard: a collision guard owned by the calling thread (default: the controller's, locked).
+
+        Raises:
+            Rejected: ``stopped``, ``not_in_control``, ``stale``, ``out_of_limits`` or ``collision``
+                (naming the link); nothing reaches the controller then.
+        """
+        self.may_command(client, sent, time.perf_counter())
+        bad = np.flatnonzero((q < self.robot.lower) | (q > self.robot.upper))
+        if bad.size:
+            i = int(bad[0])
+            raise Rejected("out_of_limits", f"q[{i}] ({self.robot.joint_names[i]}) = {q[i]:.4g} is outside "
+                                            f"[{self.robot.lower[i]:.4g}, {self.robot.upper[i]:.4g}]")
+        with self._lock:
+            cur = self._pending or self._target
+            same = cur is not None and np.array_equal(cur.q, q)  # the move to it is being checked/followed
+        if not same:
+            try:
+                if guard is not None:
+                    guard.check_motion(self.q_ref.copy(), q)
+                else:
+                    with self._guard_lock:
+                        self.guard.check_motion(self.q_ref.copy(), q)
+            except TargetInCollision as exc:
+                raise Rejected("collision", str(exc)) from None
+        with self._lock:
+            self.may_command(client, sent, time.perf_counter())  # again: a stop may have come meanwhile
+            self._pending = Target(q, seq, ack, sent, client)
+            self._deadline = sent + self.deadman
+        self.accepted += 1
+
+    def heartbeat(self, client: str, sent: float) -> None:
+        """Keep the current target alive until ``sent + deadman``; never restarts a stopped robot.
+
+        Raises:
+            Rejected: ``stopped``, ``not_in_control`` or ``stale``.
+        """
+        with self._lock:
+            self.may_command(client, sent, time.perf_counter())
+            if self._target is not None or self._pending is not None:
+                self._deadline = max(self._deadline, sent + self.deadman)
+
+    def submit(self, msg: Any, *, client: str = LOCAL, sent: float | None = None) -> dict[str, Any] | None:
+        """Handle one decoded message in-process (IK inline): the reply (``error``/``state``/``ok``) or None.
+
+        Args:
+            msg: the decoded JSON message.
+            client: the sender's id (acquire control with ``{"type": "acquire"}`` first).
+            sent: its send time on the ``perf_counter`` clock (default: now).
+        """
+        sent = time.perf_counter() if sent is None else sent
+        seq = msg.get("seq") if isinstance(msg, dict) and isinstance(msg.get("seq"), int) else None
+        try:
+            if not isinstance(msg, dict):
+                raise Rejected("malformed", "a message must be a JSON object")
+            typ = msg.get("type")
+            seq = sequence(msg)
+            if typ in ("joint_target", "pose_target"):
+                ack = flag(msg, "ack")
+                if typ == "joint_target":
+                    q = numbers(msg.get("q"), self.n, "q")
+                else:
+                    T = pose(msg)
+                    self.may_command(client, sent, time.perf_counter())
+                    q = self.solve_pose(T)
+                self.command(q, client=client, sent=sent, seq=seq, ack=ack)
+                return None
+            if typ == "heartbeat":
+                self.heartbeat(client, sent)
+                return None
+            if typ == "get_state":
+                return self.state(client)
+            if typ == "stop":
+                self.emergency_stop()
+            elif typ == "resume":
+                self.resume(client)
+            elif typ == "acquire":
+                self.acquire(client)
+            elif typ == "release":
+                self.release(client)
+            elif typ == "hello":
+                pass
+            elif typ is None:
+                raise Rejected("malformed", "a message needs a 'type'")
+            else:
+                raise Rejected("unknown_type", f"unknown message type {str(typ)[:40]!r}")
+            return {"type": "ok", "of": typ, "seq": seq, "in_control": self.owner == client, "latched": self.latched}
+        except Rejected as exc:
+            self.rejected += 1
+            return {"type": "error", "code": exc.code, "message": str(exc), "seq": seq}
+
+    def state(self, client: str | None = None) -> dict[str, Any]:
+        """The ``state`` reply: time, joints, target, mode, latch, control and counters."""
+        with self._lock:
+            tgt = None if self._target is None else self._target.q.tolist()
+            owner = self.owner
+        return {"type": "state", "t": self.wc.time, "q": self.wc.q.tolist(), "qd": self.wc.qd.tolist(),
+                "target": tgt, "mode": self.mode, "latched": self.latched, "in_control": owner is not None
+                and owner == client, "controlled": owner is not None, "accepted": self.accepted,
+                "rejected": self.rejected}
+
+    # ------------------------------------------------------------------ 1 kHz loop
+    def advance(self, steps: int = 1) -> None:
+        """Run ``steps`` 1 kHz control periods (the control thread calls this)."""
+        from ruckig import ControlInterface, Result
+
+        for _ in range(steps):
+            applied = None
+            now = time.perf_counter()
+            with self._lock:
+                if self._pending is not None:
+                    self._target, self._pending = self._pending, None
+                    applied = self._target
+                if self._target is not None and (self._drop_target or now > self._deadline or self.latched):
+                    self._target = applied = None  # a stop forgets the target: only a new target moves again
+                    self.stop_began, self.rest_at = now, None
+                self._drop_target = False
+                target = self._target
+            if target is not None:
+                self.inp.control_interface = ControlInterface.Position
+                self.inp.target_position = target.q.tolist()
+                self.inp.target_velocity = [0.0] * self.n
+                self.inp.target_acceleration = [0.0] * self.n
+                self.mode = "tracking"
+            elif self.mode in ("tracking", "stopping"):
+                self.inp.control_interface = ControlInterface.Velocity
+                self.inp.target_velocity = [0.0] * self.n
+                self.inp.target_acceleration = [0.0] * self.n
+                self.mode = "stopping"
+            if self.mode in ("tracking", "stopping"):
+                res = self.otg.update(self.inp, self.out)
+                if res not in (Result.Working, Result.Finished):  # pragma: no cover - defensive
+                    self.inp.control_interface = ControlInterface.Velocity
+                    self.inp.target_velocity = [0.0] * self.n
+                    self.mode = "stopping"
+                    self.otg.update(self.inp, self.out)
+                q = np.clip(np.array(self.out.new_position), self.robot.lower, self.robot.upper)
+                qd, qdd = np.array(self.out.new_velocity), np.array(self.out.new_acceleration)
+                self.out.pass_to_input(self.inp)
+                if self.mode == "stopping" and np.max(np.abs(qd)) < 1e-9 and np.max(np.abs(qdd)) < 1e-9:
+                    self.mode = "stopped"
+                    self.rest_at = now
+                self.q_ref, self.qd_ref, self.qdd_ref = q, qd, qdd
+            else:
+                self.qd_ref, self.qdd_ref = np.zeros(self.n), np.zeros(self.n)
+            self.wc.track(self.q_ref, self.qd_ref, self.qdd_ref)
+            self.steps += 1
+            if applied is not None and applied.ack and self.on_applied is not None:
+                self.on_applied(applied, self.wc.time)
+
+    def _loop(self) -> None:
+        t0 = time.perf_counter()
+        done = 0
+        while self._running:
+            due = int((time.perf_counter() - t0) / self.dt)
+            k = due - done
+            if k > 50:  # fell behind (machine busy): drop real time rather than burst
+                self.overruns += 1
+                t0 += (k - 50) * self.dt
+                k = 50
+            if k > 0:
+                self.advance(k)
+                done += k
+            else:
+                time.sleep(0.0003)
+
+    def start(self) -> None:
+        """Start the real-time control thread."""
+        if self._thread is not None:
+            return
+        self._running = True
+        self._thread = threading.Thread(target=self._loop, name="robointel-control", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop (join) the control thread; the simulated robot stays where it is."""
+        self._running = False
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+            self._thread = None
