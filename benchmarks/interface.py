@@ -27,8 +27,8 @@ PERIOD = 0.008
 
 
 def _planner_thread(stop: threading.Event, counter: list):
-    from robointel.io.scene import load_scene
     from robointel.planning import make_planners
+    from robointel.planning.scene import load_scene
 
     sc = load_scene("table71")
     planners = make_planners(sc)
@@ -196,8 +196,8 @@ def _estop_run(fake):
 
 def _frmp_run():
     from robointel.interface import open_robot
-    from robointel.io.scene import load_scene
     from robointel.planning import plan_scene
+    from robointel.planning.scene import load_scene
 
     res = plan_scene(load_scene("table71"))
     tr = res.trajectory

@@ -8,7 +8,7 @@ import yaml
 from typer.testing import CliRunner
 
 from robointel.cli import app
-from robointel.io.scene import SCENES
+from robointel.planning.scene import SCENES
 
 runner = CliRunner()
 

@@ -108,5 +108,7 @@ class ConnectionLost(ControllerFault):
     """
 
 class TargetInCollision(SafetyStop):
-    """A target configuration (or the motion to it) would hit the table, the floor, an obstacle or the
-    robot itself; the message names the link, ``.value`` holds link, obstacle and distance."""
+    """A target configuration (or the motion to it) would hit the table, the floor, an obstacle or itself.
+
+    The message names the link; ``.value`` holds link, obstacle and distance.
+    """

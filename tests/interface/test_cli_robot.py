@@ -4,7 +4,7 @@ from typer.testing import CliRunner
 
 from robointel.cli import app
 from robointel.io.mcap_log import COMMAND, JOINT_STATES, TRAJECTORY
-from robointel.io.scene import load_scene
+from robointel.planning.scene import load_scene
 
 from .conftest import fanuc_url, running_fake
 

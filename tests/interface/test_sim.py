@@ -38,7 +38,7 @@ def test_gate_refuses_bad_targets_and_the_robot_holds(sim):
     assert sim.state().mode is RobotMode.HOLDING
     sim.stream(st.q + 0.001)  # a small step is fine
     with pytest.raises(UnsafeCommand, match="sample"):
-        from robointel.io.trajectory import Trajectory
+        from robointel.trajectory import Trajectory
 
         q = np.vstack([st.q, st.q + 1.0])
         sim.execute(Trajectory([0, 0.01], q, np.zeros_like(q), np.zeros_like(q)))

@@ -46,7 +46,7 @@ def test_record_save_load_roundtrip(app, lrmate, tmp_path):
     doc = yaml.safe_load(path.read_text())
     np.testing.assert_allclose(doc["waypoints"][1]["tcp"]["position"], [0.40, -0.15, 0.3], atol=1e-9)
     # the planning scene loader (what `robointel plan` reads) accepts it
-    from robointel.io.scene import load_scene
+    from robointel.planning.scene import load_scene
     scene = load_scene(path)
     np.testing.assert_allclose(scene.waypoints, np.array(app.waypoints))
     assert scene.robot.name == "lrmate200id7l" and len(scene.steps) == 1

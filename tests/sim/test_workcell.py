@@ -205,7 +205,7 @@ def test_controller_stable_across_the_workspace(name):
 
 
 def test_log_roundtrip_and_trajectory_object(wc, tmp_path):
-    from robointel.io.trajectory import Trajectory
+    from robointel.trajectory import Trajectory
 
     t, q, qd, qdd = smooth_trajectory(Q0, Q0 + 0.2, T=0.5, n=51)
     traj = Trajectory(t, q, qd, qdd, joint_names=list(wc.robot.joint_names))

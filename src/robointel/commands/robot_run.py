@@ -10,7 +10,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 from robointel.interface import ExecutionResult, RobotState, open_robot
 from robointel.io.mcap_log import McapRecorder
-from robointel.io.trajectory import Trajectory
+from robointel.trajectory import Trajectory
 
 
 def run_on_robot(trajectory: Trajectory, url: str, record: Path | None, console: Console, *,

@@ -20,7 +20,7 @@ from robointel.errors import ConnectionLost, ControllerFault, InvalidInput, Unsa
 from robointel.interface.gate import SafetyGate
 from robointel.interface.protocol import CycleCallback
 from robointel.interface.state import RobotMode, RobotState
-from robointel.io.trajectory import Trajectory
+from robointel.trajectory import Trajectory
 
 
 class Recorder(Protocol):

@@ -23,7 +23,7 @@ from robointel.interface.backend import Backend, ExecutionResult, Recorder, slee
 from robointel.interface.profile import lrmate_profile
 from robointel.interface.protocol import CycleCallback
 from robointel.interface.state import RobotMode, RobotState
-from robointel.io.trajectory import Trajectory
+from robointel.trajectory import Trajectory
 
 DEFAULT_RMI_PORT = 16001
 DEFAULT_SM_PORT = 60015

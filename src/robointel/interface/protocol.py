@@ -8,7 +8,7 @@ from typing import Protocol, runtime_checkable
 import numpy.typing as npt
 
 from robointel.interface.state import RobotState
-from robointel.io.trajectory import Trajectory
+from robointel.trajectory import Trajectory
 
 CycleCallback = Callable[[int, RobotState], None]
 """Called after every streamed target of :meth:`RobotInterface.execute` with (cycle index, state)."""

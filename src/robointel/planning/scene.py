@@ -30,12 +30,12 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from robointel.geometry.table import ENVIRONMENT_NAMES, table_obstacles
 
 from robointel.errors import IKFailure, InvalidInput, LimitViolation, RobointelError
 from robointel.geometry import obstacle_from_dict
 from robointel.geometry.obstacles import Obstacle
 from robointel.geometry.rotations import rpy_to_matrix
+from robointel.geometry.table import ENVIRONMENT_NAMES, table_obstacles
 from robointel.io.scene import read_scene_file, write_scene_file
 from robointel.planning.trajectory import PlannerSettings
 from robointel.robot import Robot
@@ -168,12 +168,12 @@ def scene_from_dict(d: dict, *, base: Path | None = None) -> Scene:
         elif "q_deg" in w:
             q = np.radians(_vector(w["q_deg"], n, f"waypoint {name!r} q_deg"))
         elif "pose" in w:
-            p = w["pose"]
+            p: Any = w["pose"]
             if not isinstance(p, dict):
                 raise InvalidInput(f"waypoint {name!r} pose must be a mapping {{xyz: [m], rpy_deg: [deg]}}, got {p!r}",
                                    value=p)
             T = np.eye(4)
-            T[:3, 3] = _vector(p.get("xyz"), 3, f"waypoint {name!r} pose.xyz")
+            T[:3, 3] = _vector(p.get("xyz"), 3, f"waypoint {name!r} pose.xyz")  # type: ignore[arg-type]
             if "rpy_deg" in p:
                 T[:3, :3] = rpy_to_matrix(np.radians(_vector(p["rpy_deg"], 3, f"waypoint {name!r} pose.rpy_deg")))
             elif "rpy" in p:
@@ -218,7 +218,8 @@ def scene_from_dict(d: dict, *, base: Path | None = None) -> Scene:
         if not isinstance(d.get(key) or {}, dict):
             raise InvalidInput(f"scene key {key!r} must be a mapping, got {d.get(key)!r}", value=d.get(key))
     if not isinstance(d.get("obstacles") or [], list):
-        raise InvalidInput(f"scene key 'obstacles' must be a list, got {d.get('obstacles')!r}", value=d.get("obstacles"))
+        raise InvalidInput(f"scene key 'obstacles' must be a list, got {d.get('obstacles')!r}",
+                           value=d.get("obstacles"))
     if "velocity" in lim:
         vmax = _vector(lim["velocity"], n, "limits.velocity")
     else:

@@ -30,7 +30,6 @@ from scipy.interpolate import CubicSpline
 from robointel._validate import as_array, check_limits
 from robointel.control.servo import JointController, PIDGains, model_with_payload
 from robointel.errors import InvalidInput
-from robointel.io.trajectory import Trajectory
 from robointel.sim.contacts import Contact, ContactSensing
 from robointel.sim.ft_sensing import FTSensing, FTSensor
 from robointel.sim.grasp_welds import GraspWelds
@@ -39,6 +38,7 @@ from robointel.sim.snapshots import Snapshots
 from robointel.sim.stepping import Stepping
 from robointel.sim.tracking_log import TrackingLog
 from robointel.sim.workcell_model import CONTROL_DT
+from robointel.trajectory import Trajectory
 
 __all__ = ["Workcell", "TrackingLog", "Contact", "FTSensor", "CONTROL_DT"]
 
