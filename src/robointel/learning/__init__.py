@@ -8,7 +8,10 @@ Chapter 5 modules (import them directly; nothing heavy is imported here):
 * :mod:`~robointel.learning.decomposition` - Algorithm 1 (5.7)-(5.13): ``ActionSegmenter``.
 * :mod:`~robointel.learning.gmr` - GMM (scikit-learn) + GMR (5.14)-(5.17): ``GaussianMixtureRegression``.
 * :mod:`~robointel.learning.hdd` - the hand-held demonstration device and its tool in MuJoCo.
-* :mod:`~robointel.learning.insertion` - tight peg-in-hole: task, scripted demonstrator, skill, LR Mate.
+* :mod:`~robointel.learning.insertion` - tight peg-in-hole (a package: task, device scene, scripted
+  demonstrator, skill, baseline policies, impedance, robot cell, press test).
 * :mod:`~robointel.learning.grinding` - plate grinding: position -> force skill, force-controlled reproduction.
-* :mod:`~robointel.learning.rltt` - the pipeline (synchronise, decompose, learn) and the evaluations.
+* :mod:`~robointel.learning.rltt` - the pipeline (synchronise, decompose, learn).
+* :mod:`~robointel.learning.ft_features` - F/T episode features for failure classification.
+* :mod:`~robointel.learning.peer_checks` - DTW and GMR side by side with dtaidistance and gmr.
 """
