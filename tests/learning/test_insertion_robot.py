@@ -16,6 +16,8 @@ def test_policies_are_the_documented_maps():
     np.testing.assert_allclose(I.ConstantPush(0.005)(w), [0, 0, 0.005, 0, 0])
     a = I.HandTunedAdmittance(k_force=1e-3, k_torque=0.5, speed=0.01, f_slow=10.0)
     np.testing.assert_allclose(a(w), [1e-3, -2e-3, 0.005, 0.05, -0.1])
+    c = I.HandTunedAdmittance(k_force=0.0, k_torque=1.0, centre=0.1)
+    np.testing.assert_allclose(c(w)[3:], [0.1 + 0.1 * -2.0, -0.2 - 0.1 * 1.0])  # torque about the centre
 
 
 def test_impedance_holds_the_start_pose_under_gravity(cell):

@@ -179,6 +179,7 @@ def demonstrate(task: PegHole, rng: np.random.Generator, *, scene: HDDScene | No
     tilt_back = np.zeros(3)
     wiggle_f, wiggle_a = rng.uniform(2.5, 4.0), np.radians(rng.uniform(0.2, 0.5))
     back_speed = rng.uniform(0.002, 0.004)
+    tilt_rate = rng.uniform(0.04, 0.08)  # rad/s while tilting back
     while True:
         w = scene.wrench()
         f_push = max(0.0, -w[2])
@@ -191,8 +192,9 @@ def demonstrate(task: PegHole, rng: np.random.Generator, *, scene: HDDScene | No
         if t >= recover_until and stalled:
             # wedged: the person backs off a little, tilts the peg back the way the torque asks, and wiggles
             recover_until, recoveries = t + person.recovery_time, recoveries + 1
-            tau = np.array([w[3], w[4], 0.0])
-            tilt_back = -0.05 * tau / max(float(np.linalg.norm(tau)), 1e-9)
+            c = tool.tip - tool.radius  # the torque about the tip sphere's centre says which way the peg leans
+            tau = np.array([w[3] + c * w[1], w[4] - c * w[0], 0.0])
+            tilt_back = tilt_rate * tau / max(float(np.linalg.norm(tau)), 1e-9)
         if t < recover_until:
             ph = 2 * np.pi * wiggle_f * (recover_until - t)
             v_tool = np.array([k_f * w[0], k_f * w[1], -back_speed])
