@@ -11,7 +11,12 @@ def test_learn_commands_registered():
     assert r.exit_code == 2 and "labelled" in r.output
 
 
-def test_learning_has_demo_stage():
-    from robointel.commands import learning
-
-    assert callable(learning.demo_stage) and callable(learning.register)
+def test_learn_insertion_end_to_end(tmp_path):
+    """demonstrate -> learn -> one robot trial beside the position-only baseline; plots and a table."""
+    runner = CliRunner()
+    r = runner.invoke(app, ["learn", "insertion", "--demos", "3", "--labelled", "1", "--trials", "1",
+                            "--out", str(tmp_path)])
+    assert r.exit_code == 0, r.output
+    assert "position-only" in r.output and "success" in r.output
+    assert sorted(p.name for p in tmp_path.glob("*.png")) == [
+        "fig5_10_synchronised.png", "fig5_11_decomposed.png", "fig5_12_skill.png", "insertion_trials.png"]
