@@ -24,3 +24,13 @@ def test_learn_grinding_runs_on_one_demonstration(tmp_path):
     assert 0.0 < rms_setpoint < 15.0 and 0.0 < rms_peak < 25.0
     png = tmp_path / "fig5_13_grinding.png"
     assert png.stat().st_size > 10_000
+
+def test_learn_insertion_end_to_end(tmp_path):
+    """demonstrate -> learn -> one robot trial beside the position-only baseline; plots and a table."""
+    runner = CliRunner()
+    r = runner.invoke(app, ["learn", "insertion", "--demos", "3", "--labelled", "1", "--trials", "1",
+                            "--out", str(tmp_path)])
+    assert r.exit_code == 0, r.output
+    assert "position-only" in r.output and "success" in r.output
+    assert sorted(p.name for p in tmp_path.glob("*.png")) == [
+        "fig5_10_synchronised.png", "fig5_11_decomposed.png", "fig5_12_skill.png", "insertion_trials.png"]

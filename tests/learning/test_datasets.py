@@ -30,7 +30,7 @@ def test_ft_features_and_svm_beat_the_majority_class(shared_data):
     from sklearn.svm import SVC
 
     from robointel.errors import InvalidInput
-    from robointel.learning.rltt import ft_episode_features
+    from robointel.learning.ft_features import ft_episode_features
 
     shared_data("ft", "lp1.data.txt")
     e = load_ft("lp1")

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from robointel.errors import InvalidInput
-from robointel.learning.insertion import (PHASES, HDDScene, InsertionSkill, PegHole, demonstrate, press_test,
+from robointel.learning.insertion import (PHASES, POLICY, HDDScene, InsertionSkill, PegHole, demonstrate, press_test,
                                           tool_velocities)
 
 
@@ -12,7 +12,7 @@ def task():
 
 
 def test_tight_fit_settings(task):
-    assert task.clearance <= 40e-6
+    assert task.clearance <= 20e-6
     assert task.contact.solimp[2] < 0.5 * task.clearance and task.contact.margin == 0.0
     scene = HDDScene(task)
     m = scene.model
@@ -26,24 +26,31 @@ def test_tight_fit_settings(task):
 def test_physics_is_honest_interference_does_not_go_in(task):
     ok = press_test(task, force=50.0)
     assert ok.inserted and ok.max_penetration < 0.5 * task.clearance
-    for interference in (20e-6, 100e-6):
-        bad = press_test(task, interference=interference, force=300.0)
-        assert not bad.inserted and bad.height > 0.01  # stuck at the rim, 300 N pushing
-        assert bad.axial_force > 250.0
+    bad = press_test(task, interference=20e-6, force=300.0)
+    assert not bad.inserted and bad.height > 0.01  # stuck at the rim, 300 N pushing
+    assert bad.axial_force > 250.0
 
 
-def test_demonstration_phases_and_skill(task):
+def test_demonstration_phases_and_skill_with_rotation(task):
     rng = np.random.default_rng(3)
     scene = HDDScene(task)
-    demos = [demonstrate(task, rng, scene=scene)]
-    for d in demos:
-        assert d.action_names == PHASES
-        assert np.all(np.diff(d.labels) >= 0) and set(np.unique(d.labels)) == {0, 1, 2, 3}
-        np.testing.assert_allclose(np.diff(d.t), 0.01, atol=1e-9)
-        np.testing.assert_allclose(d.phase_times(), d.meta["phase_times"], atol=0.011)
-        tw = tool_velocities(d)
-        ins = d.labels == PHASES.index("insertion")
-        assert np.median(tw[ins, 2]) > 0.002  # moves into the hole along the tool axis
-    skill = InsertionSkill(4).fit(demos)
+    d = demonstrate(task, rng, scene=scene)
+    assert d.action_names == PHASES
+    assert np.all(np.diff(d.labels) >= 0) and set(np.unique(d.labels)) == {0, 1, 2, 3}
+    np.testing.assert_allclose(np.diff(d.t), 0.01, atol=1e-9)
+    np.testing.assert_allclose(d.phase_times(), d.meta["phase_times"], atol=0.011)
+    assert np.degrees(d.meta["residual_tilt"]) <= 5.0 and np.all(np.abs(d.meta["lateral_error"]) <= 2e-3)
+    tw = tool_velocities(d)
+    ins = d.labels == PHASES.index("insertion")
+    tip_z = d.pose[ins, 2, 3] + d.pose[ins, 2, 2] * scene.tool.tip
+    assert tip_z[0] - tip_z.min() > 0.005  # the tip went into the hole
+    # the velocity of a point on the axis: v_c = v + w x c
+    c = 0.09
+    twc = tool_velocities(d, centre=c)
+    np.testing.assert_allclose(twc[:, 0], tw[:, 0] + tw[:, 4] * c, atol=1e-12)
+    skill = InsertionSkill(4, centre=c).fit([d])
     out = skill.predict(np.zeros(6))
-    assert out.shape == (5,) and np.all(np.isfinite(out)) and out[2] > 0
+    assert out.shape == (len(POLICY),) and np.all(np.isfinite(out)) and out[2] > 0
+    # the skill outputs rotation as well as translation: its outputs vary with the wrench in wx, wy
+    W = d.wrench[ins][:: 20]
+    assert np.ptp(skill.predict(W)[:, 3:5], axis=0).min() > 0

@@ -167,15 +167,15 @@ def run_insertion(out: Path, *, demos: int, labelled: int, trials: int, seed: in
 
         save_demonstrations(save, ds)
     step(0.6, "synchronise, decompose, learn")
-    learned = learn_insertion(ds, n_labelled=labelled)
-    cell = I.RobotPegHole(task)
+    learned = learn_insertion(ds, n_labelled=labelled, centre=scene.tool.tip - scene.tool.radius)
+    cell = I.RobotCell(task)
     starts = I.random_start_errors(np.random.default_rng(seed + 1), trials)
     res, base = [], []
     for k, (lat, tilt) in enumerate(starts):
         step(0.65 + 0.35 * k / max(1, trials), f"insertion trial {k + 1}/{trials}")
         T0 = cell.start_pose(lat, tilt)
-        res.append(cell.run_impedance(learned.skill.predict, T0, seed=k))
-        base.append(cell.run(None, T0, seed=k))
+        res.append(cell.insert(learned.skill.predict, T0, seed=k))
+        base.append(cell.insert_position_only(T0, seed=k))
     images = [plot_synchronised(ds, learned, out / "fig5_10_synchronised.png"),
               plot_decomposed(ds, learned.labels, out / "fig5_11_decomposed.png"),
               plot_skill(learned.skill, ds[-1], learned.labels[-1], out / "fig5_12_skill.png"),
@@ -273,7 +273,7 @@ def register(app) -> None:
 
 def demo_stage(ctx: StageContext) -> StageResult:
     """Quick RLTT: a few demonstrations, learn, a few insertion trials; DTW speed and GMR agreement."""
-    from robointel.learning.rltt import dtw_speed, gmr_agreement
+    from robointel.learning.peer_checks import dtw_speed, gmr_agreement
 
     quick = ctx.quick
     ctx.advance(0.02, "DTW vs dtaidistance")

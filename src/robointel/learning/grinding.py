@@ -8,25 +8,27 @@ of its position-controlled joint servo) with the learned force as its set-point.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import mujoco
 import numpy as np
 from threadpoolctl import threadpool_limits
 
 from robointel.errors import InvalidInput
+from robointel.geometry.rotations import so3_log
 from robointel.learning.demonstration import Demonstration
 from robointel.learning.gmr import GaussianMixtureRegression
 from robointel.learning.hdd import Contact, Tool
-from robointel.learning.insertion import R_DOWN, HDDScene, RobotPegHole, _log, _tip
+from robointel.learning.insertion import R_DOWN, HDDScene, RobotCell, tip_point
 
 
 @dataclass(frozen=True)
 class Plate:
     """The workpiece: a plate of ``size`` (m) centred at ``center`` (x, y), top surface at ``top`` z.
     The demonstrator's intended pressing force is ``light`` N, rising to ``hard`` N in Gaussian
-    regions (std ``spread`` m) around ``hard_spots`` (plate coordinates, m)."""
+    regions (std ``spread`` m) around ``hard_spots`` (plate coordinates, m).
+    """
 
     center: tuple[float, float] = (0.60, 0.0)
     top: float = 0.12
@@ -85,7 +87,8 @@ def demonstrate_grinding(plate: Plate, rng: np.random.Generator, *, scene: HDDSc
     the surface: a stroke grinds (and the F/T sensor samples) a track one tool diameter wide, and
     wider spacing leaves unground, undemonstrated stripes where the skill model can only
     interpolate (with the former 6 strokes 30 mm apart, the hard spots' peaks fell between strokes
-    and the learned map missed them by up to 20 %)."""
+    and the learned map missed them by up to 20 %).
+    """
     tool = plate.tool()
     scene = scene or HDDScene(plate, tool)
     dt = float(scene.model.opt.timestep)
@@ -118,7 +121,7 @@ def demonstrate_grinding(plate: Plate, rng: np.random.Generator, *, scene: HDDSc
         ref[:2] += 1e-4 * np.sin(2 * np.pi * 9 * step * dt + phase)
         e = ref - T[:3, 3]
         f = np.array([800.0, 800.0, stiffness]) * e - damping * v + mg
-        scene.step(f, rot_k * _log(R_DOWN @ T[:3, :3].T) - rot_d * w)
+        scene.step(f, rot_k * so3_log(R_DOWN @ T[:3, :3].T) - rot_d * w)
         step += 1
         acc += scene.wrench()
         if step % every == 0:  # the sensor's anti-aliasing: the mean over the sample interval
@@ -136,7 +139,7 @@ def demonstrate_grinding(plate: Plate, rng: np.random.Generator, *, scene: HDDSc
         for k in range(n + 1):
             x = -half[0] * x_dir + x_dir * 2 * half[0] * k / n
             xy = np.array([x, y])
-            tip_xy = _tip(scene.pose(), tool)[:2] - c  # the person presses where the tool is
+            tip_xy = tip_point(scene.pose(), tool)[:2] - c  # the person presses where the tool is
             hand(xy, gain * plate.force_profile(tip_xy)[0])
         if i + 1 < len(ys):  # move over to the next line, pressing lightly
             m = int(abs(ys[i + 1] - y) / speed / dt)
@@ -157,13 +160,13 @@ class GrindingSkill:
 
     def samples(self, demo: Demonstration) -> tuple[np.ndarray, np.ndarray]:
         """(x, y) plate coordinates of the tip and the pressing force of the samples in contact."""
-        tips = np.array([_tip(T, self.tool) for T in demo.pose])
+        tips = np.array([tip_point(T, self.tool) for T in demo.pose])
         xy = tips[:, :2] - np.array(self.plate.center)
         push = -demo.wrench[:, 2]
         m = push > 1.0
         return xy[m], push[m]
 
-    def fit(self, demos: Sequence[Demonstration]) -> "GrindingSkill":
+    def fit(self, demos: Sequence[Demonstration]) -> GrindingSkill:
         if len(demos) == 0:
             raise InvalidInput("GrindingSkill.fit needs demonstrations")
         X, Y = zip(*(self.samples(d) for d in demos))
@@ -178,7 +181,8 @@ class GrindingSkill:
     def predict(self, xy) -> np.ndarray:
         """Pressing force (n,) N at plate coordinates (n, 2), saturated to the demonstrated force
         range (the regression's local linear models would extrapolate to pulling forces off the
-        demonstrated area)."""
+        demonstrated area).
+        """
         f = self.gmr.predict(np.atleast_2d(np.asarray(xy, float)) / 0.05)[:, 0] * self.y_scale_ + self.y_mean_
         return np.clip(f, self.y_lo_, self.y_hi_)
 
@@ -188,7 +192,8 @@ class GrindingResult:
     """Reproduction along the path: ``t`` (n,), plate coordinates ``xy`` (n, 2), measured force
     (n,) N, the skill's set-point (n,), the demonstrator's intended profile (n,) and
     ``rms_rel`` = RMS(measured - intended) / peak intended force (``rms_rel_setpoint``: against
-    the skill's set-point, i.e. the force controller alone)."""
+    the skill's set-point, i.e. the force controller alone).
+    """
 
     t: np.ndarray
     xy: np.ndarray
@@ -199,7 +204,7 @@ class GrindingResult:
     rms_rel_setpoint: float
 
 
-def reproduce_grinding(plate: Plate, skill: GrindingSkill, *, cell: RobotPegHole | None = None,
+def reproduce_grinding(plate: Plate, skill: GrindingSkill, *, cell: RobotCell | None = None,
                        speed: float = 0.03, k_force: float = 1.0 / 1500.0, filter_hz: float = 5.0,
                        t_touch: float = 1.0, seed: int = 0) -> GrindingResult:
     """The LR Mate follows the plate's diagonal with the learned pressing force (Fig. 5.13):
@@ -207,8 +212,9 @@ def reproduce_grinding(plate: Plate, skill: GrindingSkill, *, cell: RobotPegHole
     ``v = k_force (F_set - F_filtered)`` on the joint servo's reference (``filter_hz`` low-pass on
     the F/T signal). The reported force is the raw sensor force averaged over each 10 ms sample.
     ``skill`` is the learned :class:`GrindingSkill` (any object whose ``predict`` maps plate
-    coordinates (n, 2) m to set-points (n,) N)."""
-    cell = cell or RobotPegHole(plate, tool=plate.tool())
+    coordinates (n, 2) m to set-points (n,) N).
+    """
+    cell = cell or RobotCell(plate, tool=plate.tool())
     tool = cell.tool
     rng = np.random.default_rng(seed)
     half = 0.5 * np.array(plate.size) - 0.02
@@ -222,7 +228,7 @@ def reproduce_grinding(plate: Plate, skill: GrindingSkill, *, cell: RobotPegHole
     c = np.array(plate.center)
     alpha = 1.0 - np.exp(-2 * np.pi * filter_hz * dt)
     p_f = 0.0
-    z_cmd = float(_tip(cell.tool_pose(), tool)[2])
+    z_cmd = float(tip_point(cell.tool_pose(), tool)[2])
     n = int((t_touch + L / speed) / dt)
     ts, xys, fs, sp = [], [], [], []
     acc = 0.0
@@ -243,13 +249,13 @@ def reproduce_grinding(plate: Plate, skill: GrindingSkill, *, cell: RobotPegHole
         T_cmd[:3, 3] = tip_cmd - R_DOWN[:, 2] * tool.tip
         Tf = cell.robot.fk(q_ref)
         Tf_cmd = cell.flange_target(T_cmd)
-        err = np.concatenate([100.0 * (Tf_cmd[:3, 3] - Tf[:3, 3]), 100.0 * _log(Tf_cmd[:3, :3] @ Tf[:3, :3].T)])
+        err = np.concatenate([100.0 * (Tf_cmd[:3, 3] - Tf[:3, 3]), 100.0 * so3_log(Tf_cmd[:3, :3] @ Tf[:3, :3].T)])
         qd_ref = np.linalg.solve(cell.robot.jacobian(q_ref), err)
         q_ref = q_ref + qd_ref * dt
-        cell._step(q_ref, qd_ref)
+        cell.servo_step(q_ref, qd_ref)
         if k % 10 == 9:
             if t >= t_touch:  # logged like the HDD: the sensor's mean over the 10 ms sample
-                tip = _tip(Tm, tool)
+                tip = tip_point(Tm, tool)
                 ts.append(t)
                 xys.append(tip[:2] - c)
                 fs.append(acc / 10)

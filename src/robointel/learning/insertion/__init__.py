@@ -1,0 +1,34 @@
+"""The tight peg-in-hole insertion taught with the hand-held device and reproduced by the LR Mate (Sec. 5.5).
+
+* :mod:`.peg_hole` - the task: a round peg with a hemispherical tip, a chamferless hole.
+* :mod:`.hdd_scene` - the hand-held demonstration device over the task in MuJoCo.
+* :mod:`.demonstrator` - the scripted person and its demonstrations.
+* :mod:`.skill` - the skill model: GMR wrench -> corrective tool twist.
+* :mod:`.policies` - the baselines: a constant push, a hand-tuned admittance.
+* :mod:`.impedance` - the torque-level Cartesian impedance.
+* :mod:`.robot_cell` - the LR Mate with the tool over the task; the trials.
+* :mod:`.press_test` - the contact physics' honesty check.
+"""
+
+from robointel.learning.insertion.demonstrator import PHASES, Demonstrator, demonstrate
+from robointel.learning.insertion.hdd_scene import HDDScene
+from robointel.learning.insertion.impedance import CartesianImpedance, ImpedanceGains
+from robointel.learning.insertion.peg_hole import R_DOWN, PegHole, tip_point
+from robointel.learning.insertion.policies import ConstantPush, HandTunedAdmittance
+from robointel.learning.insertion.press_test import PressResult, press_test
+from robointel.learning.insertion.robot_cell import (
+    ARMATURE,
+    R_FLANGE_TOOL,
+    InsertionTrial,
+    Policy,
+    RobotCell,
+    random_start_errors,
+)
+from robointel.learning.insertion.skill import PERCEPTION, POLICY, InsertionSkill, tool_velocities
+
+__all__ = [
+    "ARMATURE", "PERCEPTION", "PHASES", "POLICY", "R_DOWN", "R_FLANGE_TOOL", "CartesianImpedance",
+    "ConstantPush", "Demonstrator", "HDDScene", "HandTunedAdmittance", "ImpedanceGains", "InsertionSkill",
+    "InsertionTrial", "PegHole", "Policy", "PressResult", "RobotCell", "demonstrate", "press_test",
+    "random_start_errors", "tip_point", "tool_velocities",
+]
