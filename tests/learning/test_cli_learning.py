@@ -25,6 +25,7 @@ def test_learn_grinding_runs_on_one_demonstration(tmp_path):
     png = tmp_path / "fig5_13_grinding.png"
     assert png.stat().st_size > 10_000
 
+
 def test_learn_insertion_end_to_end(tmp_path):
     """demonstrate -> learn -> one robot trial beside the position-only baseline; plots and a table."""
     runner = CliRunner()

@@ -1,21 +1,18 @@
-"""The insertion trial as a batch task: a thin adapter over the insertion module's trial functions.
+"""The insertion trial as a batch task: a thin adapter over :mod:`robointel.learning.insertion`.
 
-All knowledge of :mod:`robointel.learning.insertion` is in this file, so when that module moves
-(it is being split) only the imports and :func:`_cell` / :func:`_run` here change.
-
-Params (defaults in brackets): ``controller`` [impedance] (``impedance``: torque-level Cartesian
-impedance, :meth:`RobotPegHole.run_impedance`; ``position``: the stiff joint servo,
-:meth:`RobotPegHole.run`), ``policy`` [none] (``none``: constant push / straight line; ``skill``:
-the GMR skill learned from ``demos`` [20] seeded demonstrations, ``labelled`` [10] of them
+All knowledge of the insertion package is in this file. Params (defaults in brackets): ``controller``
+[impedance] (``impedance``: torque-level Cartesian impedance, :meth:`RobotCell.insert`; ``position``:
+the stiff joint servo along the tool axis, :meth:`RobotCell.insert_position_only`), ``policy``
+[constant_push] (``constant_push``: :class:`ConstantPush`; ``hand_tuned``: :class:`HandTunedAdmittance`;
+``skill``: the GMR skill learned from ``demos`` [20] seeded demonstrations, ``labelled`` [10] of them
 labelled, demonstration seed ``demo_seed`` [0]), ``gains`` [{}] (:class:`ImpedanceGains` fields),
-``interference`` [0] (m), ``time_limit`` [10] (s), ``lateral`` [0.001] (m) and ``max_tilt_deg`` [3]:
+``interference`` [0] (m), ``time_limit`` [10] (s), ``lateral`` [0.002] (m) and ``max_tilt_deg`` [5]:
 the start error is drawn from the task seed by :func:`random_start_errors`.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from functools import lru_cache
 
 import numpy as np
@@ -24,52 +21,45 @@ from robointel.batch.registry import TrialKind
 from robointel.batch.spec import TaskSpec
 from robointel.errors import InvalidInput
 from robointel.learning.insertion import (
+    ConstantPush,
+    HandTunedAdmittance,
     HDDScene,
     ImpedanceGains,
     PegHole,
-    RobotPegHole,
-    TrialResult,
+    Policy,
+    RobotCell,
     demonstrate,
     random_start_errors,
 )
 from robointel.learning.rltt import learn_insertion
-from robointel.outcome import Failure, TrialOutcome
+from robointel.outcome import TrialOutcome
 
 __all__ = ["insertion_category", "insertion_trial"]
 
 CONTROLLERS = ("impedance", "position")
-POLICIES = ("none", "skill")
+POLICIES = ("constant_push", "hand_tuned", "skill")
 
 
 @lru_cache(maxsize=4)
-def _cell(interference: float) -> RobotPegHole:
+def _cell(interference: float) -> RobotCell:
     """The LR Mate with the HDD tool over the hole (built once per process; each run resets it)."""
-    return RobotPegHole(PegHole(), interference=interference)
+    return RobotCell(PegHole(), interference=interference)
 
 
 @lru_cache(maxsize=2)
-def _skill(demos: int, labelled: int, demo_seed: int) -> Callable[[np.ndarray], np.ndarray]:
+def _skill(demos: int, labelled: int, demo_seed: int) -> Policy:
     """The insertion skill learned from ``demos`` seeded demonstrations (once per process)."""
     task = PegHole()
     rng = np.random.default_rng(demo_seed)
     scene = HDDScene(task)
     ds = [demonstrate(task, rng, scene=scene, name=f"demo_{i:02d}") for i in range(demos)]
-    return learn_insertion(ds, n_labelled=labelled).skill.predict
-
-
-def _failure(r: TrialResult) -> Failure:
-    if r.reason.startswith("force limit"):
-        return Failure.FORCE_LIMIT
-    if r.reason.startswith("time limit"):
-        return Failure.TIMEOUT
-    if "penetration" in r.reason:
-        return Failure.WEDGED
-    return Failure.MISSED
+    learned = learn_insertion(ds, n_labelled=labelled, centre=scene.tool.tip - scene.tool.radius)
+    return learned.skill.predict  # type: ignore[no-any-return]
 
 
 def insertion_category(spec: TaskSpec) -> str:
     """The report group of an insertion spec: ``controller/policy``."""
-    return f"{spec.params.get('controller', 'impedance')}/{spec.params.get('policy', 'none')}"
+    return f"{spec.params.get('controller', 'impedance')}/{spec.params.get('policy', 'constant_push')}"
 
 
 def insertion_trial(spec: TaskSpec) -> TrialOutcome:
@@ -79,14 +69,15 @@ def insertion_trial(spec: TaskSpec) -> TrialOutcome:
         spec: An ``insertion`` task spec (params in the module docstring).
 
     Returns:
-        Success when the peg is seated without excessive wall penetration; figures: ``time_s``,
-        ``max_force_n``, ``max_penetration_m``, ``depth_error_m``, ``tilt_rad``, ``lateral_m``.
+        The trial's :class:`TrialOutcome` (success when the peg is seated without excessive wall
+        penetration); figures ``time_s``, ``max_force_n``, ``max_penetration_m``, ``depth_error_m``,
+        ``tilt_rad``, ``lateral_m``.
 
     Raises:
         InvalidInput: unknown controller or policy, or impedance gains on the position controller.
     """
     p = spec.params
-    controller, policy = str(p.get("controller", "impedance")), str(p.get("policy", "none"))
+    controller, policy = str(p.get("controller", "impedance")), str(p.get("policy", "constant_push"))
     if controller not in CONTROLLERS:
         raise InvalidInput(f"insertion: controller must be one of {CONTROLLERS}, got {controller!r}", value=controller)
     if policy not in POLICIES:
@@ -96,25 +87,27 @@ def insertion_trial(spec: TaskSpec) -> TrialOutcome:
         raise InvalidInput("insertion: gains apply to the impedance controller only", value=gains)
     t0 = time.perf_counter()
     cell = _cell(float(p.get("interference", 0.0)))
-    skill = _skill(int(p.get("demos", 20)), int(p.get("labelled", 10)), int(p.get("demo_seed", 0))) \
-        if policy == "skill" else None
-    lateral, tilt = random_start_errors(np.random.default_rng(spec.seed), 1, lateral=float(p.get("lateral", 1e-3)),
-                                        max_tilt=np.radians(float(p.get("max_tilt_deg", 3.0))))[0]
+    pol: Policy
+    if policy == "skill":
+        pol = _skill(int(p.get("demos", 20)), int(p.get("labelled", 10)), int(p.get("demo_seed", 0)))
+    elif policy == "hand_tuned":
+        pol = HandTunedAdmittance(centre=cell.tool.tip - cell.tool.radius)
+    else:
+        pol = ConstantPush()
+    lateral, tilt = random_start_errors(np.random.default_rng(spec.seed), 1, lateral=float(p.get("lateral", 2e-3)),
+                                        max_tilt=np.radians(float(p.get("max_tilt_deg", 5.0))))[0]
     T0 = cell.start_pose(lateral, tilt)
     t1 = time.perf_counter()
     limit = float(p.get("time_limit", 10.0))
     if controller == "impedance":
-        r = cell.run_impedance(skill, T0, seed=spec.seed, gains=ImpedanceGains(**gains), time_limit=limit)
+        r = cell.insert(pol, T0, seed=spec.seed, gains=ImpedanceGains(**gains), time_limit=limit)
     else:
-        r = cell.run(skill, T0, seed=spec.seed, time_limit=limit)
-    figures = {"time_s": float(r.time), "max_force_n": float(r.max_force),
+        r = cell.insert_position_only(T0, seed=spec.seed, time_limit=limit)
+    figures = {**r.outcome.figures, "time_s": float(r.time), "max_force_n": float(r.max_force),
                "max_penetration_m": float(r.max_penetration), "depth_error_m": float(r.depth_error),
-               "tilt_rad": float(tilt[1]),
-               "lateral_m": float(np.linalg.norm(lateral))}
+               "tilt_rad": float(tilt[1]), "lateral_m": float(np.linalg.norm(lateral))}
     timings = {"setup_s": t1 - t0, "trial_s": time.perf_counter() - t1}
-    if r.success:
-        return TrialOutcome(True, Failure.NONE, r.reason, figures, timings)
-    return TrialOutcome(False, _failure(r), r.reason, figures, timings)
+    return TrialOutcome(r.outcome.success, r.outcome.reason, r.outcome.detail, figures, timings)
 
 
 KIND = TrialKind("insertion", insertion_trial, insertion_category, "peg-in-hole insertion with the LR Mate (Ch. 5)")
