@@ -19,7 +19,7 @@ app = typer.Typer(add_completion=False, no_args_is_help=True,
 console = Console()
 
 # modules in robointel.commands, in demo order; each may define register(app) and demo_stage
-COMMAND_MODULES = ("core", "planning", "guidance", "learning", "grasp", "teach")
+COMMAND_MODULES = ("core", "planning", "guidance", "learning", "grasp", "teach", "program")
 
 
 def _load_commands() -> list:
