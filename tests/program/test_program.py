@@ -105,7 +105,7 @@ def test_a_collision_mid_run_stops_the_robot_and_names_the_step():
     assert not wc.contacts()  # it backed off the post
     q_stop = wc.q
     wc.hold(1.0)
-    assert np.max(np.abs(wc.q - q_stop)) < 0.05  # held where it stopped 
+    assert np.max(np.abs(wc.q - q_stop)) < 0.05  # held where it stopped
     assert np.max(np.abs(wc.qd)) < 0.05
 
 
