@@ -15,6 +15,7 @@ import numpy as np
 from robointel.errors import CollisionAtStart, IKFailure, InfeasibleProblem, InvalidInput, RobointelError
 from robointel.io.scene import Scene
 from robointel.io.trajectory import Trajectory
+from robointel.learning.grasp.pipeline import lrmate_with_gripper
 from robointel.planning.frmp import check_trajectory, plan_scene, planner_settings
 from robointel.planning.trajectory import TrajectoryPlanner
 from robointel.program.format import Program, Step, Target
@@ -37,6 +38,8 @@ class StepPlan:
         trajectory: The joint trajectory it executes (None for steps that do not move).
         min_clearance_m: Smallest sphere-obstacle clearance on the 1 ms resample (m; inf if none).
         plan_ms: Planning time of this step, ms.
+        deferred: The motion is planned when the step runs (it starts after a grasp or place, from a
+            configuration only known then); its target was checked.
     """
 
     q_start: np.ndarray
@@ -44,6 +47,7 @@ class StepPlan:
     trajectory: Trajectory | None = None
     min_clearance_m: float = float("inf")
     plan_ms: float = 0.0
+    deferred: bool = False
 
 
 @dataclass
@@ -146,6 +150,11 @@ def plan_move(scene: Scene, planners: _Planners, q0: np.ndarray, q1: np.ndarray)
     dt = max(0.02, 1.5 * t_min / n_steps)
     sub = replace(scene, waypoints=np.array([q0, q1]), waypoint_names=["start", "goal"], steps=[n_steps], dt=dt)
     res = plan_scene(sub, planners={n_steps: planners.get(n_steps, dt)})
+    chk = res.check
+    if chk.limit_violations or chk.min_clearance < scene.d_min - CLEARANCE_TOLERANCE:
+        raise InfeasibleProblem(f"no motion found that keeps {scene.d_min * 1000:.0f} mm from the obstacles within the "
+                                f"limits (best: {chk.min_clearance * 1000:.1f} mm from {chk.worst_obstacle!r} with "
+                                f"{chk.worst_link!r}, {chk.limit_violations} limit violations)", value=res)
     return res.trajectory
 
 
@@ -173,6 +182,20 @@ def plan_path(program: Program, step: Step, q0: np.ndarray) -> Trajectory:
     dQ[0] = dQ[-1] = 0.0
     ddQ = np.gradient(dQ, t, axis=0)
     return Trajectory(t, Q, dQ, ddQ, list(robot.joint_names), {"step": step.name, "kind": "path"})
+
+
+def check_place_reachable(program: Program, at: tuple[float, float]) -> None:
+    """Check that the gripper reaches down to the table at ``at`` (a top-down grasp 5 cm above it).
+
+    Raises:
+        IKFailure: It does not.
+    """
+    gripper_robot = lrmate_with_gripper()
+    T = np.eye(4)
+    T[:3, :3] = np.diag([1.0, -1.0, -1.0])  # approach (grasp z) pointing down
+    T[:3, 3] = [at[0], at[1], 0.05]
+    if not len(gripper_robot.ik(T)):
+        raise IKFailure(f"the gripper cannot reach down to the table at {list(at)} m", value=at)
 
 
 def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
@@ -203,6 +226,7 @@ def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
     planners = _Planners(scene)
     checker = planners.checker()
     plans: list[StepPlan] = [StepPlan(q, q) for _ in range(start)]
+    known = True  # the configuration at the step's start is known (no grasp/place before it)
     for i in range(start, len(program.steps)):
         step = program.steps[i]
         if progress:
@@ -213,11 +237,21 @@ def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
             if step.kind == "move":
                 q1 = resolve_target(program, step.args["target"], q)
                 checker.check_waypoints(np.array([q1]), [f"the target of step {i} ({step.name!r})"])
-                plan.trajectory = plan_move(scene, planners, q, q1)
+                if known:
+                    plan.trajectory = plan_move(scene, planners, q, q1)
+                else:
+                    plan.deferred = True
                 plan.q_end = q1
+                known = True
             elif step.kind == "path":
+                if not known:
+                    raise InvalidInput("a path step must follow a move (it starts where the robot is)")
                 plan.trajectory = plan_path(program, step, q)
                 plan.q_end = plan.trajectory.q[-1].copy()
+            elif step.kind in ("grasp", "place"):
+                if step.kind == "place":
+                    check_place_reachable(program, step.args["at"])
+                known = False
         except (IKFailure, CollisionAtStart, InfeasibleProblem, InvalidInput) as exc:
             raise _reject(step, i, str(exc)) from None
         except RobointelError as exc:

@@ -18,10 +18,16 @@ A program joins what robointel teaches, learns and plans into one job. The forma
       - path: {points: [[0.45, 0.2, 0.3], [0.45, -0.1, 0.3]], speed: 0.1}   # TCP path via key points
       - wait: 0.5                 # s
       - set_io: {gripper: 1}      # digital outputs
+      - grasp: {category: cup}    # perceive, classify, transfer a taught grasp, approach, close, lift, verify
+      - place: {at: [0.45, -0.30]}   # carry the held object (planned around the scene), set it down there
+    objects:                      # objects on the table of the simulated cell (generated instances)
+      - {category: cup, seed: 3}                        # at a random placement (the run's seed) ...
+      - {category: ball, seed: 1, at: [0.5, 0.1], yaw_deg: 30}   # ... or at a given one (m, deg)
 
 Unknown step kinds, unknown keys and ill-typed values raise :class:`robointel.errors.InvalidInput`
-naming the step. Steps the format reserves but this version does not run yet (``grasp``, ``place``,
-``insert``, ``grind``, ``guide``) are refused at load time with a clear message.
+naming the step. Steps the format reserves but this version does not run yet (``insert``, ``grind``,
+``guide``) are refused at load time with a clear message. ``grasp`` and ``place`` need a cell with the
+gripper and the objects (:class:`robointel.program.GraspCell`).
 """
 
 from __future__ import annotations
@@ -40,8 +46,9 @@ from robointel.io.scene import Scene, load_scene, scene_from_dict
 from robointel.robot import Robot
 
 FORMAT = "robointel.program/1"
-STEP_KINDS = ("move", "path", "wait", "set_io")
-RESERVED_KINDS = ("grasp", "place", "insert", "grind", "guide")
+STEP_KINDS = ("move", "path", "wait", "set_io", "grasp", "place")
+RESERVED_KINDS = ("insert", "grind", "guide")
+OBJECT_CATEGORIES = ("cup", "can", "box", "ball", "long_tool")
 
 
 @dataclass(frozen=True)
@@ -91,9 +98,63 @@ class Step:
                     "tolerance": self.args["tolerance"]}
         elif self.kind == "wait":
             body = self.args["seconds"]
+        elif self.kind == "grasp":
+            body = {"category": self.args["category"]}
+        elif self.kind == "place":
+            body = {"at": list(self.args["at"])}
         else:
             body = dict(self.args["outputs"])
         return {self.kind: body, "name": self.name}
+
+
+@dataclass(frozen=True)
+class TableObject:
+    """An object on the table of the simulated cell: a generated instance of a category.
+
+    Attributes:
+        category: One of :data:`OBJECT_CATEGORIES`.
+        seed: Seed of the generated instance (its shape and size).
+        at: (x, y) position on the table in m, or None for a random placement drawn by the run's seed.
+        yaw: Heading in rad (None: random).
+    """
+
+    category: str
+    seed: int = 0
+    at: tuple[float, float] | None = None
+    yaw: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data for the YAML file."""
+        d: dict[str, Any] = {"category": self.category, "seed": self.seed}
+        if self.at is not None:
+            d["at"] = list(self.at)
+        if self.yaw is not None:
+            d["yaw_deg"] = float(np.degrees(self.yaw))
+        return d
+
+
+def parse_object(d: Any, i: int) -> TableObject:
+    """Read one ``objects`` entry (see the module docstring).
+
+    Raises:
+        InvalidInput: Unknown category or key, ill-typed position.
+    """
+    where = f"object {i}"
+    if not isinstance(d, Mapping) or "category" not in d:
+        raise InvalidInput(f"{where} must be a mapping with a category ({', '.join(OBJECT_CATEGORIES)})", value=d)
+    unknown = set(d) - {"category", "seed", "at", "yaw_deg"}
+    if unknown:
+        raise InvalidInput(f"{where}: unknown keys {sorted(map(str, unknown))}", value=d)
+    cat = str(d["category"])
+    if cat not in OBJECT_CATEGORIES:
+        raise InvalidInput(f"{where}: unknown category {cat!r}; use one of {', '.join(OBJECT_CATEGORIES)}", value=cat)
+    seed = d.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        raise InvalidInput(f"{where}: seed must be an integer, got {seed!r}", value=seed)
+    at = None if d.get("at") is None else tuple(float(x) for x in _vec(d["at"], 2, f"{where}.at"))
+    yaw = None if d.get("yaw_deg") is None else float(np.radians(_number(d["yaw_deg"], f"{where}.yaw_deg",
+                                                                          minimum=-np.inf)))
+    return TableObject(cat, int(seed), at, yaw)  # type: ignore[arg-type]
 
 
 @dataclass
@@ -105,6 +166,7 @@ class Program:
         scene: The :class:`robointel.io.scene.Scene` it runs in (robot, obstacles, limits, d_min).
         waypoints: Named joint configurations (rad), each (n,).
         steps: The steps in order.
+        objects: Objects on the table of the simulated cell (for ``grasp`` and ``place`` steps).
         source: The file it was read from, if any.
         scene_ref: How the scene was given (a name/path string or an inline mapping), for saving.
     """
@@ -113,6 +175,7 @@ class Program:
     scene: Scene
     waypoints: dict[str, np.ndarray]
     steps: list[Step]
+    objects: list[TableObject] = field(default_factory=list)
     source: Path | None = None
     scene_ref: Any = None
 
@@ -162,7 +225,8 @@ class Program:
         scene = self.scene_ref if self.scene_ref is not None else _scene_dict(self.scene)
         return {"format": FORMAT, "name": self.name, "scene": scene,
                 "waypoints": {k: {"q_deg": np.degrees(v).round(6).tolist()} for k, v in self.waypoints.items()},
-                "steps": [s.to_dict() for s in self.steps]}
+                "steps": [s.to_dict() for s in self.steps],
+                **({"objects": [o.to_dict() for o in self.objects]} if self.objects else {})}
 
     def save(self, path: str | Path) -> Path:
         """Write the program as YAML and return the path."""
@@ -292,6 +356,15 @@ def parse_step(d: Any, i: int, n: int) -> Step:
         return Step("path", name, {"points": P, "speed": speed, "tolerance": tol})
     if kind == "wait":
         return Step("wait", name, {"seconds": _number(v, f"{where}: wait seconds")})
+    if kind == "grasp":
+        if not isinstance(v, Mapping) or set(v) != {"category"} or str(v["category"]) not in OBJECT_CATEGORIES:
+            raise InvalidInput(f"{where}: grasp needs {{category: C}} with C one of {', '.join(OBJECT_CATEGORIES)}",
+                               value=v)
+        return Step("grasp", name, {"category": str(v["category"])})
+    if kind == "place":
+        if not isinstance(v, Mapping) or set(v) != {"at"}:
+            raise InvalidInput(f"{where}: place needs {{at: [x, y]}} (m, on the table)", value=v)
+        return Step("place", name, {"at": tuple(float(x) for x in _vec(v["at"], 2, f"{where}: place at"))})
     if kind == "set_io":
         if not isinstance(v, Mapping) or not v:
             raise InvalidInput(f"{where}: set_io needs a mapping of output names to values", value=v)
@@ -342,7 +415,7 @@ def program_from_dict(d: Any, *, base: Path | None = None) -> Program:
     fmt = d.get("format", FORMAT)
     if fmt != FORMAT:
         raise InvalidInput(f"unknown program format {fmt!r}; this robointel reads {FORMAT!r}", value=fmt)
-    unknown = set(d) - {"format", "name", "scene", "waypoints", "steps", "description"}
+    unknown = set(d) - {"format", "name", "scene", "waypoints", "steps", "description", "objects"}
     if unknown:
         raise InvalidInput(f"unknown program keys {sorted(map(str, unknown))}", value=sorted(map(str, unknown)))
     if "scene" not in d:
@@ -379,8 +452,16 @@ def program_from_dict(d: Any, *, base: Path | None = None) -> Program:
     # a pose waypoint becomes a pose target wherever it is used
     steps = [Step(s.kind, s.name, {"target": Target(pose=poses[s.args["target"].waypoint])})
              if s.kind == "move" and s.args["target"].waypoint in poses else s for s in steps]
+    objs = d.get("objects") or []
+    if not isinstance(objs, list):
+        raise InvalidInput("program objects must be a list of {category, seed, at, yaw_deg}", value=objs)
+    objects = [parse_object(o, i) for i, o in enumerate(objs)]
+    for s in steps:
+        if s.kind == "grasp" and s.args["category"] not in {o.category for o in objects}:
+            raise InvalidInput(f"step {s.name!r}: no object of category {s.args['category']!r} in the program's "
+                               f"objects ({sorted({o.category for o in objects})})", value=s.args["category"])
     return Program(name=str(d.get("name", "program")), scene=scene, waypoints=waypoints, steps=steps,
-                   scene_ref=d["scene"])
+                   objects=objects, scene_ref=d["scene"])
 
 
 def load_program(path: str | Path) -> Program:

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
 
+from robointel.errors import RobointelError
 from robointel.io.trajectory import Trajectory
 from robointel.outcome import Failure, TrialOutcome
 from robointel.program.check import ProgramCheck, _Planners, check_program, plan_move, scene_key
@@ -16,6 +17,7 @@ from robointel.program.format import Program
 from robointel.sim import Workcell
 
 TRACKING_LIMIT_RAD = 0.05  # largest joint tracking error a step may show before it counts as failed
+CARRY_SPEED = 0.5  # fraction of the velocity limits (its square of the acceleration limits) while holding an object
 BACKOFF_STEPS = 150  # control periods (1 ms) of the path the robot backs off along after a contact
 
 
@@ -186,6 +188,21 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
     i0 = program.index(start)
     chk = check or check_program(program, cell.q, start=i0)
     results: list[StepResult] = []
+    planners = _Planners(program.scene)
+
+    def plan_fn(a: np.ndarray, b: np.ndarray) -> Trajectory | None:
+        held = getattr(cell, "held_sphere", lambda: None)()
+        if held is None:
+            return plan_move(program.scene, planners, a, b)
+        # carrying: the held object is a sphere on the last link while this motion is planned
+        spheres = program.robot.spheres
+        spheres.add(*held)
+        carry = replace(program.scene, vmax=program.scene.vmax * CARRY_SPEED, amax=program.scene.amax * CARRY_SPEED ** 2)
+        try:
+            return plan_move(carry, _Planners(carry), a, b)
+        finally:
+            spheres.remove(len(spheres) - 1)
+
     for i in range(i0, len(program.steps)):
         step = program.steps[i]
         if progress:
@@ -196,9 +213,16 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
         replanned = False
         if step.kind in ("move", "path"):
             traj = plan.trajectory
-            if step.kind == "move" and scene_key(program.scene) != chk.scene_key:
-                traj = plan_move(program.scene, _Planners(program.scene), cell.q, plan.q_end)
-                replanned = True
+            try:
+                if step.kind == "move" and (plan.deferred or scene_key(program.scene) != chk.scene_key):
+                    traj = plan_move(program.scene, planners, cell.q, plan.q_end)
+                    replanned = not plan.deferred
+            except RobointelError as exc:
+                traj = None
+                outcome = TrialOutcome(False, Failure.INFEASIBLE, f"replanning failed: {exc}")
+                cell.stop("no motion")
+                results.append(StepResult(i, step.name, step.kind, outcome, time.perf_counter() - t0))
+                return ProgramRun(results, chk, failed_step=i)
             if traj is None:
                 outcome = TrialOutcome(True)
             else:
@@ -210,6 +234,19 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
         elif step.kind == "wait":
             cell.hold(step.args["seconds"])
             outcome = TrialOutcome(True)
+        elif step.kind in ("grasp", "place"):
+            act = getattr(cell, step.kind, None)
+            if act is None:
+                outcome = TrialOutcome(False, Failure.ERROR, f"the cell {type(cell).__name__} has no gripper and "
+                                       "objects (use GraspCell)")
+            else:
+                arg = step.args["category"] if step.kind == "grasp" else step.args["at"]
+                try:
+                    outcome = act(arg, plan_fn)
+                except RobointelError as exc:
+                    outcome = TrialOutcome(False, Failure.INFEASIBLE, str(exc))
+                if not outcome.success:
+                    cell.stop(step.kind)
         elif step.kind == "set_io":
             for k, v in step.args["outputs"].items():
                 cell.set_io(k, v)
