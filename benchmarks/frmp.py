@@ -59,10 +59,10 @@ def main() -> None:
     load = os.getloadavg()[0]
 
     from robointel.geometry import Sphere
-    from robointel.io.scene import load_scene
     from robointel.planning.frmp import execute, make_planners, plan_scene, planner_settings
     from robointel.planning.ompl_peer import rrtconnect
     from robointel.planning.replan import receding_horizon
+    from robointel.planning.scene import load_scene
     from robointel.planning.sqp import slsqp_segment
     from robointel.planning.temporal import temporal_optimize
 
@@ -156,7 +156,8 @@ def main() -> None:
 
     out = {
         "scene": scene.name, "segments": nseg, "steps": scene.steps, "blocked": blocked,
-        "cfs_ms": cfs_med, "cfs_cpu_ms": cfs_cpu_med, "cfs_iterations": cfs_it, "cfs_status": [s.status for s in res.segments],
+        "cfs_ms": cfs_med, "cfs_cpu_ms": cfs_cpu_med, "cfs_iterations": cfs_it,
+        "cfs_status": [s.status for s in res.segments],
         "cfs_total_ms": float(sum(cfs_med)),
         "cfs_blocked_max_ms": max(cfs_med[i] for i in bl) if bl else float("nan"),
         "sqp_ms": sqp_ms, "sqp_cpu_ms": sqp_cpu, "sqp_iterations": sqp_it, "sqp_success": sqp_ok,

@@ -10,7 +10,8 @@ MuJoCo lift-and-shake grasp trials and the per-object transfer time.
   same number of iterations (tolerance 0 after that count; no looser stopping rule). Medians of repeats.
 * Large pairs: probreg's face pair (23,728 points each) and a 100k pair (two YCB scans sampled at
   100,000 points each); time and symmetric mean nearest-neighbour residual before/after.
-* Classification (6.17)-(6.19): one template per category (the first instance with >= 3 taught grasps; ``--class-templates K``:
+* Classification (6.17)-(6.19): one template per category (the first instance with >= 3 taught grasps;
+  ``--class-templates K``:
   K classifying instances per category, 0 = every other instance, the nearest wins), 20 random placements
   per category of the other instances (held out: no target is its own template), each perceived by
   the two simulated depth cameras (ray casting, noise, background removal, DBSCAN, 5 mm voxels).
@@ -175,8 +176,16 @@ def bench_grasping(quick: bool, trials: bool, per_category: int, trial_categorie
                    class_templates: int = 1) -> dict:
     import mujoco
 
-    from robointel.learning.grasp import (GraspPlanner, confusion_matrix, default_cameras, depth_image,
-                                          grasp_trial, perceive, random_placements, scene_xml)
+    from robointel.learning.grasp import (
+        GraspPlanner,
+        confusion_matrix,
+        default_cameras,
+        depth_image,
+        grasp_trial,
+        perceive,
+        random_placements,
+        scene_xml,
+    )
 
     objs, templates = grasp_setup()
     classifiers = classifying_templates(objs, templates, class_templates)

@@ -102,7 +102,7 @@ class MinkStep:
         return mink.solve_ik(self.config, [self.task], dt, "daqp", damping=1e-6, limits=self.limits)
 
 
-def time_mink(ms: "MinkStep", Q, W, gain: float) -> np.ndarray:
+def time_mink(ms: MinkStep, Q, W, gain: float) -> np.ndarray:
     wall = np.empty(len(Q))
     pc = time.perf_counter_ns
     for i, (q, w) in enumerate(zip(Q, W)):

@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
 
 import numpy as np
-from _timing import median_us
 import pinocchio as pin
+
+from _timing import median_us
 
 
 def main() -> None:
@@ -48,7 +48,7 @@ def main() -> None:
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacements(model, data)
         for f in fids:
-            data.oMf[f].translation
+            _ = data.oMf[f].translation
             pin.getFrameJacobian(model, data, f, pin.LOCAL_WORLD_ALIGNED)
 
     # peer 2: MuJoCo from the same URDF, mj_kinematics + mj_comPos + mj_jac per sphere

@@ -16,6 +16,7 @@ import time
 
 import mujoco
 import numpy as np
+
 from _timing import median_us
 
 

@@ -5,7 +5,9 @@ streaming interface's latency and sustained rate on loopback.
     python benchmarks/teach.py            # tables
     python benchmarks/teach.py --json     # one JSON object
 
-SCARA fields (see ``scara_note`` in the output): ``scara_rms_compensated_rad`` is the honest live
+SCARA fields (see ``scara_note`` in the output): ``scara_rms_delay_aligned_rad`` is the live
+uncompensated run against the recorded human angles 0.1 s earlier (the delay taken out of the
+comparison, the dissertation's reading); ``scara_rms_compensated_rad`` is the honest live predicted
 figure (robot vs the true, undelayed human angles, a predictor fitted leave-one-recording-out);
 ``scara_rms_offline_compensated_rad`` (recording known in advance, shifted by the latency) and
 ``scara_controller_rms_*`` (robot vs its own reference) are separate, named as such; ``*_unshaped``
@@ -20,6 +22,7 @@ import json
 import sys
 import threading
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -30,15 +33,25 @@ RECORDINGS = ["Ges01_wavehand", "Ges02_balancinghands", "Ges03_drawlines", "Ges0
 def imitation(recordings):
     from robointel.io.reference import data_path
     from robointel.programming.imitation import kinematic_imitation, simulate_imitation
-    from robointel.programming.scara import (BLEND_FRAMES, PAPER_RMS, PAPER_RMS_COMPENSATED, KalmanPredictor,
-                                             delayed_copy_rms, fit_predictor, simulate_scara)
+    from robointel.programming.scara import (
+        BLEND_FRAMES,
+        PAPER_RMS,
+        PAPER_RMS_COMPENSATED,
+        KalmanPredictor,
+        delay_aligned_rms,
+        delayed_copy_rms,
+        fit_predictor,
+        simulate_scara,
+    )
     from robointel.programming.scara import FeasibleReference as FR
     from robointel.programming.skeleton import read_kinect_csv
     from robointel.robot import Robot
 
     lr, sc = Robot.load("lrmate200id7l"), Robot.load("scara2")
     skels = {name: read_kinect_csv(data_path("kinect", f"{name}.csv")) for name in RECORDINGS}
-    scara_keys = ("scara_rms_rad", "scara_rms_compensated_rad", "scara_rms_compensated_kalman_rad",
+    scara_keys = ("scara_rms_rad", "scara_rms_delay_aligned_rad", "scara_rms_best_lag_rad",
+                  "scara_received_delay_aligned_rad", "scara_rms_compensated_rad",
+                  "scara_rms_compensated_kalman_rad",
                   "scara_rms_delayed_copy_rad", "scara_prediction_rms_delayed_frames_rad",
                   "scara_prediction_rms_rad", "scara_prediction_rms_kalman_rad",
                   "scara_rms_offline_compensated_rad", "scara_controller_rms_rad",
@@ -50,7 +63,7 @@ def imitation(recordings):
                   "scara_prediction_rms_insample_rad")
     out = {"imitation_rms_rad": {}, "imitation_controller_rms_rad": {}, "imitation_tcp_rms_mm": {},
            "imitation_limit_hits": {}, "imitation_unreachable_frames": {}, "scara_torque_saturation": {},
-           "scara_torque_saturation_unshaped": {}, "scara_predictor_ridge_alpha": {},
+           "scara_torque_saturation_unshaped": {}, "scara_predictor_ridge_alpha": {}, "scara_lag_s": {},
            **{k: {} for k in scara_keys}}
     # optimistic bound for this predictor family: the ridge fitted on all seven recordings, INCLUDING the
     # one it is then evaluated on (in-sample; not a live figure)
@@ -77,7 +90,16 @@ def imitation(recordings):
         u1 = simulate_scara(sk, robot=sc, latency=0.1, compensate=True, predictor=ar, blend_time=2 / sk.rate,
                             feasible=False)
         ins = simulate_scara(sk, robot=sc, latency=0.1, compensate=True, predictor=ar_all).prediction_rms
-        vals = {"scara_rms_rad": r0.rms, "scara_rms_compensated_rad": r1.rms, "scara_rms_compensated_kalman_rad": rk.rms,
+        # how late the live uncompensated robot really is: the shift of the recorded angles that fits it best
+        lags = np.round(np.arange(0.10, 0.26, 0.01), 2)
+        by_lag = [delay_aligned_rms(r0, sk, delay=d, robot=sc) for d in lags]
+        best = int(np.argmin([a.sum() for a in by_lag]))
+        out["scara_lag_s"][name] = float(lags[best])
+        vals = {"scara_rms_rad": r0.rms, "scara_rms_delay_aligned_rad": by_lag[0],
+                "scara_rms_best_lag_rad": by_lag[best],
+                "scara_received_delay_aligned_rad": delay_aligned_rms(replace(r0, q=r0.q_delayed), sk, delay=0.1,
+                                                                      robot=sc),
+                "scara_rms_compensated_rad": r1.rms, "scara_rms_compensated_kalman_rad": rk.rms,
                 "scara_rms_delayed_copy_rad": delayed_copy_rms(sk, robot=sc, latency=0.1),
                 "scara_prediction_rms_delayed_frames_rad": r0.prediction_rms,
                 "scara_prediction_rms_rad": r1.prediction_rms, "scara_prediction_rms_kalman_rad": rk.prediction_rms,
@@ -102,6 +124,7 @@ def imitation(recordings):
             sk, robot=sc, latency=0.1, compensate=True, predictor=arp, elbow="planar").rms, 4).tolist()
     for k in scara_keys:
         out[k]["mean"] = np.round(np.mean([v for n, v in out[k].items() if n != "mean"], axis=0), 4).tolist()
+    out["scara_lag_s"]["mean"] = round(float(np.mean(list(out["scara_lag_s"].values()))), 3)
     pred = {"delayed frames (no prediction)": "scara_prediction_rms_delayed_frames_rad",
             "constant-rate Kalman": "scara_prediction_rms_kalman_rad", "ridge AR (LORO)": "scara_prediction_rms_rad"}
     out["scara_predictor_choice"] = min(pred, key=lambda p: sum(out[pred[p]]["mean"]))
@@ -122,6 +145,14 @@ def imitation(recordings):
         "the computed torque + DARE LQ (acceleration scaled down at the torque limits). The crossfade length, "
         "follower gain, margin and jerk time were chosen on these same 7 recordings (not leave-one-out). "
         "scara_rms_rad: live, no compensation (the received frames, delayed). "
+        "scara_rms_delay_aligned_rad: the SAME live uncompensated run read as the dissertation's 'if the delay is "
+        "compensated in 0.1 second': RMS over time of q_robot(t) - q_human(t - 0.1 s), q_human the angles from the "
+        "recording itself (dropouts bridged, not smoothed, linear between frames), over the steps with t - 0.1 s "
+        "inside the recording; compared with the dissertation's 0.0103/0.0305 rad. scara_lag_s: the shift "
+        "(0.10-0.25 s, 10 ms grid) of the recorded angles that fits that run best (how late the robot really is: "
+        "latency + frame age + live low-pass + crossfade + follower); scara_rms_best_lag_rad: the RMS at that shift; "
+        "scara_received_delay_aligned_rad: the received frames themselves (held, live-filtered) vs the recorded "
+        "angles 0.1 s earlier (the signal the robot is given, no robot). "
         "scara_rms_compensated_rad: live, with compensation - THE HONEST LIVE FIGURE - a ridge autoregressive "
         "predictor of the angles 0.1 s + frame age ahead, fitted leave-one-recording-out (never on the recording "
         "it runs on). scara_rms_compensated_kalman_rad: live, constant-rate Kalman prediction instead. "
@@ -139,8 +170,9 @@ def imitation(recordings):
         "latency (exact q/qd/qdd reference): no sensor in the loop, only the robot's own limits remain. "
         "saturation: fraction of steps with a torque at its limit [uncompensated, compensated]; with the follower "
         "the reference itself is planned up to the limits (time-optimal), so steps at the limit are by design. "
-        "The dissertation's compensated 0.0103/0.0305 rad is compared with scara_rms_compensated_rad: MISSED "
-        "(no predictor tried gets the signal below ~0.17/0.19 rad 0.1 s ahead, see scara_prediction_rms*).")
+        "The dissertation's compensated 0.0103/0.0305 rad is compared with scara_rms_delay_aligned_rad (the delay "
+        "taken out of the comparison) and with scara_rms_compensated_rad (live prediction 0.1 s ahead, a harder "
+        "claim: no predictor tried gets the signal below ~0.17/0.19 rad, see scara_prediction_rms*).")
     return out
 
 
@@ -244,7 +276,8 @@ def main() -> None:
     out.update(imitation(RECORDINGS[:2] if args.quick else RECORDINGS))
     out.update(ik_speed())
     out.update(streaming())
-    out["targets"] = {"scara_rms_compensated_rad <=": [0.0103, 0.0305], "teleop_latency_ms.p99 <=": 20,
+    out["targets"] = {"scara_rms_delay_aligned_rad <=": [0.0103, 0.0305],
+                      "scara_rms_compensated_rad <=": [0.0103, 0.0305], "teleop_latency_ms.p99 <=": 20,
                       "stream_rate_hz >=": 500}
     if args.json:
         print(json.dumps(out))
@@ -263,7 +296,8 @@ def main() -> None:
     c.print(t)
     s = Table(title="SCARA, 0.1 s latency: RMS q1 / q2 [rad] vs the true human angles (dissertation 0.153 / 0.185; "
                     "compensated 0.0103 / 0.0305)")
-    cols = {"live, no comp.": "scara_rms_rad", "live, AR comp. (LORO)": "scara_rms_compensated_rad",
+    cols = {"live, no comp.": "scara_rms_rad", "live, no comp., vs human(t - 0.1 s)": "scara_rms_delay_aligned_rad",
+            "live, AR comp. (LORO)": "scara_rms_compensated_rad",
             "live, Kalman comp.": "scara_rms_compensated_kalman_rad", "AR prediction only": "scara_prediction_rms_rad",
             "delayed copy (ideal)": "scara_rms_delayed_copy_rad", "offline comp.": "scara_rms_offline_compensated_rad",
             "controller vs ref (comp.)": "scara_controller_rms_compensated_rad",

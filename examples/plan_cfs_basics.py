@@ -2,7 +2,8 @@
 
     python examples/plan_cfs_basics.py
 
-Get as close as possible to a goal inside a disk, next to another disk: phi_i(z) = ||z - c_i||^2 - r_i^2 >= 0 is convex, so its
+Get as close as possible to a goal inside a disk, next to another disk:
+phi_i(z) = ||z - c_i||^2 - r_i^2 >= 0 is convex, so its
 complement (the disk) is convex: CFS case (7.5), a half space per disk at every iterate.
 """
 import numpy as np

@@ -5,8 +5,8 @@
 import numpy as np
 
 from robointel.geometry import Sphere
-from robointel.io.scene import load_scene
 from robointel.planning import planner_settings, receding_horizon
+from robointel.planning.scene import load_scene
 
 scene = load_scene("table71")
 start, stop = np.array([0.62, 0.16, 0.75]), np.array([0.62, 0.16, 0.30])  # the hand comes down and stays

@@ -7,8 +7,8 @@ them, the trajectory is checked on a 1 ms grid, saved, and tracked by the simula
 """
 import numpy as np
 
-from robointel.io.scene import load_scene
 from robointel.planning import execute, plan_scene
+from robointel.planning.scene import load_scene
 
 scene = load_scene("table71")  # or load_scene("my_scene.yaml")
 result = plan_scene(scene)

@@ -2,7 +2,12 @@
 file skips the test, or fails it when ROBOINTEL_REQUIRE_DATA=1 (CI)."""
 from __future__ import annotations
 
+import json
 import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -30,3 +35,24 @@ def lrmate():
     from robointel.robot import Robot
 
     return Robot.load("lrmate200id7l")
+
+
+def _run_doctor(root: Path) -> dict:
+    """``lerobot-doctor check ROOT --json`` (the dev extra installs it)."""
+    exe = Path(sys.executable).with_name("lerobot-doctor")
+    cmd = str(exe) if exe.exists() else shutil.which("lerobot-doctor")
+    assert cmd is not None, "lerobot-doctor is not installed: pip install -e .[dev]"
+    out = subprocess.run([cmd, "check", str(root), "--json"], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout)
+
+
+def _failures(report: dict) -> list[str]:
+    """The FAIL messages of a report (empty when none)."""
+    return [f"{c['name']}: {m['message']}" for c in report["checks"] for m in c["messages"] if m["severity"] == "FAIL"]
+
+
+@pytest.fixture
+def doctor():
+    """``doctor(root)`` -> (report, FAIL messages) of ``lerobot-doctor check root --json``."""
+    return lambda root: (lambda r: (r, _failures(r)))(_run_doctor(root))

@@ -1,14 +1,16 @@
 """Checks at the public boundary: shapes, finiteness, limits."""
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike, DTypeLike
 
 from robointel.errors import LimitViolation, NotFinite, ShapeError
 
 
-def as_array(x, name: str, shape: Sequence[int | None] | None = None, *, dtype=float) -> np.ndarray:
+def as_array(x: ArrayLike, name: str, shape: Sequence[int | None] | None = None, *,
+             dtype: DTypeLike = float) -> np.ndarray:
     """Return ``x`` as a finite float array of the given shape (``None`` matches any size).
 
     Raises:

@@ -19,7 +19,7 @@ app = typer.Typer(add_completion=False, no_args_is_help=True,
 console = Console()
 
 # modules in robointel.commands, in demo order; each may define register(app) and demo_stage
-COMMAND_MODULES = ("core", "planning", "guidance", "learning", "grasp", "teach", "program")
+COMMAND_MODULES = ("core", "planning", "guidance", "learning", "grasp", "teach", "dataset", "program")
 
 
 def _load_commands() -> list:
@@ -48,7 +48,7 @@ def info(robot: str = typer.Argument("lrmate200id7l", help="built-in name, 'ur5'
         r = Robot.load(robot)
     except RobointelError as exc:
         console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2)
+        raise typer.Exit(2) from None
     t = Table(title=f"{r.name}: {r.nq} joints, flange frame {r.flange_frame!r}")
     for c in ("joint", "lower [deg]", "upper [deg]", "max speed [deg/s]", "effort [N m]", "viscous", "Coulomb [N m]"):
         t.add_column(c, justify="right")
@@ -79,7 +79,7 @@ def demo(out: Path = typer.Option(Path("robointel-report"), help="report folder"
         index = run_demo(stages, out, quick=quick, console=console)
     except RobointelError as exc:
         console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2)
+        raise typer.Exit(2) from None
     console.print(f"report: [bold]{index}[/bold]")
 
 

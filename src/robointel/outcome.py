@@ -1,5 +1,7 @@
-"""The one outcome record of a trial: every trial harness (grasp, insertion, grinding, guidance
-scenario, planning problem, task program) returns a :class:`TrialOutcome`.
+"""The one outcome record of a trial.
+
+Every trial harness (grasp, insertion, grinding, guidance scenario, planning problem, task program) returns a
+:class:`TrialOutcome`.
 
 A failure carries a :class:`Failure` reason from one shared enum (never free text alone), so outcomes
 of different kinds can be counted, stored (``robointel.batch``) and compared side by side.
@@ -12,7 +14,7 @@ from enum import Enum
 from typing import Any
 
 
-class Failure(str, Enum):
+class Failure(str, Enum):  # noqa: UP042 - StrEnum would change str() of the values other branches log
     """Why a trial failed (``NONE`` for a success)."""
 
     NONE = "none"

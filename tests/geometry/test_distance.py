@@ -8,8 +8,19 @@ from scipy.spatial.transform import Rotation
 
 from robointel.errors import CollisionAtStart, InvalidInput, NotFinite, ShapeError
 from robointel.geometry import (
-    Box, Capsule, Cylinder, ObstacleSet, closest_pairs, PointCloud, Sphere, check_collision_free, in_collision,
-    min_distance, self_collision_distance, sphere_distances, sphere_distances_batch,
+    Box,
+    Capsule,
+    Cylinder,
+    ObstacleSet,
+    PointCloud,
+    Sphere,
+    check_collision_free,
+    closest_pairs,
+    in_collision,
+    min_distance,
+    self_collision_distance,
+    sphere_distances,
+    sphere_distances_batch,
 )
 from robointel.robot import Robot
 

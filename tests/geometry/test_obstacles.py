@@ -8,7 +8,12 @@ from scipy.spatial.transform import Rotation
 
 from robointel.errors import InvalidInput, NotFinite, ShapeError
 from robointel.geometry import (
-    Box, Capsule, Cylinder, PointCloud, Sphere, obstacle_from_dict,
+    Box,
+    Capsule,
+    Cylinder,
+    PointCloud,
+    Sphere,
+    obstacle_from_dict,
 )
 
 RNG_SEED = 7
@@ -302,7 +307,7 @@ def test_bad_input_raises(make, exc):
 
 def test_shapes_are_immutable():
     s = Sphere([0, 0, 0], 1.0)
-    with pytest.raises(Exception):
+    with pytest.raises(AttributeError):  # dataclasses.FrozenInstanceError
         s.radius = 2.0
     with pytest.raises(ValueError):
         s.center[0] = 1.0

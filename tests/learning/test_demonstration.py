@@ -3,8 +3,7 @@ import numpy as np
 import pytest
 
 from robointel.errors import DataMissing, InvalidInput, NotFinite, ShapeError
-from robointel.io.demonstrations import DemonstrationFile, load_demonstrations, save_demonstrations
-from robointel.learning.demonstration import Demonstration
+from robointel.learning.demonstration import Demonstration, load_demonstrations, save_demonstrations
 
 
 def _demo(n=50, seed=0, name=""):

@@ -54,7 +54,9 @@ def test_cfs_agrees_with_slsqp_and_iterates_feasible(case, solver):
     res = cfs(H, f, constraints=cons, z0=z0, eps=1e-8, max_iter=200, keep_iterates=True, qp=qp)
     ref = slsqp(H, f, constraints=cons, z0=z0, tol=1e-10)  # 1e-12 can end in a line-search stall at the optimum
     assert res.status == "converged" and res.feasible
-    assert ref.success
+    # SciPy >= 1.16's SLSQP may stop with "Positive directional derivative for linesearch" at the optimum:
+    # the peer is judged by its feasibility and the point it returns, not by that flag alone
+    assert ref.success or ("linesearch" in ref.message and ref.max_violation < 1e-7)
     np.testing.assert_allclose(res.z, ref.z, atol=1e-4)
     # every iterate is feasible and the cost never increases (feasible reference)
     for z in res.iterates:

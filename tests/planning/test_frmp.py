@@ -8,9 +8,9 @@ import pytest
 import yaml
 
 from robointel.errors import CollisionAtStart, InvalidInput, LimitViolation, NotFinite
-from robointel.io.scene import SCENES, load_scene, scene_from_dict
-from robointel.io.trajectory import Trajectory
+from robointel.io.trajectory import load_trajectory, save_trajectory
 from robointel.planning.frmp import check_trajectory, execute, plan_scene
+from robointel.planning.scene import SCENES, load_scene, scene_from_dict
 
 
 @pytest.fixture(scope="module")
@@ -37,6 +37,9 @@ def test_table71_scene_shape(scene):
 def test_frmp_plan_is_collision_free_within_limits_and_faster(scene, result):
     assert result.blocked == [False, False, True, True, False]
     assert all(s.feasible for s in result.segments)
+    # every segment ran CFS, and the blocked ones needed more than one iteration
+    assert all(s.iterations >= 1 for s in result.segments)
+    assert all(s.iterations >= 2 for s, b in zip(result.segments, result.blocked) if b)
     assert result.check.min_clearance >= scene.d_min - 1e-3
     assert result.check.limit_violations == 0
     assert result.operational_time_fixed == pytest.approx(15.0)
@@ -61,8 +64,8 @@ def test_frmp_executes_in_mujoco_without_touching_obstacles(result):
 
 def test_trajectory_file_round_trip(result, tmp_path):
     for suffix in (".npz", ".json"):
-        p = result.trajectory.save(tmp_path / f"traj{suffix}")
-        back = Trajectory.load(p)
+        p = save_trajectory(result.trajectory, tmp_path / f"traj{suffix}")
+        back = load_trajectory(p)
         np.testing.assert_allclose(back.q, result.trajectory.q)
         np.testing.assert_allclose(back.t, result.trajectory.t)
         assert back.joint_names == result.trajectory.joint_names

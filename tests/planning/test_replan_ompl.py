@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from robointel.geometry import Sphere, sphere_distances_batch
-from robointel.io.scene import load_scene
 from robointel.planning.frmp import planner_settings
 from robointel.planning.replan import receding_horizon
+from robointel.planning.scene import load_scene
 
 
 @pytest.fixture(scope="module")

@@ -3,8 +3,14 @@ import numpy as np
 import pytest
 
 from robointel.errors import InvalidInput, NotFinite, ShapeError
-from robointel.programming.compliance import (ComplianceGains, compliance_twist, compliance_velocity,
-                                              damped_pinv, shift_wrench, wrench_to_world)
+from robointel.programming.compliance import (
+    ComplianceGains,
+    compliance_twist,
+    compliance_velocity,
+    damped_pinv,
+    shift_wrench,
+    wrench_to_world,
+)
 
 
 def test_twist_is_damping_times_wrench():

@@ -1,7 +1,6 @@
 """Guidance with collision avoidance (Ch. 4): QP (4.11), equality (4.10), baselines (4.1)-(4.3),
 blend (4.12)-(4.13), faults and singularities. Kinematic closed loops (no physics) here; the
 MuJoCo scenarios are in test_guidance_scenarios.py."""
-import daqp
 import numpy as np
 import pytest
 from scipy.optimize import minimize
@@ -9,8 +8,7 @@ from scipy.optimize import minimize
 from robointel.errors import InvalidInput, SafetyStop, ShapeError
 from robointel.geometry import Cylinder, Sphere
 from robointel.geometry.distance import sphere_distances
-from robointel.programming.guidance import (METHODS, GuidanceConfig, GuidanceController, blend_weight,
-                                            repulsive_speed)
+from robointel.programming.guidance import METHODS, GuidanceConfig, GuidanceController, blend_weight, repulsive_speed
 from robointel.programming.scenarios import table_4_1_obstacles
 
 Q0 = np.array([0.0, 0.3, -0.3, 0.0, -1.2, 0.0])

@@ -7,8 +7,14 @@ import pytest
 from typer.testing import CliRunner
 
 from robointel.errors import InvalidInput
-from robointel.programming.scenarios import (BASE_HEIGHT, SimulatedOperator, plot_scenario, run_scenario,
-                                             scenario, table_4_1_obstacles)
+from robointel.programming.scenarios import (
+    BASE_HEIGHT,
+    SimulatedOperator,
+    plot_scenario,
+    run_scenario,
+    scenario,
+    table_4_1_obstacles,
+)
 
 
 def test_table_4_1_obstacles_in_root_frame():

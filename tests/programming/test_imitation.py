@@ -5,8 +5,16 @@ import numpy as np
 import pytest
 
 from robointel.errors import InvalidInput
-from robointel.programming.imitation import (TOOL_DOWN, WORKSPACE_HI, WORKSPACE_LO, fit_workspace, jerk_limited,
-                                             kinematic_imitation, simulate_imitation, solve_ik_path)
+from robointel.programming.imitation import (
+    TOOL_DOWN,
+    WORKSPACE_HI,
+    WORKSPACE_LO,
+    fit_workspace,
+    jerk_limited,
+    kinematic_imitation,
+    simulate_imitation,
+    solve_ik_path,
+)
 from robointel.programming.skeleton import read_kinect_csv, synthetic_wave
 
 
@@ -46,7 +54,9 @@ def test_jerk_limited_reference_respects_limits():
     t = np.linspace(0, 2, 61)
     q = np.stack([0.5 + 0.5 * np.tanh(20 * (t - 0.8)), np.sin(4 * t)], 1)  # a quick move and a fast sine
     vmax, amax, jmax = np.array([3.0, 2.0]), np.array([6.0, 8.0]), np.array([80.0, 160.0])
-    tg, Q, QD, QDD = jerk_limited(t, q, vmax, amax, jmax)
+    ref = jerk_limited(t, q, vmax, amax, jmax)
+    assert ref.t[0] == t[0] and ref.t[-1] == pytest.approx(t[-1]) and ref.n_joints == 2
+    Q, QD, QDD = ref.q, ref.qd, ref.qdd
     assert np.all(np.abs(QD) <= vmax + 1e-9) and np.all(np.abs(QDD) <= amax + 1e-9)
     jerk = np.abs(np.diff(QDD, axis=0)) / 1e-3
     assert np.all(jerk <= jmax * (1 + 1e-6) + 1e-6)
@@ -57,8 +67,8 @@ def test_jerk_limited_reference_respects_limits():
 def test_imitation_synthetic_in_mujoco(lrmate):
     plan = kinematic_imitation(synthetic_wave(3.0, dropout_at=1.5), lrmate)
     assert plan.reachable.all()
-    assert np.all(np.abs(plan.qd_ref) <= lrmate.velocity_limit + 1e-9)
-    assert np.all(np.abs(plan.qdd_ref) <= lrmate.acceleration_limit + 1e-9)
+    assert np.all(np.abs(plan.trajectory.qd) <= lrmate.velocity_limit + 1e-9)
+    assert np.all(np.abs(plan.trajectory.qdd) <= lrmate.acceleration_limit + 1e-9)
     run = simulate_imitation(plan, lrmate)
     assert run.tracking_rms.max() < 0.005       # the 1 kHz controller follows the reference
     assert run.tcp_rms < 0.15 and not run.log.collided

@@ -3,8 +3,7 @@ import numpy as np
 import pytest
 
 from robointel.errors import InvalidInput
-from robointel.programming.keypoints import (blended_trajectory, extract_keypoints,
-                                             joint_velocity_reference, rdp_indices)
+from robointel.programming.keypoints import blended_trajectory, extract_keypoints, joint_velocity_reference, rdp_indices
 
 
 def _guided_path(rng):
@@ -98,7 +97,7 @@ def test_reproduce_path_with_orientations(lrmate):
     rep = reproduce_path(lrmate, t, P, q0, rotations=R, tolerance=0.005, speed=0.1, blend_time=0.3)
     assert len(rep.keypoints) == 3
     assert rep.path_error < 0.006
-    Rd = orientation_reference(rep.trajectory, R[rep.keypoints], [0.0, rep.trajectory.duration])
+    Rd = orientation_reference(rep.cartesian, R[rep.keypoints], [0.0, rep.cartesian.duration])
     np.testing.assert_allclose(Rd[-1], R[-1], atol=1e-9)
-    np.testing.assert_allclose(lrmate.fk(rep.q[-1])[:3, :3], R[-1], atol=2e-3)
-    np.testing.assert_allclose(lrmate.fk(rep.q[-1])[:3, 3], P[-1], atol=1e-3)
+    np.testing.assert_allclose(lrmate.fk(rep.trajectory.q[-1])[:3, :3], R[-1], atol=2e-3)
+    np.testing.assert_allclose(lrmate.fk(rep.trajectory.q[-1])[:3, 3], P[-1], atol=1e-3)

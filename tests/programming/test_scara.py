@@ -5,8 +5,16 @@ import numpy as np
 import pytest
 
 from robointel.errors import InvalidInput
-from robointel.programming.scara import (ARPredictor, ComputedTorqueLQ, KalmanPredictor, arm_angles, double_integrator,
-                                         fit_predictor, lq_gain, simulate_scara)
+from robointel.programming.scara import (
+    ARPredictor,
+    ComputedTorqueLQ,
+    KalmanPredictor,
+    arm_angles,
+    double_integrator,
+    fit_predictor,
+    lq_gain,
+    simulate_scara,
+)
 from robointel.programming.skeleton import read_bvh, read_kinect_csv, synthetic_wave, synthetic_wave_bvh
 from robointel.robot import Robot
 
@@ -253,3 +261,51 @@ def test_feasible_reference_rejects_bad_settings(scara):
     for kw in ({"margin": 0.0}, {"margin": 1.5}, {"jerk_time": 0.0}, {"mode": "torque"}, {"coupling": "none"}):
         with pytest.raises(InvalidInput):
             FeasibleReference(scara, **kw)
+
+
+def test_settings_and_keyword_overrides_are_the_same_run(scara):
+    from robointel.programming.scara import ScaraSettings
+
+    sk = synthetic_wave(1.0, dropout_at=None)
+    a = simulate_scara(sk, ScaraSettings(latency=0.05, blend_time=0.05), robot=scara)
+    b = simulate_scara(sk, robot=scara, latency=0.05, blend_time=0.05)
+    assert np.array_equal(a.q, b.q) and a.latency == 0.05
+    with pytest.raises(InvalidInput):
+        simulate_scara(sk, robot=scara, latncy=0.1)                 # a misspelt setting is refused
+    with pytest.raises(InvalidInput):
+        ScaraSettings(latency=2.5)
+
+
+def test_recorded_angles_are_bridged_but_not_smoothed():
+    from robointel.programming.scara import human_reference, recorded_angles
+    from robointel.programming.skeleton import clean
+
+    sk = synthetic_wave(3.0, dropout_at=1.5)
+    raw = clean(sk, smooth=False)
+    idx = np.searchsorted(sk.t, raw.t - 1e-9).clip(0, sk.n - 1)
+    good = ~raw.bridged.any(axis=1) & (np.abs(sk.t[idx] - raw.t) < 1e-9)
+    assert good.sum() > 0.8 * len(raw.t)
+    assert np.allclose(raw.positions[good], sk.positions[idx[good]])  # the recording's own samples where it is good
+    assert raw.bridged.any() and np.all(np.isfinite(raw.positions))  # the dropout is bridged
+    t, q_rec = recorded_angles(sk)
+    t2, q_true, _ = human_reference(sk)
+    assert np.array_equal(t, t2)
+    assert 0 < np.sqrt(np.mean((q_rec - q_true) ** 2)) < 0.1          # same convention, differs by the smoothing
+
+
+def test_delay_aligned_rms_takes_the_known_delay_out(scara):
+    from dataclasses import replace
+
+    from robointel.programming.scara import delay_aligned_rms, recorded_angles
+
+    sk = synthetic_wave(3.0, dropout_at=None)
+    r0 = simulate_scara(sk, robot=scara, latency=0.1)
+    # a robot that were exactly the recorded motion 0.1 s late scores zero
+    t_h, q_rec = recorded_angles(sk)
+    late = np.stack([np.interp(r0.t - 0.1, t_h, q_rec[:, j]) for j in range(2)], axis=1)
+    assert np.allclose(delay_aligned_rms(replace(r0, q=late), sk, delay=0.1, robot=scara), 0.0, atol=1e-12)
+    # the live uncompensated robot lags by at least the latency: taking 0.1 s out brings it closer
+    aligned = delay_aligned_rms(r0, sk, delay=0.1, robot=scara)
+    assert np.all(aligned < r0.rms)
+    with pytest.raises(InvalidInput):
+        delay_aligned_rms(r0, sk, delay=-0.1, robot=scara)

@@ -5,8 +5,17 @@ import numpy as np
 import pytest
 
 from robointel.errors import DataMissing, InvalidInput
-from robointel.programming.skeleton import (KINECT_JOINTS, NOT_TRACKED, clean, detect_bad, load_skeleton,
-                                            read_bvh, read_kinect_csv, synthetic_wave, synthetic_wave_bvh)
+from robointel.programming.skeleton import (
+    KINECT_JOINTS,
+    NOT_TRACKED,
+    clean,
+    detect_bad,
+    load_skeleton,
+    read_bvh,
+    read_kinect_csv,
+    synthetic_wave,
+    synthetic_wave_bvh,
+)
 
 RECORDINGS = ["Ges01_wavehand", "Ges02_balancinghands", "Ges03_drawlines", "Ges04_comehere",
               "Ges05_demopoint", "Ges06_chickenwing", "joints"]

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from robointel.errors import InvalidInput
-from robointel.robot import Robot, SphereModel
+from robointel.robot import SphereModel
 
 
 def _sample_primitive(prim, rng, n=400):
@@ -39,7 +39,8 @@ def test_inflate_and_count(lrmate):
     base = SphereModel.from_robot(lrmate)
     fat = SphereModel.from_robot(lrmate, inflate=0.01)
     assert np.allclose(fat.radii, base.radii + 0.01)
-    assert len(SphereModel.from_robot(lrmate, count=3)) == 3 * sum(len(p) for p in lrmate.collision_primitives().values())
+    n_prims = sum(len(p) for p in lrmate.collision_primitives().values())
+    assert len(SphereModel.from_robot(lrmate, count=3)) == 3 * n_prims
 
 
 def test_edit_and_round_trip(lrmate):

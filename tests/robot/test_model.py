@@ -8,8 +8,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from robointel.errors import (DescriptionError, IKFailure, LimitViolation, NotFinite, ShapeError,
-                              UnknownRobot)
+from robointel.errors import DescriptionError, IKFailure, LimitViolation, NotFinite, ShapeError, UnknownRobot
 from robointel.robot import Robot
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from robointel.errors import NotFinite, ShapeError
+from robointel.errors import InvalidInput, NotFinite, ShapeError
 from robointel.robot import Robot
 from robointel.sim.flexible import FlexibleJointModel, FlexibleJointParams
 
@@ -116,7 +116,7 @@ def test_bad_input(lrmate):
         flex.step([np.nan] * 6)
     with pytest.raises(ShapeError):
         flex.step(np.zeros(3))
-    with pytest.raises(Exception):
+    with pytest.raises(InvalidInput):
         FlexibleJointParams.lrmate(stiffness=-1.0).checked(6)
 
 
@@ -149,5 +149,5 @@ def test_joint_controller_on_the_flexible_arm(lrmate):
             np.testing.assert_allclose(flex.q - q_end, sag, atol=2e-6)
             assert np.abs(sag).max() > 1e-4
             np.testing.assert_allclose(flex.theta, q_end, atol=1e-6)
-    with pytest.raises(Exception):
+    with pytest.raises(InvalidInput):
         flex.track(ctl, q_end, measure="elbow")

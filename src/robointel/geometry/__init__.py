@@ -8,13 +8,13 @@ Robot distances: :func:`sphere_distances`, :func:`sphere_distances_batch`, :func
 from robointel.geometry import rotations
 from robointel.geometry.distance import (
     ClosestPairs,
-    closest_pairs,
     Collision,
     MinDistance,
     ObstacleSet,
     SelfDistance,
     SphereDistances,
     check_collision_free,
+    closest_pairs,
     in_collision,
     min_distance,
     self_collision_distance,

@@ -18,9 +18,14 @@ the axis (where every radial direction is equally valid).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
+from numpy.typing import NDArray
+
+#: any numpy array (the compiled kernels take contiguous float64/int64/bool arrays)
+Arr = NDArray[Any]
 
 SPHERE, CAPSULE, CYLINDER, BOX = 0, 1, 2, 3
 NPARAM = 16
@@ -28,7 +33,8 @@ _EPS = 1e-12
 
 
 @njit(cache=True, inline="always")
-def _one(t, p, x, y, z):
+def _one(t: int, p: Arr, x: float, y: float,
+         z: float) -> tuple[float, float, float, float, float, float, float]:
     """Signed distance of point (x, y, z) to primitive (t, p): (d, closest xyz, normal xyz)."""
     if t == SPHERE:
         vx, vy, vz = x - p[0], y - p[1], z - p[2]
@@ -121,7 +127,7 @@ def _one(t, p, x, y, z):
 
 
 @njit(cache=True)
-def point_distances(t, p, P):
+def point_distances(t: int, p: Arr, P: Arr) -> tuple[Arr, Arr, Arr]:
     """Signed distances (m,), closest points (m, 3), normals (m, 3) of points P (m, 3)."""
     m = P.shape[0]
     d = np.empty(m)
@@ -133,7 +139,9 @@ def point_distances(t, p, P):
 
 
 @njit(cache=True)
-def sphere_pairs(C, J, radii, rows, types, params, cols, D, N, RP, OP, G):
+def sphere_pairs(C: Arr, J: Arr, radii: Arr, rows: Arr, types: Arr,
+                 params: Arr, cols: Arr, D: Arr, N: Arr, RP: Arr,
+                 OP: Arr, G: Arr) -> None:
     """Fill the outputs for all (robot sphere rows[ii], primitive j) pairs.
 
     C (M, 3) sphere centres; J (M, >=3, n) their Jacobians (first 3 rows linear); radii (M,);
@@ -156,7 +164,8 @@ def sphere_pairs(C, J, radii, rows, types, params, cols, D, N, RP, OP, G):
 
 
 @njit(cache=True, inline="always")
-def _rep_into(c, J, r, nrm, p, g, Jr):
+def _rep_into(c: Arr, J: Arr, r: float, nrm: Arr, p: Arr, g: Arr,
+              Jr: Arr) -> None:
     n = J.shape[1]
     nx, ny, nz = nrm[0], nrm[1], nrm[2]
     p[0], p[1], p[2] = c[0] - r * nx, c[1] - r * ny, c[2] - r * nz
@@ -170,7 +179,8 @@ def _rep_into(c, J, r, nrm, p, g, Jr):
 
 
 @njit(cache=True)
-def rep_terms(c, J, r, nrm):
+def rep_terms(c: Arr, J: Arr, r: float,
+              nrm: Arr) -> tuple[Arr, Arr, Arr]:
     """Closest robot point p = c - r n, gradient n^T J_v and J_rep = J_v - [p - c]x J_w (4.6).
 
     c (3,) sphere centre, J (6, n) its Jacobian [v; w], r radius, nrm (3,) unit normal.
@@ -184,9 +194,12 @@ def rep_terms(c, J, r, nrm):
 
 
 @njit(cache=True)
-def sphere_pairs_min(C, radii, rows, types, params):
-    """Minimum over all (sphere in rows, primitive) pairs: (d, i, j, closest (3,), normal (3,));
-    i (an index into C) = -1 when there is no pair."""
+def sphere_pairs_min(C: Arr, radii: Arr, rows: Arr, types: Arr,
+                     params: Arr) -> tuple[Any, ...]:
+    """Minimum over all (sphere in rows, primitive) pairs.
+
+    (d, i, j, closest (3,), normal (3,)); i (an index into C) = -1 when there is no pair.
+    """
     best = np.inf
     bi, bj = -1, -1
     bo = np.zeros(3)
@@ -205,11 +218,14 @@ def sphere_pairs_min(C, radii, rows, types, params):
 
 
 @njit(cache=True)
-def per_obstacle_min(C, J, radii, rows, types, params, cols, D, S, O, N, P, G, JR):
-    """For each primitive j (output column cols[j]), the closest robot sphere among ``rows``:
-    distance D, sphere S (index into C), obstacle point O, normal N, robot point P (.., 3),
-    gradient G (.., n) and J_rep JR (.., 3, n); J: (M, 6, n) [v; w]. Columns stay untouched when
-    there is no sphere."""
+def per_obstacle_min(C: Arr, J: Arr, radii: Arr, rows: Arr, types: Arr,
+                     params: Arr, cols: Arr, D: Arr, S: Arr, O: Arr,
+                     N: Arr, P: Arr, G: Arr, JR: Arr) -> None:
+    """For each primitive j (output column cols[j]), the closest robot sphere among ``rows``.
+
+    Distance D, sphere S (index into C), obstacle point O, normal N, robot point P (.., 3), gradient G (.., n) and
+    J_rep JR (.., 3, n); J: (M, 6, n) [v; w]. Columns stay untouched when there is no sphere.
+    """
     for j in range(types.shape[0]):
         c = cols[j]
         best = np.inf

@@ -1,5 +1,7 @@
-"""Robot-obstacle distances with exact gradients: the closest points and J_rep of Ch. 4 ((4.1)-(4.3),
-(4.6)) and the collision constraints d(x_t, O) >= d_min of the CFS planner (Ch. 7, (7.1)-(7.3)).
+"""Robot-obstacle distances with exact gradients.
+
+The closest points and J_rep of Ch. 4 ((4.1)-(4.3), (4.6)) and the collision constraints d(x_t, O) >= d_min of the
+CFS planner (Ch. 7, (7.1)-(7.3)).
 
 The robot is covered by spheres on control points (Fig. 4.2, :class:`robointel.robot.SphereModel`).
 For sphere i with centre c_i(q), radius r_i and obstacle k with signed distance field phi_k, the
@@ -16,15 +18,17 @@ point clouds by one k-d tree query each. One robot-kinematics pass per configura
 """
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Iterable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from robointel._validate import as_array
 from robointel.errors import CollisionAtStart, InvalidInput
 from robointel.geometry import _kernels as K
-from robointel.geometry.obstacles import Obstacle, PointCloud
+from robointel.geometry.obstacles import Box, Capsule, Cylinder, Obstacle, PointCloud, Sphere
 
 if TYPE_CHECKING:  # pragma: no cover
     from robointel.robot import Robot, SphereModel
@@ -58,14 +62,15 @@ class ObstacleSet:
         prim = [k for k, o in enumerate(obs) if not isinstance(o, PointCloud)]
         self.cols = np.array(prim, dtype=np.int64)
         self.types = np.array([obs[k]._code for k in prim], dtype=np.int64)
-        self.params = (np.array([obs[k]._packed for k in prim], dtype=float).reshape(-1, K.NPARAM))
+        packed = [obs[k]._packed for k in prim]  # type: ignore[attr-defined]  # every primitive packs its parameters
+        self.params = np.array(packed, dtype=np.float64).reshape(-1, K.NPARAM)
         self.clouds = [(k, o) for k, o in enumerate(obs) if isinstance(o, PointCloud)]
         self.labels = tuple(o.label(k) for k, o in enumerate(obs))
 
     def __len__(self) -> int:
         return len(self.obstacles)
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[Obstacle]:
         return iter(self.obstacles)
 
     def __getitem__(self, k: int) -> Obstacle:
@@ -75,7 +80,7 @@ class ObstacleSet:
 _CACHE: dict[tuple, tuple[tuple, ObstacleSet]] = {}
 
 
-def _obstacle_set(obstacles) -> ObstacleSet:
+def _obstacle_set(obstacles: Any) -> ObstacleSet:
     if isinstance(obstacles, ObstacleSet):
         return obstacles
     if isinstance(obstacles, Obstacle):
@@ -93,7 +98,7 @@ def _obstacle_set(obstacles) -> ObstacleSet:
     return s
 
 
-def _sphere_model(robot: "Robot", spheres: "SphereModel | None") -> "SphereModel":
+def _sphere_model(robot: Robot, spheres: SphereModel | None) -> SphereModel:
     s = robot.spheres if spheres is None else spheres
     if not hasattr(s, "kinematics") or not hasattr(s, "radii"):
         raise InvalidInput(f"spheres must be a robointel.robot.SphereModel, got {type(s).__name__}", value=s)
@@ -102,8 +107,10 @@ def _sphere_model(robot: "Robot", spheres: "SphereModel | None") -> "SphereModel
 
 @dataclass
 class SphereDistances:
-    """Distances between m robot spheres and k obstacles at one configuration (leading (T,) axis
-    added by :func:`sphere_distances_batch`).
+    """Distances between m robot spheres and k obstacles at one configuration.
+
+    Distances between m robot spheres and k obstacles at one configuration (leading (T,) axis added by
+    :func:`sphere_distances_batch`).
 
     Attributes:
         d: (m, k) signed surface-to-surface distances (m), negative when penetrating.
@@ -131,14 +138,15 @@ class SphereDistances:
         return int(i), int(k)
 
 
-def _rows(sm: "SphereModel", movable_only: bool) -> np.ndarray:
+def _rows(sm: SphereModel, movable_only: bool) -> np.ndarray:
     """Indices of the spheres to use: all, or those on links that move."""
     if movable_only:
         return np.flatnonzero(np.asarray(sm.movable, bool))
     return np.arange(len(sm.radii))
 
 
-def _fill(C, J, radii, rows, os_: ObstacleSet, D, N, RP, OP, G) -> None:
+def _fill(C: np.ndarray, J: np.ndarray, radii: np.ndarray, rows: np.ndarray, os_: ObstacleSet, D: np.ndarray,
+          N: np.ndarray, RP: np.ndarray, OP: np.ndarray, G: np.ndarray) -> None:
     """Fill the output arrays for the spheres ``rows`` of centres C (M,3), Jacobians J (M,>=3,n)."""
     if len(os_.types):
         K.sphere_pairs(C, J, radii, rows, os_.types, os_.params, os_.cols, D, N, RP, OP, G)
@@ -153,15 +161,16 @@ def _fill(C, J, radii, rows, os_: ObstacleSet, D, N, RP, OP, G) -> None:
         G[:, k] = np.einsum("mj,mjn->mn", nk, J[:, :3])
 
 
-def _alloc(m: int, k: int, n: int):
+def _alloc(m: int, k: int, n: int) -> tuple[NDArray[np.float64], ...]:
     return np.empty((m, k)), np.empty((m, k, 3)), np.empty((m, k, 3)), np.empty((m, k, 3)), np.empty((m, k, n))
 
 
-def sphere_distances(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = None, *,
+def sphere_distances(robot: Robot, q: ArrayLike, obstacles: Any, spheres: SphereModel | None = None, *,
                      movable_only: bool = False) -> SphereDistances:
-    """Signed distances, closest points and exact gradients between every robot sphere and every
-    obstacle at configuration ``q`` (n,) (d = phi(c(q)) - r,
-    dd/dq = n^T J; the collision constraints of (7.1)-(7.3)).
+    """Signed distances, closest points and exact gradients between every robot sphere and obstacle.
+
+    Signed distances, closest points and exact gradients between every robot sphere and every obstacle at
+    configuration ``q`` (n,) (d = phi(c(q)) - r, dd/dq = n^T J; the collision constraints of (7.1)-(7.3)).
 
     Args:
         robot: the robot (its :attr:`spheres` are used unless ``spheres`` is given).
@@ -183,11 +192,14 @@ def sphere_distances(robot: "Robot", q, obstacles, spheres: "SphereModel | None"
     return SphereDistances(D, G, N, RP, OP, rows, os_.obstacles)
 
 
-def sphere_distances_batch(robot: "Robot", Q, obstacles, spheres: "SphereModel | None" = None, *,
+def sphere_distances_batch(robot: Robot, Q: ArrayLike, obstacles: Any, spheres: SphereModel | None = None, *,
                            movable_only: bool = False) -> SphereDistances:
-    """:func:`sphere_distances` at T configurations ``Q`` (T, n) in one compiled call (CFS
-    collision constraints at all time steps, Ch. 7). Results carry a leading (T,) axis:
-    d (T, m, k), grad (T, m, k, n), normals/points (T, m, k, 3); ``spheres`` stays (m,)."""
+    """:func:`sphere_distances` at T configurations ``Q`` (T, n) in one compiled call.
+
+    :func:`sphere_distances` at T configurations ``Q`` (T, n) in one compiled call (CFS collision constraints at all
+    time steps, Ch. 7). Results carry a leading (T,) axis: d (T, m, k), grad (T, m, k, n), normals/points (T, m, k,
+    3); ``spheres`` stays (m,).
+    """
     sm = _sphere_model(robot, spheres)
     os_ = _obstacle_set(obstacles)
     Q = as_array(Q, "Q", (None, robot.nq))
@@ -244,7 +256,7 @@ class MinDistance:
     jacobian: np.ndarray
 
 
-def _cloud_min(os_: ObstacleSet, C, radii, rows, best):
+def _cloud_min(os_: ObstacleSet, C: np.ndarray, radii: np.ndarray, rows: np.ndarray, best: Any) -> Any:
     """Update ``best`` = (d, i, k, o, n) with the point clouds (i indexes C)."""
     for k, cloud in os_.clouds:
         dk, ok, nk = cloud.distance(C[rows])
@@ -255,11 +267,13 @@ def _cloud_min(os_: ObstacleSet, C, radii, rows, best):
     return best
 
 
-def min_distance(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = None, *,
+def min_distance(robot: Robot, q: ArrayLike, obstacles: Any, spheres: SphereModel | None = None, *,
                  movable_only: bool = False) -> MinDistance:
-    """Minimum signed distance between the robot spheres and the obstacles at ``q`` (n,), with the
-    closest pair, the gradient (n,) and J_rep (3, n) of the closest robot point (Ch. 4: the distance and
-    repulsive direction of (4.1)-(4.3), J_rep of (4.6)).
+    """Minimum signed distance between the robot spheres and the obstacles at ``q`` (n,).
+
+    Minimum signed distance between the robot spheres and the obstacles at ``q`` (n,), with the closest pair, the
+    gradient (n,) and J_rep (3, n) of the closest robot point (Ch. 4: the distance and repulsive direction of
+    (4.1)-(4.3), J_rep of (4.6)).
 
     With no obstacles (or no spheres) the distance is ``inf`` and indices are -1.
     """
@@ -279,14 +293,16 @@ def min_distance(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = N
     if i < 0:
         z = np.zeros(3)
         return MinDistance(np.inf, -1, "", -1, "", z, z.copy(), z.copy(), np.zeros(n), np.zeros((3, n)))
+    assert o is not None and nrm is not None
     p, g, Jrep = K.rep_terms(C[i], J[i], radii[i], nrm)
     return MinDistance(float(d), int(i), sm.links[i], k, os_.labels[k], p, o, nrm, g, Jrep)
 
 
 @dataclass
 class ClosestPairs:
-    """For each of k obstacles, its closest robot sphere at one configuration: one repulsive
-    constraint per obstacle (the QP (4.11) of Ch. 4, with J_rep (4.6) of each closest point).
+    """For each of k obstacles, its closest robot sphere at one configuration.
+
+    One repulsive constraint per obstacle (the QP (4.11) of Ch. 4, with J_rep (4.6) of each closest point).
 
     Attributes:
         distance: (k,) signed surface distances (m); ``inf`` where there is no robot sphere.
@@ -316,10 +332,13 @@ class ClosestPairs:
                            self.jacobian[k])
 
 
-def closest_pairs(robot: "Robot", q, obstacles, spheres: "SphereModel | None" = None, *,
+def closest_pairs(robot: Robot, q: ArrayLike, obstacles: Any, spheres: SphereModel | None = None, *,
                   movable_only: bool = False) -> ClosestPairs:
-    """For every obstacle, the closest robot sphere at ``q`` (n,) with distance, closest points,
-    normal, gradient and J_rep (4.6): the per-obstacle constraints of the guidance QP (4.11)."""
+    """For every obstacle, the closest robot sphere at ``q`` (n,).
+
+    For every obstacle, the closest robot sphere at ``q`` (n,) with distance, closest points, normal, gradient and
+    J_rep (4.6): the per-obstacle constraints of the guidance QP (4.11).
+    """
     sm = _sphere_model(robot, spheres)
     os_ = _obstacle_set(obstacles)
     C, J = sm.kinematics(q, angular=True)
@@ -362,7 +381,7 @@ class SelfDistance:
     gradient: np.ndarray
 
 
-def self_collision_distance(robot: "Robot", q, spheres: "SphereModel | None" = None) -> SelfDistance:
+def self_collision_distance(robot: Robot, q: ArrayLike, spheres: SphereModel | None = None) -> SelfDistance:
     """Minimum signed distance over the robot's self-collision sphere pairs, with its gradient."""
     sm = _sphere_model(robot, spheres)
     C, J = sm.kinematics(q)
@@ -406,6 +425,7 @@ class Collision:
 
     @property
     def message(self) -> str:
+        """Human-readable verdict naming the closest link and obstacle."""
         if not np.isfinite(self.distance):
             return "no obstacles to collide with"
         what = "penetrates" if self.distance < 0 else ("is within the margin of" if self.colliding else "clears")
@@ -413,10 +433,13 @@ class Collision:
                 f"margin {self.margin * 1e3:.1f} mm)")
 
 
-def in_collision(robot: "Robot", q, obstacles, margin: float = 0.0, *, spheres: "SphereModel | None" = None,
+def in_collision(robot: Robot, q: ArrayLike, obstacles: Any, margin: float = 0.0, *, spheres: SphereModel | None = None,
                  self_collision: bool = False) -> Collision:
-    """Is any robot sphere closer than ``margin`` (m) to an obstacle (or, with ``self_collision``,
-    to a non-adjacent link)? The result is truthy when colliding and names link and obstacle."""
+    """Whether any robot sphere is closer than ``margin`` (m) to an obstacle or (optionally) another link.
+
+    Is any robot sphere closer than ``margin`` (m) to an obstacle (or, with ``self_collision``, to a non-adjacent
+    link)? The result is truthy when colliding and names link and obstacle.
+    """
     margin = float(as_array(margin, "margin", ()))
     md = min_distance(robot, q, obstacles, spheres)
     res = Collision(md.distance < margin, md.distance, md.link, md.obstacle, md.obstacle_name, margin)
@@ -427,8 +450,9 @@ def in_collision(robot: "Robot", q, obstacles, margin: float = 0.0, *, spheres: 
     return res
 
 
-def check_collision_free(robot: "Robot", q, obstacles, margin: float = 0.0, *, what: str = "start configuration",
-                         spheres: "SphereModel | None" = None, self_collision: bool = False) -> Collision:
+def check_collision_free(robot: Robot, q: ArrayLike, obstacles: Any, margin: float = 0.0, *,
+                         what: str = "start configuration", spheres: SphereModel | None = None,
+                         self_collision: bool = False) -> Collision:
     """Raise :class:`CollisionAtStart` naming link and obstacle when ``q`` is in collision.
 
     Returns the (non-colliding) :class:`Collision` result otherwise.
@@ -441,12 +465,13 @@ def check_collision_free(robot: "Robot", q, obstacles, margin: float = 0.0, *, w
 
 
 def warmup() -> None:
-    """Compile (or load from numba's on-disk cache) every distance kernel now, so that the first
-    call inside a control loop does not pay the compilation (about a second per kernel, once)."""
-    from robointel.geometry.obstacles import Box, Capsule, Cylinder, Sphere
+    """Compile (or load from numba's on-disk cache) every distance kernel now.
 
-    prims = [Sphere([0, 0, 0], 0.1), Capsule([0, 0, 0], [0, 0, 1], 0.1), Cylinder([0, 0, 0], [0, 0, 1], 0.1),
-             Box([0, 0, 0], [1, 1, 1])]
+    Compile (or load from numba's on-disk cache) every distance kernel now, so that the first call inside a control
+    loop does not pay the compilation (about a second per kernel, once).
+    """
+    z, e = np.zeros(3), np.array([0.0, 0.0, 1.0])
+    prims = [Sphere(z, 0.1), Capsule(z, e, 0.1), Cylinder(z, e, 0.1), Box(z, np.ones(3))]
     os_ = ObstacleSet(prims)
     C = np.zeros((2, 3))
     radii = np.full(2, 0.05)

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 from robointel._validate import as_array
@@ -30,20 +31,20 @@ __all__ = ["Obstacle", "Sphere", "Capsule", "Cylinder", "Box", "PointCloud", "ob
            "OBSTACLE_TYPES"]
 
 
-def _vec3(x, name: str) -> np.ndarray:
+def _vec3(x: ArrayLike, name: str) -> np.ndarray:
     a = as_array(x, name, (3,)).copy()
     a.flags.writeable = False
     return a
 
 
-def _positive(x, name: str) -> float:
+def _positive(x: ArrayLike, name: str) -> float:
     v = float(as_array(x, name, ()))
     if not v > 0.0:
         raise InvalidInput(f"{name} must be positive (metres), got {v!r}", value=x)
     return v
 
 
-def _points(points) -> np.ndarray:
+def _points(points: ArrayLike) -> np.ndarray:
     P = np.asarray(points, float) if not isinstance(points, np.ndarray) else points
     if P.ndim == 1 and P.shape == (3,):
         P = P[None]
@@ -74,7 +75,7 @@ class Obstacle:
             object.__setattr__(self, k, v)
 
     # geometry ---------------------------------------------------------------
-    def distance(self, points) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def distance(self, points: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Signed distance of ``points`` (m, 3) (or one point (3,)) to the surface.
 
         Returns:
@@ -82,28 +83,30 @@ class Obstacle:
             unit vectors from the obstacle toward the points (the gradient of d).
         """
         P = _points(points)
-        return K.point_distances(self._code, self._packed, P)
+        return K.point_distances(self._code, self._packed, P)  # type: ignore[attr-defined]  # every subclass packs
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Axis-aligned bounding box (lower (3,), upper (3,)) in metres."""
         raise NotImplementedError  # pragma: no cover
 
     # moving -----------------------------------------------------------------
-    def transformed(self, T) -> "Obstacle":
+    def transformed(self, T: ArrayLike) -> Obstacle:
         """The shape moved by the rigid transform ``T`` (4x4, applied in the world frame)."""
         raise NotImplementedError  # pragma: no cover
 
-    def translated(self, offset) -> "Obstacle":
+    def translated(self, offset: ArrayLike) -> Obstacle:
         """The shape shifted by ``offset`` (3,) metres."""
         T = np.eye(4)
         T[:3, 3] = as_array(offset, "offset", (3,))
         return self.transformed(T)
 
-    def moved(self, center) -> "Obstacle":
-        """The shape translated so that its reference point ``center`` (the centre of a sphere or
-        box, the axis mid-point of a capsule or cylinder, the centroid of a point cloud) is at
-        ``center`` (3,)."""
-        return self.translated(as_array(center, "center", (3,)) - self.center)
+    def moved(self, center: ArrayLike) -> Obstacle:
+        """The shape translated so that its reference point is at ``center`` (3,), m.
+
+        The shape translated so that its reference point ``center`` (the centre of a sphere or box, the axis
+        mid-point of a capsule or cylinder, the centroid of a point cloud) is at ``center`` (3,).
+        """
+        return self.translated(as_array(center, "center", (3,)) - self.center)  # type: ignore[attr-defined]
 
     # files ------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -111,7 +114,7 @@ class Obstacle:
         d: dict[str, Any] = {"type": self.type}
         d.update({k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in self._fields().items()})
         if getattr(self, "name", None) is not None:
-            d["name"] = self.name
+            d["name"] = self.name  # type: ignore[attr-defined]
         return d
 
     def _fields(self) -> dict[str, Any]:  # pragma: no cover - overridden
@@ -125,7 +128,7 @@ class Obstacle:
         return self.type if index is None else f"{self.type}[{index}]"
 
 
-def _rigid(T) -> tuple[np.ndarray, np.ndarray]:
+def _rigid(T: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     T = as_array(T, "T", (4, 4))
     return check_rotation(T[:3, :3], "T[:3, :3]"), T[:3, 3].copy()
 
@@ -150,14 +153,16 @@ class Sphere(Obstacle):
         p.flags.writeable = False
         object.__setattr__(self, "_packed", p)
 
-    def bounds(self):
+    def bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Axis-aligned bounding box (lower (3,), upper (3,)) in metres."""
         return self.center - self.radius, self.center + self.radius
 
-    def transformed(self, T) -> "Sphere":
+    def transformed(self, T: ArrayLike) -> Sphere:
+        """The shape moved by the rigid transform ``T`` (4, 4)."""
         R, t = _rigid(T)
         return replace(self, center=R @ self.center + t)
 
-    def _fields(self):
+    def _fields(self) -> dict[str, Any]:
         return {"center": self.center, "radius": self.radius}
 
 
@@ -193,16 +198,19 @@ class Capsule(Obstacle):
 
     @property
     def center(self) -> np.ndarray:
+        """Reference point (3,), m: the axis mid-point (the centroid for a point cloud)."""
         return (self.a + self.b) / 2
 
-    def bounds(self):
+    def bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Axis-aligned bounding box (lower (3,), upper (3,)) in metres."""
         return np.minimum(self.a, self.b) - self.radius, np.maximum(self.a, self.b) + self.radius
 
-    def transformed(self, T) -> "Capsule":
+    def transformed(self, T: ArrayLike) -> Capsule:
+        """The shape moved by the rigid transform ``T`` (4, 4)."""
         R, t = _rigid(T)
         return replace(self, a=R @ self.a + t, b=R @ self.b + t)
 
-    def _fields(self):
+    def _fields(self) -> dict[str, Any]:
         return {"a": self.a, "b": self.b, "radius": self.radius}
 
 
@@ -246,25 +254,30 @@ class Cylinder(Obstacle):
 
     @property
     def center(self) -> np.ndarray:
+        """Reference point (3,), m: the axis mid-point (the centroid for a point cloud)."""
         return (self.a + self.b) / 2
 
-    def bounds(self):
+    def bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Axis-aligned bounding box (lower (3,), upper (3,)) in metres."""
         u = self._packed[3:6]
         ext = self.radius * np.sqrt(np.clip(1.0 - u * u, 0.0, None))  # disc extent per axis
         return np.minimum(self.a, self.b) - ext, np.maximum(self.a, self.b) + ext
 
-    def transformed(self, T) -> "Cylinder":
+    def transformed(self, T: ArrayLike) -> Cylinder:
+        """The shape moved by the rigid transform ``T`` (4, 4)."""
         R, t = _rigid(T)
         return replace(self, a=R @ self.a + t, b=R @ self.b + t)
 
-    def _fields(self):
+    def _fields(self) -> dict[str, Any]:
         return {"a": self.a, "b": self.b, "radius": self.radius}
 
 
 @dataclass(frozen=True, eq=False)
 class Box(Obstacle):
-    """Oriented box: ``center`` (3,), full edge lengths ``size`` (3,) m, ``rotation`` (3x3) of the
-    box axes in the world frame."""
+    """Oriented box.
+
+    ``center`` (3,), full edge lengths ``size`` (3,) m, ``rotation`` (3x3) of the box axes in the world frame.
+    """
 
     center: np.ndarray
     size: np.ndarray
@@ -301,15 +314,17 @@ class Box(Obstacle):
         T[:3, :3], T[:3, 3] = self.rotation, self.center
         return T
 
-    def bounds(self):
+    def bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Axis-aligned bounding box (lower (3,), upper (3,)) in metres."""
         ext = np.abs(self.rotation) @ (self.size / 2)
         return self.center - ext, self.center + ext
 
-    def transformed(self, T) -> "Box":
+    def transformed(self, T: ArrayLike) -> Box:
+        """The shape moved by the rigid transform ``T`` (4, 4)."""
         R, t = _rigid(T)
         return replace(self, center=R @ self.center + t, rotation=R @ self.rotation)
 
-    def _fields(self):
+    def _fields(self) -> dict[str, Any]:
         f: dict[str, Any] = {"center": self.center, "size": self.size}
         if not np.allclose(self.rotation, np.eye(3), atol=0.0):
             f["rotation"] = self.rotation
@@ -318,9 +333,11 @@ class Box(Obstacle):
 
 @dataclass(frozen=True, eq=False)
 class PointCloud(Obstacle):
-    """Points (N, 3), each inflated by ``radius`` >= 0 (m); distance to the nearest point minus
-    ``radius`` (a k-d tree query, :class:`scipy.spatial.cKDTree`). Inside a ball the value is the
-    depth below that ball's surface (exact outside the union of balls, conservative inside)."""
+    """Points (N, 3), each inflated by ``radius`` >= 0 (m).
+
+    Distance to the nearest point minus ``radius`` (a k-d tree query, :class:`scipy.spatial.cKDTree`). Inside a ball
+    the value is the depth below that ball's surface (exact outside the union of balls, conservative inside).
+    """
 
     points: np.ndarray
     radius: float = 0.0
@@ -342,7 +359,8 @@ class PointCloud(Obstacle):
         object.__setattr__(self, "radius", r)
         object.__setattr__(self, "tree", cKDTree(P))
 
-    def distance(self, points):
+    def distance(self, points: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """Signed distances (m,), closest points (m, 3) and normals (m, 3) of ``points`` (m, 3), m."""
         P = _points(points)
         dist, idx = self.tree.query(P)
         near = self.points[idx]
@@ -355,16 +373,19 @@ class PointCloud(Obstacle):
 
     @property
     def center(self) -> np.ndarray:
+        """Reference point (3,), m: the axis mid-point (the centroid for a point cloud)."""
         return self.points.mean(0)
 
-    def bounds(self):
+    def bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Axis-aligned bounding box (lower (3,), upper (3,)) in metres."""
         return self.points.min(0) - self.radius, self.points.max(0) + self.radius
 
-    def transformed(self, T) -> "PointCloud":
+    def transformed(self, T: ArrayLike) -> PointCloud:
+        """The shape moved by the rigid transform ``T`` (4, 4)."""
         R, t = _rigid(T)
         return replace(self, points=self.points @ R.T + t)
 
-    def _fields(self):
+    def _fields(self) -> dict[str, Any]:
         return {"points": self.points, "radius": self.radius}
 
 

@@ -20,21 +20,76 @@ rewritten (their datasets keep their storage).
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable
+from typing import Any, Protocol
 
 import h5py
 import numpy as np
+from numpy.typing import NDArray
 
 from robointel.errors import DataMissing, InvalidInput
-from robointel.learning.demonstration import UNITS, Demonstration
+
+__all__ = ["SCHEMA", "UNITS", "VERSION", "DemonstrationFile", "DemonstrationLike", "DemonstrationRecord"]
 
 SCHEMA = "robointel.demonstrations"
 VERSION = 1
+#: the units attribute written with every demonstration
+UNITS = {"t": "s", "pose": "m (translation), rotation matrix (unitless)", "wrench": "N (force), N m (torque)"}
+
+
+class DemonstrationLike(Protocol):
+    """What :meth:`DemonstrationFile.append` reads (``robointel.learning.demonstration.Demonstration``)."""
+
+    @property
+    def t(self) -> NDArray[np.float64]: ...  # noqa: D102
+    @property
+    def pose(self) -> NDArray[np.float64]: ...  # noqa: D102
+    @property
+    def wrench(self) -> NDArray[np.float64]: ...  # noqa: D102
+    @property
+    def labels(self) -> NDArray[np.int64] | None: ...  # noqa: D102
+    @property
+    def action_names(self) -> tuple[str, ...]: ...  # noqa: D102
+    @property
+    def device(self) -> str: ...  # noqa: D102
+    @property
+    def name(self) -> str: ...  # noqa: D102
+    @property
+    def meta(self) -> dict[str, Any]: ...  # noqa: D102
+
+
+@dataclass
+class DemonstrationRecord:
+    """One stored demonstration as plain data (the schema above; not validated here).
+
+    Attributes:
+        t: (N,) time, s.
+        pose: (N, 4, 4) tool poses in the world frame, m.
+        wrench: (N, 6) wrench in the sensor frame, N and N m.
+        labels: (N,) action indices or None.
+        action_names: names the labels index into.
+        device: the recording device.
+        name: the group name.
+        meta: extra scalars.
+    """
+
+    t: NDArray[np.float64]
+    pose: NDArray[np.float64]
+    wrench: NDArray[np.float64]
+    labels: NDArray[np.int64] | None
+    action_names: tuple[str, ...] = ()
+    device: str = "hdd"
+    name: str = ""
+    meta: dict[str, Any] = field(default_factory=dict)
 
 
 class DemonstrationFile:
-    """An HDF5 file of demonstrations: ``append``, ``names``, ``load``, ``load_all``.
+    """An HDF5 file of demonstrations: ``append``, ``names``, ``load``, ``load_all`` (plain records).
+
+    The typed API (:class:`robointel.learning.demonstration.Demonstration` in and out) is
+    :func:`robointel.learning.demonstration.save_demonstrations` / ``load_demonstrations``.
 
     Args:
         path: the ``.h5`` file; created on first append.
@@ -48,7 +103,7 @@ class DemonstrationFile:
             raise InvalidInput(f"{self.path} is not a robointel demonstration file (schema attr "
                                f"{f.attrs.get('schema')!r}, want {SCHEMA!r})", value=str(self.path))
 
-    def append(self, demo: Demonstration, *, name: str | None = None) -> str:
+    def append(self, demo: DemonstrationLike, *, name: str | None = None) -> str:
         """Add one demonstration as a new group; returns its name.
 
         Raises:
@@ -76,7 +131,7 @@ class DemonstrationFile:
             g.attrs["order"] = len(root) - 1
         return name
 
-    def extend(self, demos: Iterable[Demonstration]) -> list[str]:
+    def extend(self, demos: Iterable[DemonstrationLike]) -> list[str]:
         """Append several demonstrations; returns their names."""
         return [self.append(d) for d in demos]
 
@@ -92,7 +147,7 @@ class DemonstrationFile:
     def __len__(self) -> int:
         return len(self.names())
 
-    def load(self, name: str) -> Demonstration:
+    def load(self, name: str) -> DemonstrationRecord:
         """Read one demonstration.
 
         Raises:
@@ -107,23 +162,22 @@ class DemonstrationFile:
                 raise DataMissing(f"no demonstration {name!r} in {self.path}", value=name)
             g = root[name]
             labels = g["labels"][()] if "labels" in g else None
-            return Demonstration.create(g["t"][()], g["pose"][()], g["wrench"][()], labels,
-                                        action_names=tuple(json.loads(g.attrs["action_names"])),
-                                        device=str(g.attrs["device"]), name=name,
-                                        meta=json.loads(g.attrs.get("meta", "{}")))
+            return DemonstrationRecord(g["t"][()], g["pose"][()], g["wrench"][()], labels,
+                                       action_names=tuple(json.loads(g.attrs["action_names"])),
+                                       device=str(g.attrs["device"]), name=name,
+                                       meta=json.loads(g.attrs.get("meta", "{}")))
 
-    def load_all(self) -> list[Demonstration]:
+    def load_all(self) -> list[DemonstrationRecord]:
         """All demonstrations in insertion order."""
         return [self.load(n) for n in self.names()]
 
 
-def save_demonstrations(path: str | Path, demos: Iterable[Demonstration]) -> DemonstrationFile:
-    """Append ``demos`` to the file at ``path`` (created if missing)."""
-    f = DemonstrationFile(path)
-    f.extend(demos)
-    return f
+# Transitional: commands/learning.py (another branch this session) imports save_demonstrations from
+# here; resolved lazily so that io imports no phase. The lead removes this after merging.
+def __getattr__(name: str) -> Any:
+    """Old import path of ``save_demonstrations`` / ``load_demonstrations`` (now in learning.demonstration)."""
+    if name in ("save_demonstrations", "load_demonstrations"):
+        import robointel.learning.demonstration as moved
 
-
-def load_demonstrations(path: str | Path) -> list[Demonstration]:
-    """Read every demonstration of the file at ``path``."""
-    return DemonstrationFile(path).load_all()
+        return getattr(moved, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.io import loadmat
 
 from robointel.errors import DataMissing, InvalidInput
 from robointel.io.reference import data_path
@@ -21,8 +22,11 @@ from robointel.io.reference import data_path
 
 @dataclass(frozen=True)
 class LasaShape:
-    """One LASA shape: ``t`` (7, 1000) s, ``pos``/``vel``/``acc`` (7, 1000, 2) in mm, mm/s, mm/s^2
-    (the data set's units), ``dt`` mean sample time (s)."""
+    """One LASA shape.
+
+    ``t`` (7, 1000) s, ``pos``/``vel``/``acc`` (7, 1000, 2) in mm, mm/s, mm/s^2 (the data set's units), ``dt`` mean
+    sample time (s).
+    """
 
     name: str
     dt: float
@@ -55,8 +59,6 @@ def load_lasa(name: str) -> LasaShape:
     Raises:
         InvalidInput: unknown shape name (the message lists the valid ones).
     """
-    from scipy.io import loadmat
-
     path = lasa_folder() / f"{name}.mat"
     if not path.exists():
         raise InvalidInput(f"unknown LASA shape {name!r}; choose one of {lasa_names(include_multi=True)}", value=name)
@@ -70,8 +72,11 @@ def load_lasa(name: str) -> LasaShape:
 
 @dataclass(frozen=True)
 class FTEpisodes:
-    """UCI robot-failure episodes of one learning problem: ``X`` (n, 15, 6) force/torque samples
-    (Fx Fy Fz Tx Ty Tz, raw integer sensor units), ``y`` (n,) integer labels into ``classes``."""
+    """UCI robot-failure episodes of one learning problem.
+
+    ``X`` (n, 15, 6) force/torque samples (Fx Fy Fz Tx Ty Tz, raw integer sensor units), ``y`` (n,) integer labels
+    into ``classes``.
+    """
 
     problem: str
     X: np.ndarray

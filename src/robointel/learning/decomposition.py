@@ -17,22 +17,31 @@ programming over the action order.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Any
 
 import numba
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from sklearn.metrics.pairwise import rbf_kernel
+from sklearn.svm import SVC
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput, ShapeError
 from robointel.learning.demonstration import Demonstration
 
+#: any numpy array (the compiled kernels take contiguous float64/int64/bool arrays)
+Arr = NDArray[Any]
+
 
 def demo_features(demo: Demonstration, *, smooth: int = 5) -> np.ndarray:
-    """Per-sample features (5.7) of a demonstration: vec(T) (12) with the position expressed in the
-    task frame (relative to the demonstration's final tool position, where the task completes),
-    wrench (6), tool linear velocity (3) and angular velocity (3) from smoothed finite differences.
-    Returns (N, 24)."""
+    """Per-sample features (5.7) of a demonstration.
+
+    Vec(T) (12) with the position expressed in the task frame (relative to the demonstration's final tool position,
+    where the task completes), wrench (6), tool linear velocity (3) and angular velocity (3) from smoothed finite
+    differences. Returns (N, 24).
+    """
     f = demo.features(wrench=True)
     f[:, 9:12] -= demo.position[-1]
     p = demo.position
@@ -50,7 +59,7 @@ def demo_features(demo: Demonstration, *, smooth: int = 5) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _windows(X, centers, w):
+def _windows(X: Arr, centers: Arr, w: int) -> Arr:
     n, f = X.shape
     out = np.empty((centers.shape[0], w, f))
     h = w // 2
@@ -62,9 +71,11 @@ def _windows(X, centers, w):
 
 
 @numba.njit(cache=True)
-def _warp_windows(W, R, band):
-    """DTW-align each window W[i] (w, F) onto the reference R (w, F) with a Sakoe-Chiba band; sample j
-    of the result is the mean of the window samples matched to R[j] (5.9)-(5.10)."""
+def _warp_windows(W: Arr, R: Arr, band: int) -> Arr:
+    """DTW-align each window W[i] (w, F) onto the reference R (w, F) with a Sakoe-Chiba band.
+
+    Sample j of the result is the mean of the window samples matched to R[j] (5.9)-(5.10).
+    """
     nw, w, f = W.shape
     out = np.zeros((nw, w, f))
     acc = np.empty((w, w))
@@ -121,9 +132,11 @@ def _warp_windows(W, R, band):
 
 
 def ordered_segmentation(scores: np.ndarray) -> np.ndarray:
-    """Split points (5.13): for scores (A, T) find 0 < b_1 <= ... <= b_{A-1} <= T maximising
-    sum_a sum_{b_a <= t < b_{a+1}} scores[a, t] (actions in order, each at least one step).
-    Returns the A-1 split indices (first step of actions 1..A-1)."""
+    """Split points (5.13).
+
+    For scores (A, T) find 0 < b_1 <= ... <= b_{A-1} <= T maximising sum_a sum_{b_a <= t < b_{a+1}} scores[a, t]
+    (actions in order, each at least one step). Returns the A-1 split indices (first step of actions 1..A-1).
+    """
     a_n, t_n = scores.shape
     if t_n < a_n:
         raise InvalidInput(f"{t_n} windows cannot hold {a_n} ordered actions")
@@ -155,8 +168,11 @@ def ordered_segmentation(scores: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Decomposition:
-    """Result for one demonstration: ``labels`` (N,) action per sample, ``splits`` (A-1,) sample index
-    of each action's first sample, ``scores`` (A, n_windows) and the window ``centers``."""
+    """Result for one demonstration.
+
+    ``labels`` (N,) action per sample, ``splits`` (A-1,) sample index of each action's first sample, ``scores`` (A,
+    n_windows) and the window ``centers``.
+    """
 
     labels: np.ndarray
     splits: np.ndarray
@@ -185,7 +201,7 @@ class ActionSegmenter:
         self.max_train_windows = int(max_train_windows)
         self.random_state = random_state
 
-    def _check_series(self, X, name):
+    def _check_series(self, X: ArrayLike, name: str) -> NDArray[np.float64]:
         X = as_array(X, name, (None, None))
         if hasattr(self, "n_features_") and X.shape[1] != self.n_features_:
             raise ShapeError(f"{name} has {X.shape[1]} features, the segmenter was trained on {self.n_features_}")
@@ -194,26 +210,24 @@ class ActionSegmenter:
                                "use a shorter window", value=X.shape[0])
         return X
 
-    def _descriptors(self, Xs, centers, a):
+    def _descriptors(self, Xs: np.ndarray, centers: np.ndarray, a: int) -> NDArray[np.float64]:
         W = _windows(Xs, centers, self.window)
         A = _warp_windows(W, self.references_[a], self.band)
         idx = np.linspace(0, self.window - 1, self.resample).round().astype(int)
         return A[:, idx].reshape(len(centers), self.resample * self.n_features_)
 
-    def _descriptor_all(self, Xs, centers):
+    def _descriptor_all(self, Xs: np.ndarray, centers: np.ndarray) -> NDArray[np.float64]:
         return np.concatenate([self._descriptors(Xs, centers, a) for a in range(self.n_actions_)], axis=1)
 
-    def fit(self, series: Sequence, labels: Sequence) -> "ActionSegmenter":
-        """Train on labelled demonstrations: ``series`` list of (N_i, F) features, ``labels`` list of
-        (N_i,) action indices 0..A-1 appearing in order.
+    def fit(self, series: Sequence, labels: Sequence) -> ActionSegmenter:
+        """Train on labelled demonstrations.
+
+        ``series`` list of (N_i, F) features, ``labels`` list of (N_i,) action indices 0..A-1 appearing in order.
 
         Raises:
             ShapeError: different feature dimensions or label lengths. NotFinite: NaN samples.
             InvalidInput: a window longer than a demonstration, an action never labelled.
         """
-        from sklearn.metrics.pairwise import rbf_kernel
-        from sklearn.svm import SVC
-
         if len(series) == 0 or len(series) != len(labels):
             raise InvalidInput("give as many label arrays as demonstrations (at least one)")
         dims = {np.shape(s)[1] if np.ndim(s) == 2 else -1 for s in series}
@@ -276,16 +290,16 @@ class ActionSegmenter:
         return self
 
     def _decision(self, D: np.ndarray) -> np.ndarray:
-        """One-vs-rest SVM decision values (n, A) of descriptors (n, P). Only the support vectors
-        enter an SVM's decision function, so only their kernel columns are evaluated (the others
-        multiply zero dual coefficients and are left at zero)."""
-        from sklearn.metrics.pairwise import rbf_kernel
+        """One-vs-rest SVM decision values (n, A) of descriptors (n, P).
 
+        Only the support vectors enter an SVM's decision function, so only their kernel columns are evaluated (the
+        others multiply zero dual coefficients and are left at zero).
+        """
         K = np.zeros((len(D), self.n_train_windows_))
         K[:, self.svm_.support_] = rbf_kernel(D, self.support_descriptors_, gamma=self.gamma_)
         return self.svm_.decision_function(K)
 
-    def score_map(self, X) -> tuple[np.ndarray, np.ndarray]:
+    def score_map(self, X: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Score map (5.12): (A, n_windows) SVM decision values and the window centres (n_windows,)."""
         if not hasattr(self, "svm_"):
             raise InvalidInput("the segmenter is not fitted; call fit first")
@@ -295,7 +309,7 @@ class ActionSegmenter:
         S = self._decision(self._descriptor_all(z, c)).T
         return S, c
 
-    def predict(self, X) -> Decomposition:
+    def predict(self, X: ArrayLike) -> Decomposition:
         """Decompose one demonstration (N, F) into the ordered actions (5.13)."""
         S, c = self.score_map(X)
         split_w = ordered_segmentation(S)

@@ -7,21 +7,26 @@ The same device is later mounted on the robot, so demonstration and reproduction
 """
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput, ShapeError
+from robointel.io.demonstrations import UNITS, DemonstrationFile, DemonstrationRecord
 
-UNITS = {"t": "s", "pose": "m (translation), rotation matrix (unitless)", "wrench": "N (force), N m (torque)"}
+__all__ = ["UNITS", "Demonstration", "load_demonstrations", "save_demonstrations"]
 
 
 @dataclass(frozen=True)
 class Demonstration:
-    """One demonstration: ``t`` (N,) s, ``pose`` (N, 4, 4) tool poses in the world frame (m),
-    ``wrench`` (N, 6) [fx, fy, fz, tx, ty, tz] in the sensor frame (N, N m), optional ``labels`` (N,)
-    integer action indices into ``action_names`` (-1 = unlabelled).
+    """One demonstration.
+
+    ``t`` (N,) s, ``pose`` (N, 4, 4) tool poses in the world frame (m), ``wrench`` (N, 6) [fx, fy, fz, tx, ty, tz]
+    in the sensor frame (N, N m), optional ``labels`` (N,) integer action indices into ``action_names`` (-1 =
+    unlabelled).
 
     Construct with :meth:`create` to validate shapes, monotonic time and finiteness.
     """
@@ -36,8 +41,9 @@ class Demonstration:
     meta: dict = field(default_factory=dict)
 
     @classmethod
-    def create(cls, t, pose, wrench, labels=None, *, action_names=(), device: str = "hdd", name: str = "",
-               meta: dict | None = None) -> "Demonstration":
+    def create(cls, t: np.ndarray, pose: np.ndarray, wrench: np.ndarray, labels: np.ndarray | None = None, *,
+               action_names: Sequence[str] = (), device: str = "hdd", name: str = "",
+               meta: dict | None = None) -> Demonstration:
         """Validated constructor.
 
         Raises:
@@ -85,3 +91,43 @@ class Demonstration:
             raise InvalidInput(f"demonstration {self.name!r} has no labels")
         k = np.flatnonzero(np.diff(self.labels) != 0) + 1
         return self.t[k]
+
+
+def save_demonstrations(path: str | Path, demos: Iterable[Demonstration]) -> DemonstrationFile:
+    """Append demonstrations to an HDF5 file (created if missing; the others are not rewritten).
+
+    Args:
+        path: The ``.h5`` file (schema in :mod:`robointel.io.demonstrations`).
+        demos: The demonstrations, stored under their names (or ``demo_NNNN``).
+
+    Returns:
+        The file.
+
+    Raises:
+        InvalidInput: a name is already stored or the file has another schema.
+    """
+    f = DemonstrationFile(path)
+    f.extend(demos)
+    return f
+
+
+def load_demonstrations(path: str | Path) -> list[Demonstration]:
+    """Read and validate every demonstration of an HDF5 file, in insertion order.
+
+    Args:
+        path: The ``.h5`` file.
+
+    Returns:
+        The demonstrations.
+
+    Raises:
+        DataMissing: the file does not exist.
+        InvalidInput, ShapeError, NotFinite: a stored demonstration is invalid.
+    """
+    return [_from_record(r) for r in DemonstrationFile(path).load_all()]
+
+
+def _from_record(r: DemonstrationRecord) -> Demonstration:
+    """Validated :class:`Demonstration` of a stored record."""
+    return Demonstration.create(r.t, r.pose, r.wrench, r.labels, action_names=r.action_names, device=r.device,
+                                name=r.name, meta=r.meta)

@@ -16,25 +16,30 @@ costs), so the two agree to rounding.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Any
 
 import numba
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput, ShapeError
 
+#: any numpy array (the compiled kernels take contiguous float64/int64/bool arrays)
+Arr = NDArray[Any]
+
 
 @numba.njit(cache=True, nogil=True)
-def _band(i, n, m, window):
+def _band(i: int, n: int, m: int, window: int) -> tuple[int, int]:
     lo = max(0, i - max(0, n - m) - window + 1)
     hi = min(m, i + max(0, m - n) + window)
     return lo, hi
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", boundscheck=False)
-def _dtw_distance_sq(a, b, window):
+def _dtw_distance_sq(a: Arr, b: Arr, window: int) -> float:
     """Two rolling rows in padded indexing: row[j + 1] = D(i, j), row[0] = D(i, -1)."""
     n, d = a.shape
     m = b.shape[0]
@@ -63,11 +68,11 @@ def _dtw_distance_sq(a, b, window):
             cur[j + 1] = left
             diag = up
         prev, cur = cur, prev
-    return prev[m]
+    return float(prev[m])
 
 
 @numba.njit(cache=True, nogil=True)
-def _dtw_matrix(a, b, window):
+def _dtw_matrix(a: Arr, b: Arr, window: int) -> tuple[Arr, Arr, Arr]:
     """Accumulated cost over the band, stored row-wise as (n, width) with column offset lo(i)."""
     n, d = a.shape
     m = b.shape[0]
@@ -101,7 +106,7 @@ def _dtw_matrix(a, b, window):
 
 
 @numba.njit(cache=True, nogil=True)
-def _get(acc, los, his, i, j):
+def _get(acc: Arr, los: Arr, his: Arr, i: int, j: int) -> float:
     if i < 0 or j < 0:
         return np.inf
     if j < los[i] or j >= his[i]:
@@ -110,7 +115,7 @@ def _get(acc, los, his, i, j):
 
 
 @numba.njit(cache=True, nogil=True)
-def _backtrack(acc, los, his, n, m):
+def _backtrack(acc: Arr, los: Arr, his: Arr, n: int, m: int) -> Arr:
     path = np.empty((n + m, 2), np.int64)
     i, j = n - 1, m - 1
     k = 0
@@ -139,7 +144,8 @@ def _backtrack(acc, los, his, n, m):
     return path[:k][::-1].copy()
 
 
-def _prep(a, b, window):
+def _prep(a: ArrayLike, b: ArrayLike,
+          window: int | None) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
     a = as_array(a, "a")
     b = as_array(b, "b")
     if a.ndim == 1:
@@ -163,11 +169,12 @@ def _prep(a, b, window):
     return np.ascontiguousarray(a), np.ascontiguousarray(b), w
 
 
-def dtw_distance(a, b, *, window: int | None = None) -> float:
+def dtw_distance(a: ArrayLike, b: ArrayLike, *, window: int | None = None) -> float:
     """DTW distance (5.1)-(5.4) between ``a`` (n, d) and ``b`` (m, d) (1-D series allowed).
 
     Args:
-        a, b: series; samples are compared with the Euclidean norm.
+        a: (n,) or (n, d) series; samples are compared with the Euclidean norm.
+        b: (m,) or (m, d) series of the same dimension d.
         window: Sakoe-Chiba band half-width r in samples (None = unconstrained).
 
     Returns:
@@ -182,14 +189,17 @@ def dtw_distance(a, b, *, window: int | None = None) -> float:
 
 @dataclass(frozen=True)
 class DTWResult:
-    """``distance`` (float) and warping ``path`` (K, 2) of index pairs (i into a, j into b), monotone,
-    from (0, 0) to (n-1, m-1)."""
+    """DTW distance and warping path.
+
+    ``distance`` (float) and warping ``path`` (K, 2) of index pairs (i into a, j into b), monotone, from (0, 0) to
+    (n-1, m-1).
+    """
 
     distance: float
     path: np.ndarray
 
 
-def dtw(a, b, *, window: int | None = None) -> DTWResult:
+def dtw(a: ArrayLike, b: ArrayLike, *, window: int | None = None) -> DTWResult:
     """DTW distance and warping path (5.5) between ``a`` (n, d) and ``b`` (m, d)."""
     a, b, w = _prep(a, b, window)
     acc, los, his = _dtw_matrix(a, b, w)
@@ -197,9 +207,10 @@ def dtw(a, b, *, window: int | None = None) -> DTWResult:
     return DTWResult(float(np.sqrt(acc[-1, b.shape[0] - 1 - los[-1]])), path)
 
 
-def warp_to(series, reference, *, window: int | None = None) -> np.ndarray:
-    """Warp ``series`` (n, d) onto the time axis of ``reference`` (m, d) (5.6): sample j of the
-    result is the mean of the series samples the warping path matches to reference sample j.
+def warp_to(series: ArrayLike, reference: ArrayLike, *, window: int | None = None) -> np.ndarray:
+    """Warp ``series`` (n, d) onto the time axis of ``reference`` (m, d) (5.6).
+
+    Sample j of the result is the mean of the series samples the warping path matches to reference sample j.
 
     Returns:
         (m, d) array (or (m,) for 1-D input).
@@ -239,7 +250,7 @@ def align(series: Sequence, reference: int | np.ndarray = 0, *, window: int | No
     dims = {a.shape[1] for a in arrs}
     if len(dims) != 1:
         raise ShapeError(f"demonstrations have different dimensions {sorted(dims)}", value=sorted(dims))
-    ref = arrs[int(reference)] if np.isscalar(reference) else as_array(reference, "reference")
+    ref = arrs[int(reference)] if np.isscalar(reference) else as_array(reference, "reference")  # type: ignore[arg-type]
     ref = ref[:, None] if ref.ndim == 1 else ref
     if ref.shape[1] != arrs[0].shape[1]:
         raise ShapeError(f"reference has dimension {ref.shape[1]}, series {arrs[0].shape[1]}")

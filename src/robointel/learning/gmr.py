@@ -1,5 +1,7 @@
-"""Skill model (5.14)-(5.17): a Gaussian mixture over [perception, policy] fitted by EM with k-means
-initialisation (scikit-learn's ``GaussianMixture``), and our Gaussian mixture regression.
+"""Skill model (5.14)-(5.17).
+
+A Gaussian mixture over [perception, policy] fitted by EM with k-means initialisation (scikit-learn's
+``GaussianMixture``), and our Gaussian mixture regression.
 
 The joint density of perception ``x`` and policy ``y`` is modelled as (5.14)
 
@@ -19,19 +21,24 @@ insertion; pose -> force for grinding).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
 from scipy.special import logsumexp
+from sklearn.mixture import GaussianMixture
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput, ShapeError
 
 
 def regularize_covariances(covariances: np.ndarray, *, min_eig: float = 1e-9) -> np.ndarray:
-    """Make each (d, d) covariance symmetric positive definite: eigenvalues below ``min_eig`` times
-    the largest (and at least ``min_eig``) are raised to it. A singular covariance is regularised,
-    not an error. Returns (K, d, d)."""
+    """Make each (d, d) covariance symmetric positive definite.
+
+    Eigenvalues below ``min_eig`` times the largest (and at least ``min_eig``) are raised to it. A singular
+    covariance is regularised, not an error. Returns (K, d, d).
+    """
     cov = np.array(covariances, dtype=float)
     cov = 0.5 * (cov + np.swapaxes(cov, -1, -2))
     w, v = np.linalg.eigh(cov)
@@ -75,7 +82,8 @@ class GaussianMixtureRegression:
         self.random_state = random_state
 
     @classmethod
-    def from_mixture(cls, priors, means, covariances, n_inputs: int) -> "GaussianMixtureRegression":
+    def from_mixture(cls, priors: ArrayLike, means: ArrayLike, covariances: ArrayLike,
+                     n_inputs: int) -> GaussianMixtureRegression:
         """A model from a given mixture; the first ``n_inputs`` dimensions are the perception ``x``."""
         priors = as_array(priors, "priors", (None,))
         k = priors.shape[0]
@@ -89,7 +97,7 @@ class GaussianMixtureRegression:
         self._set(priors, means, covariances, int(n_inputs))
         return self
 
-    def _set(self, priors, means, covariances, n_inputs):
+    def _set(self, priors: np.ndarray, means: np.ndarray, covariances: np.ndarray, n_inputs: int) -> None:
         self.priors_ = np.asarray(priors, float)
         self.means_ = np.asarray(means, float)
         self.covariances_ = regularize_covariances(covariances)
@@ -110,16 +118,16 @@ class GaussianMixtureRegression:
         self._c = _Conditional(ix, iy, chol, np.array(log_norm), np.array(coef),
                                regularize_covariances(np.array(cond)))
 
-    def fit(self, X, Y) -> "GaussianMixtureRegression":
-        """Fit the joint GMM (5.14)-(5.15) on perception ``X`` (n, dx) and policy ``Y`` (n, dy) by EM
-        with k-means initialisation.
+    def fit(self, X: ArrayLike, Y: ArrayLike) -> GaussianMixtureRegression:
+        """Fit the joint GMM (5.14)-(5.15) by EM with k-means initialisation.
+
+        Fit the joint GMM (5.14)-(5.15) on perception ``X`` (n, dx) and policy ``Y`` (n, dy) by EM with k-means
+        initialisation.
 
         Raises:
             ShapeError: X and Y of different lengths. NotFinite: NaN samples.
             InvalidInput: fewer samples than ``n_components`` (or than the joint dimension + 1 per component).
         """
-        from sklearn.mixture import GaussianMixture
-
         X = as_array(X, "X")
         Y = as_array(Y, "Y")
         X = X[:, None] if X.ndim == 1 else X
@@ -138,7 +146,7 @@ class GaussianMixtureRegression:
         self._set(gm.weights_, gm.means_, gm.covariances_, X.shape[1])
         return self
 
-    def _check(self, X):
+    def _check(self, X: ArrayLike) -> NDArray[np.float64]:
         if not hasattr(self, "_c"):
             raise InvalidInput("the model is not fitted; call fit(X, Y) first")
         X = as_array(X, "X")
@@ -147,7 +155,7 @@ class GaussianMixtureRegression:
             raise ShapeError(f"X must be (n, {self.n_inputs_}), got {X.shape}", value=X.shape)
         return X
 
-    def responsibilities(self, X) -> np.ndarray:
+    def responsibilities(self, X: ArrayLike) -> np.ndarray:
         """h_k(x) of (5.16): (n, K)."""
         X = self._check(X)
         c = self._c
@@ -157,7 +165,7 @@ class GaussianMixtureRegression:
             logp[:, k] = c.log_norm[k] - 0.5 * np.sum(z * z, axis=0)
         return np.exp(logp - logsumexp(logp, axis=1, keepdims=True))
 
-    def predict(self, X, *, return_cov: bool = False):
+    def predict(self, X: ArrayLike, *, return_cov: bool = False) -> Any:
         """Conditional mean (5.17) E[y|x] (n, dy), and with ``return_cov`` the covariance (n, dy, dy)."""
         X = self._check(X)
         c = self._c

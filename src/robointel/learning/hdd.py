@@ -14,9 +14,11 @@ removed), in the tool frame, torque about the sensor origin: [f (N), tau (N m)].
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robointel.errors import InvalidInput
 
@@ -26,17 +28,19 @@ GRAVITY = np.array([0.0, 0.0, -9.81])
 
 @dataclass(frozen=True)
 class Contact:
-    """Stiff contact settings for tight fits (Sec. 5.5): MuJoCo ``solref`` (time constant, damping
-    ratio), ``solimp`` (dmin, dmax, width (m), midpoint, power), friction coefficient, zero margin.
-    The impedance width must stay below the radial clearance so that the peg cannot sink into the
-    wall by more than a fraction of the gap."""
+    """Stiff contact settings for tight fits (Sec.
+
+    5.5): MuJoCo ``solref`` (time constant, damping ratio), ``solimp`` (dmin, dmax, width (m), midpoint, power),
+    friction coefficient, zero margin. The impedance width must stay below the radial clearance so that the peg
+    cannot sink into the wall by more than a fraction of the gap.
+    """
 
     solref: tuple[float, float] = (0.002, 1.0)
     solimp: tuple[float, float, float, float, float] = (0.9999, 0.99999, 5e-6, 0.5, 2.0)
     friction: float = 0.2
     margin: float = 0.0
 
-    def apply(self, geom) -> None:
+    def apply(self, geom: Any) -> None:
         """Set these parameters on an ``MjsGeom``."""
         geom.solref = list(self.solref)
         geom.solimp = list(self.solimp)
@@ -48,9 +52,12 @@ class Contact:
 
 @dataclass(frozen=True)
 class Tool:
-    """A round peg: ``radius`` (m), cylindrical ``length`` (m) with a hemispherical tip, mounted
-    ``offset`` (m) after the sensor along the tool z axis; ``mass`` (kg) of the tool after the sensor.
-    The tip point is at z = offset + length + radius."""
+    """A round peg.
+
+    ``radius`` (m), cylindrical ``length`` (m) with a hemispherical tip, mounted ``offset`` (m) after the sensor
+    along the tool z axis; ``mass`` (kg) of the tool after the sensor. The tip point is at z = offset + length +
+    radius.
+    """
 
     radius: float = 0.0127
     length: float = 0.06
@@ -74,10 +81,23 @@ class Tool:
         """Centre of mass in the tool frame (m)."""
         return np.array([0.0, 0.0, self.offset + 0.5 * self.length])
 
-    def add_to(self, body, contact: Contact, *, R_body_tool=np.eye(3), p_body_tool=np.zeros(3),
-               contype: int = 1, conaffinity: int = 2):
+    def add_to(self, body: Any, contact: Contact, *, R_body_tool: ArrayLike | None = None,
+               p_body_tool: ArrayLike | None = None, contype: int = 1, conaffinity: int = 2) -> Any:
         """Add the tool (a child body ``<name>`` with the sensor site and geoms) to an ``MjsBody``.
-        Returns the new body."""
+
+        Args:
+            body: The parent ``mujoco.MjsBody``.
+            contact: Contact parameters of the tool's geoms.
+            R_body_tool: (3, 3) tool orientation in the body frame (default identity).
+            p_body_tool: (3,) tool origin in the body frame, m (default 0).
+            contype: MuJoCo contact type bits of the geoms.
+            conaffinity: MuJoCo contact affinity bits of the geoms.
+
+        Returns:
+            The new ``MjsBody``.
+        """
+        R_body_tool = np.eye(3) if R_body_tool is None else R_body_tool
+        p_body_tool = np.zeros(3) if p_body_tool is None else np.asarray(p_body_tool, float)
         q = np.empty(4)
         mujoco.mju_mat2Quat(q, np.ascontiguousarray(R_body_tool, dtype=float).ravel())
         tb = body.add_body(name=self.name, pos=list(p_body_tool), quat=q)
@@ -129,8 +149,11 @@ class ToolFT:
         return T
 
     def wrench(self, data: mujoco.MjData, R: np.ndarray | None = None) -> np.ndarray:
-        """Environment wrench on the tool in the tool frame (6,) [f; tau about the sensor], from the
-        simulated F/T sensor with the tool's weight removed (static F/T compensation, Sec. 3.3)."""
+        """Environment wrench on the tool in the tool frame (6,) [f.
+
+        Tau about the sensor], from the simulated F/T sensor with the tool's weight removed (static F/T
+        compensation, Sec. 3.3).
+        """
         # MuJoCo reports the force the parent exerts on the tool body (site frame): quasi-statically
         # it balances the environment wrench and the tool's weight.
         R = data.site_xmat[self.site].reshape(3, 3) if R is None else R

@@ -4,33 +4,45 @@
   cost with nonlinear constraints of the three CFS cases (:class:`NonlinearConstraint`).
 - :class:`TrajectoryPlanner` -- collision-free joint trajectories through stop-by waypoints,
   (7.1)-(7.3), on the robot's collision spheres and :mod:`robointel.geometry` obstacles.
-- :func:`temporal_optimize` -- re-timing by CFS, (7.7)-(7.9).
-- :func:`plan_scene` / :func:`execute` -- the FRMP on a YAML scene, run in the MuJoCo workcell.
+- :func:`temporal_optimize` -- re-timing by CFS, (7.7)-(7.9), switched by :class:`TemporalSettings`.
+- :class:`Scene` / :func:`load_scene` -- planning scenes (YAML files, built-in ``table71``).
+- :func:`plan_scene` / :func:`execute` -- the FRMP on a scene, run in the MuJoCo workcell.
 - :func:`receding_horizon` -- warm-started replanning with a moving obstacle.
 - Baselines: :func:`slsqp`, :func:`slsqp_segment` (SQP), :func:`rrtconnect` (OMPL, dev extra).
 """
+
+
 from robointel.planning.cfs import CFSResult, NonlinearConstraint, cfs
-from robointel.planning.frmp import (Execution, FRMPResult, TrajectoryCheck, check_trajectory, execute,
-                                     make_planners, plan_scene, planner_settings)
+from robointel.planning.frmp import (
+    Execution,
+    FRMPResult,
+    TrajectoryCheck,
+    check_trajectory,
+    execute,
+    make_planners,
+    plan_scene,
+    planner_settings,
+)
+from robointel.planning.ompl_peer import OMPLResult, rrtconnect
 from robointel.planning.qp import DenseQP, SparseQP
 from robointel.planning.replan import ReplanResult, receding_horizon
+from robointel.planning.scene import Scene, builtin_scenes, load_scene, scene_from_dict
 from robointel.planning.sqp import SQPResult, slsqp, slsqp_segment
-from robointel.planning.temporal import TemporalResult, concatenate_segments, temporal_optimize
+from robointel.planning.temporal import (
+    TemporalResult,
+    TemporalSettings,
+    concatenate_segments,
+    fixed_dt_segment,
+    temporal_optimize,
+)
 from robointel.planning.trajectory import PlannerSettings, SegmentPlan, TrajectoryPlanner, straight_reference
-
-
-def rrtconnect(*args, **kwargs):
-    """OMPL RRTConnect + simplification peer (see :mod:`robointel.planning.ompl_peer`; needs ``ompl``)."""
-    from robointel.planning.ompl_peer import rrtconnect as _r
-
-    return _r(*args, **kwargs)
-
 
 __all__ = [
     "cfs", "CFSResult", "NonlinearConstraint", "SparseQP", "DenseQP",
     "TrajectoryPlanner", "PlannerSettings", "SegmentPlan", "straight_reference",
-    "temporal_optimize", "TemporalResult", "concatenate_segments",
+    "temporal_optimize", "TemporalResult", "TemporalSettings", "concatenate_segments", "fixed_dt_segment",
+    "Scene", "load_scene", "scene_from_dict", "builtin_scenes",
     "plan_scene", "execute", "check_trajectory", "make_planners", "planner_settings",
     "FRMPResult", "Execution", "TrajectoryCheck",
-    "receding_horizon", "ReplanResult", "slsqp", "slsqp_segment", "SQPResult", "rrtconnect",
+    "receding_horizon", "ReplanResult", "slsqp", "slsqp_segment", "SQPResult", "rrtconnect", "OMPLResult",
 ]

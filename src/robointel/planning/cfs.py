@@ -21,11 +21,13 @@ set: the iterates are feasible and the cost never increases once the reference i
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 
 from robointel._validate import as_array
 from robointel.errors import InfeasibleProblem, InvalidInput
@@ -95,6 +97,7 @@ class CFSResult:
 
     @property
     def converged(self) -> bool:
+        """Whether the stopping rule was met."""
         return self.status == "converged"
 
 
@@ -138,7 +141,7 @@ class _ConvexSet:
             if self.Hd is not None:
                 h = h - 0.5 * (self.Hd @ (rho * rho))
             else:
-                h = h + 0.5 * np.einsum("i,kij,j->k", rho, np.abs(self.H), rho)
+                h = h + 0.5 * np.einsum("i,kij,j->k", rho, np.abs(self.H), rho)  # type: ignore[arg-type]
         return self.G, h
 
     def curved_with(self, trust: bool) -> bool:
@@ -156,10 +159,10 @@ class _ConvexSet:
         return self.phi + self.G @ d + 0.5 * self._quad(d)
 
     def _quad(self, d: np.ndarray) -> np.ndarray:
-        """d' H*_i d for every i."""
+        """Quadratic terms d' H*_i d for every i."""
         if self.Hd is not None:
             return self.Hd @ (d * d)
-        return np.einsum("i,kij,j->k", d, self.H, d)
+        return np.einsum("i,kij,j->k", d, self.H, d)  # type: ignore[arg-type]
 
     def g_jac(self, z: np.ndarray) -> np.ndarray:
         if self.c.kind == "convex":
@@ -167,7 +170,7 @@ class _ConvexSet:
         d = z - self.z_r
         if self.Hd is not None:
             return self.G + self.Hd * d[None]
-        return self.G + np.einsum("kij,j->ki", self.H, d)
+        return self.G + np.einsum("kij,j->ki", self.H, d)  # type: ignore[arg-type]
 
     def max_step(self, d: np.ndarray, tol: float) -> float:
         """Largest alpha in [0, 1] with g(z_r + alpha d) >= 0 (F is convex and contains z_r)."""
@@ -199,17 +202,20 @@ class _ConvexSet:
         return lo
 
 
-def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None, u=None,
-        z0=None, eps: float = 1e-6, max_iter: int = 100, tol: float = 1e-9, max_cuts: int = 5,
-        keep_iterates: bool = False, qp: SparseQP | DenseQP | None = None,
-        trust=None, ftol: float = 0.0) -> CFSResult:
+def cfs(H: np.ndarray | sp.spmatrix, f: ArrayLike, *, constraints: Sequence[NonlinearConstraint] = (),
+        A: np.ndarray | sp.spmatrix | None = None,
+        l: np.ndarray | None = None, u: np.ndarray | None = None, z0: np.ndarray | None = None, eps: float = 1e-6,
+        max_iter: int = 100, tol: float = 1e-9, max_cuts: int = 5, keep_iterates: bool = False,
+        qp: SparseQP | DenseQP | None = None, trust: ArrayLike | None = None, ftol: float = 0.0) -> CFSResult:
     """Solve ``min 1/2 z'Hz + f'z  s.t. phi_i(z) >= 0, l <= Az <= u`` by CFS (Algorithm 2).
 
     Args:
         H: (n, n) positive definite cost Hessian (dense or sparse).
         f: (n,) linear cost term.
         constraints: nonlinear constraints, each tagged with its CFS case.
-        A, l, u: linear constraints (m, n), (m,), (m,); ``None`` for none.
+        A: (m, n) linear constraint matrix (dense or sparse); ``None`` for none.
+        l: (m,) lower bounds of ``A z`` (default -inf).
+        u: (m,) upper bounds of ``A z`` (default +inf).
         z0: (n,) initial guess (should be feasible for the nonlinear constraints; if it is not,
             the first iterations use plain linearisations until an iterate is feasible).
         eps: stop when ``||z(k+1) - z(k)|| <= eps`` ...
@@ -260,10 +266,10 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
                                     value=i)
     qp = qp or (DenseQP() if n <= 200 else SparseQP())
 
-    def cost(x):
+    def cost(x: np.ndarray) -> float:
         return float(0.5 * x @ (Hs @ x) + f @ x)
 
-    def violation(x):
+    def violation(x: np.ndarray) -> float:
         v = 0.0
         if A_lin.shape[0]:
             Ax = A_lin @ x
@@ -275,7 +281,7 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
     # linear-constraint violations of an OSQP solution are ~1e-6; judge them on that scale
     lin_tol = 1e-5
 
-    def feasible(x):
+    def feasible(x: np.ndarray) -> bool:
         ok = True
         if A_lin.shape[0]:
             Ax = A_lin @ x
@@ -290,12 +296,12 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
     status, it, qp_iters = "max_iter", 0, 0
     dense = isinstance(qp, DenseQP)
     if dense:
-        Hup = Hs.toarray() if sp.issparse(Hs) else Hs
+        Hup = Hs.toarray() if sp.issparse(Hs) else Hs  # type: ignore[union-attr]
         Hup = 0.5 * (Hup + Hup.T)
     else:
         Hup = sp.triu(sp.csc_matrix(Hs), format="csc")
-    A_dense = (A_lin.toarray() if sp.issparse(A_lin) else A_lin) if dense else None
-    qp_kw = {"full_P": True} if dense else {}
+    A_dense = (A_lin.toarray() if sp.issparse(A_lin) else A_lin) if dense else None  # type: ignore[union-attr,attr-defined]
+    qp_kw: dict[str, Any] = {"full_P": True} if dense else {}
     y_base = y_last = None
     use_trust = trust is not None and any(c.kind == "general" for c in constraints)
     if use_trust:
@@ -304,7 +310,7 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
             raise InvalidInput("trust radius must be positive and finite", value=trust)
         kappa = 1.0
         A_lin_all = sp.vstack([sp.csc_matrix(A_lin), sp.eye(n, format="csc")], format="csc")
-        A_dense = A_lin_all.toarray() if dense else None
+        A_dense = A_lin_all.toarray() if dense else None  # type: ignore[attr-defined]
     for it in range(1, max_iter + 1):
         sets = [_ConvexSet(c, z, tol) for c in constraints]
         G_rows, h_rows = [], []
@@ -317,11 +323,12 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
             A_cur, l_cur, u_cur = A_lin_all, np.concatenate([l_lin, z - rho]), np.concatenate([u_lin, z + rho])
         else:
             A_cur, l_cur, u_cur = A_lin, l_lin, u_lin
-        cuts_G, cuts_h = [], []
+        cuts_G: list[np.ndarray] = []
+        cuts_h: list[np.ndarray] = []
         z_new = None
         for _round in range(max_cuts + 1):
             if dense:
-                Ablk = np.vstack([A_dense] + G_rows + cuts_G)
+                Ablk = np.vstack([A_dense] + G_rows + cuts_G)  # type: ignore[operator,arg-type]
             else:
                 Ablk = sp.vstack([A_cur] + [sp.csc_matrix(G) for G in G_rows + cuts_G], format="csc")
             lo = np.concatenate([l_cur] + h_rows + cuts_h)
@@ -333,7 +340,7 @@ def cfs(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None
                     y0[:m_base] = y_base
                 if _round > 0 and y_last is not None:
                     y0[:y_last.size] = y_last
-                sol = qp.solve(Hup, f, Ablk, lo, up, x0=z, y0=y0, **qp_kw)
+                sol = qp.solve(Hup, f, Ablk, lo, up, x0=z, y0=y0, **qp_kw)  # type: ignore[call-arg]
             else:
                 sol = qp.solve(Hup, f, Ablk, lo, up, x0=z, **qp_kw)
             qp_iters += sol.iterations

@@ -1,18 +1,27 @@
-"""The fast robot motion planner (FRMP, Sec. 7.4): scene -> CFS path -> temporal optimization ->
-time-stamped trajectory -> checks on a dense resample -> execution in the MuJoCo workcell.
+"""The fast robot motion planner (FRMP, Sec.
+
+7.4): scene -> CFS path -> temporal optimization -> time-stamped trajectory -> checks on a dense resample ->
+execution in the MuJoCo workcell.
 """
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robointel.errors import InvalidInput
-from robointel.io.scene import Scene
-from robointel.io.trajectory import Trajectory
+from robointel.planning.scene import Scene
 from robointel.planning.temporal import TemporalResult, concatenate_segments, fixed_dt_segment, temporal_optimize
-from robointel.planning.trajectory import PlannerSettings, SegmentPlan, TrajectoryPlanner
+from robointel.planning.trajectory import PlannerSettings, SegmentPlan, TrajectoryPlanner, sphere_clearances
+from robointel.sim import Workcell
+from robointel.trajectory import Trajectory
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.robot import Robot
 
 
 @dataclass
@@ -37,11 +46,9 @@ class TrajectoryCheck:
     worst_obstacle: str = ""
 
 
-def check_trajectory(traj: Trajectory, robot, obstacles, vmax, amax, *, dt: float = 0.001,
-                     rtol: float = 1e-6) -> TrajectoryCheck:
+def check_trajectory(traj: Trajectory, robot: Robot, obstacles: Any, vmax: ArrayLike, amax: ArrayLike, *,
+                     dt: float = 0.001, rtol: float = 1e-6) -> TrajectoryCheck:
     """Resample ``traj`` every ``dt`` and check clearance and joint limits."""
-    from robointel.planning.trajectory import sphere_clearances
-
     dense = traj.resample(dt)
     q, qd, qdd = dense.q, dense.qd, dense.qdd
     vmax = np.asarray(vmax, float)
@@ -51,10 +58,10 @@ def check_trajectory(traj: Trajectory, robot, obstacles, vmax, amax, *, dt: floa
     viol = int(np.count_nonzero(np.any(bad, axis=1)))
     dmin, link, obs = np.inf, "", ""
     if len(obstacles):
-        best = (np.inf, 0, 0, 0)
+        best: tuple[float, int, int, int] = (np.inf, 0, 0, 0)
         for s in range(0, len(q), 4000):
             D = sphere_clearances(robot, q[s:s + 4000], obstacles)
-            i, j, k = np.unravel_index(int(np.argmin(D.d)), D.d.shape)
+            i, j, k = (int(x) for x in np.unravel_index(int(np.argmin(D.d)), D.d.shape))
             if D.d[i, j, k] < best[0]:
                 best = (float(D.d[i, j, k]), int(D.spheres[j]), k, s + i)
         dmin = best[0]
@@ -96,21 +103,26 @@ class FRMPResult:
 
     @property
     def blocked(self) -> list[bool]:
+        """Per segment: whether the straight path was in collision."""
         return [s.blocked for s in self.segments]
 
     @property
     def plan_ms(self) -> float:
+        """Total CFS time over all segments, ms."""
         return float(sum(self.cfs_ms))
 
     @property
     def operational_time_fixed(self) -> float:
+        """Cycle time of the fixed-dt schedule, s."""
         return self.fixed.duration
 
     @property
     def operational_time_frmp(self) -> float:
+        """Cycle time of the FRMP trajectory, s."""
         return self.trajectory.duration
 
     def summary(self) -> dict:
+        """The headline figures as a JSON-ready dict."""
         return {"scene": self.scene.name, "blocked": self.blocked, "cfs_ms": self.cfs_ms,
                 "cfs_iterations": self.cfs_iterations, "temporal_ms": self.temporal_ms,
                 "plan_ms": self.plan_ms, "operational_time_fixed_s": self.operational_time_fixed,
@@ -136,9 +148,11 @@ def make_planners(scene: Scene) -> dict[int, TrajectoryPlanner]:
 
 
 def plan_scene(scene: Scene, *, planners: dict[int, TrajectoryPlanner] | None = None,
-               progress=None) -> FRMPResult:
-    """Run the FRMP on a scene: check the waypoints, plan each segment by CFS, re-time each segment
-    by temporal optimization, join the segments and check the result on a 1 ms grid.
+               progress: Callable[[float, str], None] | None = None) -> FRMPResult:
+    """Run the FRMP on a scene.
+
+    Check the waypoints, plan each segment by CFS, re-time each segment by temporal optimization, join the segments
+    and check the result on a 1 ms grid.
 
     Raises:
         CollisionAtStart: a waypoint is in collision (names link and obstacle).
@@ -146,7 +160,8 @@ def plan_scene(scene: Scene, *, planners: dict[int, TrajectoryPlanner] | None = 
         InfeasibleProblem: a segment's first QP is infeasible (limits too tight for its steps).
     """
     if not isinstance(scene, Scene):
-        raise InvalidInput(f"plan_scene needs a Scene (robointel.io.scene.load_scene), got {type(scene).__name__}",
+        raise InvalidInput("plan_scene needs a Scene (robointel.planning.scene.load_scene), got "
+                           f"{type(scene).__name__}",
                            value=scene)
     planners = planners or make_planners(scene)
     first = planners[scene.steps[0]]
@@ -167,7 +182,7 @@ def plan_scene(scene: Scene, *, planners: dict[int, TrajectoryPlanner] | None = 
         temporal_ms.append((time.perf_counter() - t0) * 1e3)
         temps.append(tr)
         fixed_parts.append(fixed_dt_segment(seg.path, scene.dt))
-        frmp_parts.append((tr.t, tr.q, tr.qd, tr.qdd))
+        frmp_parts.append(tr.trajectory)
     names = list(scene.robot.joint_names)
     path = np.concatenate([segs[0].path] + [s.path[1:] for s in segs[1:]])
     traj = concatenate_segments(frmp_parts, names, {"scene": scene.name, "planner": "FRMP (CFS + temporal CFS)"})
@@ -203,14 +218,12 @@ class Execution:
     log: object
 
 
-def execute(result: FRMPResult, *, workcell=None) -> Execution:
+def execute(result: FRMPResult, *, workcell: Workcell | None = None) -> Execution:
     """Track the FRMP trajectory with the workcell's 1 kHz controller (Fig. 2.3) and report."""
-    from robointel.sim import Workcell
-
     scene = result.scene
     wc = workcell or Workcell(scene.robot, obstacles=scene.obstacles, ft_sensor=False)
     tr = result.trajectory
-    log = wc.run_trajectory(tr.t, tr.q, tr.qd, tr.qdd, record_ft=False)
+    log = wc.run_trajectory(tr, record_ft=False)
     err = log.error
     contacts = 0
     try:

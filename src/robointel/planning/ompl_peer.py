@@ -2,17 +2,23 @@
 
 Same robot spheres, same obstacles and the same clearance (``d_min + safety``) as the CFS planner:
 a configuration is valid when every movable sphere is at least that far from every obstacle
-(:func:`robointel.geometry.min_distance`, the compiled minimum over all pairs). Motions are checked by OMPL's discrete motion
+(:func:`robointel.geometry.min_distance`, the compiled minimum over all pairs). Motions are checked by OMPL's
+discrete motion
 validator at ``resolution`` (fraction of the joint-space extent). ``ompl`` is a dev extra.
 """
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from robointel.errors import RobointelError
+from robointel.geometry import min_distance
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.robot import Robot
 
 
 @dataclass
@@ -27,11 +33,13 @@ class OMPLResult:
 
     @property
     def total_ms(self) -> float:
+        """Planning plus simplification time, ms."""
         return self.plan_ms + self.simplify_ms
 
 
-def rrtconnect(robot, obstacles, start, goal, *, clearance: float, timeout: float = 10.0,
-               resolution: float = 0.005, simplify: bool = True, seed: int | None = 0) -> OMPLResult:
+def rrtconnect(robot: Robot, obstacles: Any, start: np.ndarray, goal: np.ndarray, *, clearance: float,
+               timeout: float = 10.0, resolution: float = 0.005, simplify: bool = True,
+               seed: int | None = 0) -> OMPLResult:
     """Plan from ``start`` to ``goal`` (n,) with OMPL's RRTConnect, then simplify the path."""
     try:
         from ompl import base as ob
@@ -39,7 +47,6 @@ def rrtconnect(robot, obstacles, start, goal, *, clearance: float, timeout: floa
         from ompl import util as ou
     except ImportError as exc:  # pragma: no cover - dev extra
         raise RobointelError(f"the OMPL peer needs the 'ompl' package (dev extra): {exc}") from None
-    from robointel.geometry import min_distance
 
     ou.setLogLevel(ou.LogLevel.LOG_NONE)
     if seed is not None:
@@ -56,7 +63,9 @@ def rrtconnect(robot, obstacles, start, goal, *, clearance: float, timeout: floa
     count = [0]
     q = np.empty(n)
 
-    def valid(s) -> bool:  # the fastest single-configuration check robointel has (compiled minimum)
+    # ``s`` stays unannotated: OMPL's bindings read the callback's annotations, and with one it is never called
+    def valid(s) -> bool:  # type: ignore[no-untyped-def]
+        """The fastest single-configuration check robointel has (compiled minimum)."""
         count[0] += 1
         for i in range(n):
             q[i] = s[i]

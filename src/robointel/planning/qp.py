@@ -9,10 +9,13 @@ pattern of ``A`` changes, the problem is rebuilt.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
+import daqp
 import numpy as np
 import osqp
 import scipy.sparse as sp
+from numpy.typing import ArrayLike
 
 from robointel.errors import SolverFailure
 
@@ -41,16 +44,16 @@ class SparseQP:
         settings: OSQP settings overriding :data:`DEFAULT_SETTINGS`.
     """
 
-    def __init__(self, **settings) -> None:
+    def __init__(self, **settings: Any) -> None:
         self.settings = dict(DEFAULT_SETTINGS, **settings)
         self._solver: osqp.OSQP | None = None
-        self._P_key = None
-        self._A_key = None
+        self._P_key: tuple[Any, ...] | None = None
+        self._A_key: tuple[Any, ...] | None = None
         self._last: QPSolution | None = None
         self.setups = 0
 
     @staticmethod
-    def _key(M: sp.csc_matrix):
+    def _key(M: sp.csc_matrix) -> tuple[Any, ...]:
         return (M.shape, M.indptr.tobytes(), M.indices.tobytes())
 
     def solve(self, P: sp.spmatrix, q: np.ndarray, A: sp.spmatrix, l: np.ndarray, u: np.ndarray,
@@ -76,7 +79,8 @@ class SparseQP:
             self._solver.update(q=np.asarray(q, float), l=l, u=u, Px=P.data, Ax=A.data)
         return self._run(x0)
 
-    def update(self, *, q=None, l=None, u=None, Ax=None, x0=None) -> QPSolution:
+    def update(self, *, q: np.ndarray | None = None, l: np.ndarray | None = None, u: np.ndarray | None = None,
+               Ax: np.ndarray | None = None, x0: np.ndarray | None = None) -> QPSolution:
         """Change numbers of the current problem in place (same pattern) and solve."""
         if self._solver is None:
             raise SolverFailure("SparseQP.update called before solve()")
@@ -92,18 +96,20 @@ class SparseQP:
         self._solver.update(**kw)
         return self._run(x0)
 
-    def _run(self, x0) -> QPSolution:
+    def _run(self, x0: ArrayLike | None) -> QPSolution:
+        solver = self._solver
+        assert solver is not None  # set up by solve()
         if x0 is not None:
-            y = self._last.y if self._last is not None and self._last.y.shape[0] == self._solver.m else None
+            y = self._last.y if self._last is not None and self._last.y.shape[0] == solver.m else None
             if y is not None:
-                self._solver.warm_start(x=np.asarray(x0, float), y=y)
+                solver.warm_start(x=np.asarray(x0, float), y=y)
             else:
-                self._solver.warm_start(x=np.asarray(x0, float))
-        res = self._solver.solve(raise_error=False)
+                solver.warm_start(x=np.asarray(x0, float))
+        res = solver.solve(raise_error=False)
         status = str(res.info.status)
         solved = status in ("solved", "solved inaccurate") and res.x is not None and np.all(np.isfinite(res.x))
-        sol = QPSolution(np.array(res.x, float) if res.x is not None else np.full(self._solver.n, np.nan),
-                         np.array(res.y, float) if res.y is not None else np.zeros(self._solver.m),
+        sol = QPSolution(np.array(res.x, float) if res.x is not None else np.full(solver.n, np.nan),
+                         np.array(res.y, float) if res.y is not None else np.zeros(solver.m),
                          status, int(res.info.iter), bool(solved))
         if solved:
             self._last = sol
@@ -121,36 +127,49 @@ class DenseQP:
     EXIT = {1: "solved", 2: "solved (soft)", -1: "primal infeasible", -2: "cycling", -3: "unbounded",
             -4: "iteration limit", -5: "nonconvex", -6: "initial point infeasible"}
 
-    def __init__(self, **settings) -> None:
+    def __init__(self, **settings: Any) -> None:
         self.settings = dict(primal_tol=1e-9, iter_limit=2000)
         self.settings.update(settings)
-        self._lam = None
+        self._lam: np.ndarray | None = None
         self.setups = 0
         self.primal_start = True
 
-    def solve(self, P, q, A, l, u, *, x0=None, full_P: bool = False, y0=None) -> QPSolution:
-        """``full_P=True``: ``P`` is already the full symmetric dense matrix (skip symmetrising).
-        ``y0``: dual warm start (m,) (its nonzero entries mark the initial active set)."""
-        import daqp
+    def solve(self, P: np.ndarray | sp.spmatrix, q: np.ndarray, A: np.ndarray | sp.spmatrix, l: np.ndarray,
+              u: np.ndarray, *, x0: np.ndarray | None = None, full_P: bool = False,
+              y0: np.ndarray | None = None) -> QPSolution:
+        """Solve ``min 1/2 z'Pz + q'z  s.t.  l <= A z <= u`` with DAQP.
 
-        P = P.toarray() if sp.issparse(P) else np.asarray(P, float)
+        Args:
+            P: (n, n) cost matrix (upper triangle used unless ``full_P``; dense or sparse).
+            q: (n,) linear cost.
+            A: (m, n) constraint matrix (dense or sparse).
+            l: (m,) lower bounds (-inf allowed).
+            u: (m,) upper bounds (inf allowed).
+            x0: (n,) primal warm start (used when no dual warm start is known).
+            full_P: ``P`` is already the full symmetric matrix (skip symmetrising).
+            y0: (m,) dual warm start; its nonzero entries mark the initial active set.
+
+        Returns:
+            The solution, its duals and DAQP's status.
+        """
+        Pd = P.toarray() if sp.issparse(P) else np.asarray(P, float)  # type: ignore[union-attr]
         if not full_P:
-            P = np.triu(P) + np.triu(P, 1).T  # accept an upper triangle like OSQP
-        A = A.toarray() if sp.issparse(A) else np.asarray(A, float)
+            Pd = np.triu(Pd) + np.triu(Pd, 1).T  # accept an upper triangle like OSQP
+        Ad = A.toarray() if sp.issparse(A) else np.asarray(A, float)  # type: ignore[union-attr]
         l = np.maximum(np.asarray(l, float), -INF)
         u = np.minimum(np.asarray(u, float), INF)
-        kw = dict(self.settings)
-        if y0 is not None and np.shape(y0) == (A.shape[0],):
+        kw: dict[str, Any] = dict(self.settings)
+        if y0 is not None and np.shape(y0) == (Ad.shape[0],):
             kw["dual_start"] = np.asarray(y0, float)
-        elif self._lam is not None and self._lam.shape[0] == A.shape[0]:
+        elif self._lam is not None and self._lam.shape[0] == Ad.shape[0]:
             kw["dual_start"] = self._lam
         elif x0 is not None and self.primal_start:
             kw["primal_start"] = np.asarray(x0, float)
-        x, _fval, flag, info = daqp.solve(np.ascontiguousarray(P), np.asarray(q, float),
-                                          np.ascontiguousarray(A), u, l, np.zeros(A.shape[0], dtype=np.intc), **kw)
+        x, _fval, flag, info = daqp.solve(np.ascontiguousarray(Pd), np.asarray(q, float),
+                                          np.ascontiguousarray(Ad), u, l, np.zeros(Ad.shape[0], dtype=np.intc), **kw)
         x = np.asarray(x, float)
         solved = flag in (1, 2) and np.all(np.isfinite(x))
-        lam = np.asarray(info.get("lam", np.zeros(A.shape[0])), float)
+        lam = np.asarray(info.get("lam", np.zeros(Ad.shape[0])), float)
         if solved:
             self._lam = lam
         return QPSolution(x, lam, self.EXIT.get(int(flag), str(flag)), int(info.get("iterations", 0)), bool(solved))

@@ -8,21 +8,29 @@ not change between ticks). The replanning rate is 1 / (time per re-plan).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
 from robointel.planning.trajectory import PlannerSettings, TrajectoryPlanner
 
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.geometry.obstacles import Obstacle
+    from robointel.robot import Robot
+
 
 @dataclass
 class ReplanResult:
-    """Per tick: re-plan wall time (ms), CFS iterations, whether the plan is clear, the plan's
-    smallest sphere/obstacle distance (m); the executed configurations (ticks+1, n) and the
-    obstacle positions (ticks, 3)."""
+    """Per tick.
+
+    Re-plan wall time (ms), CFS iterations, whether the plan is clear, the plan's smallest sphere/obstacle distance
+    (m); the executed configurations (ticks+1, n) and the obstacle positions (ticks, 3).
+    """
 
     times_ms: np.ndarray
     iterations: np.ndarray
@@ -42,9 +50,10 @@ def shifted(plan: np.ndarray) -> np.ndarray:
     return np.vstack([plan[1:], plan[-1:]])
 
 
-def receding_horizon(robot, static_obstacles, moving, trajectory: Callable[[float], np.ndarray], start, goal, *,
-                     N: int, dt: float, ticks: int, settings: PlannerSettings | None = None, vmax=None,
-                     amax=None) -> ReplanResult:
+def receding_horizon(robot: Robot, static_obstacles: Sequence[Obstacle], moving: Obstacle,
+                     trajectory: Callable[[float], np.ndarray], start: ArrayLike, goal: ArrayLike, *, N: int, dt: float,
+                     ticks: int, settings: PlannerSettings | None = None, vmax: ArrayLike | None = None,
+                     amax: ArrayLike | None = None) -> ReplanResult:
     """Run ``ticks`` receding-horizon re-plans while ``moving`` (an obstacle) follows ``trajectory``.
 
     Args:
@@ -52,9 +61,20 @@ def receding_horizon(robot, static_obstacles, moving, trajectory: Callable[[floa
         static_obstacles: obstacles that stay put.
         moving: a :mod:`robointel.geometry` obstacle; at tick k it is moved to ``trajectory(k * dt)``.
         trajectory: time (s) -> centre (3,) of the moving obstacle.
-        start, goal: (n,) configurations.
-        N, dt: horizon steps and step (s).
+        start: (n,) start configuration, rad.
+        goal: (n,) goal configuration, rad.
+        N: horizon steps.
+        dt: time step, s.
         ticks: number of re-plans.
+        settings: planner settings (default :class:`PlannerSettings`).
+        vmax: (n,) velocity limits, rad/s (default the robot's).
+        amax: (n,) acceleration limits, rad/s^2 (default the robot's).
+
+    Returns:
+        The executed path and the per-tick planning figures.
+
+    Raises:
+        InvalidInput: ``ticks`` < 1 or bad shapes.
     """
     start = as_array(start, "start", (robot.nq,))
     goal = as_array(goal, "goal", (robot.nq,))

@@ -7,14 +7,20 @@ stopping tolerance as :func:`robointel.planning.cfs.cfs`.
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import minimize
 
 from robointel.planning.cfs import NonlinearConstraint
+from robointel.planning.trajectory import straight_reference
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.planning.trajectory import TrajectoryPlanner
 
 
 @dataclass
@@ -30,21 +36,23 @@ class SQPResult:
     seconds: float
 
 
-def slsqp(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=None, u=None, z0=None,
-          tol: float = 1e-6, max_iter: int = 500, bounds=None) -> SQPResult:
+def slsqp(H: np.ndarray | sp.spmatrix, f: np.ndarray, *, constraints: Sequence[NonlinearConstraint] = (),
+          A: np.ndarray | sp.spmatrix | None = None,
+          l: np.ndarray | None = None, u: np.ndarray | None = None, z0: np.ndarray | None = None, tol: float = 1e-6,
+          max_iter: int = 500, bounds: np.ndarray | None = None) -> SQPResult:
     """Solve the CFS problem with SLSQP (the baseline). Same arguments as :func:`cfs`.
 
     ``bounds`` ((n,), (n,)) may carry simple variable bounds separately (SLSQP handles them natively).
     """
-    Hd = H.toarray() if sp.issparse(H) else np.asarray(H, float)
+    Hd = H.toarray() if sp.issparse(H) else np.asarray(H, float)  # type: ignore[union-attr]
     f = np.asarray(f, float)
     n = f.size
     z0 = np.zeros(n) if z0 is None else np.asarray(z0, float)
-    cons = []
+    cons: list[dict[str, Any]] = []
     for c in constraints:
         cons.append({"type": "ineq", "fun": c.fun, "jac": c.jac})
     if A is not None:
-        Ad = A.toarray() if sp.issparse(A) else np.asarray(A, float)
+        Ad = A.toarray() if sp.issparse(A) else np.asarray(A, float)  # type: ignore[union-attr]
         lo = np.full(Ad.shape[0], -np.inf) if l is None else np.asarray(l, float)
         up = np.full(Ad.shape[0], np.inf) if u is None else np.asarray(u, float)
         eq = np.isfinite(lo) & np.isfinite(up) & (np.abs(up - lo) < 1e-12)
@@ -62,15 +70,15 @@ def slsqp(H, f, *, constraints: Sequence[NonlinearConstraint] = (), A=None, l=No
                    options={"maxiter": max_iter, "ftol": tol})
     secs = time.perf_counter() - t0
     viol = 0.0
-    for c in cons:
-        v = np.asarray(c["fun"](res.x))
-        viol = max(viol, float(np.max(np.abs(v) if c["type"] == "eq" else -v, initial=0.0)))
+    for con in cons:
+        v = np.asarray(con["fun"](res.x))
+        viol = max(viol, float(np.max(np.abs(v) if con["type"] == "eq" else -v, initial=0.0)))
     return SQPResult(z=res.x, iterations=int(res.nit), success=bool(res.success), message=str(res.message),
                      cost=float(res.fun), max_violation=max(viol, 0.0), seconds=secs)
 
 
-def slsqp_segment(planner, start, goal, *, reference=None, tol: float = 1e-4, max_iter: int = 500,
-                  pairs: str = "all") -> tuple[np.ndarray, SQPResult]:
+def slsqp_segment(planner: TrajectoryPlanner, start: ArrayLike, goal: ArrayLike, *, reference: ArrayLike | None = None,
+                  tol: float = 1e-4, max_iter: int = 500, pairs: str = "all") -> tuple[np.ndarray, SQPResult]:
     """The SQP baseline of Table 7.1 for one segment of a :class:`TrajectoryPlanner`.
 
     Same cost (7.1), same linear limits, same exact distance constraints
@@ -80,8 +88,6 @@ def slsqp_segment(planner, start, goal, *, reference=None, tol: float = 1e-4, ma
     Returns:
         (path (N+1, n), :class:`SQPResult`).
     """
-    from robointel.planning.trajectory import straight_reference
-
     n, N = planner.n, planner.N
     x0, xN = np.asarray(start, float), np.asarray(goal, float)
     Xr = straight_reference(x0, xN, N) if reference is None else np.asarray(reference, float)
@@ -92,25 +98,25 @@ def slsqp_segment(planner, start, goal, *, reference=None, tol: float = 1e-4, ma
     t_s, a_s = planner._sample_t, planner._sample_a
     S = len(t_s)
 
-    def knots(z):
+    def knots(z: np.ndarray) -> NDArray[np.float64]:
         X = np.empty((N + 1, n))
         X[0], X[N] = x0, xN
         X[1:N] = z.reshape(N - 1, n)
         return X
 
-    cache = {}
+    cache: dict[bytes, Any] = {}
 
-    def dist(z):
+    def dist(z: np.ndarray) -> Any:
         key = z.tobytes()
         if key not in cache:
             cache.clear()
             cache[key] = planner.distances(knots(z))
         return cache[key]
 
-    def fun(z):
+    def fun(z: np.ndarray) -> NDArray[np.float64]:
         return dist(z).d.reshape(-1) - d_req
 
-    def jac(z):
+    def jac(z: np.ndarray) -> NDArray[np.float64]:
         D = dist(z)
         g = D.grad.reshape(S, -1, n)
         J = np.zeros((S, g.shape[1], N - 1, n))

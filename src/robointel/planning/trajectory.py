@@ -34,14 +34,20 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.sparse as sp
+from numpy.typing import ArrayLike, NDArray
 
 from robointel._validate import as_array, check_limits
 from robointel.errors import CollisionAtStart, InfeasibleProblem, InvalidInput, LimitViolation
 from robointel.geometry import sphere_distances_batch
-from robointel.planning.qp import INF, DenseQP, SparseQP
+from robointel.planning.qp import INF, DenseQP, QPSolution, SparseQP
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.geometry.distance import SphereDistances
+    from robointel.robot import Robot
 
 
 @dataclass
@@ -124,9 +130,11 @@ class SegmentPlan:
     iterates: list[np.ndarray] = field(default_factory=list)
 
 
-def sphere_clearances(robot, Q: np.ndarray, obstacles):
-    """Signed distances (4.3) between the movable collision spheres and each obstacle, and their
-    gradients n^T J (4.4), at configurations Q (B, n): d (B, m', k), grad (B, m', k, n), spheres (m',).
+def sphere_clearances(robot: Robot, Q: np.ndarray, obstacles: Any) -> SphereDistances:
+    """Signed distances (4.3) between the movable collision spheres and each obstacle, with gradients.
+
+    Signed distances (4.3) between the movable collision spheres and each obstacle, and their gradients n^T J (4.4),
+    at configurations Q (B, n): d (B, m', k), grad (B, m', k, n), spheres (m',).
 
     The planner's name for :func:`robointel.geometry.sphere_distances_batch` with
     ``movable_only=True`` (one batched kinematics pass, one compiled distance call); returns its
@@ -155,8 +163,8 @@ class TrajectoryPlanner:
             (sparse ADMM, pattern fixed, updated in place).
     """
 
-    def __init__(self, robot, obstacles=(), *, N: int, dt: float, vmax=None, amax=None,
-                 settings: PlannerSettings | None = None, solver: str = "daqp") -> None:
+    def __init__(self, robot: Robot, obstacles: Any = (), *, N: int, dt: float, vmax: ArrayLike | None = None,
+                 amax: ArrayLike | None = None, settings: PlannerSettings | None = None, solver: str = "daqp") -> None:
         self.robot = robot
         self.n = n = robot.nq
         if int(N) < 2:
@@ -176,14 +184,14 @@ class TrajectoryPlanner:
             raise InvalidInput(f"solver must be 'daqp' or 'osqp', got {solver!r}", value=solver)
         self.qp = SparseQP(eps_abs=1e-5, eps_rel=1e-5, polishing=False, max_iter=20000)
         self._dense = DenseQP()
-        self._Pz_dense = None
-        self._Ad = None
-        self._y_full = None
+        self._Pz_dense: np.ndarray | None = None
+        self._Ad: np.ndarray | None = None
+        self._y_full: np.ndarray | None = None
         self._qp_ready = False
         self.qp_stats = {"osqp": 0, "daqp": 0}
 
     # ------------------------------------------------------------------ set-up
-    def set_obstacles(self, obstacles) -> None:
+    def set_obstacles(self, obstacles: Any) -> None:
         """Replace the obstacles (same count keeps the QP pattern: used by replanning)."""
         self.obstacles = tuple(obstacles)
         self._movable = np.flatnonzero(np.asarray(self.robot.spheres.movable, bool))
@@ -233,7 +241,8 @@ class TrajectoryPlanner:
         vals = [lin.data, np.ones(nS)]
         # collision rows: slot k of sample si touches x_t (and x_{t+1} between knots) and s_si
         self._pos = np.full((nS, K, 2, n), -1, dtype=np.int64)
-        ids = []  # entry ids of the collision x-coefficients, in self._pos order
+        # entry ids of the collision x-coefficients, in self._pos order
+        ids: list[tuple[int, int, int, int] | None] = []
         cr, cc, cv = [], [], []
         for si, (t, a_) in enumerate(samples):
             for k in range(K):
@@ -295,19 +304,21 @@ class TrajectoryPlanner:
         t, a = self._sample_t, self._sample_a[:, None]
         return (1 - a) * X[t] + a * X[t + 1]
 
-    def distances(self, X: np.ndarray):
-        """Exact signed distances at all samples of the knots X (N+1, n): d (S, m', k) and
-        grad (S, m', k, n) for the m' movable spheres (``spheres`` holds their indices)."""
+    def distances(self, X: np.ndarray) -> SphereDistances | None:
+        """Exact signed distances at all samples of the knots X (N+1, n).
+
+        D (S, m', k) and grad (S, m', k, n) for the m' movable spheres (``spheres`` holds their indices); None
+        without obstacles.
+        """
         if not self.obstacles:
             return None
         return self.config_distances(self._sample_configs(X))
 
-    def config_distances(self, Q: np.ndarray):
+    def config_distances(self, Q: np.ndarray) -> SphereDistances:
         """Sphere/obstacle distances at configurations Q (B, n): see :func:`sphere_clearances`."""
         return sphere_clearances(self.robot, Q, self.obstacles)
 
-    def _linear_bounds(self, x0: np.ndarray, xN: np.ndarray):
-        n = self.n
+    def _linear_bounds(self, x0: np.ndarray, xN: np.ndarray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         N = self.N
         ends = np.r_[x0, xN]
         lo = np.tile(self.robot.lower, N - 1)
@@ -318,7 +329,8 @@ class TrajectoryPlanner:
         a_off = self._D2_end @ ends
         return (np.r_[lo, -vb - v_off, -ab - a_off], np.r_[up, vb - v_off, ab - a_off])
 
-    def _collision_rows(self, X: np.ndarray, D, d_req: float):
+    def _collision_rows(self, X: np.ndarray, D: SphereDistances | None,
+                        d_req: float) -> tuple[Any, NDArray[np.float64]]:
         """Fill A's collision entries and bounds from distances D at the samples of X."""
         st = self.settings
         K, n = int(st.slots), self.n
@@ -357,8 +369,11 @@ class TrajectoryPlanner:
         return data, lo.ravel()
 
     def check_waypoints(self, waypoints: np.ndarray, names: list[str] | None = None) -> None:
-        """Raise if a waypoint is outside the joint limits or in collision (CollisionAtStart naming
-        the link and obstacle)."""
+        """Raise if a waypoint is outside the joint limits or in collision.
+
+        Raise if a waypoint is outside the joint limits or in collision (CollisionAtStart naming the link and
+        obstacle).
+        """
         W = as_array(waypoints, "waypoints", (None, self.n))
         for i, w in enumerate(W):
             label = names[i] if names else f"waypoint {i}"
@@ -380,13 +395,17 @@ class TrajectoryPlanner:
                                            "distance": float(D.d[i, j, k])})
 
     # ------------------------------------------------------------------ solve
-    def plan_segment(self, start, goal, *, reference=None, init=None, keep_iterates: bool = False) -> SegmentPlan:
+    def plan_segment(self, start: ArrayLike, goal: ArrayLike, *, reference: ArrayLike | None = None,
+                     init: ArrayLike | None = None, keep_iterates: bool = False) -> SegmentPlan:
         """Plan x_0..x_N from ``start`` to ``goal`` (both (n,), fixed) by CFS.
 
         Args:
+            start: (n,) start configuration x_0, rad.
+            goal: (n,) goal configuration x_N, rad.
             reference: (N+1, n) x^r (default: the joint-space straight line).
             init: (N+1, n) initial guess (default: the reference); a previous plan warm-starts
                 replanning.
+            keep_iterates: keep every CFS iterate on the result.
         """
         t0 = time.perf_counter()
         n, N, st = self.n, self.N, self.settings
@@ -419,7 +438,7 @@ class TrajectoryPlanner:
         up_coll = np.full(self._coll_nrows, INF)
         nS = len(self.samples)
         qz = np.r_[q, np.full(nS, st.elastic)]
-        for it in range(1, st.max_iter + 1):
+        for it in range(1, st.max_iter + 1):  # noqa: B007 - the count is reported after the loop
             data, lo_c = self._collision_rows(X, D, d_req)
             # elastic slacks only while the reference is infeasible (Sec. 7.2: CFS from an infeasible start)
             smax = INF if not feas else 0.0
@@ -468,7 +487,8 @@ class TrajectoryPlanner:
                            min_distance=float(dmin), seconds=time.perf_counter() - t0, blocked=bool(blocked),
                            iterates=iterates)
 
-    def _solve_qp(self, qz, l, u, data, z0):
+    def _solve_qp(self, qz: np.ndarray, l: np.ndarray, u: np.ndarray, data: np.ndarray,
+                  z0: np.ndarray) -> QPSolution:
         """Solve one CFS QP.
 
         ``solver="daqp"`` (default): DAQP (dual active set, dense, exact) on a working set of rows
@@ -480,16 +500,17 @@ class TrajectoryPlanner:
         if self.solver == "osqp":
             if not self._qp_ready:
                 self.A.data = data
-                sol = self.qp.solve(self.P_z, qz, self.A, l, u, x0=z0)
+                osqp_sol = self.qp.solve(self.P_z, qz, self.A, l, u, x0=z0)
                 self._qp_ready = True
             else:
-                sol = self.qp.update(q=qz, l=l, u=u, Ax=data, x0=z0)
+                osqp_sol = self.qp.update(q=qz, l=l, u=u, Ax=data, x0=z0)
             self.qp_stats["osqp"] += 1
-            return sol
+            return osqp_sol
         Ad = self._dense_A(data)
         if self._Pz_dense is None:
             P = self.P_z.toarray()
             self._Pz_dense = np.ascontiguousarray(np.triu(P) + np.triu(P, 1).T)
+        Pz = self._Pz_dense
         finite = (l > -INF / 2) | (u < INF / 2)
         Az = Ad @ z0
         span = np.where(np.isfinite(u - l), u - l, np.inf)
@@ -500,8 +521,8 @@ class TrajectoryPlanner:
         nvar = self.nz if elastic else self.nv
         if not elastic:
             work[self._slack_rows] = False
-        P = self._Pz_dense if elastic else self._Pz_dense[: self.nv, : self.nv]
-        sol = None
+        P = Pz if elastic else Pz[: self.nv, : self.nv]
+        sol: QPSolution | None = None
         for _ in range(8):
             y0 = self._y_full[work] if self._y_full is not None else None
             sol = self._dense.solve(P, qz[:nvar], np.ascontiguousarray(Ad[work, :nvar]), l[work], u[work],
@@ -510,8 +531,9 @@ class TrajectoryPlanner:
             self.qp_stats["daqp_iterations"] = self.qp_stats.get("daqp_iterations", 0) + sol.iterations
             if not sol.solved:
                 return sol
-            self._y_full = np.zeros(len(l))
-            self._y_full[work] = sol.y
+            y_full = np.zeros(len(l))
+            y_full[work] = sol.y
+            self._y_full = y_full
             x = sol.x if elastic else np.r_[sol.x, np.zeros(self.nz - self.nv)]
             Ax = Ad @ x
             viol = finite & ~work & ((Ax < l - 1e-7) | (Ax > u + 1e-7))
@@ -521,7 +543,8 @@ class TrajectoryPlanner:
                 sol.x = x
                 return sol
             work |= viol
-        if sol is not None and not elastic:
+        assert sol is not None  # the loop ran at least once
+        if not elastic:
             sol.x = np.r_[sol.x, np.zeros(self.nz - self.nv)]
         return sol
 
@@ -535,8 +558,9 @@ class TrajectoryPlanner:
             cols = np.repeat(np.arange(self.A.shape[1]), np.diff(self.A.indptr))
             self._data_rc = (self.A.indices.copy(), cols)
             del coo
-        self._Ad[self._data_rc] = data
-        return self._Ad
+        Ad = self._Ad
+        Ad[self._data_rc] = data
+        return Ad
 
     def _q_full(self, Xr: np.ndarray) -> np.ndarray:
         """Linear term over all knots: -2 w1 Q x^r on interior knots, 0 at the fixed ends."""
@@ -544,9 +568,12 @@ class TrajectoryPlanner:
         w[1:-1] = Xr[1:-1] * self._Qw[None]
         return -2 * self.settings.w1 * w.ravel()
 
-    def _merit(self, X: np.ndarray, Xr: np.ndarray, D, d_req: float) -> float:
-        """Exact-penalty merit of the elastic phase: J + elastic * sum over samples of the clearance
-        shortfall (the QP's slack objective evaluated with the true distances)."""
+    def _merit(self, X: np.ndarray, Xr: np.ndarray, D: SphereDistances | None, d_req: float) -> float:
+        """Exact-penalty merit of the elastic phase.
+
+        J + elastic * sum over samples of the clearance shortfall (the QP's slack objective evaluated with the true
+        distances).
+        """
         if D is None:
             return self._cost(X, Xr)
         short = np.maximum(d_req - D.d.reshape(len(self.samples), -1).min(axis=1), 0.0)
@@ -557,9 +584,11 @@ class TrajectoryPlanner:
         st = self.settings
         E = (X[1:-1] - Xr[1:-1])
         U = (X[2:] - 2 * X[1:-1] + X[:-2]) / self.dt ** 2
-        return float(st.w1 * np.sum(E * E * self._Qw) + st.w2 * np.sum(U * U * (np.ones(self.n) if st.R is None else st.R)))
+        R = np.ones(self.n) if st.R is None else st.R
+        return float(st.w1 * np.sum(E * E * self._Qw) + st.w2 * np.sum(U * U * R))
 
-    def cost_terms(self, start, goal, reference=None):
+    def cost_terms(self, start: ArrayLike, goal: ArrayLike,
+                   reference: ArrayLike | None = None) -> tuple[Any, NDArray[np.float64]]:
         """(P, q) of the QP in z = x_1..x_{N-1}: J = 1/2 z'Pz + q'z + const (also for the baselines)."""
         n, N = self.n, self.N
         x0 = as_array(start, "start", (n,))

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from robointel.errors import CollisionAtStart, IKFailure, InfeasibleProblem, InvalidInput, RobointelError
-from robointel.io.scene import Scene
-from robointel.io.trajectory import Trajectory
+from robointel.planning.scene import Scene
+from robointel.trajectory import Trajectory
 from robointel.learning.grasp.pipeline import lrmate_with_gripper
 from robointel.planning.frmp import check_trajectory, plan_scene, planner_settings
 from robointel.planning.trajectory import TrajectoryPlanner

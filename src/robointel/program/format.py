@@ -6,7 +6,7 @@ A program joins what robointel teaches, learns and plans into one job. The forma
     format: robointel.program/1
     name: pick-and-inspect
     scene: table71                # a scene file or built-in scene name, or an inline scene mapping
-                                  # (robot, obstacles, limits, d_min, planner, weights: see io/scene.py);
+                                  # (robot, obstacles, limits, d_min, planner, weights: see planning/scene.py);
                                   # the scene's waypoints become named waypoints of the program
     waypoints:                    # more named targets: q (rad), q_deg (deg) or pose {xyz, rpy_deg}
       above_pick: {q_deg: [35, 40, -15, 0, -30, 0]}
@@ -42,7 +42,7 @@ import yaml
 
 from robointel.errors import InvalidInput, RobointelError
 from robointel.geometry.rotations import rpy_to_matrix
-from robointel.io.scene import Scene, load_scene, scene_from_dict
+from robointel.planning.scene import Scene, load_scene, scene_from_dict
 from robointel.robot import Robot
 
 FORMAT = "robointel.program/1"
@@ -163,7 +163,7 @@ class Program:
 
     Attributes:
         name: Program name.
-        scene: The :class:`robointel.io.scene.Scene` it runs in (robot, obstacles, limits, d_min).
+        scene: The :class:`robointel.planning.scene.Scene` it runs in (robot, obstacles, limits, d_min).
         waypoints: Named joint configurations (rad), each (n,).
         steps: The steps in order.
         objects: Objects on the table of the simulated cell (for ``grasp`` and ``place`` steps).

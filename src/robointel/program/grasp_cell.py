@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from robointel.errors import IKFailure, InvalidInput
-from robointel.io.trajectory import Trajectory
+from robointel.trajectory import Trajectory
 from robointel.learning.grasp import (GraspPlanner, ParallelGripper, Placement, Template, default_cameras,
                                       depth_image, perceive, primitive_object, random_placements, sample_points,
                                       taught_grasps)

@@ -10,7 +10,7 @@ from typing import Protocol
 import numpy as np
 
 from robointel.errors import RobointelError
-from robointel.io.trajectory import Trajectory
+from robointel.trajectory import Trajectory
 from robointel.outcome import Failure, TrialOutcome
 from robointel.program.check import ProgramCheck, _Planners, check_program, plan_move, scene_key
 from robointel.program.format import Program

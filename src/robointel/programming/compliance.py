@@ -16,11 +16,16 @@ singular configurations.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.robot import Robot
 
 __all__ = ["ComplianceGains", "compliance_twist", "compliance_velocity", "damped_pinv", "shift_wrench",
            "wrench_to_world"]
@@ -54,9 +59,11 @@ class ComplianceGains:
         return np.diag([self.translational] * 3 + [self.rotational] * 3)
 
 
-def shift_wrench(wrench, r) -> np.ndarray:
-    """Move a wrench [f; tau] (6,) to a point displaced by ``r`` (3,) metres from its reference
-    point (same axes): tau' = tau - r x f."""
+def shift_wrench(wrench: ArrayLike, r: ArrayLike) -> np.ndarray:
+    """Move a wrench [f.
+
+    Tau] (6,) to a point displaced by ``r`` (3,) metres from its reference point (same axes): tau' = tau - r x f.
+    """
     w = as_array(wrench, "wrench", (6,))
     r = as_array(r, "r", (3,))
     out = w.copy()
@@ -64,7 +71,7 @@ def shift_wrench(wrench, r) -> np.ndarray:
     return out
 
 
-def wrench_to_world(wrench_sensor, R_world_sensor) -> np.ndarray:
+def wrench_to_world(wrench_sensor: ArrayLike, R_world_sensor: ArrayLike) -> np.ndarray:
     """Rotate a wrench [f; tau] (6,) from sensor axes to world axes with R (3x3) = world<-sensor."""
     w = as_array(wrench_sensor, "wrench_sensor", (6,))
     R = as_array(R_world_sensor, "R_world_sensor", (3, 3))
@@ -78,7 +85,7 @@ def _deadband(v: np.ndarray, band: float) -> np.ndarray:
     return v * ((n - band) / n)  # continuous: shrink by the band
 
 
-def compliance_twist(wrench_world, gains: ComplianceGains = ComplianceGains()) -> np.ndarray:
+def compliance_twist(wrench_world: ArrayLike, gains: ComplianceGains = ComplianceGains()) -> np.ndarray:
     """Tool twist V_r = C F_E (3.10)-(3.11) from a wrench in world axes at the tool point.
 
     Args:
@@ -94,7 +101,7 @@ def compliance_twist(wrench_world, gains: ComplianceGains = ComplianceGains()) -
     return np.concatenate([gains.translational * f, gains.rotational * t])
 
 
-def damped_pinv(J, *, epsilon: float = 0.04, max_damping: float = 0.04) -> np.ndarray:
+def damped_pinv(J: ArrayLike, *, epsilon: float = 0.04, max_damping: float = 0.04) -> np.ndarray:
     """Singularity-robust pseudo-inverse J^# = J^T (J J^T + lambda^2 I)^-1 (used in (3.12)).
 
     The damping grows only near a singularity (Maciejewski-Klein / Chiaverini): with sigma_min the
@@ -117,14 +124,17 @@ def damped_pinv(J, *, epsilon: float = 0.04, max_damping: float = 0.04) -> np.nd
     return (Vt.T * inv) @ U.T
 
 
-def compliance_velocity(robot, q, wrench_world, gains: ComplianceGains = ComplianceGains(), *,
-                        epsilon: float = 0.04, max_damping: float = 0.04) -> np.ndarray:
+def compliance_velocity(robot: Robot, q: ArrayLike, wrench_world: ArrayLike, gains: ComplianceGains = ComplianceGains(),
+                        *, epsilon: float = 0.04, max_damping: float = 0.04) -> np.ndarray:
     """Joint velocity reference dq_r = J^#(q) C F_E (3.12)-(3.13) for a wrench at the robot's TCP.
 
     Args:
         robot: a :class:`robointel.robot.Robot` (its TCP is the handle point).
         q: (n,) joint angles, rad.
         wrench_world: (6,) [f; tau] in world axes about the TCP, N and N m.
+        gains: the compliance gains C of (3.12).
+        epsilon: singular-value threshold of the damped pseudo-inverse J^#.
+        max_damping: largest damping of the pseudo-inverse near a singularity.
 
     Returns:
         (n,) joint velocities, rad/s.

@@ -21,11 +21,16 @@ The compensated (external) wrench is then (3.20)
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.sim import Workcell
 
 __all__ = ["FTCalibration", "GRAVITY", "calibrate_in_workcell", "identify_ft", "skew"]
 
@@ -67,16 +72,18 @@ class FTCalibration:
         """|f_P| = m |g|, N."""
         return self.mass * float(np.linalg.norm(self.gravity))
 
-    def payload_wrench(self, R_world_sensor) -> np.ndarray:
-        """Wrench the payload and biases put on the sensor at orientation(s) R: (3,3) -> (6,),
-        (N,3,3) -> (N,6) (the right-hand sides of (3.14)-(3.15))."""
+    def payload_wrench(self, R_world_sensor: ArrayLike) -> np.ndarray:
+        """Wrench the payload and biases put on the sensor at orientation(s) R.
+
+        (3,3) -> (6,), (N,3,3) -> (N,6) (the right-hand sides of (3.14)-(3.15)).
+        """
         R = np.asarray(R_world_sensor, float)
         g_s = np.einsum("...ji,j->...i", R, self.gravity) * self.mass
         f = g_s + self.force_bias
         t = np.cross(self.com, g_s) + self.torque_bias
         return np.concatenate([f, t], -1)
 
-    def compensate(self, wrench, R_world_sensor) -> np.ndarray:
+    def compensate(self, wrench: ArrayLike, R_world_sensor: ArrayLike) -> np.ndarray:
         """External wrench (3.20): reading minus payload weight and biases, in the sensor frame.
 
         Args:
@@ -90,7 +97,7 @@ class FTCalibration:
         return w - self.payload_wrench(R)
 
 
-def identify_ft(wrenches, rotations, *, gravity=GRAVITY) -> FTCalibration:
+def identify_ft(wrenches: ArrayLike, rotations: ArrayLike, *, gravity: ArrayLike = GRAVITY) -> FTCalibration:
     """Identify payload mass, centre of mass and sensor biases by least squares (3.16)-(3.19).
 
     Args:
@@ -134,7 +141,7 @@ def identify_ft(wrenches, rotations, *, gravity=GRAVITY) -> FTCalibration:
                          gravity=g.copy())
 
 
-def calibrate_in_workcell(wc, q0, *, poses: int = 12, settle: float = 0.25, average: int = 50,
+def calibrate_in_workcell(wc: Workcell, q0: np.ndarray, *, poses: int = 12, settle: float = 0.25, average: int = 50,
                           spread: float = 1.2, seed: int = 0) -> FTCalibration:
     """Identify payload and F/T biases on a (simulated) robot (3.14)-(3.19).
 
@@ -145,6 +152,17 @@ def calibrate_in_workcell(wc, q0, *, poses: int = 12, settle: float = 0.25, aver
     Args:
         wc: a :class:`robointel.sim.Workcell` with an F/T sensor (payload, bias and noise as built).
         q0: (n,) central configuration, rad.
+        poses: number of wrist poses around ``q0`` (>= 3).
+        settle: time held at each pose before measuring, s.
+        average: F/T readings averaged per pose (1 kHz).
+        spread: range of the random wrist offsets (J4-J6), +- rad.
+        seed: seed of the random poses.
+
+    Returns:
+        The identified payload mass, centre of mass and sensor biases.
+
+    Raises:
+        InvalidInput: fewer than 3 poses or ``average`` < 1.
     """
     robot = wc.robot
     q0 = robot.check_q(q0, "q0")

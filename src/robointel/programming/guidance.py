@@ -41,16 +41,23 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import daqp
 import numpy as np
 import pinocchio as pin
-from numba import njit
+from numpy.typing import ArrayLike, NDArray
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput, SafetyStop, ShapeError
 from robointel.geometry.distance import ObstacleSet, sphere_distances
 from robointel.programming.compliance import ComplianceGains
+from robointel.programming.guidance_kernels import active_rows, check_wrench, filter_lead, qp_terms, soft_min
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.robot import Robot
+    from robointel.robot.collision import SphereModel
+
 
 __all__ = ["GuidanceConfig", "GuidanceController", "GuidanceStep", "METHODS", "blend_weight", "repulsive_speed"]
 
@@ -58,13 +65,15 @@ METHODS = ("qp", "equality", "repulsive", "nullspace")
 _INF = 1e30
 
 
-def blend_weight(d, d0: float = 0.15, alpha: float = 6.0):
+def blend_weight(d: ArrayLike, d0: float = 0.15, alpha: float = 6.0) -> NDArray[np.float64]:
     """Sigmoid weight of the avoiding command (4.13), corrected: lambda(0) = 1, lambda(d0) ~ e^-alpha.
 
     lambda(d) = (1 + e^-alpha) / (1 + e^(alpha (2 d / d0 - 1))), clipped to [0, 1] (d < 0 gives 1).
 
     Args:
-        d: distance(s), m. d0: activation distance, m. alpha: steepness.
+        d: distance(s), m.
+        d0: activation distance, m.
+        alpha: steepness of the logistic blend.
     """
     d = np.asarray(d, float)
     x = np.minimum(alpha * (2.0 * d / d0 - 1.0), 700.0)
@@ -72,7 +81,8 @@ def blend_weight(d, d0: float = 0.15, alpha: float = 6.0):
     return np.clip(lam, 0.0, 1.0)
 
 
-def repulsive_speed(d, d0: float = 0.15, alpha: float = 6.0, v_max: float = 0.3):
+def repulsive_speed(d: ArrayLike, d0: float = 0.15, alpha: float = 6.0,
+                    v_max: float = 0.3) -> NDArray[np.float64]:
     """Magnitude of the classic repulsive velocity (4.1): v_max / (1 + e^(alpha (2 d / d0 - 1))), m/s."""
     d = np.asarray(d, float)
     return v_max / (1.0 + np.exp(np.minimum(alpha * (2.0 * d / d0 - 1.0), 700.0)))
@@ -205,7 +215,8 @@ class GuidanceController:
         spheres: collision sphere model (default ``robot.spheres``).
     """
 
-    def __init__(self, robot, obstacles=(), config: GuidanceConfig | None = None, *, spheres=None) -> None:
+    def __init__(self, robot: Robot, obstacles: Any = (), config: GuidanceConfig | None = None, *,
+                 spheres: SphereModel | None = None) -> None:
         self.robot = robot
         self.config = config or GuidanceConfig()
         self.spheres = robot.spheres if spheres is None else spheres
@@ -261,11 +272,11 @@ class GuidanceController:
             self._sense_cache[key] = s
         return s
 
-    def lead_twist(self, wrench) -> np.ndarray:
+    def lead_twist(self, wrench: ArrayLike) -> np.ndarray:
         """V_lead = C F_E (3.11) of one (unfiltered) wrench, with deadbands and speed limits, (6,)."""
         w = as_array(wrench, "wrench", (6,))
         V = np.empty(6)
-        _filter_lead(w, np.zeros(6), 1.0, True, self._lead_par, V)
+        filter_lead(w, np.zeros(6), 1.0, True, self._lead_par, V)
         return V
 
     def tcp_jacobian(self, q: np.ndarray) -> np.ndarray:
@@ -280,9 +291,12 @@ class GuidanceController:
             J[:3] += np.cross(J[3:].T, r).T  # v_tcp = v + w x r
         return J
 
-    def _solve(self, H, f, A, lb, ub, bl, bu, equality: bool) -> np.ndarray | None:
-        """DAQP on min 1/2 x'Hx + f'x, lb <= x <= ub, bl <= A x <= bu; None if it did not
-        report an optimum (the caller then holds: never pass garbage on)."""
+    def _solve(self, H: np.ndarray, f: np.ndarray, A: np.ndarray, lb: np.ndarray, ub: np.ndarray,
+               bl: np.ndarray, bu: np.ndarray, equality: bool) -> np.ndarray | None:
+        """DAQP on min 1/2 x'Hx + f'x, lb <= x <= ub, bl <= A x <= bu.
+
+        None if it did not report an optimum (the caller then holds: never pass garbage on).
+        """
         k, n = A.shape[0], self.n
         BU, BL = self._bu[:n + k], self._bl[:n + k]
         BU[:n], BU[n:], BL[:n], BL[n:] = ub, bu, lb, bl
@@ -293,9 +307,11 @@ class GuidanceController:
         return x
 
     # ------------------------------------------------------------------ the loop
-    def step(self, q, wrench) -> GuidanceStep:
-        """One control step: joint angles q (n,) and the handle wrench [f; tau] (6,) (world axes,
-        about the TCP, payload-compensated) -> joint velocity command.
+    def step(self, q: ArrayLike, wrench: ArrayLike) -> GuidanceStep:
+        """One control step.
+
+        Joint angles q (n,) and the handle wrench [f; tau] (6,) (world axes, about the TCP, payload-compensated) ->
+        joint velocity command.
 
         Raises:
             ShapeError: q or wrench of the wrong shape (a programming error, not a sensor fault).
@@ -310,7 +326,7 @@ class GuidanceController:
             raise ShapeError(f"wrench must have shape (6,), got {w.shape}", value=w)
         if not np.isfinite(q).all():
             return self._fault("joint reading is NaN or inf", q, w, bad_q=True)
-        code, a, b = _check_wrench(w, self._lastw, self._has_last, c.max_force, c.max_torque,
+        code, a, b = check_wrench(w, self._lastw, self._has_last, c.max_force, c.max_torque,
                                    c.spike_force, c.spike_torque)
         if code:
             why = ("F/T reading is NaN or inf" if code == 1 else
@@ -327,14 +343,15 @@ class GuidanceController:
             if self._hold > 0:
                 return self._fault(f"recovering after: {self._why}", q, w)
         V = np.empty(6)
-        _filter_lead(w, self._wf, self._beta, False, self._lead_par, V)
+        filter_lead(w, self._wf, self._beta, False, self._lead_par, V)
         J = self.tcp_jacobian(q)
         H, f, lb, ub, qd_free = self._H, self._f, self._lb, self._ub, np.empty(n)
-        inside = _qp_terms(J, self._W, V, self._qp_par, q, self._lower, self._upper, self._vmax, H, f, lb, ub, qd_free)
+        inside = qp_terms(J, self._W, V, self._qp_par, q, self._lower, self._upper, self._vmax, H, f, lb, ub, qd_free)
         if not inside:  # free command: least squares within the joint bounds
-            qd_free = self._solve(H, f, self._A0, lb, ub, self._z0, self._z0, False)
-            if qd_free is None:
+            qd_sol = self._solve(H, f, self._A0, lb, ub, self._z0, self._z0, False)
+            if qd_sol is None:
                 return self._fault(f"QP solver failed (DAQP exit flag {self._solver_flag})", q, w)
+            qd_free = qd_sol
         # distances of every movable sphere to every obstacle, closest sphere per obstacle
         K = len(self.obstacles)
         if K == 0:
@@ -343,14 +360,14 @@ class GuidanceController:
         else:
             sd = sphere_distances(self.robot, q, self.obstacles, self.spheres, movable_only=True)
             dk, dhard, rows, G = self._dk, self._dh, self._rows, self._G
-            _soft_min(sd.d, sd.grad, self._beta_s, dk, dhard, rows, G)
+            soft_min(sd.d, sd.grad, self._beta_s, dk, dhard, rows, G)
             kmin = int(np.argmin(dk))
             dmin = float(dhard.min())
             u = sd.normals[rows[kmin], kmin]
             method = c.method
             eq = method == "equality"
             A = self._A
-            nact, feasible = _active_rows(dk, G, c.d0, qd_free, A)
+            nact, feasible = active_rows(dk, G, c.d0, qd_free, A)
             if method in ("qp", "equality"):
                 lam = _blend_scalar(float(dk[kmin]), c.d0, c.alpha)
                 if nact == 0:
@@ -361,9 +378,10 @@ class GuidanceController:
                         qd_av = qd_free  # unconstrained optimum is feasible: it is the QP's optimum
                     else:
                         z = self._z[:nact]
-                        qd_av = self._solve(H, f, A, lb, ub, z, z if eq else self._inf[:nact], eq)
-                        if qd_av is None:
+                        qd_sol = self._solve(H, f, A, lb, ub, z, z if eq else self._inf[:nact], eq)
+                        if qd_sol is None:
                             return self._fault(f"QP solver failed (DAQP exit flag {self._solver_flag})", q, w)
+                        qd_av = qd_sol
                     self.last_qp = (H, f, A, lb, ub, qd_av)
                     qd = lam * qd_av + (1.0 - lam) * qd_free
             else:
@@ -377,7 +395,7 @@ class GuidanceController:
         self.last_step = out
         return out
 
-    def _fault(self, why: str, q, w, bad_q: bool = False) -> GuidanceStep:
+    def _fault(self, why: str, q: ArrayLike, w: ArrayLike, bad_q: bool = False) -> GuidanceStep:
         if self.config.raise_on_fault:
             raise SafetyStop(f"guidance controller holds the robot: {why}", value=w if not bad_q else q)
         z = np.zeros(self.n)
@@ -385,7 +403,9 @@ class GuidanceController:
         self.last_step = out
         return out
 
-    def _baseline(self, q, V, J, sd, rows, dk, act, qd_free, lb, ub) -> np.ndarray:
+    def _baseline(self, q: np.ndarray, V: np.ndarray, J: np.ndarray, sd: Any, rows: np.ndarray,
+                  dk: np.ndarray, act: np.ndarray, qd_free: np.ndarray, lb: np.ndarray,
+                  ub: np.ndarray) -> np.ndarray:
         """Repulsive-vector (4.1) and null-space (4.2)-(4.3) baselines."""
         c = self.config
         _, Js = self.spheres.kinematics(q)
@@ -393,7 +413,7 @@ class GuidanceController:
         if c.method == "repulsive":
             qd = qd_free.copy()
             for k in np.flatnonzero(act):
-                i = rows[k]
+                i = int(rows[k])
                 Jr = Js[mov[i]]  # (3, n) linear Jacobian of the closest sphere
                 vrep = float(repulsive_speed(dk[k], c.d0, c.alpha, c.repulsive_v_max))
                 qd += _dls(Jr, 1e-3) @ (vrep * sd.normals[i, k])
@@ -403,12 +423,12 @@ class GuidanceController:
             v = V[:3]
             qd = Jt_p @ v
             if act.any():
-                k = int(np.argmin(dk))
-                i = rows[k]
-                Jn = sd.normals[i, k] @ Js[mov[i]]  # (n,)
+                kc = int(np.argmin(dk))
+                ic = int(rows[kc])
+                Jn = sd.normals[ic, kc] @ Js[mov[ic]]  # (n,)
                 P = np.eye(self.n) - Jt_p @ Jt
                 JnP = Jn @ P
-                vrep = float(repulsive_speed(dk[k], c.d0, c.alpha, c.repulsive_v_max))
+                vrep = float(repulsive_speed(dk[kc], c.d0, c.alpha, c.repulsive_v_max))
                 # damped scalar pseudo-inverse of J_n P (bounded near its singularity)
                 qd = qd + JnP * ((vrep - Jn @ qd) / (JnP @ JnP + 1e-3))
         # joint bounds: uniform scaling keeps the direction
@@ -427,135 +447,6 @@ def _blend_scalar(d: float, d0: float, alpha: float) -> float:
     """:func:`blend_weight` for one float (no numpy overhead in the 1 kHz loop)."""
     x = min(alpha * (2.0 * d / d0 - 1.0), 700.0)
     return min(1.0, max(0.0, (1.0 + math.exp(-alpha)) / (1.0 + math.exp(x))))
-
-
-@njit(cache=True)
-def _active_rows(dk, G, d0, x, A):  # pragma: no cover - compiled
-    """Copy the rows G[k] of obstacles with dk[k] < d0 into A[:nact]; return nact and whether x
-    satisfies all of them (A x >= 0)."""
-    K, n = G.shape
-    nact = 0
-    feasible = True
-    for k in range(K):
-        if dk[k] < d0:
-            s = 0.0
-            for j in range(n):
-                A[nact, j] = G[k, j]
-                s += G[k, j] * x[j]
-            if s < 0.0:
-                feasible = False
-            nact += 1
-    return nact, feasible
-
-
-@njit(cache=True)
-def _check_wrench(w, last, has_last, max_f, max_t, spike_f, spike_t):  # pragma: no cover - compiled
-    """(code, a, b): 0 usable; 1 NaN/inf; 2 out of range (|f|, |tau|); 3 spike (|df|, |dtau|)."""
-    for i in range(6):
-        if not np.isfinite(w[i]):
-            return 1, 0.0, 0.0
-    f = np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-    t = np.sqrt(w[3] * w[3] + w[4] * w[4] + w[5] * w[5])
-    if f > max_f or t > max_t:
-        return 2, f, t
-    if has_last:
-        a = w[0] - last[0]
-        b = w[1] - last[1]
-        c = w[2] - last[2]
-        df = np.sqrt(a * a + b * b + c * c)
-        a = w[3] - last[3]
-        b = w[4] - last[4]
-        c = w[5] - last[5]
-        dt = np.sqrt(a * a + b * b + c * c)
-        if df > spike_f or dt > spike_t:
-            return 3, df, dt
-    return 0, 0.0, 0.0
-
-
-@njit(cache=True)
-def _filter_lead(w, wf, beta, first, par, V):  # pragma: no cover - compiled
-    """Low-pass the wrench into wf (in place) and write V = C F (3.11) with deadbands and speed
-    limits. par = [band_f, band_t, K_d, K_r, v_max, w_max]."""
-    for i in range(6):
-        wf[i] = w[i] if first else wf[i] + beta * (w[i] - wf[i])
-    for o in (0, 3):
-        band, gain, vmax = (par[0], par[2], par[4]) if o == 0 else (par[1], par[3], par[5])
-        nx = np.sqrt(wf[o] * wf[o] + wf[o + 1] * wf[o + 1] + wf[o + 2] * wf[o + 2])
-        if nx <= band:
-            V[o] = V[o + 1] = V[o + 2] = 0.0
-        else:
-            sc = min(gain * (nx - band), vmax) / nx
-            V[o] = wf[o] * sc
-            V[o + 1] = wf[o + 1] * sc
-            V[o + 2] = wf[o + 2] * sc
-
-
-@njit(cache=True)
-def _qp_terms(J, W, V, par, q, lower, upper, vmax, H, f, lb, ub, x):  # pragma: no cover - compiled
-    """Cost of (4.11): H = J^T W J + mu I (mu grows near singularities), f = -J^T W V; joint bounds
-    containing 0; x = the unconstrained minimiser. Returns whether x is within the bounds.
-    par = [mu_0, epsilon^2, lambda_max^2, k_limit]."""
-    n = J.shape[1]
-    for i in range(n):
-        s = 0.0
-        for r in range(6):
-            s -= J[r, i] * W[r] * V[r]
-        f[i] = s
-        for j in range(i, n):
-            s = 0.0
-            for r in range(6):
-                s += J[r, i] * W[r] * J[r, j]
-            H[i, j] = s
-            H[j, i] = s
-    smin2 = max(np.linalg.eigvalsh(H)[0], 0.0)
-    mu = par[0]
-    if smin2 < par[1]:
-        mu += par[2] * (1.0 - smin2 / par[1])
-    for i in range(n):
-        H[i, i] += mu
-    x[:] = np.linalg.solve(H, -f)
-    inside = True
-    k = par[3]
-    for i in range(n):
-        u = min(vmax[i], max(0.0, k * (upper[i] - q[i])))
-        l = max(-vmax[i], min(0.0, k * (lower[i] - q[i])))
-        ub[i] = u
-        lb[i] = l
-        if x[i] > u or x[i] < l:
-            inside = False
-    return inside
-
-
-@njit(cache=True)
-def _soft_min(D, G3, beta, dk, dh, rows, G):  # pragma: no cover - compiled
-    """Per obstacle k: hard minimum dh[k] over control points (row rows[k]), the smooth minimum
-    dk[k] = dh - log(sum exp(-beta (d - dh))) / beta and its gradient G[k] (softmax-weighted rows
-    of G3 (m, K, n)); beta = 0 takes the hard minimum's row."""
-    m, K = D.shape
-    n = G3.shape[2]
-    for k in range(K):
-        i0 = 0
-        for i in range(1, m):
-            if D[i, k] < D[i0, k]:
-                i0 = i
-        rows[k] = i0
-        dh[k] = D[i0, k]
-        if beta <= 0.0:
-            dk[k] = dh[k]
-            for j in range(n):
-                G[k, j] = G3[i0, k, j]
-            continue
-        S = 0.0
-        for j in range(n):
-            G[k, j] = 0.0
-        for i in range(m):
-            e = np.exp(-beta * (D[i, k] - dh[k]))
-            S += e
-            for j in range(n):
-                G[k, j] += e * G3[i, k, j]
-        for j in range(n):
-            G[k, j] /= S
-        dk[k] = dh[k] - np.log(S) / beta
 
 
 def _dls(J: np.ndarray, lam: float) -> np.ndarray:

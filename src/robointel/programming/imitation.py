@@ -16,12 +16,23 @@ The reference is then tracked by the simulated robot (``robointel.sim.Workcell``
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
+from ruckig import ControlInterface, InputParameter, OutputParameter, Result, Ruckig
+from scipy.interpolate import CubicSpline
 
 from robointel._validate import as_array
 from robointel.errors import IKFailure, InvalidInput
 from robointel.programming.skeleton import Skeleton, clean
+from robointel.sim import TrackingLog, Workcell
+from robointel.trajectory import Trajectory
+
+if TYPE_CHECKING:  # pragma: no cover
+    from pathlib import Path
+
+    from robointel.robot import Robot
 
 #: Default workspace box for the TCP (robot root frame, m): every point is reachable with the
 #: default tool orientation, and J5 stays away from the wrist singularity there.
@@ -40,12 +51,17 @@ class WorkspaceMap:
     center_robot: np.ndarray
 
     def __call__(self, p: np.ndarray) -> np.ndarray:
+        """Map hand positions ``p`` (..., 3), m, into the robot workspace, m."""
         return self.center_robot + self.scale * (np.asarray(p, float) - self.center_human)
 
 
-def fit_workspace(d: np.ndarray, lo=WORKSPACE_LO, hi=WORKSPACE_HI, *, max_scale: float = 1.0) -> WorkspaceMap:
-    """Uniform scale (<= ``max_scale``) and offset putting the hand-minus-hip path ``d`` (N, 3)
-    inside the box [lo, hi] (centred), preserving the shape of the motion."""
+def fit_workspace(d: np.ndarray, lo: ArrayLike = WORKSPACE_LO, hi: ArrayLike = WORKSPACE_HI, *,
+                  max_scale: float = 1.0) -> WorkspaceMap:
+    """Fit the workspace map: one uniform scale and an offset.
+
+    Uniform scale (<= ``max_scale``) and offset putting the hand-minus-hip path ``d`` (N, 3) inside the box [lo, hi]
+    (centred), preserving the shape of the motion.
+    """
     d = as_array(d, "d", (None, 3))
     lo, hi = as_array(lo, "lo", (3,)), as_array(hi, "hi", (3,))
     if np.any(hi <= lo):
@@ -63,8 +79,8 @@ class ImitationPlan:
     Attributes:
         t: (N,) frame times [s]; p_target: (N, 3) TCP targets [m]; q_ik: (N, 6) IK per frame [rad];
         reachable: (N,) IK found a solution; limit_hits: (6,) frames per joint whose raw IK
-        velocity or acceleration exceeded the limit; t_ref, q_ref, qd_ref, qdd_ref: the 1 kHz
-        jerk-limited reference; mapping: the workspace map; source: the recording.
+        velocity or acceleration exceeded the limit; trajectory: the 1 kHz jerk-limited joint
+        reference (s, rad, rad/s, rad/s^2); mapping: the workspace map; source: the recording.
     """
 
     t: np.ndarray
@@ -73,16 +89,13 @@ class ImitationPlan:
     q_ik: np.ndarray
     reachable: np.ndarray
     limit_hits: np.ndarray
-    t_ref: np.ndarray
-    q_ref: np.ndarray
-    qd_ref: np.ndarray
-    qdd_ref: np.ndarray
+    trajectory: Trajectory
     mapping: WorkspaceMap
     source: str = ""
 
 
 def hand_targets(skel: Skeleton, *, side: str | None = None, mapping: WorkspaceMap | None = None,
-                 lo=WORKSPACE_LO, hi=WORKSPACE_HI) -> tuple[np.ndarray, WorkspaceMap]:
+                 lo: ArrayLike = WORKSPACE_LO, hi: ArrayLike = WORKSPACE_HI) -> tuple[np.ndarray, WorkspaceMap]:
     """(N, 3) TCP targets p_d = map(p_h - p_c) (3.1) and the map used."""
     side = side or skel.active_side()
     a = skel.arm(side)
@@ -91,9 +104,12 @@ def hand_targets(skel: Skeleton, *, side: str | None = None, mapping: WorkspaceM
     return mapping(d), mapping
 
 
-def solve_ik_path(robot, p: np.ndarray, R: np.ndarray, q0=None) -> tuple[np.ndarray, np.ndarray]:
-    """Closed-form IK for each target (N, 3) with fixed rotation R, each solution the one closest
-    to the previous (``q0`` for the first). Unreachable targets hold the previous solution.
+def solve_ik_path(robot: Robot, p: np.ndarray, R: np.ndarray,
+                  q0: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Closed-form IK for each target with a fixed tool rotation, continuous along the path.
+
+    Closed-form IK for each target (N, 3) with fixed rotation R, each solution the one closest to the previous
+    (``q0`` for the first). Unreachable targets hold the previous solution.
 
     Returns: (q (N, n), reachable (N,) bool).
     """
@@ -133,10 +149,8 @@ class LimitedFollower:
         n: joints.  vmax, amax, jmax: (n,) limits [rad/s, rad/s^2, rad/s^3].  dt: period [s].
     """
 
-    def __init__(self, n: int, vmax, amax, jmax, *, dt: float = 0.001, gain: float = 12.0,
-                 lower=None, upper=None) -> None:
-        from ruckig import ControlInterface, InputParameter, OutputParameter, Ruckig
-
+    def __init__(self, n: int, vmax: ArrayLike, amax: ArrayLike, jmax: ArrayLike, *, dt: float = 0.001,
+                 gain: float = 12.0, lower: ArrayLike | None = None, upper: ArrayLike | None = None) -> None:
         self.n = n
         self.vmax, self.amax, self.jmax = (np.broadcast_to(as_array(x, "limit"), (n,)).astype(float)
                                            for x in (vmax, amax, jmax))
@@ -153,16 +167,16 @@ class LimitedFollower:
         self.inp.target_acceleration = [0.0] * n
         self.q = np.zeros(n)
 
-    def reset(self, q, qd=None) -> None:
+    def reset(self, q: np.ndarray, qd: np.ndarray | None = None) -> None:
+        """Restart the follower at ``q`` (n,), rad, with velocity ``qd`` (n,), rad/s (default 0)."""
         self.q = np.array(q, float)
         self.inp.current_position = self.q.tolist()
         self.inp.current_velocity = [0.0] * self.n if qd is None else list(map(float, qd))
         self.inp.current_acceleration = [0.0] * self.n
 
-    def step(self, target, target_velocity=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def step(self, target: ArrayLike,
+             target_velocity: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One period toward ``target`` (n,) moving at ``target_velocity`` (n,): (q, qd, qdd)."""
-        from ruckig import Result
-
         e = np.asarray(target, float) - self.q
         fb = np.sign(e) * np.minimum(self.gain * np.abs(e), np.sqrt(0.5 * self.amax * np.abs(e)))
         tv = np.zeros(self.n) if target_velocity is None else np.asarray(target_velocity, float)
@@ -179,12 +193,32 @@ class LimitedFollower:
         return q, qd, qdd
 
 
-def jerk_limited(t: np.ndarray, q: np.ndarray, vmax, amax, jmax, *, dt: float = 0.001,
-                 lower=None, upper=None, gain: float = 12.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Follow the C2 spline through targets q (N, n) at times t (N,) within velocity, acceleration
-    and jerk limits with a :class:`LimitedFollower`. Returns (t_ref, q, qd, qdd) at 1/dt Hz."""
-    from scipy.interpolate import CubicSpline
+def jerk_limited(t: np.ndarray, q: np.ndarray, vmax: ArrayLike, amax: ArrayLike, jmax: ArrayLike, *, dt: float = 0.001,
+                 lower: ArrayLike | None = None, upper: ArrayLike | None = None, gain: float = 12.0,
+                 joint_names: list[str] | None = None) -> Trajectory:
+    """Jerk-limited joint reference through joint targets.
 
+    Follows the C2 spline through the targets within velocity, acceleration and jerk limits with a
+    :class:`LimitedFollower` (ruckig).
+
+    Args:
+        t: (N,) target times, s.
+        q: (N, n) joint targets, rad.
+        vmax: (n,) velocity limits, rad/s.
+        amax: (n,) acceleration limits, rad/s^2.
+        jmax: (n,) jerk limits, rad/s^3.
+        dt: step of the reference, s.
+        lower: (n,) lower joint limits the targets are clipped to, rad (optional).
+        upper: (n,) upper joint limits, rad (with ``lower``).
+        gain: position feedback gain of the follower, 1/s.
+        joint_names: n names of the result (default ``joint_1``...).
+
+    Returns:
+        The reference at 1/dt Hz from t[0] to t[-1].
+
+    Raises:
+        ShapeError, NotFinite: bad ``t`` or ``q``.
+    """
     t = as_array(t, "t", (None,))
     q = as_array(q, "q", (len(t), None))
     n = q.shape[1]
@@ -200,22 +234,31 @@ def jerk_limited(t: np.ndarray, q: np.ndarray, vmax, amax, jmax, *, dt: float = 
     QDD = np.empty_like(Q)
     for k in range(len(tg)):
         Q[k], QD[k], QDD[k] = fol.step(S[k], SD[k])
-    return tg, Q, QD, QDD
+    return Trajectory(tg, Q, QD, QDD, list(joint_names or []))
 
 
-def kinematic_imitation(skel: Skeleton, robot, *, side: str | None = None, R_tool=None,
-                        lo=WORKSPACE_LO, hi=WORKSPACE_HI, dt: float = 0.001, cutoff_hz: float = 6.0,
-                        jerk_factor: float = 20.0) -> ImitationPlan:
-    """Skeleton -> cleaned hand path -> TCP targets (3.1) -> closed-form IK -> jerk-limited 1 kHz
-    joint reference within the robot's velocity and acceleration limits.
+def kinematic_imitation(skel: Skeleton, robot: Robot, *, side: str | None = None, R_tool: ArrayLike | None = None,
+                        lo: ArrayLike = WORKSPACE_LO, hi: ArrayLike = WORKSPACE_HI, dt: float = 0.001,
+                        cutoff_hz: float = 6.0, jerk_factor: float = 20.0) -> ImitationPlan:
+    """Kinematic imitation (3.1): skeleton to a jerk-limited 1 kHz joint reference.
+
+    Skeleton -> cleaned hand path -> TCP targets (3.1) -> closed-form IK -> jerk-limited 1 kHz joint reference
+    within the robot's velocity and acceleration limits.
 
     Args:
         skel: raw skeleton (bridged and filtered here with :func:`clean`).
         robot: the LR Mate (any robot with ``ik``).
         R_tool: fixed 3x3 tool orientation (default ``TOOL_DOWN``; pointing forward, identity,
             puts the wrist at its singularity q5 = 0 in the middle of the workspace).
-        lo, hi: TCP workspace box [m].
+        side: "left" or "right" arm (default: the one that moves most).
+        lo: (3,) lower corner of the TCP workspace box, m.
+        hi: (3,) upper corner of the TCP workspace box, m.
+        dt: step of the joint reference, s (1 kHz).
+        cutoff_hz: low-pass cut-off of the skeleton filter, Hz.
         jerk_factor: jerk limit = jerk_factor * acceleration limit [rad/s^3].
+
+    Returns:
+        The plan: targets, per-frame IK and the jerk-limited joint reference (a :class:`Trajectory`).
     """
     side = side or skel.active_side()
     s = "Right" if side == "right" else "Left"
@@ -226,34 +269,35 @@ def kinematic_imitation(skel: Skeleton, robot, *, side: str | None = None, R_too
     v = np.abs(np.gradient(q_ik, c.t, axis=0))
     a = np.abs(np.gradient(np.gradient(q_ik, c.t, axis=0), c.t, axis=0))
     hits = np.sum((v > robot.velocity_limit) | (a > robot.acceleration_limit), axis=0)
-    tg, Q, QD, QDD = jerk_limited(c.t, q_ik, robot.velocity_limit, robot.acceleration_limit,
-                                  jerk_factor * robot.acceleration_limit, dt=dt, lower=robot.lower, upper=robot.upper)
-    return ImitationPlan(c.t, p, R, q_ik, ok, hits, tg, Q, QD, QDD, mapping, skel.source)
+    ref = jerk_limited(c.t, q_ik, robot.velocity_limit, robot.acceleration_limit,
+                       jerk_factor * robot.acceleration_limit, dt=dt, lower=robot.lower, upper=robot.upper,
+                       joint_names=list(robot.joint_names))
+    return ImitationPlan(c.t, p, R, q_ik, ok, hits, ref, mapping, skel.source)
 
 
 @dataclass
 class ImitationRun:
-    """A plan tracked in MuJoCo: ``log`` is the Workcell's TrackingLog; ``rms`` (6,) RMS of the
-    simulated joints against the per-frame IK targets (the imitation error, rad);
-    ``tracking_rms`` (6,) against the 1 kHz reference (the controller's error);
-    ``tcp_rms`` RMS TCP distance to the hand targets [m]; ``tcp`` (N, 3) TCP at the frame times."""
+    """A plan tracked in MuJoCo.
+
+    ``log`` is the Workcell's TrackingLog; ``rms`` (6,) RMS of the simulated joints against the per-frame IK targets
+    (the imitation error, rad); ``tracking_rms`` (6,) against the 1 kHz reference (the controller's error);
+    ``tcp_rms`` RMS TCP distance to the hand targets [m]; ``tcp`` (N, 3) TCP at the frame times.
+    """
 
     plan: ImitationPlan
-    log: object
+    log: TrackingLog
     rms: np.ndarray
     tracking_rms: np.ndarray
     tcp_rms: float
     tcp: np.ndarray
 
 
-def simulate_imitation(plan: ImitationPlan, robot, workcell=None) -> ImitationRun:
+def simulate_imitation(plan: ImitationPlan, robot: Robot, workcell: Workcell | None = None) -> ImitationRun:
     """Track the plan's reference in the MuJoCo workcell (1 kHz PID + feed-forward, Fig. 2.3)."""
     if workcell is None:
-        from robointel.sim import Workcell
-
         workcell = Workcell(robot, ft_sensor=False)
-    log = workcell.run_trajectory(plan.t_ref, plan.q_ref, plan.qd_ref, plan.qdd_ref, record_ft=False)
-    tq = plan.t_ref[: len(log.q)]
+    log = workcell.run_trajectory(plan.trajectory, record_ft=False)
+    tq = plan.trajectory.t[: len(log.q)]
     target = np.stack([np.interp(tq, plan.t, plan.q_ik[:, j]) for j in range(robot.nq)], axis=1)
     rms = np.sqrt(np.mean((log.q - target) ** 2, axis=0))
     idx = np.searchsorted(tq, plan.t).clip(0, len(tq) - 1)
@@ -262,7 +306,7 @@ def simulate_imitation(plan: ImitationPlan, robot, workcell=None) -> ImitationRu
     return ImitationRun(plan, log, rms, log.rms_error, float(np.sqrt(np.mean(d ** 2))), tcp)
 
 
-def plot_imitation(run: ImitationRun, path) -> None:
+def plot_imitation(run: ImitationRun, path: str | Path) -> None:
     """Joint targets vs simulated joints, and the TCP path against the hand targets."""
     import matplotlib
 
@@ -274,7 +318,7 @@ def plot_imitation(run: ImitationRun, path) -> None:
     for j in range(6):
         ax = fig.add_subplot(3, 3, j + 1)
         ax.plot(plan.t, plan.q_ik[:, j], "k.", ms=2, label="IK per frame")
-        ax.plot(plan.t_ref[: len(log.q)], log.q[:, j], "C0-", lw=1, label="LR Mate (MuJoCo)")
+        ax.plot(plan.trajectory.t[: len(log.q)], log.q[:, j], "C0-", lw=1, label="LR Mate (MuJoCo)")
         ax.set_title(f"J{j + 1}: RMS {run.rms[j]:.4f} rad, {int(plan.limit_hits[j])} limit hits", fontsize=8)
         ax.tick_params(labelsize=7)
         if j == 0:

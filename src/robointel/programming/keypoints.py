@@ -13,12 +13,21 @@ A path guided by hand is noisy and slow; the robot reproduces it from a few key 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import pinocchio as pin
+from numpy.typing import ArrayLike
+from scipy.spatial.transform import Rotation, Slerp
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
 from robointel.programming.compliance import damped_pinv
+from robointel.trajectory import Trajectory
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.robot import Robot
 
 __all__ = ["BlendedTrajectory", "Reproduction", "blended_trajectory", "extract_keypoints",
            "joint_velocity_reference", "orientation_reference", "plot_reproduction", "rdp_indices",
@@ -26,8 +35,10 @@ __all__ = ["BlendedTrajectory", "Reproduction", "blended_trajectory", "extract_k
 
 
 def rdp_indices(points: np.ndarray, tolerance: float) -> np.ndarray:
-    """Indices kept by the Ramer-Douglas-Peucker simplification of a polyline (N, d) within
-    ``tolerance`` (same units); always keeps the first and last point. Iterative, no recursion."""
+    """Indices kept by the Ramer-Douglas-Peucker simplification of a polyline (N, d) within ``tolerance`` (same units).
+
+    Always keeps the first and last point. Iterative, no recursion.
+    """
     P = np.asarray(points, float)
     n = len(P)
     if n <= 2:
@@ -55,7 +66,7 @@ def rdp_indices(points: np.ndarray, tolerance: float) -> np.ndarray:
     return np.flatnonzero(keep)
 
 
-def extract_keypoints(t, positions, *, tolerance: float = 0.01, dwell_speed: float = 0.01,
+def extract_keypoints(t: ArrayLike, positions: ArrayLike, *, tolerance: float = 0.01, dwell_speed: float = 0.01,
                       dwell_time: float = 0.3, min_separation: float = 0.005) -> np.ndarray:
     """Key points of a guided path: start, end, dwells and direction changes.
 
@@ -120,9 +131,11 @@ class BlendedTrajectory:
         """Total time from rest to rest, s."""
         return float(self.times[-1] + self.blend[-1] / 2)
 
-    def __call__(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position (M, 3), velocity (M, 3) and acceleration (M, 3) at times t (M,) (clipped to
-        [0, duration])."""
+    def __call__(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration of the blended trajectory.
+
+        Position (M, 3), velocity (M, 3) and acceleration (M, 3) at times t (M,) (clipped to [0, duration]).
+        """
         t = np.clip(np.atleast_1d(np.asarray(t, float)), 0.0, self.duration)
         K = len(self.points)
         # which segment (line after key point k) or blend k each t falls in
@@ -155,7 +168,7 @@ class BlendedTrajectory:
         return p, v, a
 
 
-def blended_trajectory(points, *, speed: float = 0.1, blend_time: float = 0.4,
+def blended_trajectory(points: ArrayLike, *, speed: float = 0.1, blend_time: float = 0.4,
                        kind: str = "quintic") -> BlendedTrajectory:
     """Line segments through key points at ``speed`` with corner blends, from rest to rest.
 
@@ -193,11 +206,12 @@ def blended_trajectory(points, *, speed: float = 0.1, blend_time: float = 0.4,
     return BlendedTrajectory(points=P.copy(), times=times, blend=tau, velocities=V, kind=kind)
 
 
-def orientation_reference(trajectory: BlendedTrajectory, rotations, t) -> np.ndarray:
-    """Tool orientation reference (M, 3, 3) at times t (M,): slerp between the key points'
-    orientations ``rotations`` (K, 3, 3), eased (smoothstep) so it rests at each key point."""
-    from scipy.spatial.transform import Rotation, Slerp
+def orientation_reference(trajectory: BlendedTrajectory, rotations: ArrayLike, t: ArrayLike) -> np.ndarray:
+    """Tool orientation reference (M, 3, 3) at times t (M,).
 
+    Slerp between the key points' orientations ``rotations`` (K, 3, 3), eased (smoothstep) so it rests at each key
+    point.
+    """
     R = as_array(rotations, "rotations", (len(trajectory.points), 3, 3))
     knots = trajectory.times.copy()
     knots[0], knots[-1] = 0.0, trajectory.duration
@@ -208,7 +222,8 @@ def orientation_reference(trajectory: BlendedTrajectory, rotations, t) -> np.nda
     return Slerp(knots, Rotation.from_matrix(R))(tau).as_matrix()
 
 
-def joint_velocity_reference(robot, q0, trajectory: BlendedTrajectory, *, rotations=None, dt: float = 0.001,
+def joint_velocity_reference(robot: Robot, q0: ArrayLike, trajectory: BlendedTrajectory, *,
+                             rotations: ArrayLike | None = None, dt: float = 0.001,
                              gain: float = 20.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Joint velocity reference that makes the TCP follow ``trajectory`` (Fig. 3.12).
 
@@ -228,8 +243,6 @@ def joint_velocity_reference(robot, q0, trajectory: BlendedTrajectory, *, rotati
     Returns:
         t (M,), q (M, n), dq (M, n).
     """
-    import pinocchio as pin
-
     q = robot.check_q(q0).copy()
     t = np.arange(0.0, trajectory.duration + dt / 2, dt)
     pd, vd, _ = trajectory(t)
@@ -259,17 +272,34 @@ class Reproduction:
     """A guided path reproduced from its key points (Figs. 3.11-3.12).
 
     Attributes:
-        keypoints: indices into the guided path. trajectory: the blended Cartesian trajectory.
-        t: (M,) s. q: (M, n) joint reference, rad. qd: (M, n) joint velocity reference, rad/s.
+        keypoints: indices into the guided path.
+        cartesian: the blended Cartesian TCP trajectory through the key points.
+        trajectory: the joint reference (M samples at the reference's step), s, rad, rad/s and
+            rad/s^2 (accelerations by finite differences of the velocity reference).
         path_error: largest distance (m) from the reproduced TCP path to the guided polyline.
     """
 
     keypoints: np.ndarray
-    trajectory: BlendedTrajectory
-    t: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
+    cartesian: BlendedTrajectory
+    trajectory: Trajectory
     path_error: float
+
+    # Transitional: commands/guidance.py (another branch this session) reads rep.t / rep.q / rep.qd;
+    # the lead removes these three after merging.
+    @property
+    def t(self) -> np.ndarray:
+        """(M,) times of the joint reference, s (``trajectory.t``)."""
+        return self.trajectory.t
+
+    @property
+    def q(self) -> np.ndarray:
+        """(M, n) joint reference, rad (``trajectory.q``)."""
+        return self.trajectory.q
+
+    @property
+    def qd(self) -> np.ndarray:
+        """(M, n) joint velocity reference, rad/s (``trajectory.qd``)."""
+        return self.trajectory.qd
 
 
 def _polyline_distance(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
@@ -286,19 +316,29 @@ def _polyline_distance(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     return best
 
 
-def reproduce_path(robot, t, positions, q0, *, rotations=None, tolerance: float = 0.01, speed: float = 0.1,
-                   blend_time: float = 0.4, kind: str = "quintic", dt: float = 0.001, **keypoint_args) -> Reproduction:
+def reproduce_path(robot: Robot, t: ArrayLike, positions: ArrayLike, q0: ArrayLike, *,
+                   rotations: ArrayLike | None = None, tolerance: float = 0.01, speed: float = 0.1,
+                   blend_time: float = 0.4, kind: str = "quintic", dt: float = 0.001,
+                   **keypoint_args: Any) -> Reproduction:
     """Key points of a guided TCP path -> blended trajectory -> joint velocity reference.
 
     Args:
         robot: :class:`robointel.robot.Robot`.
-        t: (N,) times of the guided path, s. positions: (N, 3) TCP positions, m.
+        t: (N,) times of the guided path, s.
+        positions: (N, 3) TCP positions, m.
         q0: (n,) configuration at the path's start (its TCP at positions[0]).
         rotations: optional (N, 3, 3) tool orientations along the guided path; the reproduction
             then passes the key points with their orientations (else it holds the start one).
-        tolerance, keypoint_args: passed to :func:`extract_keypoints`.
-        speed, blend_time, kind: passed to :func:`blended_trajectory`.
+        tolerance: path tolerance of :func:`extract_keypoints`, m.
+        speed: TCP speed of :func:`blended_trajectory`, m/s.
+        blend_time: corner blend duration, s.
+        kind: ``"cubic"`` or ``"quintic"`` corner blends.
         dt: sample time of the joint reference, s.
+        **keypoint_args: further arguments of :func:`extract_keypoints`.
+
+    Returns:
+        The key points, the Cartesian trajectory, the joint reference (a :class:`Trajectory`) and
+        the largest distance to the guided path.
     """
     P = as_array(positions, "positions", (None, 3))
     k = extract_keypoints(t, P, tolerance=tolerance, **keypoint_args)
@@ -307,15 +347,17 @@ def reproduce_path(robot, t, positions, q0, *, rotations=None, tolerance: float 
     tt, Q, dQ = joint_velocity_reference(robot, q0, tr, rotations=Rk, dt=dt)
     tcp = np.array([robot.fk(q)[:3, 3] for q in Q[::10]])
     err = float(_polyline_distance(tcp, P[np.r_[0:len(P):5, len(P) - 1]]).max())
-    return Reproduction(k, tr, tt, Q, dQ, err)
+    joints = Trajectory(tt, Q, dQ, np.gradient(dQ, tt, axis=0), list(getattr(robot, "joint_names", [])))
+    return Reproduction(k, tr, joints, err)
 
 
-def plot_reproduction(guided: np.ndarray, rep: Reproduction, path, *, executed: np.ndarray | None = None):
-    """Guided path, key points and reproduced path (Fig. 3.11) beside the joint velocity
-    reference (Fig. 3.12). ``guided`` (N, 3) and ``executed`` (M, 3) are TCP positions, m.
-    Returns the PNG path."""
-    from pathlib import Path
+def plot_reproduction(guided: np.ndarray, rep: Reproduction, path: str | Path, *,
+                      executed: np.ndarray | None = None) -> Path:
+    """Guided path, key points and reproduced path (Fig.
 
+    3.11) beside the joint velocity reference (Fig. 3.12). ``guided`` (N, 3) and ``executed`` (M, 3) are TCP
+    positions, m. Returns the PNG path.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -327,7 +369,7 @@ def plot_reproduction(guided: np.ndarray, rep: Reproduction, path, *, executed: 
     ax0, ax1 = np.argsort(np.ptp(guided, axis=0))[::-1][:2]
     names = "xyz"
     ax[0].plot(guided[:, ax0], guided[:, ax1], c="0.6", lw=3, label="guided")
-    p, _, _ = rep.trajectory(rep.t)
+    p, _, _ = rep.cartesian(rep.trajectory.t)
     ax[0].plot(p[:, ax0], p[:, ax1], c="C0", label="reproduced (reference)")
     if executed is not None:
         ax[0].plot(executed[:, ax0], executed[:, ax1], "--", c="C1", label="executed (MuJoCo)")
@@ -338,10 +380,10 @@ def plot_reproduction(guided: np.ndarray, rep: Reproduction, path, *, executed: 
     ax[0].axis("equal")
     ax[0].legend(fontsize=7)
     ax[0].set_title(f"{len(rep.keypoints)} key points, path error {rep.path_error * 1e3:.1f} mm", fontsize=9)
-    ax[1].plot(rep.t, rep.qd)
+    ax[1].plot(rep.trajectory.t, rep.trajectory.qd)
     ax[1].set_xlabel("time [s]")
     ax[1].set_ylabel("joint velocity reference [rad/s]")
-    ax[1].legend([f"J{i + 1}" for i in range(rep.qd.shape[1])], fontsize=7, ncol=2)
+    ax[1].legend([f"J{i + 1}" for i in range(rep.trajectory.n_joints)], fontsize=7, ncol=2)
     fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

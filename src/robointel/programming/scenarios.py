@@ -26,17 +26,23 @@ tests). :func:`plot_scenario` draws the four panels of Fig. 4.6b.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
+import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from robointel.errors import InvalidInput
 from robointel.geometry import Cylinder
+from robointel.programming.ft_identification import FTCalibration, calibrate_in_workcell
 from robointel.programming.guidance import GuidanceConfig, GuidanceController
-from robointel.programming.ft_identification import calibrate_in_workcell
 from robointel.programming.keypoints import blended_trajectory
+from robointel.robot import Robot
+from robointel.sim import Workcell
+from robointel.sim.mjcf import Payload
+from robointel.sim.workcell import FTSensor
 
 __all__ = ["BASE_HEIGHT", "OBSTACLE_RADIUS", "SCENARIOS", "Scenario", "ScenarioResult", "SimulatedOperator",
            "plot_scenario", "run_scenario", "scenario", "table_4_1_obstacles"]
@@ -139,7 +145,7 @@ class SimulatedOperator:
         """Target point (3,) at time t, s."""
         return self.targets(np.array([float(t)]))[0]
 
-    def targets(self, t) -> np.ndarray:
+    def targets(self, t: ArrayLike) -> np.ndarray:
         """Target points (M, 3) at times t (M,), s."""
         t = np.asarray(t, float)
         T1 = self.legs[0].duration
@@ -153,10 +159,10 @@ class SimulatedOperator:
 
     def wrench(self, t: float, T_tcp: np.ndarray, v_tcp: np.ndarray, R_hold: np.ndarray,
                target: np.ndarray | None = None) -> np.ndarray:
-        """Hand wrench [f; tau] (6,) on the handle, world axes, about the TCP (``target``: the
-        precomputed :meth:`target` at t)."""
-        import pinocchio as pin
+        """Hand wrench [f.
 
+        Tau] (6,) on the handle, world axes, about the TCP (``target``: the precomputed :meth:`target` at t).
+        """
         p = self.target(t) if target is None else target
         f = self.stiffness * (p - T_tcp[:3, 3]) - self.damping * v_tcp
         nf = np.linalg.norm(f)
@@ -204,9 +210,11 @@ class ScenarioResult:
 
     @property
     def deviation(self) -> np.ndarray:
-        """||V_cmd - V_lead|| (translation), m/s, (T,). While the controller holds after an F/T
-        fault, V_cmd = 0 and V_lead is the lead twist of the reading (the operator's intent; NaN
-        for a NaN reading)."""
+        """||V_cmd - V_lead|| (translation), m/s, (T,).
+
+        While the controller holds after an F/T fault, V_cmd = 0 and V_lead is the lead twist of the reading (the
+        operator's intent; NaN for a NaN reading).
+        """
         return np.linalg.norm(self.v_cmd[:, :3] - self.v_lead[:, :3], axis=1)
 
     def metrics(self) -> dict:
@@ -236,7 +244,7 @@ class ScenarioResult:
         }
 
 
-def _start_configuration(robot, p0: np.ndarray) -> np.ndarray:
+def _start_configuration(robot: Robot, p0: np.ndarray) -> np.ndarray:
     """IK of the start TCP position with the tool pointing down, elbow up, closest to q_home."""
     q_home = np.array([0.0, 0.0, 0.0, 0.0, -np.pi / 2, 0.0])
     T = robot.fk(q_home)
@@ -245,8 +253,8 @@ def _start_configuration(robot, p0: np.ndarray) -> np.ndarray:
 
 
 def run_scenario(number: int, method: str = "qp", *, duration: float | None = None, physics: bool = True,
-                 config: GuidanceConfig | None = None, robot=None, ft_noise: float = 0.05,
-                 ft_bias=(1.5, -0.8, 2.0, 0.05, -0.03, 0.02), identify: bool = True,
+                 config: GuidanceConfig | None = None, robot: Robot | None = None, ft_noise: float = 0.05,
+                 ft_bias: ArrayLike = (1.5, -0.8, 2.0, 0.05, -0.03, 0.02), identify: bool = True,
                  progress: Callable[[float], None] | None = None, seed: int = 0) -> ScenarioResult:
     """Run scenario ``number`` with a guidance ``method`` and a simulated operator.
 
@@ -260,12 +268,10 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
         ft_noise: F/T noise std (N; torques get a tenth, N m).
         ft_bias: F/T bias [N, N m], identified away before guiding.
         identify: identify payload and bias first (3.14)-(3.19); else use the true values.
+        robot: the arm (default: a freshly loaded LR Mate 200iD/7L).
         progress: called with the fraction done.
+        seed: seed of the F/T sensor noise.
     """
-    from dataclasses import replace
-
-    from robointel.robot import Robot
-
     sc = scenario(number)
     robot = robot or Robot.load("lrmate200id7l")
     cfg = replace(config or GuidanceConfig(), method=method)
@@ -284,10 +290,6 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
     extra: dict = {}
     wc = cal = None
     if physics:
-        from robointel.sim import Workcell
-        from robointel.sim.mjcf import Payload
-        from robointel.sim.workcell import FTSensor
-
         payload = Payload(mass=0.6, com=(0.04, 0.0, 0.01), radius=0.03)
         sens = FTSensor(bias=np.asarray(ft_bias, float), noise_std=np.r_[[ft_noise] * 3, [ft_noise / 10] * 3],
                         seed=seed)
@@ -297,10 +299,8 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
             extra["identified_mass"] = cal.mass
             extra["identified_com"] = cal.com.tolist()
         else:
-            from robointel.programming.ft_identification import FTCalibration
-
-            cal = FTCalibration(payload.mass, np.asarray(payload.com, float), np.asarray(ft_bias[:3], float),
-                                np.asarray(ft_bias[3:], float), 0.0, 0.0)
+            bias = np.asarray(ft_bias, float)
+            cal = FTCalibration(payload.mass, np.asarray(payload.com, float), bias[:3], bias[3:], 0.0, 0.0)
         wc.reset(q0)
         wc.hold(0.05)
     q = q0.copy()
@@ -319,6 +319,7 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
             wc.apply_wrench(hand[:3], hand[3:], point=T[:3, 3])
             raw = wc.ft_reading()
             Rs = wc.sensor_pose()[:3, :3]
+            assert cal is not None  # identified or given above whenever there is a workcell
             ext = cal.compensate(raw, Rs)
             w_world = np.concatenate([Rs @ ext[:3], Rs @ ext[3:]])
             # torque about the TCP (the sensor origin is the flange; TCP = flange + tool offset)
@@ -359,14 +360,14 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
                           extra=extra, step_cpu_us=cpu)
 
 
-def _obstacle_contacts(wc) -> int:
+def _obstacle_contacts(wc: Workcell) -> int:
     d = wc.data
     if d.ncon == 0:
         return 0
     return sum(1 for c in wc.contacts() if c.kind == "obstacle" and c.distance < 0)
 
 
-def plot_scenario(result: ScenarioResult, path, *, d0: float = 0.15) -> Path:
+def plot_scenario(result: ScenarioResult, path: str | Path, *, d0: float = 0.15) -> Path:
     """Four panels like Fig. 4.6b: distance, lead vs commanded speed, deviation, approach rate.
 
     Returns the PNG path.

@@ -19,9 +19,10 @@ shape-preserving interpolation over the good samples (offline) or a hold of the 
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Sequence
+from typing import Any
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
@@ -89,6 +90,7 @@ class Skeleton:
 
     @property
     def n(self) -> int:
+        """Number of frames."""
         return len(self.t)
 
     @property
@@ -98,6 +100,7 @@ class Skeleton:
 
     @property
     def duration(self) -> float:
+        """Recording length, s."""
         return float(self.t[-1] - self.t[0])
 
     def index(self, name: str) -> int:
@@ -135,13 +138,15 @@ class Skeleton:
             spread[side] = float(np.sum(np.var(a["hand"] - a["hip"], axis=0)))
         if not spread:
             raise InvalidInput(f"skeleton from {self.source!r} has no arm joints")
-        return max(spread, key=spread.get)
+        return max(spread, key=lambda k: spread[k])
 
 
 # ---------------------------------------------------------------------------------------- readers
 def read_kinect_csv(path: str | Path) -> Skeleton:
-    """Read a Kinect v2 recording: one line per frame, timestamp in 100 ns ticks, then 25 joints x
-    (x, y, z [m, camera frame], tracking state); a trailing comma is allowed.
+    """Read a Kinect v2 recording.
+
+    One line per frame, timestamp in 100 ns ticks, then 25 joints x (x, y, z [m, camera frame], tracking state); a
+    trailing comma is allowed.
 
     Returns:
         Skeleton with t from 0 [s], positions rotated into the body frame (``KINECT_TO_BODY``).
@@ -219,7 +224,10 @@ def read_bvh(source: str | Path, *, scale: float = 0.01) -> Skeleton:
         m = tokens.index("MOTION")
     except ValueError:
         raise InvalidInput("BVH has no MOTION section") from None
-    names, parents, offsets, channels = [], [], [], []
+    names: list[str] = []
+    parents: list[int] = []
+    offsets: list[Any] = []
+    channels: list[list[str]] = []
     stack: list[int] = []
     i, last = 0, -1
     while i < m:
@@ -293,8 +301,9 @@ def read_bvh(source: str | Path, *, scale: float = 0.01) -> Skeleton:
 
 
 def synthetic_wave_bvh(duration: float = 6.0, fps: float = 30.0, *, seed: int = 0, speed: float = 1.0) -> str:
-    """BVH text of a SYNTHETIC arm-waving person (generated, not recorded): the right upper arm
-    swings out and up at ~0.6 Hz while the forearm waves at ~1.1 Hz; the left arm hangs.
+    """BVH text of a SYNTHETIC arm-waving person (generated, not recorded).
+
+    The right upper arm swings out and up at ~0.6 Hz while the forearm waves at ~1.1 Hz; the left arm hangs.
 
     Used by the demo stage and tests where no recording is available. Centimetres, Y up.
     ``speed`` scales every frequency.
@@ -344,9 +353,11 @@ def synthetic_wave_bvh(duration: float = 6.0, fps: float = 30.0, *, seed: int = 
 
 def synthetic_wave(duration: float = 6.0, fps: float = 30.0, *, seed: int = 0,
                    dropout_at: float | None = 4.0, speed: float = 1.0) -> Skeleton:
-    """A SYNTHETIC arm-waving skeleton (from :func:`synthetic_wave_bvh`) with Kinect-like faults:
-    1 mm sensor noise and, at ``dropout_at`` seconds, a 0.2 s occlusion where the hand is marked
-    not tracked and reported at the origin (like the notch in Fig. 3.8b)."""
+    """A SYNTHETIC arm-waving skeleton (from :func:`synthetic_wave_bvh`) with Kinect-like faults.
+
+    1 mm sensor noise and, at ``dropout_at`` seconds, a 0.2 s occlusion where the hand is marked not tracked and
+    reported at the origin (like the notch in Fig. 3.8b).
+    """
     sk = read_bvh(synthetic_wave_bvh(duration, fps, seed=seed, speed=speed))
     rng = np.random.default_rng(seed + 1)
     pos = sk.positions + rng.normal(0.0, 0.001, sk.positions.shape)
@@ -407,7 +418,7 @@ def detect_bad(skel: Skeleton, *, window: int = 9, k: float = 4.0, floor: float 
 
 
 def clean(skel: Skeleton, *, cutoff_hz: float = 6.0, rate: float | None = None, causal: bool = False,
-          order: int = 2, joints: Sequence[str] | None = None) -> Skeleton:
+          order: int = 2, joints: Sequence[str] | None = None, smooth: bool = True) -> Skeleton:
     """Resample to a uniform clock, bridge dropouts/occlusion jumps, low-pass filter.
 
     Args:
@@ -418,6 +429,7 @@ def clean(skel: Skeleton, *, cutoff_hz: float = 6.0, rate: float | None = None, 
             True (online): hold the last good sample, causal ``sosfilt`` (adds lag, like a live filter).
         order: Butterworth order.
         joints: only these joints (default all).
+        smooth: False: bridge dropouts only, no low-pass (the recording's own samples elsewhere).
 
     Returns:
         A new Skeleton on the uniform grid with ``bridged`` marking replaced samples.
@@ -451,14 +463,14 @@ def clean(skel: Skeleton, *, cutoff_hz: float = 6.0, rate: float | None = None, 
         near = np.rint(gap).astype(int)
         bridged[:, c] = bad[near, j] | (np.abs(gap - near) > 0.25)
     sos = butter(order, cutoff_hz, fs=rate, output="sos")
-    if causal:
+    if smooth and causal:
         zi = sosfilt_zi(sos)
         flat = out.reshape(n, -1)
         filt = np.empty_like(flat)
         for m in range(flat.shape[1]):
             filt[:, m], _ = sosfilt(sos, flat[:, m], zi=zi * flat[0, m])
         out = filt.reshape(out.shape)
-    elif n > 3 * (2 * order + 1):
+    elif smooth and n > 3 * (2 * order + 1):
         out = sosfiltfilt(sos, out, axis=0)
     state = np.where(bridged, INFERRED, TRACKED).astype(np.int8)
     return Skeleton(tu, out, state, [skel.joint_names[j] for j in cols],

@@ -4,9 +4,10 @@ from __future__ import annotations
 import base64
 import html
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import Any
 
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -33,6 +34,7 @@ class Figure:
 
 @dataclass
 class StageResult:
+    """One stage of the demo report: its title, figures, images, text and run time (s)."""
     title: str
     figures: list[Figure] = field(default_factory=list)
     images: list[Path] = field(default_factory=list)
@@ -56,7 +58,7 @@ def run_demo(stages: list[Stage], out: Path, *, quick: bool = False, console: Co
             name = getattr(stage, "__module__", "stage").rsplit(".", 1)[-1]
             task = progress.add_task(name, total=1.0, status="")
 
-            def advance(frac: float, status: str = "", _t=task) -> None:
+            def advance(frac: float, status: str = "", _t: Any = task) -> None:
                 progress.update(_t, completed=max(0.0, min(1.0, frac)), status=status)
 
             sub = out / name
@@ -90,7 +92,8 @@ def write_report(results: list[StageResult], out: Path) -> Path:
         if r.text:
             parts.append(f"<p>{html.escape(r.text)}</p>")
         if r.figures:
-            parts.append("<table><tr><th>figure</th><th>robointel (this run)</th><th>dissertation</th><th>note</th></tr>")
+            parts.append("<table><tr><th>figure</th><th>robointel (this run)</th><th>dissertation</th>"
+                         "<th>note</th></tr>")
             for f in r.figures:
                 parts.append(f"<tr><td>{html.escape(f.name)}</td><td>{html.escape(f.ours)}</td>"
                              f"<td>{html.escape(f.paper or '-')}</td><td>{html.escape(f.note)}</td></tr>")

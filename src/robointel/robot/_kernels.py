@@ -6,12 +6,19 @@ LR Mate IK, where per-call Python overhead would dominate.
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numba import njit
+from numpy.typing import NDArray
+
+#: any numpy array (the compiled kernels take contiguous float64/int64/bool arrays)
+Arr = NDArray[Any]
 
 
 @njit(cache=True, fastmath=False)
-def points_jacobians(T, Jw, joints, pts, anc, P, J):  # pragma: no cover - compiled
+def points_jacobians(T: Arr, Jw: Arr, joints: Arr, pts: Arr, anc: Arr,  # pragma: no cover - compiled
+                     P: Arr, J: Arr) -> None:
     """P[i] = R_j pts[i] + t_j ; J[i] = [v_k + w_k x P[i]; w_k] over ancestor columns k.
 
     T: (nj, 4, 4) joint placements; Jw: (6, n) joint Jacobians in the WORLD frame
@@ -40,12 +47,13 @@ def points_jacobians(T, Jw, joints, pts, anc, P, J):  # pragma: no cover - compi
 
 
 @njit(cache=True)
-def _wrap(a):  # pragma: no cover - compiled
+def _wrap(a: float) -> float:  # pragma: no cover - compiled
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 
 @njit(cache=True)
-def lrmate_ik(T6, d1, a1, a2, a3, d4, d6, lower, upper, tol):  # pragma: no cover - compiled
+def lrmate_ik(T6: Arr, d1: float, a1: float, a2: float, a3: float, d4: float,  # pragma: no cover - compiled
+              d6: float, lower: Arr, upper: Arr, tol: float) -> Arr:
     """Closed-form IK of the z, y, -y | -x, -y, -x arm with spherical wrist.
 
     T6: (4, 4) pose of the last link frame. Returns (k, 6) solutions (principal angles, and for
@@ -130,7 +138,8 @@ def lrmate_ik(T6, d1, a1, a2, a3, d4, d6, lower, upper, tol):  # pragma: no cove
 
 
 @njit(cache=True)
-def points_jacobians_batch(T, Jw, joints, pts, anc, P, J):  # pragma: no cover - compiled
+def points_jacobians_batch(T: Arr, Jw: Arr, joints: Arr, pts: Arr,  # pragma: no cover - compiled
+                           anc: Arr, P: Arr, J: Arr) -> None:
     """:func:`points_jacobians` for a batch: T (B, nj, 4, 4), Jw (B, 6, n) -> P (B, m, 3), J (B, m, 6, n)."""
     for b in range(T.shape[0]):
         points_jacobians(T[b], Jw[b], joints, pts, anc, P[b], J[b])

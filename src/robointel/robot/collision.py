@@ -6,9 +6,11 @@ Spheres are generated from each link's collision primitives so that they cover t
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
@@ -75,17 +77,18 @@ class SphereModel:
     joints: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     _in_joint: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), repr=False)
     self_pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), int), repr=False)
-    _robot: "Robot | None" = field(default=None, repr=False)
+    _robot: Robot | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return len(self.links)
 
     @classmethod
-    def from_robot(cls, robot: "Robot", *, count: int | None = None, inflate: float = 0.0,
-                   include_base: bool = True) -> "SphereModel":
+    def from_robot(cls, robot: Robot, *, count: int | None = None, inflate: float = 0.0,
+                   include_base: bool = True) -> SphereModel:
         """Generate spheres covering every collision primitive of ``robot``'s URDF.
 
         Args:
+            robot: The robot whose URDF collision primitives are covered.
             count: spheres per primitive (default: enough that spacing <= primitive radius).
             inflate: extra radius added to every sphere (m), a safety margin.
             include_base: keep spheres of links that never move.
@@ -109,7 +112,7 @@ class SphereModel:
         m.bind(robot)
         return m
 
-    def bind(self, robot: "Robot") -> "SphereModel":
+    def bind(self, robot: Robot) -> SphereModel:
         """Attach to a robot: resolve joints, joint-frame centres and self-collision pairs."""
         self.centers = as_array(self.centers, "centers", (len(self.links), 3))
         self.radii = as_array(self.radii, "radii", (len(self.links),))
@@ -122,14 +125,18 @@ class SphereModel:
         self.self_pairs = self._self_pairs(robot)
         return self
 
-    def _self_pairs(self, robot: "Robot") -> np.ndarray:
-        """Sphere pairs to check for self-collision: not on the same or adjacent links, and not
-        already overlapping at the zero configuration (pairs that always touch by design)."""
+    def _self_pairs(self, robot: Robot) -> np.ndarray:
+        """Sphere pairs to check for self-collision.
+
+        Not on the same or adjacent links, and not already overlapping at the zero configuration (pairs that always
+        touch by design).
+        """
         m = len(self.links)
         if m == 0:
             return np.zeros((0, 2), int)
         parents = [int(p) for p in robot.model.parents]
-        P, _ = robot.points_kinematics(np.clip(np.zeros(robot.nq), robot.lower, robot.upper), self.joints, self._in_joint)
+        q_mid = np.clip(np.zeros(robot.nq), robot.lower, robot.upper)
+        P, _ = robot.points_kinematics(q_mid, self.joints, self._in_joint)
         pairs = []
         for i in range(m):
             for k in range(i + 1, m):
@@ -146,32 +153,34 @@ class SphereModel:
         """Boolean mask of spheres that move with some joint."""
         return self.joints > 0
 
-    def kinematics(self, q, *, angular: bool = False) -> tuple[np.ndarray, np.ndarray]:
-        """World centres (m, 3) and linear Jacobians (m, 3, n) of all spheres at ``q``
-        (``angular=True``: full (m, 6, n) Jacobians [v; w], for points offset from the centres)."""
+    def kinematics(self, q: ArrayLike, *, angular: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """World centres (m, 3) and linear Jacobians (m, 3, n) of all spheres at ``q`` (``angular=True``.
+
+        Full (m, 6, n) Jacobians [v; w], for points offset from the centres).
+        """
         if self._robot is None:
             raise InvalidInput("sphere model is not bound to a robot; call bind(robot)")
         q = self._robot.check_q(q)
         return self._robot.points_kinematics(q, self.joints, self._in_joint, angular=angular)
 
-    def kinematics_batch(self, Q, *, angular: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    def kinematics_batch(self, Q: ArrayLike, *, angular: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Centres (B, m, 3) and Jacobians (B, m, 3, n) (or (B, m, 6, n)) for configurations Q (B, n)."""
         if self._robot is None:
             raise InvalidInput("sphere model is not bound to a robot; call bind(robot)")
         return self._robot.points_kinematics_batch(Q, self.joints, self._in_joint, angular=angular)
 
-    def positions(self, q) -> np.ndarray:
+    def positions(self, q: ArrayLike) -> np.ndarray:
         """World centres (m, 3) of all spheres."""
         return self.kinematics(q)[0]
 
-    def self_distances(self, q) -> np.ndarray:
+    def self_distances(self, q: ArrayLike) -> np.ndarray:
         """Signed distances between the spheres of every self-collision pair."""
         P = self.positions(q)
         i, k = self.self_pairs.T
         return np.linalg.norm(P[i] - P[k], axis=1) - self.radii[i] - self.radii[k]
 
     # editing -----------------------------------------------------------------
-    def add(self, link: str, center, radius: float) -> None:
+    def add(self, link: str, center: ArrayLike, radius: float) -> None:
         """Add a sphere on ``link`` (centre in the link frame)."""
         self.links.append(link)
         self.centers = np.vstack([self.centers, as_array(center, "center", (3,))])
@@ -195,7 +204,7 @@ class SphereModel:
                             for l, c, r in zip(self.links, self.centers, self.radii)]}
 
     @classmethod
-    def from_dict(cls, d: dict, robot: "Robot") -> "SphereModel":
+    def from_dict(cls, d: dict, robot: Robot) -> SphereModel:
         """Inverse of :meth:`to_dict`, bound to ``robot``."""
         try:
             s = d["spheres"]
@@ -206,7 +215,7 @@ class SphereModel:
         return m.bind(robot)
 
 
-def _mesh_vertices(robot: "Robot", prim: dict) -> np.ndarray | None:
+def _mesh_vertices(robot: Robot, prim: dict) -> np.ndarray | None:
     """Vertices of a mesh collision primitive (scaled), or None if it cannot be loaded."""
     fn = prim.get("filename")
     if not fn:
@@ -218,13 +227,12 @@ def _mesh_vertices(robot: "Robot", prim: dict) -> np.ndarray | None:
         import trimesh
 
         mesh = trimesh.load(path, force="mesh", process=False)
-        return np.asarray(mesh.vertices) * np.asarray(prim["size"], float)
+        return np.asarray(mesh.vertices) * np.asarray(prim["size"], float)  # type: ignore[union-attr,attr-defined]
     except Exception:
         return None
 
 
-def _resolve_mesh(robot: "Robot", fn: str):
-    from pathlib import Path
+def _resolve_mesh(robot: Robot, fn: str) -> Path | None:
 
     if fn.startswith("package://"):
         rel = fn[len("package://"):]

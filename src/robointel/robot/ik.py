@@ -17,10 +17,12 @@ if TYPE_CHECKING:  # pragma: no cover
     from robointel.robot.model import Robot
 
 class LRMateIK:
-    """Analytic IK reading its link lengths from the robot model (so a re-measured description
-    stays exact). Returns up to 8 solutions (shoulder x elbow x wrist)."""
+    """Analytic IK reading its link lengths from the robot model (so a re-measured description stays exact).
 
-    def __init__(self, robot: "Robot") -> None:
+    Returns up to 8 solutions (shoulder x elbow x wrist).
+    """
+
+    def __init__(self, robot: Robot) -> None:
         m = robot.model
         if robot.nq != 6:
             raise DescriptionError("closed-form LR Mate IK needs a 6-joint arm")
@@ -52,7 +54,7 @@ class LRMateIK:
         return out
 
     def _turns(self, q: np.ndarray) -> list[np.ndarray]:
-        """q and every variant with joints turned by +-2*pi that stays within limits."""
+        """Q and every variant with joints turned by +-2*pi that stays within limits."""
         outs = [q]
         for j in range(6):
             new = []

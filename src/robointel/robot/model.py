@@ -13,14 +13,16 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike, NDArray
 
 from robointel._validate import as_array, check_limits
-from robointel.errors import DescriptionError, IKFailure, InvalidInput, NotFinite, ShapeError, UnknownRobot
+from robointel.errors import DescriptionError, IKFailure, InvalidInput, NotFinite, UnknownRobot
 from robointel.robot._kernels import points_jacobians, points_jacobians_batch
+from robointel.robot.collision import SphereModel
+from robointel.robot.ik import LRMateIK
 
 DESCRIPTIONS = Path(__file__).resolve().parent / "descriptions"
 BUILTIN = {
@@ -121,21 +123,19 @@ class Robot:
         self._oMi = [self.data.oMi[i] for i in range(model.njoints)]
         self._Jw = self.data.J
         self._T = np.empty((model.njoints, 4, 4))
-        from robointel.robot.collision import SphereModel  # local import: collision uses Robot
-
         self.spheres: SphereModel = SphereModel.from_robot(self)
         self._ik = None
         if name == "lrmate200id7l":
-            from robointel.robot.ik import LRMateIK
-
             self._ik = LRMateIK(self)
 
     # ------------------------------------------------------------------ loading
     @classmethod
     def load(cls, name_or_path: str | Path, *, flange_frame: str | None = None,
-             tool: np.ndarray | None = None) -> "Robot":
-        """Load a built-in robot (``"lrmate200id7l"``, ``"scara2"``), an ``example-robot-data``
-        arm (``"ur5"``, ``"panda"``) or a URDF file.
+             tool: np.ndarray | None = None) -> Robot:
+        """Load a built-in robot, an ``example-robot-data`` arm or a URDF file.
+
+        Load a built-in robot (``"lrmate200id7l"``, ``"scara2"``), an ``example-robot-data`` arm (``"ur5"``,
+        ``"panda"``) or a URDF file.
 
         Raises:
             UnknownRobot: the name is not built in and no such file exists.
@@ -169,7 +169,7 @@ class Robot:
             raise InvalidInput(f"robot {self.name!r} has no frame {frame!r}; frames: {self.frame_names}", value=frame)
         return int(self.model.getFrameId(frame))
 
-    def check_q(self, q, name: str = "q", *, limits: bool = False) -> np.ndarray:
+    def check_q(self, q: ArrayLike, name: str = "q", *, limits: bool = False) -> np.ndarray:
         """Validate a configuration: shape (nq,), finite, and (``limits=True``) within limits."""
         if type(q) is np.ndarray and q.dtype == np.float64 and q.shape == (self.nq,):
             if not np.isfinite(q @ q):  # any NaN/inf (or absurd magnitude) makes this non-finite
@@ -197,7 +197,7 @@ class Robot:
         return self._tool
 
     @tool.setter
-    def tool(self, T) -> None:
+    def tool(self, T: ArrayLike) -> None:
         T = as_array(T, "tool", (4, 4))
         R = T[:3, :3]
         if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
@@ -212,31 +212,31 @@ class Robot:
         return rng.uniform(self.lower, self.upper, size=size)
 
     # ------------------------------------------------------------------ kinematics
-    def frame_pose(self, q, frame: str | None = None) -> np.ndarray:
+    def frame_pose(self, q: ArrayLike, frame: str | None = None) -> np.ndarray:
         """4x4 pose of ``frame`` (default: the flange, without the tool) in the world frame."""
         q = self.check_q(q)
         fid = self._flange_id if frame is None else self._frame_id(frame)
         pin.framesForwardKinematics(self.model, self.data, q)
         return self.data.oMf[fid].homogeneous
 
-    def fk(self, q) -> np.ndarray:
+    def fk(self, q: ArrayLike) -> np.ndarray:
         """4x4 pose of the TCP (flange composed with :attr:`tool`) in the world frame."""
         return self.frame_pose(q) @ self._tool
 
-    def link_poses(self, q) -> dict[str, np.ndarray]:
+    def link_poses(self, q: ArrayLike) -> dict[str, np.ndarray]:
         """4x4 world pose of every link."""
         q = self.check_q(q)
         pin.framesForwardKinematics(self.model, self.data, q)
         return {n: self.data.oMf[self.model.getFrameId(n)].homogeneous for n in self._link_names}
 
-    def jacobian(self, q) -> np.ndarray:
+    def jacobian(self, q: ArrayLike) -> np.ndarray:
         """6xn world-aligned Jacobian [v; w] of the TCP: linear velocity of the TCP point."""
         q = self.check_q(q)
         p_local = (self.model.frames[self._flange_id].placement.homogeneous @ self._tool)[:3, 3]
         j = self.model.frames[self._flange_id].parentJoint
         return self._point_jacobians(q, np.array([j]), p_local[None])[1][0]
 
-    def point_jacobian(self, q, link: str, point) -> np.ndarray:
+    def point_jacobian(self, q: ArrayLike, link: str, point: ArrayLike) -> np.ndarray:
         """6xn world-aligned Jacobian of a point fixed on ``link`` (``point`` in the link frame).
 
         Rows 0-2 map qd to the point's linear velocity (J_rep of Ch. 4 when the point is the
@@ -248,7 +248,7 @@ class Robot:
         p = (self._link_in_joint[link] @ np.append(point, 1.0))[:3]
         return self._point_jacobians(q, np.array([j]), p[None])[1][0]
 
-    def points_kinematics(self, q, joints: np.ndarray, points: np.ndarray, *,
+    def points_kinematics(self, q: np.ndarray, joints: np.ndarray, points: np.ndarray, *,
                           angular: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """World positions (m, 3) and world-aligned Jacobians of m points fixed on joints.
 
@@ -259,10 +259,12 @@ class Robot:
         P, J = self._point_jacobians(q, joints, points)
         return (P, J) if angular else (P, J[:, :3])
 
-    def points_kinematics_batch(self, Q, joints: np.ndarray, points: np.ndarray, *,
+    def points_kinematics_batch(self, Q: ArrayLike, joints: np.ndarray, points: np.ndarray, *,
                                 angular: bool = False) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`points_kinematics` for many configurations Q (B, n): positions (B, m, 3) and
-        Jacobians (B, m, 3, n) (``angular=True``: (B, m, 6, n)). One compiled pass for all."""
+        """:meth:`points_kinematics` for many configurations Q (B, n).
+
+        Positions (B, m, 3) and Jacobians (B, m, 3, n) (``angular=True``: (B, m, 6, n)). One compiled pass for all.
+        """
         Q = as_array(Q, "Q", (None, self.nq))
         B, nj = len(Q), self.model.njoints
         Ts = np.empty((B, nj, 4, 4))
@@ -278,7 +280,8 @@ class Robot:
         points_jacobians_batch(Ts, Jws, np.asarray(joints, np.int64), np.asarray(points, float), self._ancestor, P, J)
         return (P, J) if angular else (P, J[:, :, :3])
 
-    def _point_jacobians(self, q: np.ndarray, joints: np.ndarray, points: np.ndarray):
+    def _point_jacobians(self, q: np.ndarray, joints: np.ndarray,
+                         points: np.ndarray) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         d = self.data
         pin.computeJointJacobians(self.model, d, q)
         for i, x in enumerate(self._oMi):
@@ -293,9 +296,10 @@ class Robot:
     # ------------------------------------------------------------------ inverse kinematics
     @property
     def has_closed_form_ik(self) -> bool:
+        """Whether the robot has an analytic IK (the LR Mate)."""
         return self._ik is not None
 
-    def ik(self, T, *, q_ref=None, all_turns: bool = False) -> list[np.ndarray]:
+    def ik(self, T: ArrayLike, *, q_ref: ArrayLike | None = None, all_turns: bool = False) -> list[np.ndarray]:
         """All joint solutions reaching the TCP pose ``T`` (4x4), within joint limits.
 
         Closed form for the LR Mate (up to 8 solutions; ``all_turns=True`` adds the 2*pi turns of
@@ -321,8 +325,8 @@ class Robot:
             sols.sort(key=lambda s: float(np.linalg.norm(s - q_ref)))
         return sols
 
-    def ik_numeric(self, T, *, q0=None, tol: float = 1e-10, max_iter: int = 300, damping: float = 1e-6,
-                   restarts: int = 20, rng: int | None = 0) -> np.ndarray:
+    def ik_numeric(self, T: ArrayLike, *, q0: ArrayLike | None = None, tol: float = 1e-10, max_iter: int = 300,
+                   damping: float = 1e-6, restarts: int = 20, rng: int | None = 0) -> np.ndarray:
         """Damped least-squares IK for any arm: q such that fk(q) = T, within joint limits.
 
         Iterates dq = J^T (J J^T + lambda I)^-1 e on the SE(3) log error (local frame), clipped to
@@ -355,42 +359,42 @@ class Robot:
                 q = np.clip(q + dq, self.lower, self.upper)
             if nerr < best_err:
                 best, best_err = q.copy(), nerr
-            if best_err < tol:
+            if best is not None and best_err < tol:
                 return best
         raise IKFailure(f"numeric IK did not converge (best 6-D error {best_err:.3g} > {tol:g}); the pose may be "
                         "unreachable or outside joint limits", value=best)
 
     # ------------------------------------------------------------------ dynamics (2.5)
-    def mass_matrix(self, q) -> np.ndarray:
+    def mass_matrix(self, q: ArrayLike) -> np.ndarray:
         """M(q), n x n."""
         q = self.check_q(q)
         M = pin.crba(self.model, self.data, q)
         return np.triu(M) + np.triu(M, 1).T
 
-    def nonlinear_effects(self, q, qd) -> np.ndarray:
+    def nonlinear_effects(self, q: ArrayLike, qd: ArrayLike) -> np.ndarray:
         """C(q, qd) qd + G(q)."""
         return pin.nonLinearEffects(self.model, self.data, self.check_q(q), self.check_q(qd, "qd"))
 
-    def coriolis(self, q, qd) -> np.ndarray:
+    def coriolis(self, q: ArrayLike, qd: ArrayLike) -> np.ndarray:
         """C(q, qd) qd (Coriolis and centrifugal torques)."""
         return self.nonlinear_effects(q, qd) - self.gravity(q)
 
-    def gravity(self, q) -> np.ndarray:
+    def gravity(self, q: ArrayLike) -> np.ndarray:
         """G(q)."""
         return pin.computeGeneralizedGravity(self.model, self.data, self.check_q(q))
 
-    def friction(self, qd, *, smooth: float = 1e-3) -> np.ndarray:
+    def friction(self, qd: ArrayLike, *, smooth: float = 1e-3) -> np.ndarray:
         """Joint friction torques F_v qd + F_c sign(qd) (tanh-smoothed over ``smooth`` rad/s)."""
         qd = self.check_q(qd, "qd")
         return self.viscous * qd + self.coulomb * np.tanh(qd / smooth)
 
-    def inverse_dynamics(self, q, qd, qdd, *, friction: bool = False) -> np.ndarray:
-        """tau = M qdd + C qd + G (+ friction) by RNEA."""
+    def inverse_dynamics(self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, *, friction: bool = False) -> np.ndarray:
+        """Tau = M qdd + C qd + G (+ friction) by RNEA."""
         tau = pin.rnea(self.model, self.data, self.check_q(q), self.check_q(qd, "qd"), self.check_q(qdd, "qdd"))
         return tau + self.friction(qd) if friction else tau
 
-    def forward_dynamics(self, q, qd, tau, *, friction: bool = False) -> np.ndarray:
-        """qdd = M^-1 (tau - C qd - G (- friction)) by ABA."""
+    def forward_dynamics(self, q: ArrayLike, qd: ArrayLike, tau: ArrayLike, *, friction: bool = False) -> np.ndarray:
+        """Qdd = M^-1 (tau - C qd - G (- friction)) by ABA."""
         q, qd, tau = self.check_q(q), self.check_q(qd, "qd"), self.check_q(tau, "tau")
         if friction:
             tau = tau - self.friction(qd)
@@ -398,8 +402,10 @@ class Robot:
 
     # ------------------------------------------------------------------ URDF geometry
     def collision_primitives(self) -> dict[str, list[dict]]:
-        """Collision geometry of each link from the URDF: dicts with ``type`` (box, cylinder,
-        sphere, capsule, mesh), ``size`` and ``origin`` (4x4 in the link frame)."""
+        """Collision geometry of each link from the URDF.
+
+        Dicts with ``type`` (box, cylinder, sphere, capsule, mesh), ``size`` and ``origin`` (4x4 in the link frame).
+        """
         out: dict[str, list[dict]] = {}
         for link in self._root.iter("link"):
             prims = []
@@ -415,17 +421,17 @@ class Robot:
                     continue
                 shape = g[0]
                 if shape.tag == "box":
-                    size = np.fromstring(shape.get("size"), sep=" ")
+                    size = np.fromstring(shape.get("size", ""), sep=" ")
                 elif shape.tag in ("cylinder", "capsule"):
-                    size = np.array([float(shape.get("radius")), float(shape.get("length"))])
+                    size = np.array([float(shape.get("radius", "nan")), float(shape.get("length", "nan"))])
                 elif shape.tag == "sphere":
-                    size = np.array([float(shape.get("radius"))])
+                    size = np.array([float(shape.get("radius", "nan"))])
                 elif shape.tag == "mesh":
                     size = np.fromstring(shape.get("scale", "1 1 1"), sep=" ")
                 else:
                     continue
                 prims.append({"type": shape.tag, "size": size, "origin": T, "filename": shape.get("filename")})
-            out[link.get("name")] = prims
+            out[link.get("name", "")] = prims
         return out
 
     def __repr__(self) -> str:

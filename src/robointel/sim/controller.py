@@ -30,13 +30,22 @@ cycle stays below 1 mrad. Fixed gains (:class:`PIDGains`) can be passed instead.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
 from numba import njit
+from numpy.typing import ArrayLike, NDArray
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.robot import Robot
+    from robointel.sim.mjcf import Payload
+
+#: any numpy array (the compiled kernels take contiguous float64/int64/bool arrays)
+Arr = NDArray[Any]
 
 DEFAULT_BANDWIDTH_HZ = (10.0, 10.0, 15.0, 30.0, 40.0, 50.0)
 
@@ -51,7 +60,8 @@ class PIDGains:
     i_limit: np.ndarray
 
     @classmethod
-    def from_inertia(cls, inertia, bandwidth_hz=None, *, effort_limit=None) -> "PIDGains":
+    def from_inertia(cls, inertia: ArrayLike, bandwidth_hz: ArrayLike | None = None, *,
+                     effort_limit: ArrayLike | None = None) -> PIDGains:
         """Triple-pole gains Kp = 3 J w^2, Kd = 3 J w, Ki = J w^3 for inertias J (n,) kg m^2.
 
         ``bandwidth_hz`` (scalar or (n,)) defaults to :data:`DEFAULT_BANDWIDTH_HZ` (padded with its
@@ -90,7 +100,8 @@ class JointController:
             inertia under 1/9 of the real one make the triple-pole PID unstable (Routh).
     """
 
-    def __init__(self, robot, gains: PIDGains | None = None, *, bandwidth_hz=None, dt: float = 0.001,
+    def __init__(self, robot: Robot, gains: PIDGains | None = None, *,
+                 bandwidth_hz: ArrayLike | None = None, dt: float = 0.001,
                  feedforward: bool = True, friction_compensation: bool = True,
                  model: pin.Model | None = None, gain_model: pin.Model | None = None) -> None:
         if not (np.isfinite(dt) and dt > 0):
@@ -135,16 +146,21 @@ class JointController:
         self.last_ff = np.zeros(self.n)
         self.saturated = np.zeros(self.n, dtype=bool)
 
-    def feedforward_torque(self, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref: np.ndarray) -> np.ndarray:
+    def feedforward_torque(self, q_ref: np.ndarray, qd_ref: np.ndarray,
+                           qdd_ref: np.ndarray) -> np.ndarray:
         """tau_ff = RNEA(q_ref, qd_ref, qdd_ref) (+ F_v qd_ref + F_c tanh(qd_ref / 1e-3)), (n,) N m."""
         tau = np.array(pin.rnea(self.model, self._data, q_ref, qd_ref, qdd_ref))
         if self.friction_compensation:
             _add_friction(tau, qd_ref, self._viscous, self._coulomb)
         return tau
 
-    def compute(self, q, qd, q_ref, qd_ref, qdd_ref) -> np.ndarray:
-        """One control period: the saturated joint torques (n,) N m. Inputs are (n,) arrays that
-        the caller has validated (finite, right shape)."""
+    def compute(self, q: np.ndarray, qd: np.ndarray, q_ref: np.ndarray, qd_ref: np.ndarray,
+                qdd_ref: np.ndarray) -> np.ndarray:
+        """One control period.
+
+        The saturated joint torques (n,) N m. Inputs are (n,) arrays that the caller has validated (finite, right
+        shape).
+        """
         if self.feedforward:
             ff = np.array(pin.rnea(self.model, self._data, q_ref, qd_ref, qdd_ref))
         else:
@@ -165,16 +181,18 @@ class JointController:
 
 
 @njit(cache=True)
-def _add_friction(tau, qd, viscous, coulomb):
-    """tau += F_v qd + F_c tanh(qd / 1e-3) (in place)."""
+def _add_friction(tau: Arr, qd: Arr, viscous: Arr, coulomb: Arr) -> None:
+    """Tau += F_v qd + F_c tanh(qd / 1e-3) (in place)."""
     for i in range(tau.shape[0]):
         tau[i] += viscous[i] * qd[i] + coulomb[i] * np.tanh(qd[i] * 1e3)
 
 
 @njit(cache=True)
-def _schedule(Minv, w, kp, ki, kd):
-    """Triple-pole gains for the effective inertias J_i = 1 / (M^-1)_ii: Kp = 3 J w^2,
-    Kd = 3 J w, Ki = J w^3 (in place)."""
+def _schedule(Minv: Arr, w: Arr, kp: Arr, ki: Arr, kd: Arr) -> None:
+    """Triple-pole gains for the effective inertias J_i = 1 / (M^-1)_ii.
+
+    Kp = 3 J w^2, Kd = 3 J w, Ki = J w^3 (in place).
+    """
     for i in range(w.shape[0]):
         J = 1.0 / Minv[i, i]
         kp[i] = 3.0 * J * w[i] * w[i]
@@ -183,11 +201,15 @@ def _schedule(Minv, w, kp, ki, kd):
 
 
 @njit(cache=True)
-def _pid(q, qd, q_ref, qd_ref, ff, viscous, coulomb, friction, kp, ki, kd, i_limit, effort, dt, integral,
-         saturated, last_tau, out):
-    """PID + feed-forward (``ff`` gets the friction compensation added in place when ``friction``);
-    ``integral`` is the integral torque (clamped to +-i_limit), not integrated while the joint is
-    saturated in the direction that grows its error."""
+def _pid(q: Arr, qd: Arr, q_ref: Arr, qd_ref: Arr, ff: Arr,
+         viscous: Arr, coulomb: Arr, friction: bool, kp: Arr, ki: Arr,
+         kd: Arr, i_limit: Arr, effort: Arr, dt: float, integral: Arr,
+         saturated: Arr, last_tau: Arr, out: Arr) -> None:
+    """PID + feed-forward (``ff`` gets the friction compensation added in place when ``friction``).
+
+    ``integral`` is the integral torque (clamped to +-i_limit), not integrated while the joint is saturated in the
+    direction that grows its error.
+    """
     for i in range(q.shape[0]):
         if friction:
             ff[i] += viscous[i] * qd_ref[i] + coulomb[i] * np.tanh(qd_ref[i] * 1e3)
@@ -206,7 +228,8 @@ def max_inertia(model: pin.Model, samples: int = 64, seed: int = 0) -> np.ndarra
 
     For fixed gains (``PIDGains.from_inertia(max_inertia(model))``); note that fixed gains sized
     for the largest inertia can destabilise the discrete loop where the inertia is small (see the
-    module doc), which the default scheduled gains avoid."""
+    module doc), which the default scheduled gains avoid.
+    """
     data = model.createData()
     rng = np.random.default_rng(seed)
     lo = np.where(np.isfinite(model.lowerPositionLimit), model.lowerPositionLimit, -np.pi)
@@ -219,7 +242,7 @@ def max_inertia(model: pin.Model, samples: int = 64, seed: int = 0) -> np.ndarra
     return best
 
 
-def model_with_payload(robot, payload) -> pin.Model:
+def model_with_payload(robot: Robot, payload: Payload) -> pin.Model:
     """A copy of ``robot.model`` with a :class:`~robointel.sim.Payload` rigidly added at the flange."""
     model = robot.model.copy()
     if payload is None:

@@ -20,13 +20,21 @@ lets very stiff joints run at 1 kHz; numerical damping of a mode of frequency w 
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
+from scipy.linalg import eigh
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput, SafetyStop
+from robointel.sim.controller import JointController
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.robot import Robot
 
 #: ESTIMATES for the LR Mate 200iD/7L (no public data): joint stiffness (N m/rad), joint damping
 #: (N m s/rad), rotor inertia (kg m^2), motor viscous friction (N m s/rad), gear ratio.
@@ -58,11 +66,12 @@ class FlexibleJointParams:
     gear_ratio: np.ndarray
 
     @classmethod
-    def lrmate(cls, **overrides) -> "FlexibleJointParams":
+    def lrmate(cls, **overrides: Any) -> FlexibleJointParams:
         """The LR Mate estimates :data:`LRMATE_FLEXIBLE` (override any field)."""
         return cls(**{**LRMATE_FLEXIBLE, **overrides})
 
-    def checked(self, n: int) -> "FlexibleJointParams":
+    def checked(self, n: int) -> FlexibleJointParams:
+        """These parameters validated for ``n`` joints."""
         out = {}
         for name, positive in (("stiffness", True), ("damping", False), ("rotor_inertia", True),
                                ("motor_friction", False), ("gear_ratio", True)):
@@ -96,7 +105,7 @@ class FlexibleJointModel:
         substeps: internal integration steps per :meth:`step`.
     """
 
-    def __init__(self, robot, params: FlexibleJointParams | None = None, *, dt: float = 0.001,
+    def __init__(self, robot: Robot, params: FlexibleJointParams | None = None, *, dt: float = 0.001,
                  substeps: int = 1) -> None:
         if not (np.isfinite(dt) and dt > 0) or int(substeps) < 1:
             raise InvalidInput(f"dt must be > 0 and substeps >= 1, got {dt!r}, {substeps!r}", value=(dt, substeps))
@@ -113,9 +122,13 @@ class FlexibleJointModel:
         self.reset(np.clip(np.zeros(self.n), robot.lower, robot.upper))
 
     # ------------------------------------------------------------------ state
-    def reset(self, q, qd=None, *, theta=None, thetad=None) -> None:
-        """Set the state. ``theta`` defaults to the static equilibrium q + K^-1 G(q) (springs wound
-        up by gravity), ``thetad`` to ``qd``."""
+    def reset(self, q: ArrayLike, qd: ArrayLike | None = None, *, theta: ArrayLike | None = None,
+              thetad: ArrayLike | None = None) -> None:
+        """Set the state.
+
+        ``theta`` defaults to the static equilibrium q + K^-1 G(q) (springs wound up by gravity), ``thetad`` to
+        ``qd``.
+        """
         q = self.robot.check_q(q, "q")
         qd = np.zeros(self.n) if qd is None else self.robot.check_q(qd, "qd")
         self.q, self.qd = q.copy(), qd.copy()
@@ -123,19 +136,19 @@ class FlexibleJointModel:
         self.thetad = qd.copy() if thetad is None else self.robot.check_q(thetad, "thetad").copy()
         self.time = 0.0
 
-    def equilibrium_motor_position(self, q) -> np.ndarray:
-        """theta with K (theta - q) = G(q): the motor position holding the arm still at q, (n,)."""
+    def equilibrium_motor_position(self, q: ArrayLike) -> np.ndarray:
+        """Theta with K (theta - q) = G(q): the motor position holding the arm still at q, (n,)."""
         q = self.robot.check_q(q)
         return q + pin.computeGeneralizedGravity(self._model, self._data, q) / self._K
 
-    def holding_torque(self, q) -> np.ndarray:
+    def holding_torque(self, q: ArrayLike) -> np.ndarray:
         """Motor torque tau_m (motor side, N m) that holds the arm at rest at q: G(q) / N."""
         q = self.robot.check_q(q)
         return pin.computeGeneralizedGravity(self._model, self._data, q) / self._N
 
     @property
     def deflection(self) -> np.ndarray:
-        """theta - q, (n,) rad: the joint (spring) deflection."""
+        """Theta - q, (n,) rad: the joint (spring) deflection."""
         return self.theta - self.q
 
     @property
@@ -144,9 +157,11 @@ class FlexibleJointModel:
         return self._K * (self.theta - self.q) + self._D * (self.thetad - self.qd)
 
     # ------------------------------------------------------------------ dynamics
-    def step(self, tau_m, tau_ext=None) -> None:
-        """Advance by ``dt`` with motor torques ``tau_m`` (n,) N m (motor side, held constant) and
-        an optional external joint torque ``tau_ext`` (n,) on the links.
+    def step(self, tau_m: ArrayLike, tau_ext: ArrayLike | None = None) -> None:
+        """Advance the flexible-joint model by one step ``dt``.
+
+        Advance by ``dt`` with motor torques ``tau_m`` (n,) N m (motor side, held constant) and an optional external
+        joint torque ``tau_ext`` (n,) on the links.
 
         Raises:
             ShapeError, NotFinite: bad torques (the state is unchanged).
@@ -179,20 +194,23 @@ class FlexibleJointModel:
         if not (np.all(np.isfinite(self.q)) and np.all(np.isfinite(self.theta))):
             raise SafetyStop("the flexible-joint simulation diverged (non-finite state); check the parameters")
 
-    def controller(self, **kwargs):
-        """A Fig. 2.3 :class:`~robointel.sim.JointController` for this arm: feed-forward and gain
-        schedule from the rigid limit (M(q) + J, RNEA with the rotor inertia; keyword arguments go to
-        the controller). The URDF friction compensation is off (this model has motor friction B)."""
-        from robointel.sim.controller import JointController
+    def controller(self, **kwargs: Any) -> JointController:
+        """A Fig.
 
+        2.3 :class:`~robointel.sim.JointController` for this arm: feed-forward and gain schedule from the rigid
+        limit (M(q) + J, RNEA with the rotor inertia; keyword arguments go to the controller). The URDF friction
+        compensation is off (this model has motor friction B).
+        """
         rigid = self.rigid_model()
         kwargs.setdefault("friction_compensation", False)
         return JointController(self.robot, dt=self.dt, model=rigid, gain_model=rigid, **kwargs)
 
-    def track(self, controller, q_ref, qd_ref=None, qdd_ref=None, *, measure: str = "motor") -> np.ndarray:
-        """One control period of ``controller`` (a :class:`~robointel.sim.JointController`) on this
-        arm: it measures the motor encoders (``measure="motor"``, theta, as a real drive does) or the
-        links (``"link"``, q), its joint torque is sent as tau_m = tau / N. Returns tau (n,).
+    def track(self, controller: JointController, q_ref: ArrayLike, qd_ref: ArrayLike | None = None,
+              qdd_ref: ArrayLike | None = None, *, measure: str = "motor") -> np.ndarray:
+        """One control period of ``controller`` (a :class:`~robointel.sim.JointController`) on this arm.
+
+        It measures the motor encoders (``measure="motor"``, theta, as a real drive does) or the links (``"link"``,
+        q), its joint torque is sent as tau_m = tau / N. Returns tau (n,).
 
         Raises:
             ShapeError, NotFinite: bad references.
@@ -211,32 +229,33 @@ class FlexibleJointModel:
         self.step(tau / self._N)
         return tau
 
-    def simulate(self, tau_m_fn, duration: float) -> dict:
-        """Run for ``duration`` s calling ``tau_m_fn(model) -> tau_m`` every ``dt``; returns arrays
-        ``t`` (N,), ``q``, ``qd``, ``theta``, ``thetad``, ``tau_m`` (N, n) sampled before each step."""
+    def simulate(self, tau_m_fn: Callable[[FlexibleJointModel], np.ndarray], duration: float) -> dict[str, np.ndarray]:
+        """Run for ``duration`` s calling ``tau_m_fn(model) -> tau_m`` every ``dt``.
+
+        Returns arrays ``t`` (N,), ``q``, ``qd``, ``theta``, ``thetad``, ``tau_m`` (N, n) sampled before each step.
+        """
         steps = int(round(float(duration) / self.dt))
-        out = {k: np.empty((steps, self.n)) for k in ("q", "qd", "theta", "thetad", "tau_m")}
+        out: dict[str, np.ndarray] = {k: np.empty((steps, self.n)) for k in ("q", "qd", "theta", "thetad", "tau_m")}
         t = np.empty(steps)
         for k in range(steps):
             t[k] = self.time
             out["q"][k], out["qd"][k] = self.q, self.qd
             out["theta"][k], out["thetad"][k] = self.theta, self.thetad
-            tau = np.asarray(tau_m_fn(self), dtype=float)
+            tau = np.asarray(tau_m_fn(self), dtype=np.float64)
             out["tau_m"][k] = tau
             self.step(tau)
         out["t"] = t
         return out
 
-    def resonance_frequencies(self, q) -> np.ndarray:
-        """Natural frequencies (Hz, ascending, n of them) of the elastic modes of (2.1)-(2.2)
-        linearised at rest at q without damping: the nonzero roots of
-        det([[K - w^2 M, -K], [-K, K - w^2 J]]) = 0.
+    def resonance_frequencies(self, q: ArrayLike) -> np.ndarray:
+        """Natural frequencies of the elastic modes of (2.1)-(2.2), Hz.
+
+        Natural frequencies (Hz, ascending, n of them) of the elastic modes of (2.1)-(2.2) linearised at rest at q
+        without damping: the nonzero roots of det([[K - w^2 M, -K], [-K, K - w^2 J]]) = 0.
 
         Raises:
             InvalidInput: bad q.
         """
-        from scipy.linalg import eigh
-
         q = self.robot.check_q(q)
         M = pin.crba(self._model, self._data, q)
         M = np.triu(M) + np.triu(M, 1).T
@@ -248,8 +267,11 @@ class FlexibleJointModel:
         return np.sqrt(np.maximum(w2, 0.0)) / (2 * np.pi)
 
     def rigid_model(self) -> pin.Model:
-        """The K -> inf limit as a Pinocchio model: ``robot.model`` with armature J = N^2 J_m
-        (its viscous friction B = N^2 B_m is :attr:`FlexibleJointParams.reflected_friction`)."""
+        """The K -> inf limit as a Pinocchio model.
+
+        ``robot.model`` with armature J = N^2 J_m (its viscous friction B = N^2 B_m is
+        :attr:`FlexibleJointParams.reflected_friction`).
+        """
         m = self._model.copy()
         m.armature = self._J.copy()
         return m

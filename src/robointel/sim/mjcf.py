@@ -22,15 +22,21 @@ from __future__ import annotations
 
 import re
 import warnings
+import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 from robointel._validate import as_array
 from robointel.errors import DescriptionError, InvalidInput
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.robot import Robot
 
 #: Height of the table top above the floor (m). The table top is z = 0 of the world frame.
 TABLE_HEIGHT = 0.75
@@ -72,6 +78,7 @@ class Payload:
     shape: Any = None
 
     def checked(self) -> tuple[float, np.ndarray, np.ndarray]:
+        """Mass (kg), centre of mass (3,) m and inertia (3, 3) kg m^2 about it, validated."""
         m = float(self.mass)
         if not np.isfinite(m) or m <= 0:
             raise InvalidInput(f"payload mass must be a positive number of kg, got {self.mass!r}", value=self.mass)
@@ -179,11 +186,12 @@ def shape_geoms(shape: Any, *, max_points: int = 2000) -> tuple[np.ndarray, list
 
 
 def shape_name(shape: Any, default: str) -> str:
+    """The name of an obstacle shape, or ``default`` if it has none."""
     n = getattr(shape, "name", None)
     return str(n) if n else default
 
 
-def _prepare_urdf(robot) -> str:
+def _prepare_urdf(robot: Robot) -> str:
     """URDF text with the MuJoCo compiler options that keep the model exactly as written.
 
     ``package://`` mesh paths are resolved next to the URDF file when possible; mesh geoms MuJoCo
@@ -202,9 +210,7 @@ def _prepare_urdf(robot) -> str:
     return text
 
 
-def _resolve_meshes(text: str, urdf_path) -> str:
-    import xml.etree.ElementTree as ET
-
+def _resolve_meshes(text: str, urdf_path: str | Path | None) -> str:
     root = ET.fromstring(text)
     base = Path(urdf_path).resolve().parent if urdf_path else Path.cwd()
     dropped = []
@@ -248,9 +254,9 @@ def _find_mesh(fn: str, base: Path) -> Path | None:
 
 
 # ---------------------------------------------------------------------------------------- builder
-def build_spec(robot, *, table: bool = True, obstacles: Sequence[Any] = (), objects: Sequence[SimObject] = (),
+def build_spec(robot: Robot, *, table: bool = True, obstacles: Sequence[Any] = (), objects: Sequence[SimObject] = (),
                ft_sensor: bool = True, payload: Payload | None = None, timestep: float = 0.001,
-               armature=None, self_collision: bool = False) -> tuple[mujoco.MjSpec, dict]:
+               armature: ArrayLike | None = None, self_collision: bool = False) -> tuple[mujoco.MjSpec, dict]:
     """Build the MuJoCo spec of the workcell from ``robot.urdf``.
 
     Args:
@@ -312,7 +318,7 @@ def build_spec(robot, *, table: bool = True, obstacles: Sequence[Any] = (), obje
         # make it behave like the URDF's dry friction.
         j.solref_friction = [2.0 * float(timestep), 1.0]
         j.solimp_friction = [0.9999, 0.9999, 0.001, 0.5, 2.0]
-    for j, name, eff in zip(joints, robot.joint_names, robot.effort_limit):
+    for _j, name, eff in zip(joints, robot.joint_names, robot.effort_limit):
         act = spec.add_actuator(name=name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         act.set_to_motor()
         if np.isfinite(eff) and eff > 0:
@@ -406,9 +412,11 @@ def build_spec(robot, *, table: bool = True, obstacles: Sequence[Any] = (), obje
     return spec, {"obstacles": names, "objects": onames, "flange_body": flange_body}
 
 
-def _flange_body(robot) -> tuple[str, np.ndarray]:
-    """The MuJoCo body of the flange frame (every URDF link is a body: no static fusing) and the
-    flange pose in it (identity)."""
+def _flange_body(robot: Robot) -> tuple[str, np.ndarray]:
+    """The MuJoCo body of the flange frame (every URDF link is a body.
+
+    No static fusing) and the flange pose in it (identity).
+    """
     return robot.flange_frame, np.eye(4)
 
 
@@ -457,7 +465,7 @@ def _add_object(spec: mujoco.MjSpec, obj: SimObject) -> None:
                   contype=ENV_CONTYPE, conaffinity=ENV_CONAFFINITY)
 
 
-def build_model(robot, **kwargs) -> tuple[mujoco.MjModel, dict]:
+def build_model(robot: Robot, **kwargs: Any) -> tuple[mujoco.MjModel, dict]:
     """Compile :func:`build_spec` into an ``MjModel`` (same arguments)."""
     spec, info = build_spec(robot, **kwargs)
     try:

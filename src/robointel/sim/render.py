@@ -11,10 +11,14 @@ import subprocess
 import sys
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from robointel.errors import RobointelError
+from robointel.errors import InvalidInput, RobointelError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.sim import Workcell
 
 _PROBE = ("import mujoco, numpy as np\n"
           "m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom size=\".1\"/></worldbody></mujoco>')\n"
@@ -55,7 +59,8 @@ np.save(sys.argv[3], np.array(imgs))
 """
 
 
-def render(workcell, path=None, *, width: int = 640, height: int = 480, camera: dict | None = None) -> np.ndarray:
+def render(workcell: Workcell, path: str | Path | None = None, *, width: int = 640, height: int = 480,
+           camera: dict | None = None) -> np.ndarray:
     """Render ``workcell`` as it is now to an (h, w, 3) uint8 image; write a PNG when ``path``.
 
     ``camera``: dict with ``lookat`` (3,), ``distance`` (m), ``azimuth``, ``elevation`` (deg).
@@ -65,15 +70,17 @@ def render(workcell, path=None, *, width: int = 640, height: int = 480, camera: 
     Raises:
         RobointelError: no offscreen OpenGL backend (EGL or OSMesa) works on this machine.
     """
-    return render_frames(workcell, [workcell.data.qpos.copy()], path, width=width, height=height,
+    return render_frames(workcell, np.array([workcell.data.qpos]), path, width=width, height=height,
                          camera=camera, columns=1)
 
 
-def render_frames(workcell, qpos, path=None, *, width: int = 480, height: int = 360, camera: dict | None = None,
-                  columns: int | None = None) -> np.ndarray:
-    """Render several states of ``workcell`` (full MuJoCo ``qpos`` vectors, or robot joint
-    vectors (n,) with everything else as it is now) into one montage image, ``columns`` per row
-    (default all in one row); write a PNG when ``path``. Obstacles are drawn where they are now.
+def render_frames(workcell: Workcell, qpos: np.ndarray, path: str | Path | None = None, *, width: int = 480,
+                  height: int = 360, camera: dict | None = None, columns: int | None = None) -> np.ndarray:
+    """Render several states of ``workcell`` into one montage image.
+
+    Render several states of ``workcell`` (full MuJoCo ``qpos`` vectors, or robot joint vectors (n,) with everything
+    else as it is now) into one montage image, ``columns`` per row (default all in one row); write a PNG when
+    ``path``. Obstacles are drawn where they are now.
 
     Returns:
         (rows * height, columns * width, 3) uint8 image.
@@ -83,8 +90,6 @@ def render_frames(workcell, qpos, path=None, *, width: int = 480, height: int = 
         InvalidInput: a state of the wrong size.
     """
     import mujoco
-
-    from robointel.errors import InvalidInput
 
     backend = available_backend()
     if backend is None:
@@ -122,13 +127,13 @@ def render_frames(workcell, qpos, path=None, *, width: int = 480, height: int = 
                     imgs.append(r.render().copy())
         except Exception as exc:
             raise RobointelError(f"offscreen rendering failed with MUJOCO_GL={backend}: {exc}") from None
-        imgs = np.array(imgs)
+        frames = np.array(imgs)
     else:
-        imgs = _render_subprocess(workcell, np.array(full), backend, width, height, c)
-    cols = len(imgs) if columns is None else max(1, int(columns))
-    rows = -(-len(imgs) // cols)
+        frames = _render_subprocess(workcell, np.array(full), backend, width, height, c)
+    cols = len(frames) if columns is None else max(1, int(columns))
+    rows = -(-len(frames) // cols)
     canvas = np.full((rows * height, cols * width, 3), 255, dtype=np.uint8)
-    for k, img in enumerate(imgs):
+    for k, img in enumerate(frames):
         r_, c_ = divmod(k, cols)
         canvas[r_ * height:(r_ + 1) * height, c_ * width:(c_ + 1) * width] = img
     if path is not None:
@@ -139,7 +144,8 @@ def render_frames(workcell, qpos, path=None, *, width: int = 480, height: int = 
     return canvas
 
 
-def _render_subprocess(workcell, qpos: np.ndarray, backend: str, width: int, height: int, c: dict) -> np.ndarray:
+def _render_subprocess(workcell: Workcell, qpos: np.ndarray, backend: str, width: int, height: int,
+                       c: dict) -> np.ndarray:
     import tempfile
 
     import mujoco

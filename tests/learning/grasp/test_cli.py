@@ -2,7 +2,7 @@
 from typer.testing import CliRunner
 
 from robointel.cli import app
-from robointel.io.grasp_db import GraspDatabase
+from robointel.learning.grasp_database import GraspDatabase
 
 
 def test_grasp_teach_writes_a_database(tmp_path):

@@ -33,8 +33,11 @@ HERE = Path(__file__).resolve().parent
 
 @dataclass(frozen=True)
 class Prim:
-    """A collision primitive in its link frame: ``kind`` is "box" (size = full extents) or
-    "cylinder" (size = (radius, length)), ``axis`` the cylinder axis ("x", "y" or "z")."""
+    """A collision primitive in its link frame.
+
+    ``kind`` is "box" (size = full extents) or "cylinder" (size = (radius, length)), ``axis`` the cylinder axis
+    ("x", "y" or "z").
+    """
 
     kind: str
     size: tuple[float, ...]
@@ -42,6 +45,7 @@ class Prim:
     axis: str = "z"
 
     def volume(self) -> float:
+        """Volume of the primitive, m^3."""
         if self.kind == "box":
             return float(np.prod(self.size))
         r, h = self.size
@@ -59,6 +63,7 @@ class Prim:
         return np.diag(d)
 
     def urdf(self) -> str:
+        """The primitive as URDF ``<origin>`` + ``<geometry>`` elements."""
         rpy = {"x": "0 1.5707963267948966 0", "y": "1.5707963267948966 0 0", "z": "0 0 0"}[self.axis]
         c = " ".join(f"{v:.6g}" for v in self.center)
         if self.kind == "box":
@@ -121,6 +126,7 @@ LRMATE_JOINTS = [
 
 
 def lrmate_urdf() -> str:
+    """URDF of the FANUC LR Mate 200iD/7L from its public kinematic numbers."""
     vols = {n: sum(p.volume() for p in ps) for n, ps in LRMATE_LINKS.items()}
     total = sum(vols.values())
     out = ['<?xml version="1.0"?>\n',
@@ -164,6 +170,7 @@ SCARA_L1, SCARA_L2 = 0.40, 0.35
 
 
 def scara_urdf() -> str:
+    """URDF of the 2-link SCARA of the dynamic imitation study."""
     links = {
         "base_link": ([Prim("cylinder", (0.08, 0.30), (0.0, 0.0, 0.15), "z")], 8.0),
         "link_1": ([Prim("box", (SCARA_L1, 0.08, 0.06), (SCARA_L1 / 2, 0.0, 0.0))], 4.0),
@@ -198,6 +205,7 @@ def scara_urdf() -> str:
 
 
 def main() -> None:
+    """Write the built-in URDF files next to this script."""
     (HERE / "lrmate200id7l.urdf").write_text(lrmate_urdf())
     (HERE / "scara2.urdf").write_text(scara_urdf())
 

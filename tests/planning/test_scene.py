@@ -1,32 +1,11 @@
-"""Trajectory files and scene files: round trips and bad input."""
+"""Scene files: round trips and bad input."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from robointel.errors import InvalidInput, NotFinite, ShapeError
-from robointel.io.scene import builtin_scenes, load_scene, scene_from_dict
-from robointel.io.trajectory import Trajectory
-
-
-def test_trajectory_validation_and_resample(tmp_path):
-    t = np.array([0.0, 1.0, 2.0])
-    q = np.array([[0.0, 0.0], [1.0, 0.5], [2.0, 0.0]])
-    qd = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 0.0]])
-    tr = Trajectory(t, q, qd, np.zeros_like(q), ["a", "b"])
-    d = tr.resample(0.001)
-    assert d.t[-1] == pytest.approx(2.0) and len(d.t) == 2001
-    np.testing.assert_allclose(d.q[::1000], q, atol=1e-12)
-    with pytest.raises(InvalidInput):
-        Trajectory([0.0, 0.0, 1.0], q, qd, qd)
-    with pytest.raises(NotFinite):
-        Trajectory(t, q * np.nan, qd, qd)
-    with pytest.raises(ShapeError):
-        Trajectory(t, q, qd[:2], qd)
-    with pytest.raises(InvalidInput):
-        tr.save(tmp_path / "x.csv")
-    with pytest.raises(InvalidInput):
-        Trajectory.load(tmp_path / "missing.npz")
+from robointel.errors import InvalidInput
+from robointel.planning.scene import builtin_scenes, load_scene, scene_from_dict
 
 
 def test_scene_round_trip_and_pose_waypoints(tmp_path):
