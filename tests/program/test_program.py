@@ -7,7 +7,8 @@ from robointel.cli import app
 from robointel.errors import InvalidInput
 from robointel.geometry import obstacle_from_dict
 from robointel.outcome import Failure
-from robointel.program import ProgramRejected, SimCell, check_program, load_program, program_from_dict, run_program
+from robointel.program import (GraspCell, ProgramRejected, SimCell, check_program, load_program, program_from_dict,
+                               run_program)
 from robointel.sim import Workcell
 
 BOX = {"type": "box", "name": "wall", "center": [0.50, 0.00, 0.15], "size": [0.30, 0.10, 0.30]}
@@ -147,3 +148,34 @@ def test_cli_run_and_refusal(tmp_path):
     assert res.exit_code == 2 and "refused before moving" in res.output and "step 1" in res.output
     res = runner.invoke(app, ["run", str(tmp_path / "missing.yaml")])
     assert res.exit_code == 2 and "not found" in res.output
+
+
+def test_pick_and_place_program_moves_the_part_to_its_target():
+    prog = load_program("pick_place")
+    q0 = prog.initial_configuration()
+    cell = GraspCell(prog, q0, seed=2)
+    run = run_program(prog, cell)
+    assert run.success, run.outcome
+    at = prog.steps[prog.index("place_part")].args["at"]
+    p = cell.object_position(0)
+    assert np.hypot(p[0] - at[0], p[1] - at[1]) < 0.03 and p[2] < 0.02  # resting on the table at the target
+    assert cell.held is None and cell.io["gripper"] == 0.0
+
+
+def test_a_part_lost_mid_run_fails_the_place_step_and_stops():
+    prog = load_program("pick_place")
+    q0 = prog.initial_configuration()
+    cell = GraspCell(prog, q0, seed=2)
+
+    def knock_the_part_out(index, name):  # injected fault just before the carry: the part is gone from the hand
+        if name == "place_part":
+            a = cell._objq[0]
+            cell.data.qpos[a:a + 3] = [0.75, 0.3, 0.05]
+            cell.data.qvel[:] = 0.0
+
+    run = run_program(prog, cell, progress=knock_the_part_out)
+    assert not run.success and run.steps[-1].name == "place_part" and run.steps[1].outcome.success
+    assert run.outcome.reason is Failure.SLIP and "place_part" in run.outcome.detail
+    q = cell.q
+    cell.hold(0.5)
+    assert np.max(np.abs(cell.q - q)) < 0.01  # the robot holds still after the failed step

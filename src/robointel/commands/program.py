@@ -9,17 +9,18 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from robointel.errors import InvalidInput, RobointelError
-from robointel.program import ProgramRejected, SimCell, check_program, load_program, run_program
+from robointel.program import GraspCell, ProgramRejected, SimCell, check_program, load_program, run_program
 from robointel.report.demo import Figure, StageContext, StageResult
 from robointel.report.program import plot_run, write_program_report
 
 console = Console()
 
 
-def run(program: str = typer.Argument(..., help="program YAML file, or 'example' for the built-in one"),
+def run(program: str = typer.Argument(..., help="program YAML file, or a built-in program: example, pick_place"),
         robot: str = typer.Option("sim", "--robot", help="'sim' (the MuJoCo workcell)"),
         start: str = typer.Option("0", "--from", help="first step to run (index or name)"),
         report: Path = typer.Option(Path("robointel-program-report"), help="report folder"),
+        seed: int = typer.Option(0, help="seed of the simulated cell (object placements, sensor noise)"),
         check_only: bool = typer.Option(False, "--check", help="only check the program, do not run it")) -> None:
     """Check a task program as a whole, then run it step by step and write an HTML report."""
     try:
@@ -38,7 +39,7 @@ def run(program: str = typer.Argument(..., help="program YAML file, or 'example'
                 console.print(f"program {prog.name!r}: {len(prog.steps) - i0} steps checked in {chk.check_ms:.0f} ms")
                 return
             task2 = bar.add_task("run", total=len(prog.steps) - i0, status="")
-            cell = SimCell(prog, cell_q)
+            cell = GraspCell(prog, cell_q, seed=seed) if prog.objects else SimCell(prog, cell_q)
             res = run_program(prog, cell, start=i0, check=chk,
                               progress=lambda i, s: bar.update(task2, completed=i - i0, status=s))
             bar.update(task2, completed=len(res.steps), status="done" if res.success else "failed")

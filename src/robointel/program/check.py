@@ -13,13 +13,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from robointel.errors import CollisionAtStart, IKFailure, InfeasibleProblem, InvalidInput, RobointelError
-from robointel.planning.scene import Scene
-from robointel.trajectory import Trajectory
 from robointel.learning.grasp.pipeline import lrmate_with_gripper
 from robointel.planning.frmp import check_trajectory, plan_scene, planner_settings
+from robointel.planning.scene import Scene
 from robointel.planning.trajectory import TrajectoryPlanner
 from robointel.program.format import Program, Step, Target
 from robointel.programming.keypoints import blended_trajectory, joint_velocity_reference
+from robointel.trajectory import Trajectory
 
 CLEARANCE_TOLERANCE = 0.001  # m below d_min that a dense 1 ms check still accepts
 

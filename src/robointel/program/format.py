@@ -46,6 +46,7 @@ from robointel.planning.scene import Scene, load_scene, scene_from_dict
 from robointel.robot import Robot
 
 FORMAT = "robointel.program/1"
+EXAMPLES = Path(__file__).resolve().parent / "examples"
 STEP_KINDS = ("move", "path", "wait", "set_io", "grasp", "place")
 RESERVED_KINDS = ("insert", "grind", "guide")
 OBJECT_CATEGORIES = ("cup", "can", "box", "ball", "long_tool")
@@ -464,11 +465,16 @@ def program_from_dict(d: Any, *, base: Path | None = None) -> Program:
                    objects=objects, scene_ref=d["scene"])
 
 
+def builtin_programs() -> list[str]:
+    """Names of the programs shipped with robointel (``robointel run NAME``)."""
+    return sorted(p.stem for p in EXAMPLES.glob("*.yaml"))
+
+
 def load_program(path: str | Path) -> Program:
     """Read a program YAML file.
 
     Args:
-        path: The file, or ``"example"`` for the built-in example program.
+        path: The file, or the name of a built-in program (:func:`builtin_programs`).
 
     Returns:
         The validated :class:`Program`.
@@ -477,10 +483,12 @@ def load_program(path: str | Path) -> Program:
         InvalidInput: The file is missing, not YAML, or not a valid program.
     """
     p = Path(path)
-    if str(path) == "example":
-        p = Path(__file__).resolve().parent / "examples" / "example.yaml"
+    builtin = EXAMPLES / f"{path}.yaml"
+    if not p.is_file() and builtin.is_file():
+        p = builtin
     if not p.is_file():
-        raise InvalidInput(f"program file {str(path)!r} not found (or use 'example')", value=str(path))
+        raise InvalidInput(f"program file {str(path)!r} not found (built-in programs: {', '.join(builtin_programs())})",
+                           value=str(path))
     try:
         d = yaml.safe_load(p.read_text())
     except (yaml.YAMLError, UnicodeDecodeError) as exc:

@@ -1,5 +1,7 @@
-"""The program cell with objects: the whole LR Mate in MuJoCo with the parallel gripper on its flange,
-the program's fixtures, generated objects on the table and two depth cameras (Ch. 6's grasp scene).
+"""The program cell with objects on the table.
+
+The whole LR Mate in MuJoCo with the parallel gripper on its flange, the program's fixtures, generated
+objects on the table and two depth cameras (Ch. 6's grasp scene).
 
 ``grasp`` perceives the table, classifies each cluster against one taught template per category,
 transfers the template's taught grasp by CPD and searches its orientation (the Ch. 6 pipeline,
@@ -16,14 +18,24 @@ import mujoco
 import numpy as np
 
 from robointel.errors import IKFailure, InvalidInput
-from robointel.trajectory import Trajectory
-from robointel.learning.grasp import (GraspPlanner, ParallelGripper, Placement, Template, default_cameras,
-                                      depth_image, perceive, primitive_object, random_placements, sample_points,
-                                      taught_grasps)
+from robointel.learning.grasp import (
+    GraspPlanner,
+    ParallelGripper,
+    Placement,
+    Template,
+    default_cameras,
+    depth_image,
+    perceive,
+    primitive_object,
+    random_placements,
+    sample_points,
+    taught_grasps,
+)
 from robointel.learning.grasp.pipeline import Q_PARK, lrmate_with_gripper
 from robointel.learning.grasp.scene import ARM_KP, ARM_KV, arm_scene
 from robointel.outcome import Failure, TrialOutcome
 from robointel.program.format import OBJECT_CATEGORIES, Program
+from robointel.trajectory import Trajectory
 
 Planner = Callable[[np.ndarray, np.ndarray], "Trajectory | None"]
 TEMPLATE_SEED = 900  # generated template instances: seeds never used for the objects placed in examples
@@ -35,7 +47,8 @@ def straight(q0: np.ndarray, q1: np.ndarray, duration: float, names: list[str]) 
     """A rest-to-rest joint-space straight line with a quintic (minimum-jerk) time law.
 
     Args:
-        q0: (n,) start, rad. q1: (n,) goal, rad.
+        q0: (n,) start, rad.
+        q1: (n,) goal, rad.
         duration: Motion time, s.
         names: Joint names.
 
@@ -143,7 +156,7 @@ class GraspCell:
         d, m = self.data, self.model
         for c in d.contact[:d.ncon]:
             b1, b2 = m.geom_bodyid[c.geom1], m.geom_bodyid[c.geom2]
-            for g, b, other_b in ((c.geom1, b2, b1), (c.geom2, b1, b2)):
+            for g, b in ((c.geom1, b2), (c.geom2, b1)):
                 if g in self._env_geoms and b in self._arm:
                     return f"{m.body(b).name} touched {m.geom(g).name}"
                 if g in self._obst_geoms and self.held is not None and b == self._obj[self.held]:
@@ -151,8 +164,9 @@ class GraspCell:
         return None
 
     def execute(self, trajectory: Trajectory) -> tuple[TrialOutcome, np.ndarray]:
-        """Track ``trajectory`` with the joint servos, stopping at a contact of the arm or the held object
-        with a fixture or the table.
+        """Track ``trajectory`` with the joint servos.
+
+        It stops at a contact of the arm or the held object with a fixture or the table.
 
         Returns:
             The outcome (COLLISION, TRACKING or success) and the measured joints (M, n).
@@ -275,7 +289,7 @@ class GraspCell:
         Tg = self._pose(self._gripper)
         self._grip_in_hand = np.linalg.inv(Tg) @ self._pose(self._obj[self.held])
         return TrialOutcome(True, detail=f"holding object {self.held} ({self.categories[self.held]})",
-                            figures={"grasp_width_m": 2 * (self.gripper.max_width / 2 - float(self.data.qpos[self._fp]))})
+                            figures={"grasp_width_m": self.gripper.max_width - 2 * float(self.data.qpos[self._fp])})
 
     def held_sphere(self) -> tuple[str, np.ndarray, float] | None:
         """The held object as one bounding sphere on the robot's last link, for planning the carry.

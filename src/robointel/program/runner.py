@@ -10,11 +10,11 @@ from typing import Protocol
 import numpy as np
 
 from robointel.errors import RobointelError
-from robointel.trajectory import Trajectory
 from robointel.outcome import Failure, TrialOutcome
 from robointel.program.check import ProgramCheck, _Planners, check_program, plan_move, scene_key
 from robointel.program.format import Program
 from robointel.sim import Workcell
+from robointel.trajectory import Trajectory
 
 TRACKING_LIMIT_RAD = 0.05  # largest joint tracking error a step may show before it counts as failed
 CARRY_SPEED = 0.5  # fraction of the velocity limits (its square of the acceleration limits) while holding an object
@@ -197,7 +197,8 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
         # carrying: the held object is a sphere on the last link while this motion is planned
         spheres = program.robot.spheres
         spheres.add(*held)
-        carry = replace(program.scene, vmax=program.scene.vmax * CARRY_SPEED, amax=program.scene.amax * CARRY_SPEED ** 2)
+        sc = program.scene
+        carry = replace(sc, vmax=sc.vmax * CARRY_SPEED, amax=sc.amax * CARRY_SPEED ** 2)
         try:
             return plan_move(carry, _Planners(carry), a, b)
         finally:
