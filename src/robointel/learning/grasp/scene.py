@@ -132,7 +132,8 @@ ARM_ARMATURE = (0.2, 0.2, 0.1, 0.02, 0.02, 0.01)
 
 
 def arm_scene(placements: list[Placement], robot, gripper: ParallelGripper, *, timestep: float = 0.002,
-              friction: float = 1.0, grip_force: float = 20.0, kp=ARM_KP, kv=ARM_KV, armature=ARM_ARMATURE):
+              friction: float = 1.0, grip_force: float = 20.0, kp=ARM_KP, kv=ARM_KV, armature=ARM_ARMATURE,
+              obstacles=()):
     """The grasp scene with the whole robot: the table and free objects of :func:`scene_xml`, and the
     arm built from its URDF by :func:`robointel.sim.mjcf.build_spec` (root at the world origin, its
     links' collision geometry touching the table and the objects) carrying the parallel-jaw gripper
@@ -140,12 +141,20 @@ def arm_scene(placements: list[Placement], robot, gripper: ParallelGripper, *, t
     (``kp``, ``kv``; torque limited to the URDF effort limits) with the arm's gravity compensated
     (MuJoCo ``gravcomp``, the controller's gravity feed-forward); the held object is a real payload.
     Actuators: ``arm/joint_1..6`` (joint angle, rad) then ``arm/afp``, ``arm/afn`` (finger travel, m;
-    0 = open). Returns the compiled ``MjModel``."""
+    0 = open). ``obstacles``: ``robointel.geometry`` shapes added as static bodies ``obstacle/<name>``
+    (fixtures the arm and the objects collide with). Returns the compiled ``MjModel``."""
     import mujoco
 
-    from robointel.sim.mjcf import build_spec
+    from robointel.sim.mjcf import build_spec, shape_geoms, shape_name
 
     spec = mujoco.MjSpec.from_string(scene_xml(placements, dynamic=True, timestep=timestep, friction=friction))
+    for i, shape in enumerate(obstacles):
+        name = shape_name(shape, f"obstacle_{i}")
+        pos, geoms = shape_geoms(shape)
+        body = spec.worldbody.add_body(name="obstacle/" + name, pos=pos)
+        for k, g in enumerate(geoms):
+            body.add_geom(name="obstacle/" + name + ("" if len(geoms) == 1 else f"/{k}"), type=g["type"],
+                          size=g["size"], pos=g["pos"], quat=g["quat"], rgba=[0.8, 0.2, 0.2, 0.6])
     rs, _ = build_spec(robot, table=False, ft_sensor=False, timestep=timestep, armature=np.asarray(armature, float))
     for b in rs.bodies:
         if b.name != "world":

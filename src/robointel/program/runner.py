@@ -1,0 +1,260 @@
+"""Run a checked task program step by step on a robot cell, stopping safely at the first failure."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Protocol
+
+import numpy as np
+
+from robointel.errors import RobointelError
+from robointel.outcome import Failure, TrialOutcome
+from robointel.program.check import ProgramCheck, _Planners, check_program, plan_move, scene_key
+from robointel.program.format import Program
+from robointel.sim import Workcell
+from robointel.trajectory import Trajectory
+
+TRACKING_LIMIT_RAD = 0.05  # largest joint tracking error a step may show before it counts as failed
+CARRY_SPEED = 0.5  # fraction of the velocity limits (its square of the acceleration limits) while holding an object
+BACKOFF_STEPS = 150  # control periods (1 ms) of the path the robot backs off along after a contact
+
+
+class Cell(Protocol):
+    """What the runner needs of a robot: its configuration, trajectory execution, holding, outputs."""
+
+    @property
+    def q(self) -> np.ndarray:
+        """(n,) measured joint configuration, rad."""
+        ...
+
+    def execute(self, trajectory: Trajectory) -> tuple[TrialOutcome, np.ndarray]:
+        """Track a trajectory; return its outcome and the executed joints (M, n)."""
+        ...
+
+    def hold(self, seconds: float) -> None:
+        """Hold the current position for ``seconds``."""
+        ...
+
+    def stop(self, reason: str) -> None:
+        """Stop and hold where the robot is, recording why."""
+        ...
+
+    def set_io(self, name: str, value: float) -> None:
+        """Set a digital/analog output."""
+        ...
+
+
+class SimCell:
+    """The MuJoCo workcell as a program cell (1 kHz joint servo, obstacle contacts checked).
+
+    Args:
+        program: The program whose scene (robot, obstacles) builds the workcell.
+        q0: (n,) start configuration, rad.
+        workcell: An existing :class:`robointel.sim.Workcell` to use instead (e.g. with more obstacles than
+            the program's scene knows).
+    """
+
+    def __init__(self, program: Program, q0: np.ndarray, *, workcell: Workcell | None = None) -> None:
+        self.workcell = workcell or Workcell(program.robot, obstacles=program.scene.obstacles, ft_sensor=False, q0=q0)
+        if workcell is not None:
+            self.workcell.reset(q0)
+        self.io: dict[str, float] = {}
+        self.stopped: str | None = None
+
+    @property
+    def q(self) -> np.ndarray:
+        """(n,) measured joint configuration, rad."""
+        return np.asarray(self.workcell.q, float).copy()
+
+    def execute(self, trajectory: Trajectory) -> tuple[TrialOutcome, np.ndarray]:
+        """Track ``trajectory`` at 1 kHz, stopping at the first contact with the environment.
+
+        Returns:
+            The outcome (COLLISION on a contact, TRACKING when the error exceeds
+            ``TRACKING_LIMIT_RAD``) and the measured joints (M, n).
+        """
+        log = self.workcell.run_trajectory(trajectory, reset=False, record_ft=False, stop_on_contact=True)
+        err = float(np.max(np.abs(log.error))) if len(log.q) else 0.0
+        figures = {"tracking_max_rad": err, "duration_s": float(log.duration)}
+        if np.any(log.contacts):
+            k = int(np.flatnonzero(log.contacts)[0])
+            touching = self.workcell.contacts()[:2]
+            contact = ", ".join(f"{c.robot_body} with {c.kind} {c.other_body}" for c in touching) or "the environment"
+            self.retreat(log.q_ref[max(0, k - BACKOFF_STEPS)])
+            return TrialOutcome(False, Failure.COLLISION, f"contact with {contact} at t = {log.t[k] - log.t[0]:.3f} s",
+                                figures), log.q
+        if err > TRACKING_LIMIT_RAD:
+            self.stop("tracking")
+            return TrialOutcome(False, Failure.TRACKING, f"tracking error {err:.3f} rad > {TRACKING_LIMIT_RAD} rad",
+                                figures), log.q
+        return TrialOutcome(True, figures=figures), log.q
+
+    def hold(self, seconds: float) -> None:
+        """Hold the last reference for ``seconds``."""
+        if seconds > 0:
+            self.workcell.hold(seconds)
+
+    def stop(self, reason: str) -> None:
+        """Hold where the robot is now (measured position, zero velocity)."""
+        self.stopped = reason
+        self.workcell.track(self.q)
+        self.workcell.hold(0.05)
+
+    def retreat(self, q_safe: np.ndarray) -> None:
+        """Stop after a contact: back off to ``q_safe`` (a contact-free reference already passed) and hold there."""
+        self.stopped = "contact"
+        self.workcell.track(np.asarray(q_safe, float))
+        self.workcell.hold(0.3)
+
+    def set_io(self, name: str, value: float) -> None:
+        """Set an output (kept in :attr:`io`)."""
+        self.io[name] = float(value)
+
+
+@dataclass
+class StepResult:
+    """What one step did.
+
+    Attributes:
+        index: Step index. name: Step name. kind: Step kind.
+        outcome: Its :class:`robointel.outcome.TrialOutcome`.
+        seconds: Wall time of the step, s.
+        executed: (M, n) measured joints while it moved (empty if it did not move).
+        replanned: Whether the motion was replanned because the scene changed after the check.
+    """
+
+    index: int
+    name: str
+    kind: str
+    outcome: TrialOutcome
+    seconds: float
+    executed: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    replanned: bool = False
+
+
+@dataclass
+class ProgramRun:
+    """A program run.
+
+    Attributes:
+        steps: One :class:`StepResult` per step run, in order (stops after the first failure).
+        check: The pre-run check.
+        failed_step: Index of the step that failed, or None.
+    """
+
+    steps: list[StepResult]
+    check: ProgramCheck
+    failed_step: int | None = None
+
+    @property
+    def success(self) -> bool:
+        """True when every step ran and succeeded."""
+        return self.failed_step is None
+
+    @property
+    def outcome(self) -> TrialOutcome:
+        """The run as one :class:`robointel.outcome.TrialOutcome`."""
+        secs = {f"step_{r.index}_{r.name}": r.seconds for r in self.steps}
+        if self.failed_step is None:
+            return TrialOutcome(True, figures={"check_ms": self.check.check_ms}, timings=secs)
+        r = self.steps[-1]
+        return TrialOutcome(False, r.outcome.reason, f"step {r.index} ({r.name!r}, {r.kind}): {r.outcome.detail}",
+                            {"check_ms": self.check.check_ms}, secs)
+
+
+def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: ProgramCheck | None = None,
+                progress: Callable[[int, str], None] | None = None) -> ProgramRun:
+    """Check the program, then run it step by step on ``cell``.
+
+    Nothing moves before the whole program (from ``start``) has passed :func:`check_program`. A motion
+    is replanned from where the robot is if the scene's obstacles changed since the check. The first
+    failed step stops the robot (it holds where it is) and ends the run.
+
+    Args:
+        program: The program.
+        cell: The robot cell (e.g. :class:`SimCell`).
+        start: First step to run, by index or name (``--from``).
+        check: A check made earlier (else it is made now from the cell's configuration).
+        progress: Optional callback (step index, status) before each step.
+
+    Returns:
+        The :class:`ProgramRun`.
+
+    Raises:
+        ProgramRejected: The pre-run check refused the program (nothing moved).
+    """
+    i0 = program.index(start)
+    chk = check or check_program(program, cell.q, start=i0)
+    results: list[StepResult] = []
+    planners = _Planners(program.scene)
+
+    def plan_fn(a: np.ndarray, b: np.ndarray) -> Trajectory | None:
+        held = getattr(cell, "held_sphere", lambda: None)()
+        if held is None:
+            return plan_move(program.scene, planners, a, b)
+        # carrying: the held object is a sphere on the last link while this motion is planned
+        spheres = program.robot.spheres
+        spheres.add(*held)
+        sc = program.scene
+        carry = replace(sc, vmax=sc.vmax * CARRY_SPEED, amax=sc.amax * CARRY_SPEED ** 2)
+        try:
+            return plan_move(carry, _Planners(carry), a, b)
+        finally:
+            spheres.remove(len(spheres) - 1)
+
+    for i in range(i0, len(program.steps)):
+        step = program.steps[i]
+        if progress:
+            progress(i, step.name)
+        t0 = time.perf_counter()
+        plan = chk.plans[i]
+        executed = np.zeros((0, program.robot.nq))
+        replanned = False
+        if step.kind in ("move", "path"):
+            traj = plan.trajectory
+            try:
+                if step.kind == "move" and (plan.deferred or scene_key(program.scene) != chk.scene_key):
+                    traj = plan_move(program.scene, planners, cell.q, plan.q_end)
+                    replanned = not plan.deferred
+            except RobointelError as exc:
+                traj = None
+                outcome = TrialOutcome(False, Failure.INFEASIBLE, f"replanning failed: {exc}")
+                cell.stop("no motion")
+                results.append(StepResult(i, step.name, step.kind, outcome, time.perf_counter() - t0))
+                return ProgramRun(results, chk, failed_step=i)
+            if traj is None:
+                outcome = TrialOutcome(True)
+            else:
+                if float(np.max(np.abs(cell.q - traj.q[0]))) > TRACKING_LIMIT_RAD:
+                    outcome = TrialOutcome(False, Failure.TRACKING, "the robot is not where the step starts")
+                    cell.stop("not at the step's start")
+                else:
+                    outcome, executed = cell.execute(traj)
+        elif step.kind == "wait":
+            cell.hold(step.args["seconds"])
+            outcome = TrialOutcome(True)
+        elif step.kind in ("grasp", "place"):
+            act = getattr(cell, step.kind, None)
+            if act is None:
+                outcome = TrialOutcome(False, Failure.ERROR, f"the cell {type(cell).__name__} has no gripper and "
+                                       "objects (use GraspCell)")
+            else:
+                arg = step.args["category"] if step.kind == "grasp" else step.args["at"]
+                try:
+                    outcome = act(arg, plan_fn)
+                except RobointelError as exc:
+                    outcome = TrialOutcome(False, Failure.INFEASIBLE, str(exc))
+                if not outcome.success:
+                    cell.stop(step.kind)
+        elif step.kind == "set_io":
+            for k, v in step.args["outputs"].items():
+                cell.set_io(k, v)
+            outcome = TrialOutcome(True)
+        else:  # pragma: no cover - the format refuses other kinds
+            outcome = TrialOutcome(False, Failure.ERROR, f"unknown step kind {step.kind!r}")
+        results.append(StepResult(i, step.name, step.kind, outcome, time.perf_counter() - t0, executed, replanned))
+        if not outcome.success:
+            return ProgramRun(results, chk, failed_step=i)
+    return ProgramRun(results, chk)

@@ -1,0 +1,89 @@
+"""The HTML report of a task-program run: the steps with their outcomes and times, the joint plot."""
+
+from __future__ import annotations
+
+import base64
+import html
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from robointel.program import Program, ProgramRun  # noqa: E402
+
+
+def plot_run(program: Program, run: ProgramRun, path: Path) -> Path:
+    """Plot the measured joint angles of every moving step, one after the other, with step boundaries.
+
+    Args:
+        program: The program that ran.
+        run: Its run.
+        path: The PNG file to write.
+
+    Returns:
+        The path written.
+    """
+    fig, ax = plt.subplots(figsize=(10, 4))
+    t0 = 0.0
+    names = program.robot.joint_names
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for r in run.steps:
+        if len(r.executed) == 0:
+            continue
+        t = t0 + np.arange(len(r.executed)) * 1e-3
+        for j in range(r.executed.shape[1]):
+            ax.plot(t, np.degrees(r.executed[:, j]), color=colors[j % len(colors)],
+                    label=names[j] if t0 == 0.0 else None)
+        ax.axvline(t0, color="0.8", lw=0.6, zorder=0)
+        ax.text(t0, ax.get_ylim()[1] if ax.lines else 0, r.name, fontsize=6, rotation=90, va="top")
+        t0 = float(t[-1])
+    ax.set_xlabel("motion time [s]")
+    ax.set_ylabel("q [deg]")
+    ax.set_title(f"program {program.name!r}: measured joints")
+    if ax.lines:
+        ax.legend(ncol=6, fontsize=7, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return Path(path)
+
+
+def write_program_report(program: Program, run: ProgramRun, out: Path) -> Path:
+    """Write ``out/index.html``: the check time, each step's outcome, time and reason, the joint plot.
+
+    Args:
+        program: The program that ran.
+        run: Its run.
+        out: The report folder (created).
+
+    Returns:
+        The HTML file.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    png = plot_run(program, run, out / "joints.png")
+    status = "succeeded" if run.success else f"FAILED at step {run.failed_step}"
+    rows = []
+    for r in run.steps:
+        plan = run.check.plans[r.index]
+        moved = "" if plan.trajectory is None else f"{plan.trajectory.duration:.2f} s"
+        rows.append(f"<tr><td>{r.index}</td><td>{html.escape(r.name)}</td><td>{r.kind}</td>"
+                    f"<td>{'ok' if r.outcome.success else html.escape(r.outcome.reason.value)}</td>"
+                    f"<td>{moved}</td><td>{plan.plan_ms:.1f}</td><td>{r.seconds * 1e3:.1f}</td>"
+                    f"<td>{html.escape(r.outcome.detail)}{' (replanned)' if r.replanned else ''}</td></tr>")
+    img = base64.b64encode(png.read_bytes()).decode()
+    page = ("<!doctype html><html><head><meta charset='utf-8'><title>robointel program report</title><style>"
+            "body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;color:#222}"
+            "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:4px 8px}th{background:#f0f0f0}"
+            "img{max-width:100%}</style></head><body>"
+            f"<h1>program {html.escape(program.name)}: {status}</h1>"
+            f"<p>pre-run check {run.check.check_ms:.0f} ms; source {html.escape(str(program.source or '-'))}</p>"
+            "<table><tr><th>#</th><th>step</th><th>kind</th><th>outcome</th><th>motion</th><th>plan [ms]</th>"
+            "<th>run [ms]</th><th>detail</th></tr>" + "".join(rows) + "</table>"
+            f"<img src='data:image/png;base64,{img}' alt='joints'></body></html>")
+    index = out / "index.html"
+    index.write_text(page)
+    return index
