@@ -7,8 +7,15 @@ from robointel.cli import app
 from robointel.errors import InvalidInput
 from robointel.geometry import obstacle_from_dict
 from robointel.outcome import Failure
-from robointel.program import (GraspCell, ProgramRejected, SimCell, check_program, load_program, program_from_dict,
-                               run_program)
+from robointel.program import (
+    GraspCell,
+    ProgramRejected,
+    SimCell,
+    check_program,
+    load_program,
+    program_from_dict,
+    run_program,
+)
 from robointel.sim import Workcell
 
 BOX = {"type": "box", "name": "wall", "center": [0.50, 0.00, 0.15], "size": [0.30, 0.10, 0.30]}
