@@ -14,6 +14,7 @@ CI) run the driver inside a loopback-only network namespace (``unshare --net``, 
 from __future__ import annotations
 
 import os
+import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -27,6 +28,8 @@ from robointel.outcome import Failure
 
 __all__ = ["run_on_ray", "start_ray"]
 
+JOIN_ATTEMPTS = 3  # tries to join a cluster through Ray Client (ray://) before giving up
+
 
 def start_ray(*, workers: int, address: str | None) -> bool:
     """Start a local Ray with ``workers`` CPUs, or join ``address``; return True if this call started it.
@@ -38,14 +41,22 @@ def start_ray(*, workers: int, address: str | None) -> bool:
         return False
     env = {"env_vars": dict(THREAD_ENV)}
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-    try:
-        if address:
-            ray.init(address=address, runtime_env=env, log_to_driver=False)
-        else:
-            ray.init(address="local", num_cpus=workers, include_dashboard=False, runtime_env=env, log_to_driver=False)
-    except (ConnectionError, RuntimeError, ValueError) as exc:
-        where = address or "a local Ray"
-        raise EngineUnavailable(f"could not start or join {where}: {exc}", value=address) from None
+    attempts = JOIN_ATTEMPTS if address and address.startswith("ray://") else 1
+    for attempt in range(attempts):
+        try:
+            if address:
+                ray.init(address=address, runtime_env=env, log_to_driver=False)
+            else:
+                ray.init(address="local", num_cpus=workers, include_dashboard=False, runtime_env=env,
+                         log_to_driver=False)
+            return True
+        except (ConnectionError, RuntimeError, ValueError) as exc:
+            # a Ray Client server starts its per-client server lazily; on a loaded head that can time out
+            if attempt + 1 < attempts and "client server failed" in str(exc):
+                time.sleep(2.0)
+                continue
+            where = address or "a local Ray"
+            raise EngineUnavailable(f"could not start or join {where}: {exc}", value=address) from None
     return True
 
 

@@ -6,7 +6,7 @@ objects on the table and two depth cameras (Ch. 6's grasp scene).
 ``grasp`` perceives the table, classifies each cluster against one taught template per category,
 transfers the template's taught grasp by CPD and searches its orientation (the Ch. 6 pipeline,
 :class:`robointel.learning.grasp.GraspPlanner`), then approaches on a planned motion, descends, closes,
-lifts 10 cm and verifies the object is held. ``place`` carries the held object on a planned motion to
+lifts 15 cm and verifies the object is held. ``place`` carries the held object on a planned motion to
 above the target, sets it down, opens and retreats, and verifies where it came to rest.
 """
 
@@ -39,7 +39,7 @@ from robointel.trajectory import Trajectory
 
 Planner = Callable[[np.ndarray, np.ndarray], "Trajectory | None"]
 TEMPLATE_SEED = 900  # generated template instances: seeds never used for the objects placed in examples
-LIFT_M = 0.10
+LIFT_M = 0.15
 TRACKING_LIMIT_RAD = 0.08
 
 
