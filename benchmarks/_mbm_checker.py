@@ -219,12 +219,13 @@ class MBMChecker:
         return Verdict(min_clearance=float(best), pair=best_pair, collision=False, samples=len(Q), evaluations=evals)
 
     def check_trajectory(self, t, q, problem: dict, *, qd=None, amax=None, dt: float = 1e-3,
-                         goal_tol: float = 1e-3) -> Verdict:
+                         goal_tol: float = 1e-3, limit_tol: float = 0.1) -> Verdict:
         """Check a timed trajectory on a ``dt`` resample: collisions, joint limits, start and goal.
 
         ``t`` (K,) s, ``q`` (K, n) rad, ``qd`` (K, n) rad/s or None (then piecewise linear).
         Velocity and acceleration limits (URDF velocity, ``amax``) are checked on the resample with
-        a 1e-3 relative tolerance; the trajectory must start at the problem's start and end at one of
+        a ``limit_tol`` relative tolerance (TOPP-RA enforces them only at its grid points; the
+        largest ratios are reported on the verdict); the trajectory must start at the problem's start and end at one of
         its goals within ``goal_tol`` rad.
         """
         t = np.asarray(t, float)
@@ -250,11 +251,11 @@ class MBMChecker:
         if lo.size:
             v.limit_violation = f"position of {self.joint_names[lo[0]]}"
         v.max_vel_ratio = float(np.max(np.abs(Qd) / self.vmax))
-        if v.max_vel_ratio > 1.0 + 1e-3 and v.limit_violation is None:
+        if v.max_vel_ratio > 1.0 + limit_tol and v.limit_violation is None:
             v.limit_violation = f"velocity {v.max_vel_ratio:.4f} x limit"
         if amax is not None:
             v.max_acc_ratio = float(np.max(np.abs(Qdd) / np.asarray(amax, float)))
-            if v.max_acc_ratio > 1.0 + 1e-3 and v.limit_violation is None:
+            if v.max_acc_ratio > 1.0 + limit_tol and v.limit_violation is None:
                 v.limit_violation = f"acceleration {v.max_acc_ratio:.4f} x limit"
         start = np.asarray(problem["start"], float)
         goals = np.asarray(problem["goals"], float)
