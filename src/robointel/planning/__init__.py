@@ -6,12 +6,16 @@
   (7.1)-(7.3), on the robot's collision spheres and :mod:`robointel.geometry` obstacles.
 - :func:`temporal_optimize` -- re-timing by CFS, (7.7)-(7.9).
 - :func:`plan_scene` / :func:`execute` -- the FRMP on a YAML scene, run in the MuJoCo workcell.
+- :func:`plan_motion` -- start-to-goal planning in cluttered cells for any arm (RRT-Connect on the
+  compiled sphere checks, shortcutting, temporal optimization, dense check) in an :class:`Environment`.
 - :func:`receding_horizon` -- warm-started replanning with a moving obstacle.
 - Baselines: :func:`slsqp`, :func:`slsqp_segment` (SQP), :func:`rrtconnect` (OMPL, dev extra).
 """
 from robointel.planning.cfs import CFSResult, NonlinearConstraint, cfs
+from robointel.planning.environment import Contact, Environment, sphere_model_from_urdf
 from robointel.planning.frmp import (Execution, FRMPResult, TrajectoryCheck, check_trajectory, execute,
                                      make_planners, plan_scene, planner_settings)
+from robointel.planning.motion import MotionPlan, MotionSettings, plan_motion
 from robointel.planning.qp import DenseQP, SparseQP
 from robointel.planning.replan import ReplanResult, receding_horizon
 from robointel.planning.sqp import SQPResult, slsqp, slsqp_segment
@@ -32,5 +36,6 @@ __all__ = [
     "temporal_optimize", "TemporalResult", "concatenate_segments",
     "plan_scene", "execute", "check_trajectory", "make_planners", "planner_settings",
     "FRMPResult", "Execution", "TrajectoryCheck",
+    "plan_motion", "MotionSettings", "MotionPlan", "Environment", "Contact", "sphere_model_from_urdf",
     "receding_horizon", "ReplanResult", "slsqp", "slsqp_segment", "SQPResult", "rrtconnect",
 ]
