@@ -116,12 +116,12 @@ def plot_path_3d(result, path: Path) -> Path:
 
 def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | None = None, index: int | None = None,
              per_family: int | None = None, out: Path | None = None, time_budget_s: float = 1.0,
-             console=None) -> list:
+             d_min: float = 0.001, console=None) -> list:
     """``robointel plan --mbm PROBLEMS.json --robot URDF``: plan the valid MBM problems start to goal.
 
     Each selected problem is read by :func:`robointel.io.mbm.load_mbm_problems`, planned by
     :func:`robointel.planning.plan_motion` (its success means the 1 ms dense check passed) and
-    listed in a table; trajectories are saved as ``<out stem>_<family>_<index>.npz`` when ``out``
+    listed in a table (``d_min`` in m: the check accepts clearance >= d_min - 1 mm); trajectories are saved as ``<out stem>_<family>_<index>.npz`` when ``out``
     is given. The SRDF (same stem as the URDF) and the sphere decomposition
     ``<stem>_spherized.urdf`` beside the URDF are used when present. Exits with code 1 when a
     problem failed, 2 on bad input.
@@ -161,7 +161,7 @@ def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | No
             for p in selected:
                 env = Environment(robot, p.obstacles, **kw)
                 plans.append(plan_motion(robot, env, p.start, p.goals,
-                                         settings=MotionSettings(time_budget_s=time_budget_s)))
+                                         settings=MotionSettings(d_min=d_min, time_budget_s=time_budget_s)))
                 bar.advance(task)
     except RobointelError as exc:
         console.print(f"[red]error:[/red] {exc}")
@@ -202,12 +202,14 @@ def register(app) -> None:
              index: int = typer.Option(None, "--index", help="with --mbm: only the problem with this index"),
              per_family: int = typer.Option(None, "--per-family", help="with --mbm: first N valid per family"),
              time_budget: float = typer.Option(1.0, "--time-budget", help="with --mbm: search budget, s"),
+             d_min: float = typer.Option(0.001, "--d-min", help="with --mbm: clearance, m (the dense check "
+                                         "allows d_min - 1 mm)"),
              ) -> None:
         """Plan a scene with the FRMP (CFS path + temporal optimization) and save the trajectory;
         with --mbm, plan and check MotionBenchMaker problems start to goal."""
         if mbm is not None or scene is None:
             plan_mbm(mbm, robot, family=family, index=index, per_family=per_family, out=out if mbm else None,
-                     time_budget_s=time_budget, console=console)
+                     time_budget_s=time_budget, d_min=d_min, console=console)
             return
         from robointel.errors import RobointelError
         from robointel.io.scene import load_scene
