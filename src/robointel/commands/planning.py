@@ -121,13 +121,25 @@ def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | No
 
     Each selected problem is read by :func:`robointel.io.mbm.load_mbm_problems`, planned by
     :func:`robointel.planning.plan_motion` (its success means the 1 ms dense check passed) and
-    listed in a table (``d_min`` in m: the check accepts clearance >= d_min - 1 mm); trajectories are saved as ``<out stem>_<family>_<index>.npz`` when ``out``
-    is given. The SRDF (same stem as the URDF) and the sphere decomposition
-    ``<stem>_spherized.urdf`` beside the URDF are used when present. Exits with code 1 when a
-    problem failed, 2 on bad input.
+    listed in a table. The SRDF (same stem as the URDF) and the sphere decomposition
+    ``<stem>_spherized.urdf`` beside the URDF are used when present.
+
+    Args:
+        problems: the MBM ``problems.json``.
+        robot_urdf: the robot's URDF.
+        family: only this family (None: all).
+        index: only the problem with this index.
+        per_family: the first this many valid problems of each family.
+        out: when given, each trajectory is saved as ``<out stem>_<family>_<index>.npz``.
+        time_budget_s: search budget per problem, s.
+        d_min: required clearance, m (the dense check accepts clearance >= d_min - 1 mm).
+        console: a rich console for the table and the progress bar.
 
     Returns:
         The :class:`robointel.planning.MotionPlan` of every problem, in order.
+
+    Raises:
+        typer.Exit: code 2 on bad input (message printed), code 1 when a problem failed.
     """
     import typer
     from rich.console import Console
@@ -152,14 +164,12 @@ def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | No
         urdf = Path(robot_urdf)
         srdf = urdf.with_suffix(".srdf")
         spheres = urdf.with_name(f"{urdf.stem}_spherized.urdf")
-        kw = {"srdf": srdf if srdf.exists() else None}
-        if spheres.exists():
-            kw["spheres"] = spheres
         plans = []
         with Progress(console=console, transient=True) as bar:
             task = bar.add_task("planning", total=len(selected))
             for p in selected:
-                env = Environment(robot, p.obstacles, **kw)
+                env = Environment(robot, p.obstacles, srdf=srdf if srdf.exists() else None,
+                                  spheres=spheres if spheres.exists() else None)
                 plans.append(plan_motion(robot, env, p.start, p.goals,
                                          settings=MotionSettings(d_min=d_min, time_budget_s=time_budget_s)))
                 bar.advance(task)
@@ -205,8 +215,10 @@ def register(app) -> None:
              d_min: float = typer.Option(0.001, "--d-min", help="with --mbm: clearance, m (the dense check "
                                          "allows d_min - 1 mm)"),
              ) -> None:
-        """Plan a scene with the FRMP (CFS path + temporal optimization) and save the trajectory;
-        with --mbm, plan and check MotionBenchMaker problems start to goal."""
+        """Plan a scene with the FRMP (CFS path + temporal optimization) and save the trajectory.
+
+        With --mbm, plan and check MotionBenchMaker problems start to goal instead.
+        """
         if mbm is not None or scene is None:
             plan_mbm(mbm, robot, family=family, index=index, per_family=per_family, out=out if mbm else None,
                      time_budget_s=time_budget, d_min=d_min, console=console)
