@@ -199,9 +199,14 @@ class MBMChecker:
             due = np.flatnonzero(lb <= best)
             if due.size == 0:
                 continue
-            Ts = self._placements(Q[k])
+            pin.forwardKinematics(self.model, self.data, Q[k])
+            Ts: dict[int, coal.Transform3s] = {}  # placements of the geometries needed at this sample
             for p in due:
                 a, b = pairs[p]
+                for g in (a, b):
+                    if g >= 0 and g not in Ts:
+                        M = self.data.oMi[objs[g].parentJoint] * objs[g].placement
+                        Ts[g] = coal.Transform3s(M.rotation, M.translation)
                 if b < 0:
                     _, shape, T = obst[-1 - b]
                     d, hit = self._pair_distance(objs[a].geometry, Ts[a], shape, T, self.hulls[a], None, best)
