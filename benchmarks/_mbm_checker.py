@@ -151,14 +151,6 @@ class MBMChecker:
         return out
 
     # checking -----------------------------------------------------------------------------------
-    def _placements(self, q: np.ndarray) -> list[coal.Transform3s]:
-        pin.forwardKinematics(self.model, self.data, q)
-        out = []
-        for g in self.geom.geometryObjects:
-            M = self.data.oMi[g.parentJoint] * g.placement
-            out.append(coal.Transform3s(M.rotation, M.translation))
-        return out
-
     def _pair_distance(self, ga, Ta, gb, Tb, ha=None, hb=None, bound: float = np.inf) -> tuple[float, bool]:
         """Exact distance (or, when the convex hulls ``ha``, ``hb`` are already farther apart than
         ``bound``, their distance: a lower bound that is above ``bound``) and the collision flag."""
