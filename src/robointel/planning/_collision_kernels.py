@@ -350,3 +350,42 @@ def samples_clearance(Q, W, T, C, G, out, lever, floor, cap):  # pragma: no cove
             j += 1
         k = j
     return best, worst
+
+
+@njit(cache=True)
+def cloud_bounds(P):  # pragma: no cover - compiled
+    """Lower and upper corners (3,), (3,) of the points P (N, 3), N >= 1."""
+    lo = P[0].copy()
+    hi = P[0].copy()
+    for i in range(1, P.shape[0]):
+        for r in range(3):
+            v = P[i, r]
+            if v < lo[r]:
+                lo[r] = v
+            elif v > hi[r]:
+                hi[r] = v
+    return lo, hi
+
+
+@njit(cache=True)
+def bin_points(P, lo, h, dims, out, cstart):  # pragma: no cover - compiled
+    """Counting sort of the points P (N, 3) into grid cells: ``out`` (N, 3) sorted by cell and
+    ``cstart`` (cells + 1,) the first point of each cell."""
+    N = P.shape[0]
+    key = np.empty(N, np.int64)
+    cstart[:] = 0
+    for i in range(N):
+        a = min(int((P[i, 0] - lo[0]) / h), dims[0] - 1)
+        b = min(int((P[i, 1] - lo[1]) / h), dims[1] - 1)
+        c = min(int((P[i, 2] - lo[2]) / h), dims[2] - 1)
+        k = (a * dims[1] + b) * dims[2] + c
+        key[i] = k
+        cstart[k + 1] += 1
+    for k in range(1, cstart.shape[0]):
+        cstart[k] += cstart[k - 1]
+    fill = cstart[:-1].copy()
+    for i in range(N):
+        k = key[i]
+        j = fill[k]
+        out[j, 0], out[j, 1], out[j, 2] = P[i, 0], P[i, 1], P[i, 2]
+        fill[k] = j + 1

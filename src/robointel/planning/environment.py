@@ -198,23 +198,21 @@ class Environment:
         Raises:
             InvalidInput: wrong shape, NaN/inf, or a negative radius.
         """
-        P = as_array(points, "points", (None, 3))
+        P = np.ascontiguousarray(as_array(points, "points", (None, 3)))
         if not radius >= 0:
             raise InvalidInput(f"point radius must be >= 0 m, got {radius}", value=radius)
         if len(P) == 0:
             self._cloud = _empty_cloud()
         else:
-            lo, hi = P.min(0), P.max(0)
+            lo, hi = K.cloud_bounds(P)
             ext = np.maximum(hi - lo, 1e-6)
             h = max(CLOUD_CELL, float(np.cbrt(np.prod(ext + CLOUD_CELL) / _MAX_CELLS)))
             dims = (np.floor(ext / h).astype(np.int64) + 1)
-            ijk = np.minimum(((P - lo) / h).astype(np.int64), dims - 1)
-            key = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
-            order = np.argsort(key, kind="stable")
-            cstart = np.zeros(int(np.prod(dims)) + 1, np.int64)
-            np.cumsum(np.bincount(key, minlength=len(cstart) - 1), out=cstart[1:])
+            cpts = np.empty_like(P)
+            cstart = np.empty(int(np.prod(dims)) + 1, np.int64)
+            K.bin_points(P, lo, h, dims, cpts, cstart)
             grid = np.array([lo[0], lo[1], lo[2], h, float(radius), 0.0, 0.0])
-            self._cloud = (np.ascontiguousarray(P[order]), cstart, grid, dims)
+            self._cloud = (cpts, cstart, grid, dims)
         if hasattr(self, "world"):
             self._rebuild()
 

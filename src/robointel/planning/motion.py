@@ -48,8 +48,10 @@ class MotionSettings:
             edge keeps clearance >= d_min - resolution / 2 between the checked points).
         search_resolution: the same during the tree search (coarser, faster); the found path's
             edges are re-checked at ``resolution`` (the search is repeated finer if one fails).
-        smooth: also try the time-optimised spline (7.7)-(7.9) through knots along the path and
-            keep it when it passes the dense check and is faster than stopping at the vertices.
+        smooth: time the path by temporal optimization (7.7)-(7.9) of the spline through knots
+            along it (no stop at the vertices); when that spline fails the dense check (it leaves
+            the checked polyline near a corner), fall back to time-optimal rest-to-rest motion
+            along the polyline itself.
         max_nodes: capacity of each RRT tree.
         shortcut_iters: random shortcut attempts after the greedy pass.
         knot_step: largest joint step between knots of the time-optimised spline, rad.
@@ -226,22 +228,22 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
     # timing and the dense check -------------------------------------------------------------
     t3 = time.perf_counter()
     names = list(robot.joint_names)
-    if st.jerk_limited:
-        jmax = np.asarray(st.jerk_limit if st.jerk_limit is not None else 10 * amax, float)
-        traj = jerk_limited_polyline(path, vmax, amax, jmax, dt=st.check_dt, joint_names=names)
-    else:
-        traj = polyline_timing(path, vmax, amax, dt=st.check_dt, joint_names=names)
-    chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
-    timings["timing"] = (time.perf_counter() - t3) * 1e3
-    if chk.ok and st.smooth and not st.jerk_limited and len(path) > 2:
-        t4 = time.perf_counter()
+    traj, chk = None, None
+    if st.smooth and not st.jerk_limited and len(path) > 2:
         tr = temporal_optimize(_densify(path, float(st.knot_step)), vmax, amax)
-        if tr.duration < traj.duration:
-            sm = Trajectory(tr.t, tr.q, tr.qd, tr.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
-            c2 = check_dense(env, sm, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
-            if c2.ok:
-                traj, chk = sm, c2
-        timings["smooth"] = (time.perf_counter() - t4) * 1e3
+        traj = Trajectory(tr.t, tr.q, tr.qd, tr.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
+        chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
+        timings["smooth"] = (time.perf_counter() - t3) * 1e3
+    if chk is None or not chk.ok:  # rest to rest along the checked polyline
+        t4 = time.perf_counter()
+        if st.jerk_limited:
+            jmax = np.asarray(st.jerk_limit if st.jerk_limit is not None else 10 * amax, float)
+            traj = jerk_limited_polyline(path, vmax, amax, jmax, dt=st.check_dt, joint_names=names)
+        else:
+            traj = polyline_timing(path, vmax, amax, dt=st.check_dt, joint_names=names)
+        chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
+        timings["timing"] = (time.perf_counter() - t4) * 1e3
+    assert traj is not None and chk is not None
     traj.meta.update({"min_clearance_m": chk.min_clearance_m, "goal_index": goal_index})
     if not chk.ok:
         fail = Failure.COLLISION if chk.kind == "collision" else Failure.LIMIT
