@@ -1,5 +1,7 @@
-"""Compiled (numba) collision kernels of the motion planner: chain kinematics, sphere clearance
-against primitives, a gridded point cloud and the robot itself, and motion (edge) checks.
+"""Compiled (numba) collision kernels of the motion planner.
+
+Chain kinematics, sphere clearance against primitives, a gridded point cloud and the robot
+itself, and motion (edge) checks.
 
 The world is one tuple ``W`` of arrays built by :class:`robointel.planning.environment.Environment`:
 
@@ -96,8 +98,10 @@ def sphere_centres(q, W, T, C, G):  # pragma: no cover - compiled
 
 @njit(cache=True, fastmath=FM)
 def _cloud_min(x, y, z, reach, W):  # pragma: no cover - compiled
-    """Distance from (x, y, z) to the nearest cloud point within ``reach`` (minus the point
-    radius), or ``reach`` when none is that close."""
+    """Distance from (x, y, z) to the nearest cloud point within ``reach``.
+
+    The point radius is subtracted; the result is, or ``reach`` when none is that close.
+    """
     cpts, cstart, cg, cd = W[16], W[17], W[18], W[19]
     h, pr = cg[3], cg[4]
     rr = reach + pr
@@ -149,8 +153,12 @@ def env_clearance(C, G, W, cap, stop, out):  # pragma: no cover - compiled
 
 @njit(cache=True, fastmath=FM)
 def full_clearance(C, G, W, cap, stop, out, with_self):  # pragma: no cover - compiled
-    """Smallest signed distance, capped at ``cap``, over spheres vs primitives, cloud and the
-    self-collision sphere pairs; returns as soon as it is below ``stop``.
+    """Smallest signed distance, capped at ``cap``.
+
+    Over the moving spheres vs primitives and cloud (spheres fixed to the base are not checked
+    against the environment: the table or floor the
+    robot stands on touches them in every configuration) and, ``with_self``, the self-collision
+    sphere pairs; returns as soon as it is below ``stop``.
 
     out (4,) int64 receives (kind ENV/SELF/CLOUD or -1, sphere, obstacle or other sphere, 0).
     """
@@ -159,7 +167,10 @@ def full_clearance(C, G, W, cap, stop, out, with_self):  # pragma: no cover - co
     best = cap
     out[0] = -1
     ng = gr.shape[0]
+    gj = W[8]
     for k in range(ng):
+        if gj[k] == 0:  # spheres fixed to the base: the mounting never changes along a motion
+            continue
         gx, gy, gz, R = G[k, 0], G[k, 1], G[k, 2], gr[k]
         for o in range(types.shape[0]):
             db = _one(types[o], params[o], gx, gy, gz)[0] - R
@@ -239,8 +250,11 @@ def travel(q0, q1, lever):  # pragma: no cover - compiled
 
 @njit(cache=True, fastmath=FM)
 def _self_advance(C, G, W, thresh, res, dq, out):  # pragma: no cover - compiled
-    """Largest path-parameter advance allowed by the self-collision pairs (relative travel of each
-    group pair, ``W[20]`` (p, n) relative levers); -1 when a pair is below ``thresh``."""
+    """Largest path-parameter advance allowed by the self-collision pairs.
+
+    From the relative travel of each
+    group pair, ``W[20]`` (p, n) relative levers); -1 when a pair is below ``thresh``.
+    """
     sr, gr, gs, gpairs, smask, rel = W[7], W[10], W[11], W[14], W[15], W[20]
     best = np.inf
     for p in range(gpairs.shape[0]):
@@ -272,11 +286,13 @@ def _self_advance(C, G, W, thresh, res, dq, out):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def edge_valid(q0, q1, W, T, C, G, out, thresh, lever, res):  # pragma: no cover - compiled
-    """Check the straight joint-space motion q0 -> q1 (q1 excluded) by conservative advancement:
-    from a point with clearance c, every point within sphere-centre travel c - thresh + res / 2 keeps
+    """Check the straight joint-space motion q0 -> q1 (q1 excluded) by conservative advancement.
+
+    From a point with clearance c, every point within sphere-centre travel c - thresh + res / 2 keeps
     clearance >= thresh - res / 2, so the next check is that far along (at least ``res`` of travel).
     Obstacles bound the travel of each sphere, self-collision pairs the relative travel of their
-    two links."""
+    two links.
+    """
     n = q0.shape[0]
     dq = np.empty(n)
     for k in range(n):
@@ -307,8 +323,9 @@ def edge_valid(q0, q1, W, T, C, G, out, thresh, lever, res):  # pragma: no cover
 
 @njit(cache=True)
 def samples_clearance(Q, W, T, C, G, out, lever, floor, cap):  # pragma: no cover - compiled
-    """Smallest clearance over the configurations Q (K, n) (a sequence of nearby samples), with
-    the index of the worst evaluated sample.
+    """Smallest clearance over the configurations Q (K, n), a sequence of nearby samples.
+
+    Also returns the index of the worst evaluated sample.
 
     A sample whose clearance bound (clearance of the last evaluated sample minus the travel since)
     stays >= min(best so far, ``floor``) is skipped: it can lower neither a minimum below ``floor``
@@ -333,3 +350,42 @@ def samples_clearance(Q, W, T, C, G, out, lever, floor, cap):  # pragma: no cove
             j += 1
         k = j
     return best, worst
+
+
+@njit(cache=True)
+def cloud_bounds(P):  # pragma: no cover - compiled
+    """Lower and upper corners (3,), (3,) of the points P (N, 3), N >= 1."""
+    lo = P[0].copy()
+    hi = P[0].copy()
+    for i in range(1, P.shape[0]):
+        for r in range(3):
+            v = P[i, r]
+            if v < lo[r]:
+                lo[r] = v
+            elif v > hi[r]:
+                hi[r] = v
+    return lo, hi
+
+
+@njit(cache=True)
+def bin_points(P, lo, h, dims, out, cstart):  # pragma: no cover - compiled
+    """Counting sort of the points P (N, 3) into grid cells: ``out`` (N, 3) sorted by cell and
+    ``cstart`` (cells + 1,) the first point of each cell."""
+    N = P.shape[0]
+    key = np.empty(N, np.int64)
+    cstart[:] = 0
+    for i in range(N):
+        a = min(int((P[i, 0] - lo[0]) / h), dims[0] - 1)
+        b = min(int((P[i, 1] - lo[1]) / h), dims[1] - 1)
+        c = min(int((P[i, 2] - lo[2]) / h), dims[2] - 1)
+        k = (a * dims[1] + b) * dims[2] + c
+        key[i] = k
+        cstart[k + 1] += 1
+    for k in range(1, cstart.shape[0]):
+        cstart[k] += cstart[k - 1]
+    fill = cstart[:-1].copy()
+    for i in range(N):
+        k = key[i]
+        j = fill[k]
+        out[j, 0], out[j, 1], out[j, 2] = P[i, 0], P[i, 1], P[i, 2]
+        fill[k] = j + 1

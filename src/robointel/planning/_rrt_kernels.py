@@ -45,8 +45,11 @@ def _steer(a, b, dist, rng, out):  # pragma: no cover - compiled
 @njit(cache=True)
 def rrt_connect(nodes, parent, count, lower, upper, iters, rng, W, T, C, G, out, thresh, lever, res,
                 link):  # pragma: no cover - compiled
-    """Run up to ``iters`` RRT-Connect iterations; 1 when the trees met (``link`` = (tree-0 node,
-    tree-1 node)), 0 when not yet, -1 when a tree is full."""
+    """Run up to ``iters`` RRT-Connect iterations.
+
+    Returns 1 when the trees met (``link`` = (tree-0 node,
+    tree-1 node)), 0 when not yet, -1 when a tree is full.
+    """
     n = lower.shape[0]
     cap = nodes.shape[1]
     qr = np.empty(n)
@@ -110,9 +113,12 @@ def _length(P, npts, L):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def shortcut(P, npts, iters, W, T, C, G, out, thresh, lever, res):  # pragma: no cover - compiled
-    """Shorten the path P[:npts] in place: a greedy pass (each vertex joined to the farthest one
+    """Shorten the path P[:npts] in place.
+
+    A greedy pass (each vertex joined to the farthest one
     it sees), then ``iters`` random shortcuts between points anywhere on the path. Returns the
-    new vertex count."""
+    new vertex count.
+    """
     n = P.shape[1]
     cap = P.shape[0]
     Q = np.empty_like(P)
@@ -133,7 +139,7 @@ def shortcut(P, npts, iters, W, T, C, G, out, thresh, lever, res):  # pragma: no
     L = np.empty(cap)
     qa = np.empty(n)
     qb = np.empty(n)
-    for it in range(iters):
+    for _ in range(iters):
         if npts < 3:
             break
         _length(P, npts, L)

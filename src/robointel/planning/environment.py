@@ -1,4 +1,6 @@
-"""The planning environment: the robot's collision spheres, the obstacles around it (primitives and
+"""The planning environment.
+
+The robot's collision spheres, the obstacles around it (primitives and
 a point cloud), self-collision pairs and tool-attached objects, packed for the compiled checks.
 
 A configuration q is valid when every robot sphere keeps distance >= d_min to every obstacle
@@ -6,9 +8,9 @@ A configuration q is valid when every robot sphere keeps distance >= d_min to ev
 """
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -17,7 +19,7 @@ import pinocchio as pin
 from robointel._validate import as_array
 from robointel.errors import CollisionAtStart, DescriptionError, InvalidInput
 from robointel.geometry import _kernels as GK
-from robointel.geometry.obstacles import Box, Obstacle, PointCloud
+from robointel.geometry.obstacles import Box, Capsule, Cylinder, Obstacle, PointCloud, Sphere
 from robointel.planning import _collision_kernels as K
 from robointel.robot.collision import SphereModel, primitive_spheres
 from robointel.robot.model import Robot
@@ -29,8 +31,9 @@ _MAX_CELLS = 2_000_000
 
 
 def sphere_model_from_urdf(robot: Robot, path: str | Path) -> SphereModel:
-    """Spheres read from a "spherized" URDF (one ``<sphere>`` collision per sphere, as shipped
-    with VAMP/MotionBenchMaker), bound to ``robot`` by link name.
+    """Spheres read from a "spherized" URDF.
+
+    One ``<sphere>`` collision per sphere, as shipped with VAMP/MotionBenchMaker; bound to ``robot`` by link name.
 
     Args:
         robot: the arm the spheres belong to (same link names).
@@ -130,13 +133,14 @@ class Environment:
                                    value=o)
         if floor is not None:
             z = float(as_array(floor, "floor", ()))
-            obs.append(Box(center=[0.0, 0.0, z - 0.5], size=[20.0, 20.0, 1.0], name="floor"))
+            obs.append(Box(center=np.array([0.0, 0.0, z - 0.5]), size=np.array([20.0, 20.0, 1.0]), name="floor"))
         self.obstacles = [o for o in obs if not isinstance(o, PointCloud)]
         self.labels = [o.label(k) for k, o in enumerate(self.obstacles)]
         self._chain = _chain_arrays(robot)
         self._pack_spheres()
+        packed = [o._packed for o in self.obstacles]  # type: ignore[attr-defined]
         self._prims = (np.array([o._code for o in self.obstacles], np.int64),
-                       np.array([o._packed for o in self.obstacles], float).reshape(-1, GK.NPARAM))
+                       np.array(packed, dtype=np.float64).reshape(-1, GK.NPARAM))
         clouds = [o for o in obs if isinstance(o, PointCloud)]
         self._cloud: tuple = _empty_cloud()
         if clouds:
@@ -194,23 +198,21 @@ class Environment:
         Raises:
             InvalidInput: wrong shape, NaN/inf, or a negative radius.
         """
-        P = as_array(points, "points", (None, 3))
+        P = np.ascontiguousarray(as_array(points, "points", (None, 3)))
         if not radius >= 0:
             raise InvalidInput(f"point radius must be >= 0 m, got {radius}", value=radius)
         if len(P) == 0:
             self._cloud = _empty_cloud()
         else:
-            lo, hi = P.min(0), P.max(0)
+            lo, hi = K.cloud_bounds(P)
             ext = np.maximum(hi - lo, 1e-6)
             h = max(CLOUD_CELL, float(np.cbrt(np.prod(ext + CLOUD_CELL) / _MAX_CELLS)))
             dims = (np.floor(ext / h).astype(np.int64) + 1)
-            ijk = np.minimum(((P - lo) / h).astype(np.int64), dims - 1)
-            key = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
-            order = np.argsort(key, kind="stable")
-            cstart = np.zeros(int(np.prod(dims)) + 1, np.int64)
-            np.cumsum(np.bincount(key, minlength=len(cstart) - 1), out=cstart[1:])
+            cpts = np.empty_like(P)
+            cstart = np.empty(int(np.prod(dims)) + 1, np.int64)
+            K.bin_points(P, lo, h, dims, cpts, cstart)
             grid = np.array([lo[0], lo[1], lo[2], h, float(radius), 0.0, 0.0])
-            self._cloud = (np.ascontiguousarray(P[order]), cstart, grid, dims)
+            self._cloud = (cpts, cstart, grid, dims)
         if hasattr(self, "world"):
             self._rebuild()
 
@@ -244,21 +246,21 @@ class Environment:
 def _obstacle_spheres(o: Obstacle, k: int) -> tuple[np.ndarray, np.ndarray]:
     """Spheres covering an attached object given in its link frame."""
     T = np.eye(4)
-    if o.type == "sphere":
+    if isinstance(o, Sphere):
         T[:3, 3] = o.center
         return primitive_spheres({"type": "sphere", "size": [o.radius], "origin": T})
-    if o.type == "box":
+    if isinstance(o, Box):
         T[:3, :3], T[:3, 3] = o.rotation, o.center
         return primitive_spheres({"type": "box", "size": o.size, "origin": T})
-    if o.type in ("cylinder", "capsule"):
-        a, b = np.asarray(o.a, float), np.asarray(o.b, float)
+    if isinstance(o, (Cylinder, Capsule)):
+        a, b = np.asarray(o.a, dtype=float), np.asarray(o.b, dtype=float)
         u = (b - a) / np.linalg.norm(b - a)
         T[:3, :3] = _frame_z(u)
         T[:3, 3] = (a + b) / 2
-        L = float(np.linalg.norm(b - a)) + (2 * o.radius if o.type == "capsule" else 0.0)
+        L = float(np.linalg.norm(b - a)) + (2 * o.radius if isinstance(o, Capsule) else 0.0)
         return primitive_spheres({"type": "cylinder", "size": [o.radius, L], "origin": T})
-    if o.type == "pointcloud":
-        return np.asarray(o.points, float), np.full(len(o.points), max(o.radius, 1e-4))
+    if isinstance(o, PointCloud):
+        return np.asarray(o.points, dtype=float), np.full(len(o.points), max(o.radius, 1e-4))
     raise InvalidInput(f"attached[{k}]: cannot attach a {o.type}", value=o)
 
 
@@ -274,9 +276,12 @@ def _empty_cloud() -> tuple:
 
 
 def _variable_pairs(W: tuple, robot: Robot, smask: np.ndarray, samples: int = 500) -> np.ndarray:
-    """Mask of the self-collision pairs whose distance changes with the configuration: pairs whose
+    """Mask of the self-collision pairs whose distance changes with the configuration.
+
+    Pairs whose
     distance stays within 0.1 mm over random configurations (a kinematic invariant, such as a
-    sphere on a joint axis facing a sphere on the base) can never collide and are not checked."""
+    sphere on a joint axis facing a sphere on the base) can never collide and are not checked.
+    """
     m = len(W[5])
     T = np.zeros((W[0].shape[0], 4, 4))
     T[0] = np.eye(4)

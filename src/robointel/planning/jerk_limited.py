@@ -1,5 +1,8 @@
-"""Jerk-limited timing of a piecewise-linear joint path with ruckig: each straight segment is a
-time-optimal, phase-synchronised (straight in joint space) motion from rest to rest."""
+"""Jerk-limited timing of a piecewise-linear joint path with ruckig.
+
+Each straight segment is a
+time-optimal, phase-synchronised (straight in joint space) motion from rest to rest.
+"""
 from __future__ import annotations
 
 import numpy as np
@@ -18,7 +21,9 @@ def jerk_limited_polyline(path: npt.ArrayLike, vmax: npt.ArrayLike, amax: npt.Ar
 
     Args:
         path: (N+1, n) vertices, rad; N >= 1.
-        vmax, amax, jmax: (n,) limits, rad/s, rad/s^2, rad/s^3.
+        vmax: (n,) velocity limits, rad/s.
+        amax: (n,) acceleration limits, rad/s^2.
+        jmax: (n,) jerk limits, rad/s^3.
         dt: sampling step of the returned trajectory, s.
         joint_names: names of the n joints.
 

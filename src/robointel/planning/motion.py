@@ -11,13 +11,13 @@ to obstacles and between non-adjacent links). ``success`` is True only when that
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 import numpy.typing as npt
 
-from robointel.errors import CollisionAtStart, IKFailure, InvalidInput
+from robointel.errors import IKFailure, InvalidInput
 from robointel.io.trajectory import Trajectory
 from robointel.outcome import Failure
 from robointel.planning import _collision_kernels as K
@@ -28,6 +28,9 @@ from robointel.planning.motion_check import check_dense
 from robointel.planning.polyline_timing import polyline_timing
 from robointel.planning.temporal import temporal_optimize
 from robointel.robot.model import Robot
+
+#: random seeds of the numeric IK for a pose goal (each distinct solution joins the goal set)
+IK_SEEDS = 32
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -45,8 +48,10 @@ class MotionSettings:
             edge keeps clearance >= d_min - resolution / 2 between the checked points).
         search_resolution: the same during the tree search (coarser, faster); the found path's
             edges are re-checked at ``resolution`` (the search is repeated finer if one fails).
-        smooth: also try the time-optimised spline (7.7)-(7.9) through knots along the path and
-            keep it when it passes the dense check and is faster than stopping at the vertices.
+        smooth: time the path by temporal optimization (7.7)-(7.9) of the spline through knots
+            along it (no stop at the vertices); when that spline fails the dense check (it leaves
+            the checked polyline near a corner), fall back to time-optimal rest-to-rest motion
+            along the polyline itself.
         max_nodes: capacity of each RRT tree.
         shortcut_iters: random shortcut attempts after the greedy pass.
         knot_step: largest joint step between knots of the time-optimised spline, rad.
@@ -111,9 +116,9 @@ def _goal_set(robot: Robot, goal: npt.ArrayLike | Sequence[npt.ArrayLike], seed:
     if is_pose and np.allclose(g[:3, :3].T @ g[:3, :3], np.eye(3), atol=1e-6):
         sols: list[np.ndarray] = []
         rng = np.random.default_rng(seed)
-        for k in range(12):
+        for _ in range(IK_SEEDS):
             try:
-                q = robot.ik_numeric(g, q0=robot.random_configuration(rng), restarts=2, rng=int(rng.integers(1 << 31)))
+                q = robot.ik_numeric(g, q0=robot.random_configuration(rng), restarts=0, rng=int(rng.integers(1 << 31)))
             except IKFailure:
                 continue
             if all(np.linalg.norm(q - s) > 1e-3 for s in sols):
@@ -163,10 +168,11 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
         CollisionAtStart: the start, or every goal, is closer than ``d_min`` (names the pair).
         IKFailure: a pose goal without IK solutions.
     """
-    t0 = time.perf_counter()
-    timings: dict[str, float] = {}
     if not isinstance(environment, Environment) or environment.robot is not robot:
         raise InvalidInput("environment must be an Environment built for this robot", value=environment)
+    _warmup(environment)
+    t0 = time.perf_counter()
+    timings: dict[str, float] = {}
     if not isinstance(settings, MotionSettings):
         raise InvalidInput("settings must be a MotionSettings", value=settings)
     st = settings
@@ -222,22 +228,22 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
     # timing and the dense check -------------------------------------------------------------
     t3 = time.perf_counter()
     names = list(robot.joint_names)
-    if st.jerk_limited:
-        jmax = np.asarray(st.jerk_limit if st.jerk_limit is not None else 10 * amax, float)
-        traj = jerk_limited_polyline(path, vmax, amax, jmax, dt=st.check_dt, joint_names=names)
-    else:
-        traj = polyline_timing(path, vmax, amax, dt=st.check_dt, joint_names=names)
-    chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
-    timings["timing"] = (time.perf_counter() - t3) * 1e3
-    if chk.ok and st.smooth and not st.jerk_limited and len(path) > 2:
-        t4 = time.perf_counter()
+    traj, chk = None, None
+    if st.smooth and not st.jerk_limited and len(path) > 2:
         tr = temporal_optimize(_densify(path, float(st.knot_step)), vmax, amax)
-        if tr.duration < traj.duration:
-            sm = Trajectory(tr.t, tr.q, tr.qd, tr.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
-            c2 = check_dense(env, sm, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
-            if c2.ok:
-                traj, chk = sm, c2
-        timings["smooth"] = (time.perf_counter() - t4) * 1e3
+        traj = Trajectory(tr.t, tr.q, tr.qd, tr.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
+        chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
+        timings["smooth"] = (time.perf_counter() - t3) * 1e3
+    if chk is None or not chk.ok:  # rest to rest along the checked polyline
+        t4 = time.perf_counter()
+        if st.jerk_limited:
+            jmax = np.asarray(st.jerk_limit if st.jerk_limit is not None else 10 * amax, float)
+            traj = jerk_limited_polyline(path, vmax, amax, jmax, dt=st.check_dt, joint_names=names)
+        else:
+            traj = polyline_timing(path, vmax, amax, dt=st.check_dt, joint_names=names)
+        chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
+        timings["timing"] = (time.perf_counter() - t4) * 1e3
+    assert traj is not None and chk is not None
     traj.meta.update({"min_clearance_m": chk.min_clearance_m, "goal_index": goal_index})
     if not chk.ok:
         fail = Failure.COLLISION if chk.kind == "collision" else Failure.LIMIT
@@ -245,6 +251,31 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
                      goal_index)
     return MotionPlan(True, "", Failure.NONE, traj, path, (time.perf_counter() - t0) * 1e3, timings,
                       chk.min_clearance_m, goal_index)
+
+
+_WARM: set[int] = set()
+
+
+def _warmup(env: Environment) -> None:
+    """Compile (or load from the disk cache) the kernels once per process.
+
+    Runs, outside the time budget and plan_ms.
+    """
+    key = env.robot.nq
+    if key in _WARM:
+        return
+    W, s = env.world, env.scratch
+    q = np.clip(np.zeros(env.robot.nq), env.robot.lower, env.robot.upper)
+    nodes = np.zeros((2, 4, len(q)))
+    parent = np.full((2, 4), -1, np.int64)
+    count = np.array([1, 1], np.int64)
+    R.rrt_connect(nodes, parent, count, env.robot.lower, env.robot.upper, 0, 1.0, W, s.T, s.C, s.G, s.out, 0.0,
+                  env.lever, 0.01, np.zeros(2, np.int64))
+    P = np.array([q, q + 1e-3 * (env.robot.upper - q)])
+    R.shortcut(P, 2, 0, W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
+    K.edge_valid(P[0], P[1], W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
+    K.samples_clearance(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1)
+    _WARM.add(key)
 
 
 def _path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: float) -> bool:

@@ -1,6 +1,9 @@
-"""The dense check of a planned trajectory: every 1 ms sample within the joint limits and at least
+"""The dense check of a planned trajectory.
+
+Every 1 ms sample within the joint limits and at least
 ``d_min - tol`` from the obstacles and from the robot itself (constraints (7.2)-(7.3) and the
-limits of (7.8), checked on the executed curve rather than at the knots)."""
+limits of (7.8), checked on the executed curve rather than at the knots).
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -1,6 +1,8 @@
-"""Time-optimal rest-to-rest timing of a piecewise-linear joint path under velocity and
-acceleration limits: each straight segment is traversed with the trapezoidal (or triangular)
-profile of its path parameter, the fastest motion that stays exactly on the segment."""
+"""Time-optimal rest-to-rest timing of a piecewise-linear joint path.
+
+Under velocity and acceleration limits, each straight segment is traversed with the trapezoidal (or triangular)
+profile of its path parameter, the fastest motion that stays exactly on the segment.
+"""
 from __future__ import annotations
 
 import numpy as np
@@ -49,7 +51,10 @@ def polyline_timing(path: npt.ArrayLike, vmax: npt.ArrayLike, amax: npt.ArrayLik
     vmax, amax = as_array(vmax, "vmax", (n,)), as_array(amax, "amax", (n,))
     if np.any(vmax <= 0) or np.any(amax <= 0) or not dt > 0 or len(P) < 2:
         raise InvalidInput("polyline timing needs >= 2 points, positive limits and dt", value=(vmax, amax, dt))
-    T, Q, QD, QDD = [np.zeros(1)], [P[:1].copy()], [np.zeros((1, n))], [np.zeros((1, n))]
+    T: list[np.ndarray] = [np.zeros(1)]
+    Q: list[np.ndarray] = [P[:1].copy()]
+    QD: list[np.ndarray] = [np.zeros((1, n))]
+    QDD: list[np.ndarray] = [np.zeros((1, n))]
     t0 = 0.0
     for k in range(len(P) - 1):
         d = P[k + 1] - P[k]
