@@ -252,6 +252,8 @@ def main() -> None:
                                          v.limit_violation or "does not reach the goal")
                 rows[name].append(row)
             bar.advance(task)
+            if not console.is_terminal:  # a log line per problem when stderr is a file
+                print(f"{p.name} done", file=sys.stderr, flush=True)
     out: dict = {"benchmark": "MotionBenchMaker UR5 (problems.json of vamp-planner 0.6.4)",
                  "ours_settings": {"d_min_m": args.d_min, "time_budget_s": args.time_budget,
                                    "seeds": f"{SEED0} + problem index"},
