@@ -161,6 +161,8 @@ def summarise(prefix: str, rows: list[dict], families: list[str]) -> dict:
             f"{prefix}duration_s": stats([r["duration_s"] for r in ok]),
             f"{prefix}min_clearance_mm": stats([1e3 * r["min_clearance"] for r in rows if r["solved"]]),
             f"{prefix}limit_violations": sum(r["limit"] is not None for r in rows),
+            f"{prefix}success_ignoring_limits": sum(r["solved"] and not r["collision"] and r.get("reaches", True)
+                                                    for r in rows),
             f"{prefix}failures": {f"{r['family']}/{r['index']}": r["reason"] for r in rows if not r["success"]},
             f"{prefix}per_family": fam}
 
@@ -173,6 +175,8 @@ def main() -> None:
     ap.add_argument("--peers", nargs="*", default=["ompl", "vamp"], choices=["ompl", "vamp"])
     ap.add_argument("--no-ours", action="store_true", help="run the peers and the checker only")
     ap.add_argument("--ompl-timeout", type=float, default=10.0, help="OMPL time limit per problem, s")
+    ap.add_argument("--check-polylines", action="store_true",
+                    help="also judge the peers' geometric paths (before TOPP-RA) at constant joint speed")
     ap.add_argument("--d-min", type=float, default=0.001,
                     help="our clearance, m (plan_motion's dense check accepts d_min - 1 mm, i.e. contact)")
     ap.add_argument("--time-budget", type=float, default=1.0, help="our search budget per problem, s")
@@ -228,6 +232,7 @@ def main() -> None:
                     tr = plan.trajectory
                     v = checker.check_trajectory(tr.t, tr.q, raw, qd=tr.qd, amax=amax)
                     row.update(solved=bool(plan.success), collision=v.collision, limit=v.limit_violation,
+                               reaches=v.reaches_goal,
                                min_clearance=v.min_clearance, duration_s=float(tr.t[-1] - tr.t[0]),
                                planner_clearance=plan.min_clearance_m, pair=v.pair)
                     row["success"] = bool(plan.success) and v.ok
@@ -245,11 +250,16 @@ def main() -> None:
                            duration_s=None, min_clearance=float("nan"), reason=r.reason)
                 if r.solved:
                     v = checker.check_trajectory(r.t, r.q, raw, qd=r.qd, amax=amax)
-                    row.update(success=v.ok, collision=v.collision, limit=v.limit_violation,
+                    row.update(success=v.ok, collision=v.collision, limit=v.limit_violation, reaches=v.reaches_goal,
                                min_clearance=v.min_clearance, duration_s=r.duration, pair=v.pair)
                     if not v.ok:
                         row["reason"] = (f"checker: collision {v.pair}" if v.collision else
                                          v.limit_violation or "does not reach the goal")
+                if args.check_polylines and r.solved:
+                    L = np.abs(np.diff(r.path, axis=0)).max(1)
+                    T = np.concatenate([[0.0], np.cumsum(L / vmax.min())])
+                    pv = checker.check_trajectory(T, r.path, raw)
+                    row["polyline_collision"] = pv.collision
                 rows[name].append(row)
             bar.advance(task)
             if not console.is_terminal:  # a log line per problem when stderr is a file
@@ -274,6 +284,9 @@ def main() -> None:
                     "pointcloud_update_ms": None, "ours_error": ours_error or "--no-ours"})
     for name in peers:
         out.update(summarise(f"{name}_", rows[name], families))
+        if args.check_polylines:
+            out[f"{name}_polyline_collisions_independent"] = sum(r.get("polyline_collision", False)
+                                                                 for r in rows[name])
     if ours is not None and "vamp" in peers:
         common = [(a["duration_s"], b["duration_s"]) for a, b in zip(rows["ours"], rows["vamp"])
                   if a["success"] and b["success"]]
