@@ -29,6 +29,8 @@ idx   name        content
 18    cgrid       (7,) origin xyz, cell size, point radius, and (unused) padding
 19    cdims       (3,) cells per axis (0 0 0: no cloud)
 20    rel         (p, n) relative lever of each group pair: m of relative travel per rad of joint k
+21    ssr         (m,) sphere radii used for self-collision (7 and 10 are used against obstacles)
+22    sgr         (g,) group bounding radii for self-collision
 ====  ==========  ====================================================================================
 """
 from __future__ import annotations
@@ -194,6 +196,7 @@ def full_clearance(C, G, W, cap, stop, out, with_self):  # pragma: no cover - co
                         return best
     if not with_self:
         return best
+    sr, gr = W[21], W[22]  # self-collision radii
     for p in range(gpairs.shape[0]):
         a, b = gpairs[p, 0], gpairs[p, 1]
         dx, dy, dz = G[a, 0] - G[b, 0], G[a, 1] - G[b, 1], G[a, 2] - G[b, 2]
@@ -255,7 +258,7 @@ def _self_advance(C, G, W, thresh, res, dq, out):  # pragma: no cover - compiled
     From the relative travel of each
     group pair, ``W[20]`` (p, n) relative levers); -1 when a pair is below ``thresh``.
     """
-    sr, gr, gs, gpairs, smask, rel = W[7], W[10], W[11], W[14], W[15], W[20]
+    sr, gr, gs, gpairs, smask, rel = W[21], W[22], W[11], W[14], W[15], W[20]
     best = np.inf
     for p in range(gpairs.shape[0]):
         L = 0.0
@@ -369,8 +372,11 @@ def cloud_bounds(P):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def bin_points(P, lo, h, dims, out, cstart):  # pragma: no cover - compiled
-    """Counting sort of the points P (N, 3) into grid cells: ``out`` (N, 3) sorted by cell and
-    ``cstart`` (cells + 1,) the first point of each cell."""
+    """Counting sort of the points P (N, 3) into grid cells.
+
+    Fills ``out`` (N, 3), the points sorted by cell, and ``cstart`` (cells + 1,), the first point
+    of each cell.
+    """
     N = P.shape[0]
     key = np.empty(N, np.int64)
     cstart[:] = 0

@@ -43,12 +43,14 @@ def _steer(a, b, dist, rng, out):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def rrt_connect(nodes, parent, count, lower, upper, iters, rng, W, T, C, G, out, thresh, lever, res,
+def rrt_connect(nodes, parent, count, lower, upper, iters, rng, W, Wr, nroot, T, C, G, out, thresh, lever, res,
                 link):  # pragma: no cover - compiled
     """Run up to ``iters`` RRT-Connect iterations.
 
     Returns 1 when the trees met (``link`` = (tree-0 node,
-    tree-1 node)), 0 when not yet, -1 when a tree is full.
+    tree-1 node)), 0 when not yet, -1 when a tree is full. Nodes are checked in world ``W``; edges
+    leaving one of the ``nroot[t]`` roots of tree t are checked in world ``Wr`` (the roots may be
+    valid only there), all other edges in ``W``.
     """
     n = lower.shape[0]
     cap = nodes.shape[1]
@@ -65,7 +67,7 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, W, T, C, G, out,
         _steer(nodes[a, i], qr, d, rng, qn)
         if not config_valid(qn, W, T, C, G, out, thresh):
             continue
-        if not edge_valid(nodes[a, i], qn, W, T, C, G, out, thresh, lever, res):
+        if not edge_valid(nodes[a, i], qn, Wr if i < nroot[a] else W, T, C, G, out, thresh, lever, res):
             continue
         ia = count[a]
         nodes[a, ia] = qn
@@ -79,7 +81,7 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, W, T, C, G, out,
             reached = _steer(nodes[b, j], qn, d, rng, qr)
             if not reached and not config_valid(qr, W, T, C, G, out, thresh):
                 break
-            if not edge_valid(nodes[b, j], qr, W, T, C, G, out, thresh, lever, res):
+            if not edge_valid(nodes[b, j], qr, Wr if j < nroot[b] else W, T, C, G, out, thresh, lever, res):
                 break
             if reached:
                 if a == 0:
@@ -112,12 +114,13 @@ def _length(P, npts, L):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def shortcut(P, npts, iters, W, T, C, G, out, thresh, lever, res):  # pragma: no cover - compiled
+def shortcut(P, npts, iters, W, Wr, T, C, G, out, thresh, lever, res):  # pragma: no cover - compiled
     """Shorten the path P[:npts] in place.
 
     A greedy pass (each vertex joined to the farthest one
     it sees), then ``iters`` random shortcuts between points anywhere on the path. Returns the
-    new vertex count.
+    new vertex count. Edges from the first or to the last vertex are checked in world ``Wr``, all
+    others in ``W``.
     """
     n = P.shape[1]
     cap = P.shape[0]
@@ -128,7 +131,8 @@ def shortcut(P, npts, iters, W, T, C, G, out, thresh, lever, res):  # pragma: no
     i = 0
     while i < npts - 1:
         j = npts - 1
-        while j > i + 1 and not edge_valid(P[i], P[j], W, T, C, G, out, thresh, lever, res):
+        while j > i + 1 and not edge_valid(P[i], P[j], Wr if (i == 0 or j == npts - 1) else W, T, C, G, out,
+                                           thresh, lever, res):
             j -= 1
         Q[m] = P[j]
         m += 1

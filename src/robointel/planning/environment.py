@@ -23,6 +23,7 @@ from robointel.geometry.obstacles import Box, Capsule, Cylinder, Obstacle, Point
 from robointel.planning import _collision_kernels as K
 from robointel.robot.collision import SphereModel, primitive_spheres
 from robointel.robot.model import Robot
+from robointel.robot.sphere_cover import cover_meshes
 from robointel.robot.srdf import disabled_pairs
 
 #: Cells of the point-cloud grid are at least this large (m).
@@ -94,6 +95,9 @@ class Environment:
         floor: height (m) of a floor plane (a large box below it), or None.
         attached: objects carried by the tool, each given in the frame of ``attach_link``.
         attach_link: link the attached objects move with (default: the robot's flange frame's link).
+        cover_meshes: also build spheres grown to cover the URDF's collision meshes
+            (:func:`robointel.robot.sphere_cover.cover_meshes`) and check obstacles against them
+            (see :meth:`use`); self-collision always uses the spheres as given.
 
     Raises:
         InvalidInput: bad obstacles, spheres, SRDF or attached objects.
@@ -101,10 +105,12 @@ class Environment:
 
     def __init__(self, robot: Robot, obstacles: Iterable[Obstacle] = (), *, srdf: str | Path | None = None,
                  spheres: SphereModel | str | Path | None = None, floor: float | None = None,
-                 attached: Sequence[Obstacle] = (), attach_link: str | None = None) -> None:
+                 attached: Sequence[Obstacle] = (), attach_link: str | None = None,
+                 cover_meshes: bool = True) -> None:
         if not isinstance(robot, Robot):
             raise InvalidInput(f"robot must be a robointel Robot, got {type(robot).__name__}", value=robot)
         self.robot = robot
+        self.cover_meshes = bool(cover_meshes)
         if spheres is None:
             sm = robot.spheres
         elif isinstance(spheres, SphereModel):
@@ -181,7 +187,43 @@ class Environment:
         anc = self.robot._ancestor  # (nj, nq): does config index k move joint j?
         rel = np.array([(anc[groups[a]] ^ anc[groups[b]]) * self.lever for a, b in gpairs]).reshape(-1, self.robot.nq)
         self._self = (gpairs, smask)
-        self._rel = (np.ascontiguousarray(rel, dtype=float),)
+        self._rel = (np.ascontiguousarray(rel, dtype=float), sr, gr)
+        self._fitted = self._spheres
+        self._cover = self._spheres
+        if self.cover_meshes:
+            grown = cover_meshes(self.robot, sm).radii[order]
+            ggr = np.array([np.max(np.linalg.norm(sp[gs[k]:gs[k + 1]] - gc[k], axis=1) + grown[gs[k]:gs[k + 1]])
+                            for k in range(len(groups))])
+            self._cover = (sj, sp, np.ascontiguousarray(grown), groups.astype(np.int64), gc, ggr,
+                           np.array(gs, np.int64))
+        self._spheres = self._cover
+        self.model = "cover"
+
+    def use(self, model: str) -> None:
+        """Select the spheres checked against obstacles.
+
+        Args:
+            model: ``"cover"``: grown to cover the collision meshes (conservative); ``"fitted"``:
+                the spheres as given (may leave parts of the meshes uncovered).
+
+        Raises:
+            InvalidInput: another name.
+        """
+        if model not in ("cover", "fitted"):
+            raise InvalidInput(f"sphere model must be 'cover' or 'fitted', got {model!r}", value=model)
+        self._spheres = self._cover if model == "cover" else self._fitted
+        self.model = model
+        self._rebuild()
+
+    @property
+    def world_cover(self) -> tuple:
+        """The packed world with the mesh-covering spheres."""
+        return self._chain + self._cover + self._prims + self._self + self._cloud + self._rel
+
+    @property
+    def world_fitted(self) -> tuple:
+        """The packed world with the spheres as given (for edges at a start or goal only they allow)."""
+        return self._chain + self._fitted + self._prims + self._self + self._cloud + self._rel
 
     def _rebuild(self) -> None:
         self.world = self._chain + self._spheres + self._prims + self._self + self._cloud + self._rel

@@ -24,7 +24,7 @@ from robointel.planning import _collision_kernels as K
 from robointel.planning import _rrt_kernels as R
 from robointel.planning.environment import Environment
 from robointel.planning.jerk_limited import jerk_limited_polyline
-from robointel.planning.motion_check import check_dense
+from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, check_dense, window_clearance
 from robointel.planning.polyline_timing import polyline_timing
 from robointel.planning.temporal import temporal_optimize
 from robointel.robot.model import Robot
@@ -183,6 +183,28 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
     q0 = robot.check_q(np.asarray(start, float), "start", limits=True)
     goals = _goal_set(robot, goal, st.seed)
     env = environment
+    model = env.model
+    try:
+        return _plan(env, q0, goals, st, t0, timings)
+    finally:
+        env.use(model)
+
+
+def _roots_free(env: Environment, q0: np.ndarray, goals: np.ndarray, d_min: float) -> bool:
+    return (env.clearance(q0, cap=d_min + 1.0) >= d_min
+            and any(env.clearance(g, cap=d_min + 1.0) >= d_min for g in goals))
+
+
+def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, t0: float,
+          timings: dict[str, float]) -> MotionPlan:
+    robot = env.robot
+    # the mesh-covering spheres where start and a goal allow them, else the spheres as given
+    env.use("cover")
+    hybrid = env.cover_meshes and not _roots_free(env, q0, goals, st.d_min)
+    if hybrid:  # edges at the start and goals in the fitted spheres, the rest in the covering ones
+        env.use("fitted")
+    Wc = env.world_cover
+    Wr = env.world_fitted if hybrid else Wc
     env.check_free(q0, d_min=st.d_min, what="start configuration")
     ok = [env.clearance(g, cap=st.d_min + 1.0) >= st.d_min for g in goals]
     if not any(ok):
@@ -201,22 +223,22 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
     path, gi, why = None, -1, ""
     res = float(st.search_resolution)
     while path is None:
-        path, gi, why = _search(env, q0, goals, st, res, deadline)
+        path, gi, why = _search(env, q0, goals, st, res, deadline, Wc, Wr)
         if path is None:
             timings["search"] = (time.perf_counter() - t1) * 1e3
             return _fail(f"no collision-free path found: {why}", Failure.TIMEOUT, t0, timings)
-        if _path_valid(env, path, st.d_min, st.resolution):
+        if _path_valid(env, path, st.d_min, st.resolution, Wc, Wr):
             break
         path, res = None, res / 4  # an edge failed the fine check: search again, finer
         if res < st.resolution:
             res = float(st.resolution)
     timings["search"] = (time.perf_counter() - t1) * 1e3
     t2 = time.perf_counter()
-    W, s = env.world, env.scratch
+    s = env.scratch
     P = np.empty((max(len(path) * 2 + 64, 256), robot.nq))
     P[:len(path)] = path
     R.seed(int(st.seed) + 1)
-    m = R.shortcut(P, len(path), int(st.shortcut_iters), W, s.T, s.C, s.G, s.out, float(st.d_min), env.lever,
+    m = R.shortcut(P, len(path), int(st.shortcut_iters), Wc, Wr, s.T, s.C, s.G, s.out, float(st.d_min), env.lever,
                    float(st.resolution))
     path = P[:m].copy()
     keep = np.concatenate([[True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-9])
@@ -233,6 +255,8 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
         tr = temporal_optimize(_densify(path, float(st.knot_step)), vmax, amax)
         traj = Trajectory(tr.t, tr.q, tr.qd, tr.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
         chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
+        if chk.ok and hybrid:
+            chk = _interior(env, traj, path, Wc, st, chk)
         timings["smooth"] = (time.perf_counter() - t3) * 1e3
     if chk is None or not chk.ok:  # rest to rest along the checked polyline
         t4 = time.perf_counter()
@@ -242,15 +266,36 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
         else:
             traj = polyline_timing(path, vmax, amax, dt=st.check_dt, joint_names=names)
         chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
+        if chk.ok and hybrid:
+            chk = _interior(env, traj, path, Wc, st, chk)
         timings["timing"] = (time.perf_counter() - t4) * 1e3
     assert traj is not None and chk is not None
-    traj.meta.update({"min_clearance_m": chk.min_clearance_m, "goal_index": goal_index})
+    traj.meta.update({"min_clearance_m": chk.min_clearance_m, "goal_index": goal_index,
+                      "collision_model": env.model})
     if not chk.ok:
         fail = Failure.COLLISION if chk.kind == "collision" else Failure.LIMIT
         return _fail(f"dense check failed: {chk.reason}", fail, t0, timings, path, traj, chk.min_clearance_m,
                      goal_index)
     return MotionPlan(True, "", Failure.NONE, traj, path, (time.perf_counter() - t0) * 1e3, timings,
                       chk.min_clearance_m, goal_index)
+
+
+def _interior(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, st: MotionSettings,
+              chk: DenseCheck) -> DenseCheck:
+    """Check the trajectory against the mesh-covering spheres between the inner vertices.
+
+    Only the edges at the start and goal may rely on the fitted spheres.
+    """
+    if len(path) < 3:
+        return chk
+    i0 = int(np.argmin(np.linalg.norm(traj.q - path[1], axis=1)))
+    i1 = len(traj.q) - 1 - int(np.argmin(np.linalg.norm(traj.q[::-1] - path[-2], axis=1)))
+    d = window_clearance(env, traj, Wc, float(traj.t[i0]), float(traj.t[i1]), d_min=st.d_min, dt=st.check_dt)
+    if d >= st.d_min - CLEARANCE_TOL:
+        return chk
+    return DenseCheck(False, f"the covering spheres come {d * 1e3:.1f} mm from the obstacles between "
+                      f"t = {traj.t[i0]:.3f} s and {traj.t[i1]:.3f} s", "collision", min(d, chk.min_clearance_m),
+                      chk.samples)
 
 
 _WARM: set[int] = set()
@@ -269,35 +314,45 @@ def _warmup(env: Environment) -> None:
     nodes = np.zeros((2, 4, len(q)))
     parent = np.full((2, 4), -1, np.int64)
     count = np.array([1, 1], np.int64)
-    R.rrt_connect(nodes, parent, count, env.robot.lower, env.robot.upper, 0, 1.0, W, s.T, s.C, s.G, s.out, 0.0,
-                  env.lever, 0.01, np.zeros(2, np.int64))
+    R.rrt_connect(nodes, parent, count, env.robot.lower, env.robot.upper, 0, 1.0, W, W, count, s.T, s.C, s.G,
+                  s.out, 0.0, env.lever, 0.01, np.zeros(2, np.int64))
     P = np.array([q, q + 1e-3 * (env.robot.upper - q)])
-    R.shortcut(P, 2, 0, W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
+    R.shortcut(P, 2, 0, W, W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
     K.edge_valid(P[0], P[1], W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
     K.samples_clearance(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1)
     _WARM.add(key)
 
 
-def _path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: float) -> bool:
-    """Every edge of ``path`` passes the edge check at ``resolution``."""
-    W, s = env.world, env.scratch
-    return all(K.edge_valid(a, b, W, s.T, s.C, s.G, s.out, float(d_min), env.lever, float(resolution))
-               for a, b in zip(path[:-1], path[1:]))
+def _path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: float, W: tuple,
+                Wr: tuple) -> bool:
+    """Every edge of ``path`` passes the edge check at ``resolution``.
+
+    The first and last edge are checked in ``Wr``, the others in ``W``.
+    """
+    s = env.scratch
+    last = len(path) - 2
+    return all(K.edge_valid(a, b, Wr if k in (0, last) else W, s.T, s.C, s.G, s.out, float(d_min), env.lever,
+                            float(resolution))
+               for k, (a, b) in enumerate(zip(path[:-1], path[1:])))
 
 
 def _search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, res: float,
-            deadline: float) -> tuple[np.ndarray | None, int, str]:
-    """RRT-Connect from q0 to the goal set (a direct edge first): (path, goal index, why not)."""
-    W, s = env.world, env.scratch
+            deadline: float, W: tuple, Wr: tuple) -> tuple[np.ndarray | None, int, str]:
+    """RRT-Connect from q0 to the goal set (a direct edge first): (path, goal index, why not).
+
+    Nodes and edges are checked in ``W``, edges leaving the start or a goal in ``Wr``.
+    """
+    s = env.scratch
     thr, lever = float(st.d_min), env.lever
     for k, g in enumerate(goals):
-        if K.edge_valid(q0, g, W, s.T, s.C, s.G, s.out, thr, lever, res):
+        if K.edge_valid(q0, g, Wr, s.T, s.C, s.G, s.out, thr, lever, res):
             return np.array([q0, g]), k, ""
     n = len(q0)
     cap = int(st.max_nodes)
     nodes = np.empty((2, cap, n))
     parent = np.full((2, cap), -1, np.int64)
     count = np.array([1, len(goals)], np.int64)
+    nroot = count.copy()
     nodes[0, 0] = q0
     nodes[1, :len(goals)] = goals
     link = np.zeros(2, np.int64)
@@ -305,7 +360,7 @@ def _search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetti
     robot = env.robot
     status = 0
     while status == 0 and time.perf_counter() < deadline:
-        status = R.rrt_connect(nodes, parent, count, robot.lower, robot.upper, 32, float(st.rrt_range), W,
+        status = R.rrt_connect(nodes, parent, count, robot.lower, robot.upper, 32, float(st.rrt_range), W, Wr, nroot,
                                s.T, s.C, s.G, s.out, thr, lever, res, link)
     if status != 1:
         why = "the search trees are full" if status < 0 else f"the time budget of {st.time_budget_s:g} s ran out"

@@ -85,3 +85,28 @@ def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.A
         return DenseCheck(False, f"{c.message(f'trajectory sample at t = {dense.t[worst]:.3f} s')} "
                           f"(required {d_min * 1e3:.1f} mm - {CLEARANCE_TOL * 1e3:.0f} mm)", "collision", dmin, n)
     return DenseCheck(True, "", "", float(dmin), n)
+
+
+def window_clearance(env: Environment, traj: Trajectory, W: tuple, t0: float, t1: float, *, d_min: float,
+                     dt: float = 1e-3) -> float:
+    """Smallest clearance in world ``W`` over the samples of ``traj`` with t0 <= t <= t1.
+
+    Args:
+        env: the environment (its scratch arrays and levers are used).
+        traj: the trajectory.
+        W: the packed world to check in (e.g. :attr:`Environment.world_cover`).
+        t0: window start, s.
+        t1: window end, s.
+        d_min: required clearance, m (sets the exactness floor as in :func:`check_dense`).
+        dt: resampling step, s.
+
+    Returns:
+        The clearance, m (``d_min + 0.1`` when the window is empty or far from everything).
+    """
+    dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
+    Q = np.ascontiguousarray(dense.q[(dense.t >= t0) & (dense.t <= t1)])
+    if len(Q) == 0:
+        return d_min + 0.1
+    s = env.scratch
+    d, _ = K.samples_clearance(Q, W, s.T, s.C, s.G, s.out, env.lever, d_min + 0.01, d_min + 0.1)
+    return float(d)
