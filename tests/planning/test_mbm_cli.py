@@ -38,7 +38,7 @@ def planned(root, tmp_path_factory):
     _load_commands()
     out = tmp_path_factory.mktemp("mbm") / "traj.npz"
     res = CliRunner().invoke(app, ["plan", "--mbm", str(root / "problems.json"), "--robot", str(root / "ur5.urdf"),
-                                   "--per-family", str(PER_FAMILY), "--time-budget", "5", "--out", str(out)])
+                                   "--per-family", str(PER_FAMILY), "--time-budget", "20", "--out", str(out)])
     raw = json.loads((root / "problems.json").read_text())["problems"]
     return res, out, raw
 
