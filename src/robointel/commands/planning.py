@@ -115,6 +115,86 @@ def plot_path_3d(result, path: Path) -> Path:
     return Path(path)
 
 
+def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | None = None, index: int | None = None,
+             per_family: int | None = None, out: Path | None = None, time_budget_s: float = 1.0,
+             d_min: float = 0.001, console=None) -> list:
+    """``robointel plan --mbm PROBLEMS.json --robot URDF``: plan the valid MBM problems start to goal.
+
+    Each selected problem is read by :func:`robointel.io.mbm.load_mbm_problems`, planned by
+    :func:`robointel.planning.plan_motion` (its success means the 1 ms dense check passed) and
+    listed in a table. The SRDF (same stem as the URDF) and the sphere decomposition
+    ``<stem>_spherized.urdf`` beside the URDF are used when present.
+
+    Args:
+        problems: the MBM ``problems.json``.
+        robot_urdf: the robot's URDF.
+        family: only this family (None: all).
+        index: only the problem with this index.
+        per_family: the first this many valid problems of each family.
+        out: when given, each trajectory is saved as ``<out stem>_<family>_<index>.npz``.
+        time_budget_s: search budget per problem, s.
+        d_min: required clearance, m (the dense check accepts clearance >= d_min - 1 mm).
+        console: a rich console for the table and the progress bar.
+
+    Returns:
+        The :class:`robointel.planning.MotionPlan` of every problem, in order.
+
+    Raises:
+        typer.Exit: code 2 on bad input (message printed), code 1 when a problem failed.
+    """
+    import typer
+    from rich.console import Console
+    from rich.progress import Progress
+    from rich.table import Table
+
+    from robointel.errors import InvalidInput, RobointelError
+    from robointel.io.mbm import load_mbm_problems
+    from robointel.planning import Environment, MotionSettings, plan_motion
+    from robointel.robot import Robot
+
+    console = console or Console()
+    try:
+        if problems is None or robot_urdf is None:
+            raise InvalidInput("give a scene, or --mbm PROBLEMS.json together with --robot URDF")
+        pset = load_mbm_problems(problems)
+        selected = pset.select(families=[family] if family else None, index=index, per_family=per_family)
+        if not selected:
+            raise InvalidInput(f"{problems}: no valid problem matches family={family!r} index={index!r}",
+                               value=(family, index))
+        robot = Robot.load(robot_urdf)
+        urdf = Path(robot_urdf)
+        srdf = urdf.with_suffix(".srdf")
+        spheres = urdf.with_name(f"{urdf.stem}_spherized.urdf")
+        plans = []
+        with Progress(console=console, transient=True) as bar:
+            task = bar.add_task("planning", total=len(selected))
+            for p in selected:
+                env = Environment(robot, p.obstacles, srdf=srdf if srdf.exists() else None,
+                                  spheres=spheres if spheres.exists() else None)
+                plans.append(plan_motion(robot, env, p.start, p.goals,
+                                         settings=MotionSettings(d_min=d_min, time_budget_s=time_budget_s)))
+                bar.advance(task)
+    except RobointelError as exc:
+        console.print(f"[red]error:[/red] {exc}")
+        raise typer.Exit(2) from None
+    t = Table(title=f"{problems}: {len(selected)} problems, robot {urdf.name}")
+    for c in ("problem", "success", "plan (ms)", "duration (s)", "min clearance (mm)", "reason"):
+        t.add_column(c, justify="right")
+    for p, r in zip(selected, plans):
+        dur = f"{r.trajectory.duration:.2f}" if r.trajectory is not None else "-"
+        t.add_row(p.name, "yes" if r.success else "[red]no[/red]", f"{r.plan_ms:.1f}", dur,
+                  f"{1e3 * r.min_clearance_m:.1f}", r.reason)
+        if out is not None and r.trajectory is not None:
+            out.parent.mkdir(parents=True, exist_ok=True)
+            r.trajectory.save(out.with_name(f"{out.stem}_{p.family}_{p.index}.npz"))
+    console.print(t)
+    ok = sum(r.success for r in plans)
+    console.print(f"{ok}/{len(plans)} planned and passed the 1 ms dense check")
+    if ok < len(plans):
+        raise typer.Exit(1)
+    return plans
+
+
 def register(app) -> None:
     import typer
     from rich.console import Console
@@ -123,14 +203,29 @@ def register(app) -> None:
     console = Console()
 
     @app.command()
-    def plan(scene: str = typer.Argument(..., help="scene YAML file, or a built-in scene name (table71)"),
+    def plan(scene: str = typer.Argument(None, help="scene YAML file, or a built-in scene name (table71)"),
              out: Path = typer.Option(Path("traj.npz"), help="trajectory file (.npz or .json)"),
              plots: bool = typer.Option(True, help="write <out>_profiles.png and <out>_path3d.png"),
              execute: bool = typer.Option(False, "--execute", help="track the trajectory in the MuJoCo workcell"),
-             robot: str = typer.Option("sim", help="with --execute: 'sim' or 'fanuc://HOST[:RMI_PORT][?sm_port=N]'"),
+             robot: str = typer.Option("sim", help="with --execute: 'sim' or 'fanuc://HOST[:RMI_PORT][?sm_port=N]'; "
+                                       "with --mbm: the robot's URDF (SRDF beside it)"),
              record: Path = typer.Option(None, help="with --execute: record the run as a ROS 2 bag (.mcap)"),
+             mbm: Path = typer.Option(None, "--mbm", help="MotionBenchMaker problems.json: plan its problems"),
+             family: str = typer.Option(None, "--family", help="with --mbm: only this scene family"),
+             index: int = typer.Option(None, "--index", help="with --mbm: only the problem with this index"),
+             per_family: int = typer.Option(None, "--per-family", help="with --mbm: first N valid per family"),
+             time_budget: float = typer.Option(1.0, "--time-budget", help="with --mbm: search budget, s"),
+             d_min: float = typer.Option(0.001, "--d-min", help="with --mbm: clearance, m (the dense check "
+                                         "allows d_min - 1 mm)"),
              ) -> None:
-        """Plan a scene with the FRMP (CFS path + temporal optimization) and save the trajectory."""
+        """Plan a scene with the FRMP (CFS path + temporal optimization) and save the trajectory.
+
+        With --mbm, plan and check MotionBenchMaker problems start to goal instead.
+        """
+        if mbm is not None or scene is None:
+            plan_mbm(mbm, None if robot == "sim" else Path(robot), family=family, index=index, per_family=per_family, out=out if mbm else None,
+                     time_budget_s=time_budget, d_min=d_min, console=console)
+            return
         from robointel.errors import RobointelError
         from robointel.planning.scene import load_scene
         from robointel.planning.frmp import execute as run_in_sim

@@ -7,12 +7,15 @@
 - :func:`temporal_optimize` -- re-timing by CFS, (7.7)-(7.9), switched by :class:`TemporalSettings`.
 - :class:`Scene` / :func:`load_scene` -- planning scenes (YAML files, built-in ``table71``).
 - :func:`plan_scene` / :func:`execute` -- the FRMP on a scene, run in the MuJoCo workcell.
+- :func:`plan_motion` -- start-to-goal planning in cluttered cells for any arm (RRT-Connect on the
+  compiled sphere checks, shortcutting, temporal optimization, dense check) in an :class:`Environment`.
 - :func:`receding_horizon` -- warm-started replanning with a moving obstacle.
 - Baselines: :func:`slsqp`, :func:`slsqp_segment` (SQP), :func:`rrtconnect` (OMPL, dev extra).
 """
 
 
 from robointel.planning.cfs import CFSResult, NonlinearConstraint, cfs
+from robointel.planning.environment import Contact, Environment, sphere_model_from_urdf
 from robointel.planning.frmp import (
     Execution,
     FRMPResult,
@@ -23,6 +26,7 @@ from robointel.planning.frmp import (
     plan_scene,
     planner_settings,
 )
+from robointel.planning.motion import MotionPlan, MotionSettings, plan_motion
 from robointel.planning.ompl_peer import OMPLResult, rrtconnect
 from robointel.planning.qp import DenseQP, SparseQP
 from robointel.planning.replan import ReplanResult, receding_horizon
@@ -45,4 +49,5 @@ __all__ = [
     "plan_scene", "execute", "check_trajectory", "make_planners", "planner_settings",
     "FRMPResult", "Execution", "TrajectoryCheck",
     "receding_horizon", "ReplanResult", "slsqp", "slsqp_segment", "SQPResult", "rrtconnect", "OMPLResult",
+    "plan_motion", "MotionSettings", "MotionPlan", "Environment", "Contact", "sphere_model_from_urdf",
 ]

@@ -1,0 +1,310 @@
+"""MotionBenchMaker UR5 problems: robointel's start-to-goal planner beside OMPL and VAMP, one core.
+
+Ours: ``robointel.planning.plan_motion`` (global search, smoothing, time parametrisation) on the
+problem read by ``robointel.io.mbm``. Peers, in the same run on the same problems and limits:
+OMPL RRT-Connect + simplification + TOPP-RA (exact Pinocchio/coal state checks) and VAMP
+RRT-Connect + simplification + TOPP-RA (VAMP's own UR5 spheres). Every trajectory is judged by
+``_mbm_checker`` (exact coal mesh distances on a 1 ms resample; it shares no code with the planner).
+
+Limits: the URDF's joint velocity limits (0.5 rad/s on this UR5) and accelerations of 3x the
+velocity limit (1.5 rad/s^2, robointel's default ``Robot.acceleration_limit``) for all three.
+
+    python benchmarks/mbm.py --json [--per-family N] [--families cage box] [--peers ompl vamp] [--frmp]
+
+Prints one JSON object (``--json``) or a table; a progress bar goes to stderr. cuRobo's figures are
+the published ones (RTX 6000 Ada GPU), not run here.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from threadpoolctl import threadpool_limits
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _mbm_checker import MBMChecker  # noqa: E402
+from _mbm_peers import OMPLPeer, VAMPPeer  # noqa: E402
+
+CUROBO_PUBLISHED = {"source": "cuRobo (Sundaralingam et al. 2023), published on MotionBenchMaker, RTX 6000 Ada GPU",
+                    "run_here": False, "success": 1.0, "plan_ms_median": 31.0, "plan_ms_p98": 161.0,
+                    "duration_s_median": 1.33}
+TARGETS = {"success": 0.999, "collisions_independent": 0, "plan_ms_median": 20.0, "plan_ms_p95": 100.0,
+           "pointcloud_update_ms": 20.0, "frmp_speedup_vs_sqp": 100.0}
+SEED0 = 7919  # planner seeds: SEED0 + problem index (never used for tuning)
+
+
+def data_dir() -> Path:
+    env = os.environ.get("ROBOINTEL_DATA")
+    root = Path(env) if env else Path(__file__).resolve().parents[1].parent / "shared" / "data"
+    if not (root / "mbm" / "ur5").is_dir():
+        root = Path("/work/shared/data")
+    return root / "mbm" / "ur5"
+
+
+def one_core() -> None:
+    """Pin the process to one CPU and its thread pools to one thread."""
+    try:
+        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+    except (AttributeError, OSError):
+        pass
+    threadpool_limits(1)
+    try:
+        import numba
+
+        numba.set_num_threads(1)
+    except (ImportError, ValueError):
+        pass
+
+
+def stats(ms: list[float]) -> dict:
+    if not ms:
+        return {"median": None, "p95": None, "p98": None, "max": None}
+    a = np.asarray(ms, float)
+    return {"median": float(np.median(a)), "p95": float(np.percentile(a, 95)), "p98": float(np.percentile(a, 98)),
+            "max": float(a.max())}
+
+
+def surface_cloud(raw: dict, n: int, seed: int) -> np.ndarray:
+    """``n`` points sampled uniformly (by area) from the surfaces of a raw problem's obstacles."""
+    meshes = []
+    for o in raw["sphere"]:
+        meshes.append(trimesh.creation.icosphere(subdivisions=3, radius=o["radius"]).apply_translation(o["position"]))
+    for kind in ("box", "cylinder"):
+        for o in raw[kind]:
+            x, y, z, w = o["orientation_quat_xyzw"]
+            T = trimesh.transformations.quaternion_matrix([w, x, y, z])
+            T[:3, 3] = o["position"]
+            if kind == "box":
+                meshes.append(trimesh.creation.box(extents=2.0 * np.asarray(o["half_extents"]), transform=T))
+            else:
+                meshes.append(trimesh.creation.cylinder(radius=o["radius"], height=o["length"], sections=32,
+                                                        transform=T))
+    mesh = trimesh.util.concatenate(meshes)
+    pts, _ = trimesh.sample.sample_surface(mesh, n, seed=seed)
+    return np.ascontiguousarray(pts, dtype=float)
+
+
+class Ours:
+    """robointel.planning.plan_motion on the UR5 of the MBM folder."""
+
+    def __init__(self, urdf: Path, srdf: Path, d_min: float, budget: float) -> None:
+        from robointel.planning import Environment, MotionSettings, plan_motion
+        from robointel.robot import Robot
+
+        self.Environment, self.MotionSettings, self.plan_motion = Environment, MotionSettings, plan_motion
+        self.robot = Robot.load(urdf)
+        self.srdf = srdf
+        self.d_min, self.budget = d_min, budget
+        sph = urdf.parent / "ur5_spherized.urdf"  # the sphere decomposition shipped with the problems
+        self.env_kw = {"srdf": srdf, "spheres": sph} if sph.exists() else {"srdf": srdf}
+
+    def solve(self, problem, seed: int):
+        from robointel.errors import RobointelError
+
+        t0 = time.perf_counter()
+        try:
+            env = self.Environment(self.robot, problem.obstacles, **self.env_kw)
+        except RobointelError as exc:
+            return None, (time.perf_counter() - t0) * 1e3, 0.0, f"{type(exc).__name__}: {exc}"
+        t1 = time.perf_counter()
+        try:
+            plan = self.plan_motion(self.robot, env, problem.start, problem.goals,
+                                    settings=self.MotionSettings(d_min=self.d_min, seed=seed,
+                                                                                 time_budget_s=self.budget))
+        except RobointelError as exc:
+            return None, (t1 - t0) * 1e3, (time.perf_counter() - t1) * 1e3, f"{type(exc).__name__}: {exc}"
+        return plan, (t1 - t0) * 1e3, (time.perf_counter() - t1) * 1e3, plan.reason
+
+    def pointcloud_update_ms(self, raws: list[dict], reps: int = 3) -> list[float]:
+        env = self.Environment(self.robot, [], **self.env_kw)
+        out = []
+        for k, raw in enumerate(raws):
+            pts = surface_cloud(raw, 100_000, seed=k)
+            env.update_pointcloud(pts)  # first call: allocation, compilation
+            for r in range(reps):
+                pts = surface_cloud(raw, 100_000, seed=1000 * k + r + 1)
+                t0 = time.perf_counter()
+                env.update_pointcloud(pts)
+                out.append((time.perf_counter() - t0) * 1e3)
+        return out
+
+
+def frmp_speedup(root: Path) -> tuple[float | None, str]:
+    """``speedup_vs_sqp`` of ``benchmarks/frmp.py --json --quick`` run in a subprocess."""
+    env = dict(os.environ, PYTHONPATH=str(root / "src"))
+    try:
+        out = subprocess.run([sys.executable, str(root / "benchmarks" / "frmp.py"), "--json", "--quick"],
+                             capture_output=True, text=True, env=env, timeout=1800, check=True)
+        return float(json.loads(out.stdout)["speedup_vs_sqp"]), "benchmarks/frmp.py --json --quick"
+    except (subprocess.SubprocessError, ValueError, KeyError) as exc:
+        return None, f"benchmarks/frmp.py failed: {exc}"
+
+
+def summarise(prefix: str, rows: list[dict], families: list[str]) -> dict:
+    ok = [r for r in rows if r["success"]]
+    fam = {f: {"problems": sum(r["family"] == f for r in rows), "success": sum(r["success"] and r["family"] == f
+                                                                              for r in rows)} for f in families}
+    return {f"{prefix}problems": len(rows), f"{prefix}success": (len(ok) / len(rows)) if rows else None,
+            f"{prefix}success_count": len(ok),
+            f"{prefix}collisions_independent": sum(r["collision"] and r["solved"] for r in rows),
+            f"{prefix}plan_ms": stats([r["plan_ms"] for r in rows]),
+            f"{prefix}plan_ms_solved": stats([r["plan_ms"] for r in rows if r["solved"]]),
+            f"{prefix}duration_s": stats([r["duration_s"] for r in ok]),
+            f"{prefix}min_clearance_mm": stats([1e3 * r["min_clearance"] for r in rows if r["solved"]]),
+            f"{prefix}limit_violations": sum(r["limit"] is not None for r in rows),
+            f"{prefix}success_ignoring_limits": sum(r["solved"] and not r["collision"] and r.get("reaches", True)
+                                                    for r in rows),
+            f"{prefix}failures": {f"{r['family']}/{r['index']}": r["reason"] for r in rows if not r["success"]},
+            f"{prefix}per_family": fam}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--json", action="store_true", help="print one JSON object")
+    ap.add_argument("--per-family", type=int, default=None, help="first N valid problems of each family")
+    ap.add_argument("--families", nargs="*", default=None)
+    ap.add_argument("--peers", nargs="*", default=["ompl", "vamp"], choices=["ompl", "vamp"])
+    ap.add_argument("--no-ours", action="store_true", help="run the peers and the checker only")
+    ap.add_argument("--ompl-timeout", type=float, default=10.0, help="OMPL time limit per problem, s")
+    ap.add_argument("--check-polylines", action="store_true",
+                    help="also judge the peers' geometric paths (before TOPP-RA) at constant joint speed")
+    ap.add_argument("--d-min", type=float, default=0.001,
+                    help="our clearance, m (plan_motion's dense check accepts d_min - 1 mm, i.e. contact)")
+    ap.add_argument("--time-budget", type=float, default=1.0, help="our search budget per problem, s")
+    ap.add_argument("--frmp", action="store_true", help="also run benchmarks/frmp.py --quick for the SQP speed-up")
+    args = ap.parse_args()
+    one_core()
+    load = os.getloadavg()[0]
+
+    from robointel.io.mbm import load_mbm_problems
+
+    d = data_dir()
+    pset = load_mbm_problems(d / "problems.json")
+    raw_all = json.loads((d / "problems.json").read_text())["problems"]
+    problems = pset.select(families=args.families, per_family=args.per_family)
+    families = list(dict.fromkeys(p.family for p in problems))
+    checker = MBMChecker(d / "ur5.urdf", d / "ur5.srdf")
+    vmax = checker.vmax.copy()
+    amax = 3.0 * vmax
+    peers = {}
+    if "ompl" in args.peers:
+        peers["ompl"] = OMPLPeer(checker)
+    if "vamp" in args.peers:
+        peers["vamp"] = VAMPPeer()
+    ours = None
+    ours_error = None
+    if not args.no_ours:
+        try:
+            ours = Ours(d / "ur5.urdf", d / "ur5.srdf", args.d_min, args.time_budget)
+        except ImportError as exc:
+            ours_error = f"robointel.planning.plan_motion not available in this tree: {exc}"
+    rows: dict[str, list[dict]] = {k: [] for k in (["ours"] if ours else []) + list(peers)}
+    endpoints_free = endpoints = 0
+    raw_by_key = {(f, p["index"]): p for f, ps in raw_all.items() for p in ps}
+    if "vamp" in peers and problems:  # warm-up outside the figures (first-call allocations)
+        peers["vamp"].solve(raw_by_key[(problems[0].family, problems[0].index)], vmax, amax)
+    if ours is not None and problems:  # warm-up: compiled kernels (numba) are built on the first call
+        ours.solve(problems[0], SEED0)
+    console = Console(stderr=True)
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                  TimeElapsedColumn(), console=console) as bar:
+        task = bar.add_task("MBM problems", total=len(problems))
+        for p in problems:
+            raw = raw_by_key[(p.family, p.index)]
+            for q in [raw["start"], *raw["goals"]]:
+                endpoints += 1
+                endpoints_free += not checker.check_configuration(np.asarray(q, float), raw).collision
+            base = {"family": p.family, "index": p.index}
+            if ours is not None:
+                plan, env_ms, plan_ms, reason = ours.solve(p, SEED0 + p.index)
+                row = dict(base, solved=False, success=False, collision=False, limit=None, plan_ms=plan_ms,
+                           env_ms=env_ms, duration_s=None, min_clearance=float("nan"), reason=reason)
+                if plan is not None and plan.trajectory is not None:
+                    tr = plan.trajectory
+                    v = checker.check_trajectory(tr.t, tr.q, raw, qd=tr.qd, amax=amax)
+                    row.update(solved=bool(plan.success), collision=v.collision, limit=v.limit_violation,
+                               reaches=v.reaches_goal,
+                               min_clearance=v.min_clearance, duration_s=float(tr.t[-1] - tr.t[0]),
+                               planner_clearance=plan.min_clearance_m, pair=v.pair)
+                    row["success"] = bool(plan.success) and v.ok
+                    if plan.success and not v.ok:
+                        row["reason"] = (f"checker: collision {v.pair}" if v.collision else
+                                         v.limit_violation or "does not reach the goal")
+                rows["ours"].append(row)
+            for name, peer in peers.items():
+                bar.update(task, description=f"{p.name} {name}")
+                if name == "ompl":
+                    r = peer.solve(raw, vmax, amax, timeout=args.ompl_timeout, seed=SEED0 + p.index)
+                else:
+                    r = peer.solve(raw, vmax, amax, seed=p.index)
+                row = dict(base, solved=r.solved, success=False, collision=False, limit=None, plan_ms=r.total_ms,
+                           duration_s=None, min_clearance=float("nan"), reason=r.reason)
+                if r.solved:
+                    v = checker.check_trajectory(r.t, r.q, raw, qd=r.qd, amax=amax)
+                    row.update(success=v.ok, collision=v.collision, limit=v.limit_violation, reaches=v.reaches_goal,
+                               min_clearance=v.min_clearance, duration_s=r.duration, pair=v.pair)
+                    if not v.ok:
+                        row["reason"] = (f"checker: collision {v.pair}" if v.collision else
+                                         v.limit_violation or "does not reach the goal")
+                if args.check_polylines and r.solved:
+                    L = np.abs(np.diff(r.path, axis=0)).max(1)
+                    T = np.concatenate([[0.0], np.cumsum(L / vmax.min())])
+                    pv = checker.check_trajectory(T, r.path, raw)
+                    row["polyline_collision"] = pv.collision
+                rows[name].append(row)
+            bar.advance(task)
+            if not console.is_terminal:  # a log line per problem when stderr is a file
+                print(f"{p.name} done", file=sys.stderr, flush=True)
+    out: dict = {"benchmark": "MotionBenchMaker UR5 (problems.json of vamp-planner 0.6.4)",
+                 "ours_settings": {"d_min_m": args.d_min, "time_budget_s": args.time_budget,
+                                   "seeds": f"{SEED0} + problem index"},
+                 "problems": len(problems), "families": families, "one_core": True, "load_average_1min": load,
+                 "limits": {"velocity_rad_s": vmax.tolist(), "acceleration_rad_s2": amax.tolist()},
+                 "checker": {"what": "coal exact mesh distances, 1 ms resample, SRDF-disabled pairs removed",
+                             "valid_endpoints_collision_free": endpoints_free, "valid_endpoints": endpoints}}
+    if ours is not None:
+        out.update(summarise("", rows["ours"], families))
+        out["env_build_ms"] = stats([r["env_ms"] for r in rows["ours"]])
+        out["plan_ms_note"] = "plan_motion wall time (search + smoothing + time parametrisation + its dense check)"
+        with console.status("point-cloud updates (100k points)"):
+            pc = ours.pointcloud_update_ms([raw_by_key[(p.family, p.index)] for p in problems[:: max(1, len(
+                problems) // 7)][:7]])
+        out["pointcloud_update_ms"] = stats(pc)
+    else:
+        out.update({"success": None, "collisions_independent": None, "plan_ms": None, "duration_s": None,
+                    "pointcloud_update_ms": None, "ours_error": ours_error or "--no-ours"})
+    for name in peers:
+        out.update(summarise(f"{name}_", rows[name], families))
+        if args.check_polylines:
+            out[f"{name}_polyline_collisions_independent"] = sum(r.get("polyline_collision", False)
+                                                                 for r in rows[name])
+    if ours is not None and "vamp" in peers:
+        common = [(a["duration_s"], b["duration_s"]) for a, b in zip(rows["ours"], rows["vamp"])
+                  if a["success"] and b["success"]]
+        out["duration_ratio_vs_vamp_median"] = float(np.median([a / b for a, b in common])) if common else None
+    if args.frmp:
+        out["frmp_speedup_vs_sqp"], out["frmp_source"] = frmp_speedup(Path(__file__).resolve().parents[1])
+    else:
+        out["frmp_speedup_vs_sqp"] = None
+        out["frmp_source"] = "not run (pass --frmp; benchmarks/frmp.py exposes no function, only its JSON)"
+    out["curobo_published"] = CUROBO_PUBLISHED
+    out["targets"] = TARGETS
+    if args.json:
+        print(json.dumps(out, default=float))
+        return
+    for k, v in out.items():
+        if not k.endswith("failures"):
+            print(f"{k}: {v}")
+
+
+if __name__ == "__main__":
+    main()

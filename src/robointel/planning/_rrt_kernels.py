@@ -1,0 +1,190 @@
+"""Compiled (numba) RRT-Connect and path shortcutting on the sphere collision kernels.
+
+Trees live in caller-owned arrays so that the search runs in chunks of iterations between which
+the caller watches the clock: ``nodes`` (2, cap, n), ``parent`` (2, cap), ``count`` (2,). Tree 0
+grows from the start, tree 1 from every goal of the goal set (each a root with parent -1).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from robointel.planning._collision_kernels import config_valid, edge_valid
+
+
+@njit(cache=True)
+def seed(s):  # pragma: no cover - compiled
+    """Seed numba's random stream (used by the sampler and the shortcutter)."""
+    np.random.seed(s)
+
+
+@njit(cache=True, inline="always")
+def _nearest(nodes, cnt, q):  # pragma: no cover - compiled
+    best, bi = np.inf, 0
+    n = q.shape[0]
+    for i in range(cnt):
+        d = 0.0
+        for k in range(n):
+            e = nodes[i, k] - q[k]
+            d += e * e
+        if d < best:
+            best, bi = d, i
+    return bi, math.sqrt(best)
+
+
+@njit(cache=True, inline="always")
+def _steer(a, b, dist, rng, out):  # pragma: no cover - compiled
+    f = 1.0 if dist <= rng else rng / dist
+    for k in range(a.shape[0]):
+        out[k] = a[k] + f * (b[k] - a[k])
+    return f >= 1.0
+
+
+@njit(cache=True)
+def rrt_connect(nodes, parent, count, lower, upper, iters, rng, W, Wr, nroot, T, C, G, out, thresh, lever, res,
+                link):  # pragma: no cover - compiled
+    """Run up to ``iters`` RRT-Connect iterations.
+
+    Returns 1 when the trees met (``link`` = (tree-0 node,
+    tree-1 node)), 0 when not yet, -1 when a tree is full. Nodes are checked in world ``W``; edges
+    leaving one of the ``nroot[t]`` roots of tree t are checked in world ``Wr`` (the roots may be
+    valid only there), all other edges in ``W``.
+    """
+    n = lower.shape[0]
+    cap = nodes.shape[1]
+    qr = np.empty(n)
+    qn = np.empty(n)
+    for it in range(iters):
+        a = (count[0] + count[1] + it) % 2
+        b = 1 - a
+        if count[a] >= cap or count[b] >= cap:
+            return -1
+        for k in range(n):
+            qr[k] = np.random.uniform(lower[k], upper[k])
+        i, d = _nearest(nodes[a], count[a], qr)
+        _steer(nodes[a, i], qr, d, rng, qn)
+        if not config_valid(qn, W, T, C, G, out, thresh):
+            continue
+        if not edge_valid(nodes[a, i], qn, Wr if i < nroot[a] else W, T, C, G, out, thresh, lever, res):
+            continue
+        ia = count[a]
+        nodes[a, ia] = qn
+        parent[a, ia] = i
+        count[a] += 1
+        # connect tree b greedily toward the new node
+        j, d = _nearest(nodes[b], count[b], qn)
+        while True:
+            if count[b] >= cap:
+                return -1
+            reached = _steer(nodes[b, j], qn, d, rng, qr)
+            if not reached and not config_valid(qr, W, T, C, G, out, thresh):
+                break
+            if not edge_valid(nodes[b, j], qr, Wr if j < nroot[b] else W, T, C, G, out, thresh, lever, res):
+                break
+            if reached:
+                if a == 0:
+                    link[0], link[1] = ia, j
+                else:
+                    link[0], link[1] = j, ia
+                return 1
+            jb = count[b]
+            nodes[b, jb] = qr
+            parent[b, jb] = j
+            count[b] += 1
+            j = jb
+            d = 0.0
+            for k in range(n):
+                e = qn[k] - qr[k]
+                d += e * e
+            d = math.sqrt(d)
+    return 0
+
+
+@njit(cache=True)
+def _length(P, npts, L):  # pragma: no cover - compiled
+    L[0] = 0.0
+    for i in range(1, npts):
+        s = 0.0
+        for k in range(P.shape[1]):
+            e = P[i, k] - P[i - 1, k]
+            s += e * e
+        L[i] = L[i - 1] + math.sqrt(s)
+
+
+@njit(cache=True)
+def shortcut(P, npts, iters, W, Wr, T, C, G, out, thresh, lever, res):  # pragma: no cover - compiled
+    """Shorten the path P[:npts] in place.
+
+    A greedy pass (each vertex joined to the farthest one
+    it sees), then ``iters`` random shortcuts between points anywhere on the path. Returns the
+    new vertex count. Edges from the first or to the last vertex are checked in world ``Wr``, all
+    others in ``W``.
+    """
+    n = P.shape[1]
+    cap = P.shape[0]
+    Q = np.empty_like(P)
+    # greedy pass
+    Q[0] = P[0]
+    m = 1
+    i = 0
+    while i < npts - 1:
+        j = npts - 1
+        while j > i + 1 and not edge_valid(P[i], P[j], Wr if (i == 0 or j == npts - 1) else W, T, C, G, out,
+                                           thresh, lever, res):
+            j -= 1
+        Q[m] = P[j]
+        m += 1
+        i = j
+    for r in range(m):
+        P[r] = Q[r]
+    npts = m
+    L = np.empty(cap)
+    qa = np.empty(n)
+    qb = np.empty(n)
+    for _ in range(iters):
+        if npts < 3:
+            break
+        _length(P, npts, L)
+        u1 = np.random.uniform(0.0, L[npts - 1])
+        u2 = np.random.uniform(0.0, L[npts - 1])
+        if u1 > u2:
+            u1, u2 = u2, u1
+        s1 = np.searchsorted(L[:npts], u1, side="right") - 1
+        s2 = np.searchsorted(L[:npts], u2, side="right") - 1
+        s1 = min(max(s1, 0), npts - 2)
+        s2 = min(max(s2, 0), npts - 2)
+        if s1 == s2 or npts + 1 > cap:
+            continue
+        f1 = (u1 - L[s1]) / max(L[s1 + 1] - L[s1], 1e-12)
+        f2 = (u2 - L[s2]) / max(L[s2 + 1] - L[s2], 1e-12)
+        for k in range(n):
+            qa[k] = P[s1, k] + f1 * (P[s1 + 1, k] - P[s1, k])
+            qb[k] = P[s2, k] + f2 * (P[s2 + 1, k] - P[s2, k])
+        if not edge_valid(qa, qb, W, T, C, G, out, thresh, lever, res):
+            continue
+        m = 0
+        for r in range(s1 + 1):
+            Q[m] = P[r]
+            m += 1
+        Q[m] = qa
+        Q[m + 1] = qb
+        m += 2
+        for r in range(s2 + 1, npts):
+            Q[m] = P[r]
+            m += 1
+        for r in range(m):
+            P[r] = Q[r]
+        npts = m
+    # drop vertices that are (almost) duplicates of their predecessor
+    m = 1
+    for r in range(1, npts):
+        s = 0.0
+        for k in range(n):
+            e = P[r, k] - P[m - 1, k]
+            s += e * e
+        if s > 1e-16 or r == npts - 1:
+            P[m] = P[r]
+            m += 1
+    return m

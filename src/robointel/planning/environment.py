@@ -1,0 +1,380 @@
+"""The planning environment.
+
+The robot's collision spheres, the obstacles around it (primitives and
+a point cloud), self-collision pairs and tool-attached objects, packed for the compiled checks.
+
+A configuration q is valid when every robot sphere keeps distance >= d_min to every obstacle
+(constraint (7.2) of the CFS planner, d(x, O) >= d_min) and no two self-collision spheres overlap.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from robointel._validate import as_array
+from robointel.errors import CollisionAtStart, DescriptionError, InvalidInput
+from robointel.geometry import _kernels as GK
+from robointel.geometry.obstacles import Box, Capsule, Cylinder, Obstacle, PointCloud, Sphere
+from robointel.planning import _collision_kernels as K
+from robointel.robot.collision import SphereModel, primitive_spheres
+from robointel.robot.model import Robot
+from robointel.robot.sphere_cover import cover_meshes
+from robointel.robot.srdf import disabled_pairs
+
+#: Cells of the point-cloud grid are at least this large (m).
+CLOUD_CELL = 0.02
+_MAX_CELLS = 2_000_000
+
+
+def sphere_model_from_urdf(robot: Robot, path: str | Path) -> SphereModel:
+    """Spheres read from a "spherized" URDF.
+
+    One ``<sphere>`` collision per sphere, as shipped with VAMP/MotionBenchMaker; bound to ``robot`` by link name.
+
+    Args:
+        robot: the arm the spheres belong to (same link names).
+        path: the spherized URDF file.
+
+    Returns:
+        The sphere model, bound to ``robot``.
+
+    Raises:
+        InvalidInput: the file cannot be read, has no spheres, or names a link ``robot`` lacks.
+    """
+    try:
+        src = Robot.load(path)
+    except (DescriptionError, OSError) as exc:
+        raise InvalidInput(f"cannot read sphere URDF {path}: {exc}", value=str(path)) from None
+    links, centres, radii = [], [], []
+    for link, prims in src.collision_primitives().items():
+        for p in prims:
+            if p["type"] != "sphere":
+                continue
+            if link not in robot.link_names:
+                raise InvalidInput(f"sphere URDF {path}: link {link!r} is not a link of {robot.name!r}", value=link)
+            c, r = primitive_spheres(p)
+            links += [link] * len(r)
+            centres.append(c)
+            radii.append(r)
+    if not links:
+        raise InvalidInput(f"sphere URDF {path} holds no <sphere> collision geometry", value=str(path))
+    return SphereModel(links, np.concatenate(centres), np.concatenate(radii)).bind(robot)
+
+
+@dataclass(frozen=True)
+class Contact:
+    """The closest pair at a configuration: distance (m), the robot link and what it meets."""
+
+    distance: float
+    link: str
+    other: str
+    self_collision: bool
+
+    def message(self, what: str) -> str:
+        """A sentence naming the pair, for errors."""
+        kind = "link" if self.self_collision else "obstacle"
+        return (f"{what} is in collision: robot link {self.link!r} is {self.distance * 1e3:.1f} mm from "
+                f"{kind} {self.other!r}")
+
+
+class Environment:
+    """Obstacles and the robot's collision model, packed for the compiled planner kernels.
+
+    Args:
+        robot: the arm.
+        obstacles: primitives (spheres, capsules, cylinders, boxes with any rotation) and point
+            clouds (merged into one gridded cloud), in the world frame.
+        srdf: SRDF file whose ``disable_collisions`` link pairs are not checked for self-collision.
+        spheres: the robot's spheres: a :class:`SphereModel`, a spherized URDF path, or None for
+            ``robot.spheres``.
+        floor: height (m) of a floor plane (a large box below it), or None.
+        attached: objects carried by the tool, each given in the frame of ``attach_link``.
+        attach_link: link the attached objects move with (default: the robot's flange frame's link).
+        cover_meshes: also build spheres grown to cover the URDF's collision meshes
+            (:func:`robointel.robot.sphere_cover.cover_meshes`) and check obstacles against them
+            (see :meth:`use`); self-collision always uses the spheres as given.
+
+    Raises:
+        InvalidInput: bad obstacles, spheres, SRDF or attached objects.
+    """
+
+    def __init__(self, robot: Robot, obstacles: Iterable[Obstacle] = (), *, srdf: str | Path | None = None,
+                 spheres: SphereModel | str | Path | None = None, floor: float | None = None,
+                 attached: Sequence[Obstacle] = (), attach_link: str | None = None,
+                 cover_meshes: bool = True) -> None:
+        if not isinstance(robot, Robot):
+            raise InvalidInput(f"robot must be a robointel Robot, got {type(robot).__name__}", value=robot)
+        self.robot = robot
+        self.cover_meshes = bool(cover_meshes)
+        if spheres is None:
+            sm = robot.spheres
+        elif isinstance(spheres, SphereModel):
+            sm = spheres
+        else:
+            sm = sphere_model_from_urdf(robot, spheres)
+        links, centres, radii = list(sm.links), np.asarray(sm.centers, float), np.asarray(sm.radii, float)
+        if attached:
+            link = attach_link or robot.model.frames[robot._flange_id].name
+            if attach_link is not None:
+                robot.link_joint(attach_link)
+            else:  # the flange frame may be an operational frame: attach to its body
+                fr = robot.model.frames[robot._flange_id]
+                link = robot.model.frames[fr.parentFrame].name if fr.type != pin.FrameType.BODY else fr.name
+            for k, o in enumerate(attached):
+                c, r = _obstacle_spheres(o, k)
+                links += [link] * len(r)
+                centres = np.vstack([centres, c])
+                radii = np.append(radii, r)
+        self.spheres = SphereModel(links, centres, radii).bind(robot)
+        self.disabled = disabled_pairs(srdf, robot.link_names) if srdf is not None else set()
+        obs = list(obstacles)
+        for k, o in enumerate(obs):
+            if not isinstance(o, Obstacle):
+                raise InvalidInput(f"obstacles[{k}] is a {type(o).__name__}, not a robointel.geometry obstacle",
+                                   value=o)
+        if floor is not None:
+            z = float(as_array(floor, "floor", ()))
+            obs.append(Box(center=np.array([0.0, 0.0, z - 0.5]), size=np.array([20.0, 20.0, 1.0]), name="floor"))
+        self.obstacles = [o for o in obs if not isinstance(o, PointCloud)]
+        self.labels = [o.label(k) for k, o in enumerate(self.obstacles)]
+        self._chain = _chain_arrays(robot)
+        self._pack_spheres()
+        packed = [o._packed for o in self.obstacles]  # type: ignore[attr-defined]
+        self._prims = (np.array([o._code for o in self.obstacles], np.int64),
+                       np.array(packed, dtype=np.float64).reshape(-1, GK.NPARAM))
+        clouds = [o for o in obs if isinstance(o, PointCloud)]
+        self._cloud: tuple = _empty_cloud()
+        if clouds:
+            self.update_pointcloud(np.vstack([c.points for c in clouds]), radius=max(c.radius for c in clouds))
+        self._rebuild()
+        self.scratch = K.Scratch(self.world)
+
+    # ------------------------------------------------------------------ packing
+    def _pack_spheres(self) -> None:
+        sm = self.spheres
+        order = np.argsort(sm.joints, kind="stable")
+        self.sphere_links = [sm.links[i] for i in order]
+        sj = sm.joints[order].astype(np.int64)
+        sp = np.ascontiguousarray(sm._in_joint[order])
+        sr = np.ascontiguousarray(sm.radii[order])
+        groups = np.unique(sj)
+        gs = np.searchsorted(sj, groups).tolist() + [len(sj)]
+        gc = np.array([sp[gs[k]:gs[k + 1]].mean(0) for k in range(len(groups))]).reshape(-1, 3)
+        gr = np.array([np.max(np.linalg.norm(sp[gs[k]:gs[k + 1]] - gc[k], axis=1) + sr[gs[k]:gs[k + 1]])
+                       for k in range(len(groups))])
+        m = len(sj)
+        # self-collision pairs: the sphere model's (non-adjacent joints, apart at q = 0) minus SRDF pairs
+        inv = np.empty(m, np.int64)
+        inv[order] = np.arange(m)
+        smask = np.zeros((m, m), np.uint8)
+        for i, k in sm.self_pairs:
+            if frozenset((sm.links[i], sm.links[k])) in self.disabled:
+                continue
+            a, b = inv[i], inv[k]
+            smask[a, b] = smask[b, a] = 1
+        self._spheres = (sj, sp, sr, groups.astype(np.int64), gc, gr, np.array(gs, np.int64))
+        smask &= _variable_pairs(self._chain + self._spheres, self.robot, smask)
+        gid = np.searchsorted(groups, sj)
+        gp = {(min(gid[a], gid[b]), max(gid[a], gid[b])) for a, b in zip(*np.nonzero(smask))}
+        gpairs = np.array(sorted(gp), np.int64).reshape(-1, 2)
+        self._spheres = (sj, sp, sr, groups.astype(np.int64), gc, gr, np.array(gs, np.int64))
+        self.lever = _levers(self.robot, self._chain, sj, sp)
+        anc = self.robot._ancestor  # (nj, nq): does config index k move joint j?
+        rel = np.array([(anc[groups[a]] ^ anc[groups[b]]) * self.lever for a, b in gpairs]).reshape(-1, self.robot.nq)
+        self._self = (gpairs, smask)
+        self._rel = (np.ascontiguousarray(rel, dtype=float), sr, gr)
+        self._fitted = self._spheres
+        self._cover = self._spheres
+        if self.cover_meshes:
+            grown = cover_meshes(self.robot, sm).radii[order]
+            ggr = np.array([np.max(np.linalg.norm(sp[gs[k]:gs[k + 1]] - gc[k], axis=1) + grown[gs[k]:gs[k + 1]])
+                            for k in range(len(groups))])
+            self._cover = (sj, sp, np.ascontiguousarray(grown), groups.astype(np.int64), gc, ggr,
+                           np.array(gs, np.int64))
+        self._spheres = self._cover
+        self.model = "cover"
+
+    def use(self, model: str) -> None:
+        """Select the spheres checked against obstacles.
+
+        Args:
+            model: ``"cover"``: grown to cover the collision meshes (conservative); ``"fitted"``:
+                the spheres as given (may leave parts of the meshes uncovered).
+
+        Raises:
+            InvalidInput: another name.
+        """
+        if model not in ("cover", "fitted"):
+            raise InvalidInput(f"sphere model must be 'cover' or 'fitted', got {model!r}", value=model)
+        self._spheres = self._cover if model == "cover" else self._fitted
+        self.model = model
+        self._rebuild()
+
+    @property
+    def world_cover(self) -> tuple:
+        """The packed world with the mesh-covering spheres."""
+        return self._chain + self._cover + self._prims + self._self + self._cloud + self._rel
+
+    @property
+    def world_fitted(self) -> tuple:
+        """The packed world with the spheres as given (for edges at a start or goal only they allow)."""
+        return self._chain + self._fitted + self._prims + self._self + self._cloud + self._rel
+
+    def _rebuild(self) -> None:
+        self.world = self._chain + self._spheres + self._prims + self._self + self._cloud + self._rel
+
+    def update_pointcloud(self, points: npt.ArrayLike, *, radius: float = 0.0) -> None:
+        """Replace the environment's point cloud (m, world frame) by ``points`` (N, 3).
+
+        The points are sorted into a uniform grid (cells >= 2 cm) that the compiled checks query.
+
+        Args:
+            points: (N, 3) points, m; N may be 0 to remove the cloud.
+            radius: radius of each point, m (>= 0).
+
+        Raises:
+            InvalidInput: wrong shape, NaN/inf, or a negative radius.
+        """
+        P = np.ascontiguousarray(as_array(points, "points", (None, 3)))
+        if not radius >= 0:
+            raise InvalidInput(f"point radius must be >= 0 m, got {radius}", value=radius)
+        if len(P) == 0:
+            self._cloud = _empty_cloud()
+        else:
+            lo, hi = K.cloud_bounds(P)
+            ext = np.maximum(hi - lo, 1e-6)
+            h = max(CLOUD_CELL, float(np.cbrt(np.prod(ext + CLOUD_CELL) / _MAX_CELLS)))
+            dims = (np.floor(ext / h).astype(np.int64) + 1)
+            cpts = np.empty_like(P)
+            cstart = np.empty(int(np.prod(dims)) + 1, np.int64)
+            K.bin_points(P, lo, h, dims, cpts, cstart)
+            grid = np.array([lo[0], lo[1], lo[2], h, float(radius), 0.0, 0.0])
+            self._cloud = (cpts, cstart, grid, dims)
+        if hasattr(self, "world"):
+            self._rebuild()
+
+    # ------------------------------------------------------------------ queries
+    def clearance(self, q: npt.ArrayLike, *, cap: float = 1.0) -> float:
+        """Smallest signed distance (m) at q over obstacles and self-collision pairs, capped at ``cap``."""
+        qq = self.robot.check_q(np.asarray(q, float))
+        s = self.scratch
+        return float(K.config_clearance(qq, self.world, s.T, s.C, s.G, s.out, cap))
+
+    def contact(self, q: npt.ArrayLike, *, cap: float = 1.0) -> Contact:
+        """The closest pair at q: distance (m), robot link and obstacle (or other link)."""
+        d = self.clearance(q, cap=cap)
+        kind, i, j = (int(v) for v in self.scratch.out[:3])
+        if kind < 0:
+            return Contact(d, "", "", False)
+        link = self.sphere_links[i]
+        if kind == K.SELF:
+            return Contact(d, link, self.sphere_links[j], True)
+        other = "point cloud" if kind == K.CLOUD else self.labels[j]
+        return Contact(d, link, other, False)
+
+    def check_free(self, q: npt.ArrayLike, *, d_min: float = 0.0, what: str = "start configuration") -> None:
+        """Raise :class:`CollisionAtStart` naming the pair when q is closer than ``d_min``."""
+        c = self.contact(q, cap=max(d_min, 0.0) + 1.0)
+        if c.distance < d_min:
+            raise CollisionAtStart(c.message(what) + (f" (required clearance {d_min * 1e3:.1f} mm)" if d_min else "")
+                                   + "; move it or lower d_min", value=np.asarray(q, float))
+
+
+def _obstacle_spheres(o: Obstacle, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Spheres covering an attached object given in its link frame."""
+    T = np.eye(4)
+    if isinstance(o, Sphere):
+        T[:3, 3] = o.center
+        return primitive_spheres({"type": "sphere", "size": [o.radius], "origin": T})
+    if isinstance(o, Box):
+        T[:3, :3], T[:3, 3] = o.rotation, o.center
+        return primitive_spheres({"type": "box", "size": o.size, "origin": T})
+    if isinstance(o, (Cylinder, Capsule)):
+        a, b = np.asarray(o.a, dtype=float), np.asarray(o.b, dtype=float)
+        u = (b - a) / np.linalg.norm(b - a)
+        T[:3, :3] = _frame_z(u)
+        T[:3, 3] = (a + b) / 2
+        L = float(np.linalg.norm(b - a)) + (2 * o.radius if isinstance(o, Capsule) else 0.0)
+        return primitive_spheres({"type": "cylinder", "size": [o.radius, L], "origin": T})
+    if isinstance(o, PointCloud):
+        return np.asarray(o.points, dtype=float), np.full(len(o.points), max(o.radius, 1e-4))
+    raise InvalidInput(f"attached[{k}]: cannot attach a {o.type}", value=o)
+
+
+def _frame_z(u: np.ndarray) -> np.ndarray:
+    x = np.cross(u, [1.0, 0.0, 0.0]) if abs(u[0]) < 0.9 else np.cross(u, [0.0, 1.0, 0.0])
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(u, x), u], 1)
+
+
+def _empty_cloud() -> tuple:
+    return (np.zeros((0, 3)), np.zeros(2, np.int64), np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]),
+            np.zeros(3, np.int64))
+
+
+def _variable_pairs(W: tuple, robot: Robot, smask: np.ndarray, samples: int = 500) -> np.ndarray:
+    """Mask of the self-collision pairs whose distance changes with the configuration.
+
+    Pairs whose
+    distance stays within 0.1 mm over random configurations (a kinematic invariant, such as a
+    sphere on a joint axis facing a sphere on the base) can never collide and are not checked.
+    """
+    m = len(W[5])
+    T = np.zeros((W[0].shape[0], 4, 4))
+    T[0] = np.eye(4)
+    C, G = np.empty((m, 3)), np.empty((W[8].shape[0], 3))
+    i, k = np.nonzero(np.triu(smask))
+    lo, hi = np.full(len(i), np.inf), np.full(len(i), -np.inf)
+    for q in robot.random_configuration(np.random.default_rng(0), samples):
+        K.sphere_centres(q, W, T, C, G)
+        d = np.linalg.norm(C[i] - C[k], axis=1)
+        lo, hi = np.minimum(lo, d), np.maximum(hi, d)
+    keep = np.zeros_like(smask)
+    var = (hi - lo) > 1e-4
+    keep[i[var], k[var]] = keep[k[var], i[var]] = 1
+    return keep
+
+
+def _chain_arrays(robot: Robot) -> tuple:
+    """Joint tree of the robot's Pinocchio model for :func:`chain_fk` (1-DoF joints only)."""
+    model = robot.model
+    nj = model.njoints
+    parent = np.array([int(p) for p in model.parents], np.int64)
+    place = np.array([model.jointPlacements[j].homogeneous for j in range(nj)])
+    axis = np.zeros((nj, 3))
+    kind = np.zeros(nj, np.int64)
+    qidx = np.full(nj, -1, np.int64)
+    q0 = pin.neutral(model)
+    for j in range(1, nj):
+        jm = model.joints[j]
+        if jm.nq != 1 or jm.nv != 1:
+            raise InvalidInput(f"joint {model.names[j]!r} has {jm.nq} coordinates; the planner supports 1-DoF "
+                               "revolute and prismatic joints", value=model.names[j])
+        jd = jm.createData()
+        jm.calc(jd, q0)
+        S = np.asarray(jd.S).reshape(6)
+        if np.linalg.norm(S[3:]) > 0.5:
+            axis[j], kind[j] = S[3:] / np.linalg.norm(S[3:]), 0
+        else:
+            axis[j], kind[j] = S[:3] / np.linalg.norm(S[:3]), 1
+        qidx[j] = jm.idx_q
+    return (parent, place, axis, kind, qidx)
+
+
+def _levers(robot: Robot, chain: tuple, sj: np.ndarray, sp: np.ndarray) -> np.ndarray:
+    """Upper bound (m per rad, or 1 for prismatic) of the speed of any sphere centre per unit joint speed."""
+    parent, place, _, kind, qidx = chain
+    lever = np.zeros(robot.nq)
+    for i in range(len(sj)):
+        j, reach = int(sj[i]), float(np.linalg.norm(sp[i]))
+        while j > 0:
+            k = qidx[j]
+            lever[k] = max(lever[k], 1.0 if kind[j] == 1 else reach)
+            reach += float(np.linalg.norm(place[j][:3, 3]))
+            j = int(parent[j])
+    return lever

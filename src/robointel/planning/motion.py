@@ -1,0 +1,381 @@
+"""Start-to-goal motion planning in cluttered cells for any arm.
+
+The pipeline: a global stage (RRT-Connect on the compiled sphere checks, edges checked so that no
+sphere centre moves more than ``resolution`` between checks, then shortcutting), temporal
+optimization of the path (7.7)-(7.9) (:func:`robointel.planning.temporal.temporal_optimize` on knots
+spaced along the path, so the horizon and the number of steps come from the path itself), or
+jerk-limited rest-to-rest timing with ruckig, and finally the dense check of the executed
+trajectory (1 ms resample: joint limits, velocity and acceleration limits, clearance >= d_min - 1 mm
+to obstacles and between non-adjacent links). ``success`` is True only when that check passed.
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from robointel.errors import IKFailure, InvalidInput
+from robointel.io.trajectory import Trajectory
+from robointel.outcome import Failure
+from robointel.planning import _collision_kernels as K
+from robointel.planning import _rrt_kernels as R
+from robointel.planning.environment import Environment
+from robointel.planning.jerk_limited import jerk_limited_polyline
+from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, check_dense, window_clearance
+from robointel.planning.polyline_timing import polyline_timing
+from robointel.planning.temporal import temporal_optimize
+from robointel.robot.model import Robot
+
+#: random seeds of the numeric IK for a pose goal (each distinct solution joins the goal set)
+IK_SEEDS = 32
+
+
+@dataclass(frozen=True, kw_only=True)
+class MotionSettings:
+    """Everything a user may tune; the defaults work on the MotionBenchMaker problems.
+
+    Attributes:
+        d_min: required clearance to the environment and between links, m.
+        time_budget_s: wall-time budget of the global search, s.
+        seed: seed of the sampler and the shortcutter.
+        jerk_limited: time the path with ruckig (rest to rest per straight segment) instead of
+            temporal optimization.
+        rrt_range: longest RRT edge, rad (Euclidean in joint space).
+        resolution: largest sphere-centre travel between two checks of a path edge, m (so the
+            edge keeps clearance >= d_min - resolution / 2 between the checked points).
+        search_resolution: the same during the tree search (coarser, faster); the found path's
+            edges are re-checked at ``resolution`` (the search is repeated finer if one fails).
+        smooth: time the path by temporal optimization (7.7)-(7.9) of the spline through knots
+            along it (no stop at the vertices); when that spline fails the dense check (it leaves
+            the checked polyline near a corner), fall back to time-optimal rest-to-rest motion
+            along the polyline itself.
+        max_nodes: capacity of each RRT tree.
+        shortcut_iters: random shortcut attempts after the greedy pass.
+        knot_step: largest joint step between knots of the time-optimised spline, rad.
+        velocity_scale: fraction of the robot's velocity limits to use.
+        acceleration_limit: (n,) rad/s^2, or None for ``robot.acceleration_limit``.
+        jerk_limit: (n,) rad/s^3, or None for 10 x the acceleration limit.
+        check_dt: step of the dense check, s.
+    """
+
+    d_min: float = 0.0
+    time_budget_s: float = 1.0
+    seed: int = 0
+    jerk_limited: bool = False
+    rrt_range: float = 1.0
+    resolution: float = 0.002
+    search_resolution: float = 0.02
+    max_nodes: int = 20000
+    shortcut_iters: int = 60
+    smooth: bool = True
+    knot_step: float = 0.2
+    velocity_scale: float = 1.0
+    acceleration_limit: tuple[float, ...] | None = None
+    jerk_limit: tuple[float, ...] | None = None
+    check_dt: float = 1e-3
+
+
+@dataclass
+class MotionPlan:
+    """Result of :func:`plan_motion`.
+
+    Attributes:
+        success: True only if the final trajectory passed the dense check.
+        reason: "" on success, else why.
+        failure: the shared failure reason (``Failure.NONE`` on success).
+        trajectory: the time-parametrised trajectory (None when no path was found).
+        path: (k, n) geometric waypoints before timing, rad.
+        plan_ms: wall time of the whole call, ms.
+        timings: wall time per stage, ms.
+        min_clearance_m: smallest clearance of the checked trajectory, m (capped at d_min + 0.1).
+        goal_index: index of the goal reached in the goal set (-1 when none).
+    """
+
+    success: bool
+    reason: str
+    failure: Failure
+    trajectory: Trajectory | None
+    path: np.ndarray | None
+    plan_ms: float
+    timings: dict[str, float] = field(default_factory=dict)
+    min_clearance_m: float = float("nan")
+    goal_index: int = -1
+
+
+def _goal_set(robot: Robot, goal: npt.ArrayLike | Sequence[npt.ArrayLike], seed: int) -> np.ndarray:
+    """Goal configurations (G, n) from one configuration, a set, or a 4x4 TCP pose (IK solutions)."""
+    try:
+        g = np.asarray(goal, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInput("goal must be a configuration (n,), a set (G, n) or a 4x4 TCP pose", value=goal) from None
+    n = robot.nq
+    is_pose = g.shape == (4, 4) and np.allclose(g[3], [0, 0, 0, 1]) and (n != 4 or np.isfinite(g).all())
+    if is_pose and np.allclose(g[:3, :3].T @ g[:3, :3], np.eye(3), atol=1e-6):
+        sols: list[np.ndarray] = []
+        rng = np.random.default_rng(seed)
+        for _ in range(IK_SEEDS):
+            try:
+                q = robot.ik_numeric(g, q0=robot.random_configuration(rng), restarts=0, rng=int(rng.integers(1 << 31)))
+            except IKFailure:
+                continue
+            if all(np.linalg.norm(q - s) > 1e-3 for s in sols):
+                sols.append(q)
+        if not sols:
+            raise IKFailure(f"no IK solution for the goal pose at {np.round(g[:3, 3], 4).tolist()} m", value=g)
+        return np.array(sols)
+    if g.ndim == 1:
+        g = g[None]
+    if g.ndim != 2 or g.shape[1] != n or len(g) == 0:
+        raise InvalidInput(f"goal must be ({n},), (G, {n}) or a 4x4 pose, got shape {g.shape}", value=goal)
+    return np.array([robot.check_q(q, f"goal[{k}]", limits=True) for k, q in enumerate(g)])
+
+
+def _fail(reason: str, failure: Failure, t0: float, timings: dict[str, float], path: np.ndarray | None = None,
+          traj: Trajectory | None = None, clearance: float = float("nan"), goal: int = -1) -> MotionPlan:
+    return MotionPlan(False, reason, failure, traj, path, (time.perf_counter() - t0) * 1e3, timings, clearance, goal)
+
+
+def _densify(path: np.ndarray, step: float) -> np.ndarray:
+    """Insert evenly spaced points so no joint moves more than ``step`` between knots."""
+    out = [path[:1]]
+    for a, b in zip(path[:-1], path[1:]):
+        k = max(1, int(np.ceil(np.max(np.abs(b - a)) / step)))
+        out.append(a + (b - a) * (np.arange(1, k + 1) / k)[:, None])
+    return np.concatenate(out)
+
+
+def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
+                goal: npt.ArrayLike | Sequence[npt.ArrayLike], *,
+                settings: MotionSettings = MotionSettings()) -> MotionPlan:
+    """Plan a collision-free, time-parametrised motion from ``start`` to ``goal``.
+
+    Args:
+        robot: the arm (the one ``environment`` was built for).
+        environment: obstacles, spheres and self-collision pairs.
+        start: (n,) start configuration, rad.
+        goal: (n,) goal configuration, (G, n) goal set (the first reached wins), or a 4x4 TCP pose
+            (its IK solutions are the goal set).
+        settings: see :class:`MotionSettings`.
+
+    Returns:
+        The :class:`MotionPlan`; ``success`` only after the dense check of the final trajectory.
+
+    Raises:
+        InvalidInput: bad shapes, NaN, limits, or an environment built for another robot.
+        CollisionAtStart: the start, or every goal, is closer than ``d_min`` (names the pair).
+        IKFailure: a pose goal without IK solutions.
+    """
+    if not isinstance(environment, Environment) or environment.robot is not robot:
+        raise InvalidInput("environment must be an Environment built for this robot", value=environment)
+    _warmup(environment)
+    t0 = time.perf_counter()
+    timings: dict[str, float] = {}
+    if not isinstance(settings, MotionSettings):
+        raise InvalidInput("settings must be a MotionSettings", value=settings)
+    st = settings
+    if not (st.d_min >= 0 and st.time_budget_s > 0 and st.resolution > 0 and st.rrt_range > 0
+            and 0 < st.velocity_scale <= 1 and st.knot_step > 0 and st.check_dt > 0):
+        raise InvalidInput("settings need d_min >= 0, time_budget_s, resolution, rrt_range, knot_step, check_dt > 0 "
+                           "and 0 < velocity_scale <= 1", value=st)
+    q0 = robot.check_q(np.asarray(start, float), "start", limits=True)
+    goals = _goal_set(robot, goal, st.seed)
+    env = environment
+    model = env.model
+    try:
+        return _plan(env, q0, goals, st, t0, timings)
+    finally:
+        env.use(model)
+
+
+def _roots_free(env: Environment, q0: np.ndarray, goals: np.ndarray, d_min: float) -> bool:
+    return (env.clearance(q0, cap=d_min + 1.0) >= d_min
+            and any(env.clearance(g, cap=d_min + 1.0) >= d_min for g in goals))
+
+
+def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, t0: float,
+          timings: dict[str, float]) -> MotionPlan:
+    robot = env.robot
+    # the mesh-covering spheres where start and a goal allow them, else the spheres as given
+    env.use("cover")
+    hybrid = env.cover_meshes and not _roots_free(env, q0, goals, st.d_min)
+    if hybrid:  # edges at the start and goals in the fitted spheres, the rest in the covering ones
+        env.use("fitted")
+    Wc = env.world_cover
+    Wr = env.world_fitted if hybrid else Wc
+    env.check_free(q0, d_min=st.d_min, what="start configuration")
+    ok = [env.clearance(g, cap=st.d_min + 1.0) >= st.d_min for g in goals]
+    if not any(ok):
+        env.check_free(goals[0], d_min=st.d_min, what="goal configuration" if len(goals) == 1 else "every goal; goal 0")
+    goal_ids = np.flatnonzero(ok)
+    goals = goals[goal_ids]
+    vmax = robot.velocity_limit * st.velocity_scale
+    amax = np.asarray(st.acceleration_limit if st.acceleration_limit is not None else robot.acceleration_limit, float)
+    if amax.shape != (robot.nq,) or np.any(amax <= 0):
+        raise InvalidInput(f"acceleration_limit must be ({robot.nq},) positive", value=amax)
+    timings["validate"] = (time.perf_counter() - t0) * 1e3
+
+    # global stage ----------------------------------------------------------------------------
+    t1 = time.perf_counter()
+    deadline = t1 + st.time_budget_s
+    path, gi, why = None, -1, ""
+    res = float(st.search_resolution)
+    while path is None:
+        path, gi, why = _search(env, q0, goals, st, res, deadline, Wc, Wr)
+        if path is None:
+            timings["search"] = (time.perf_counter() - t1) * 1e3
+            return _fail(f"no collision-free path found: {why}", Failure.TIMEOUT, t0, timings)
+        if _path_valid(env, path, st.d_min, st.resolution, Wc, Wr):
+            break
+        path, res = None, res / 4  # an edge failed the fine check: search again, finer
+        if res < st.resolution:
+            res = float(st.resolution)
+    timings["search"] = (time.perf_counter() - t1) * 1e3
+    t2 = time.perf_counter()
+    s = env.scratch
+    P = np.empty((max(len(path) * 2 + 64, 256), robot.nq))
+    P[:len(path)] = path
+    R.seed(int(st.seed) + 1)
+    m = R.shortcut(P, len(path), int(st.shortcut_iters), Wc, Wr, s.T, s.C, s.G, s.out, float(st.d_min), env.lever,
+                   float(st.resolution))
+    path = P[:m].copy()
+    keep = np.concatenate([[True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-9])
+    keep[-1] = True
+    path = path[keep]
+    timings["shortcut"] = (time.perf_counter() - t2) * 1e3
+    goal_index = int(goal_ids[gi])
+
+    # timing and the dense check -------------------------------------------------------------
+    t3 = time.perf_counter()
+    names = list(robot.joint_names)
+    traj, chk = None, None
+    if st.smooth and not st.jerk_limited and len(path) > 2:
+        tr = temporal_optimize(_densify(path, float(st.knot_step)), vmax, amax)
+        traj = Trajectory(tr.t, tr.q, tr.qd, tr.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
+        chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
+        if chk.ok and hybrid:
+            chk = _interior(env, traj, path, Wc, st, chk)
+        timings["smooth"] = (time.perf_counter() - t3) * 1e3
+    if chk is None or not chk.ok:  # rest to rest along the checked polyline
+        t4 = time.perf_counter()
+        if st.jerk_limited:
+            jmax = np.asarray(st.jerk_limit if st.jerk_limit is not None else 10 * amax, float)
+            traj = jerk_limited_polyline(path, vmax, amax, jmax, dt=st.check_dt, joint_names=names)
+        else:
+            traj = polyline_timing(path, vmax, amax, dt=st.check_dt, joint_names=names)
+        chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
+        if chk.ok and hybrid:
+            chk = _interior(env, traj, path, Wc, st, chk)
+        timings["timing"] = (time.perf_counter() - t4) * 1e3
+    assert traj is not None and chk is not None
+    traj.meta.update({"min_clearance_m": chk.min_clearance_m, "goal_index": goal_index,
+                      "collision_model": env.model})
+    if not chk.ok:
+        fail = Failure.COLLISION if chk.kind == "collision" else Failure.LIMIT
+        return _fail(f"dense check failed: {chk.reason}", fail, t0, timings, path, traj, chk.min_clearance_m,
+                     goal_index)
+    return MotionPlan(True, "", Failure.NONE, traj, path, (time.perf_counter() - t0) * 1e3, timings,
+                      chk.min_clearance_m, goal_index)
+
+
+def _interior(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, st: MotionSettings,
+              chk: DenseCheck) -> DenseCheck:
+    """Check the trajectory against the mesh-covering spheres between the inner vertices.
+
+    Only the edges at the start and goal may rely on the fitted spheres.
+    """
+    if len(path) < 3:
+        return chk
+    i0 = int(np.argmin(np.linalg.norm(traj.q - path[1], axis=1)))
+    i1 = len(traj.q) - 1 - int(np.argmin(np.linalg.norm(traj.q[::-1] - path[-2], axis=1)))
+    d = window_clearance(env, traj, Wc, float(traj.t[i0]), float(traj.t[i1]), d_min=st.d_min, dt=st.check_dt)
+    if d >= st.d_min - CLEARANCE_TOL:
+        return chk
+    return DenseCheck(False, f"the covering spheres come {d * 1e3:.1f} mm from the obstacles between "
+                      f"t = {traj.t[i0]:.3f} s and {traj.t[i1]:.3f} s", "collision", min(d, chk.min_clearance_m),
+                      chk.samples)
+
+
+_WARM: set[int] = set()
+
+
+def _warmup(env: Environment) -> None:
+    """Compile (or load from the disk cache) the kernels once per process.
+
+    Runs, outside the time budget and plan_ms.
+    """
+    key = env.robot.nq
+    if key in _WARM:
+        return
+    W, s = env.world, env.scratch
+    q = np.clip(np.zeros(env.robot.nq), env.robot.lower, env.robot.upper)
+    nodes = np.zeros((2, 4, len(q)))
+    parent = np.full((2, 4), -1, np.int64)
+    count = np.array([1, 1], np.int64)
+    R.rrt_connect(nodes, parent, count, env.robot.lower, env.robot.upper, 0, 1.0, W, W, count, s.T, s.C, s.G,
+                  s.out, 0.0, env.lever, 0.01, np.zeros(2, np.int64))
+    P = np.array([q, q + 1e-3 * (env.robot.upper - q)])
+    R.shortcut(P, 2, 0, W, W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
+    K.edge_valid(P[0], P[1], W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
+    K.samples_clearance(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1)
+    _WARM.add(key)
+
+
+def _path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: float, W: tuple,
+                Wr: tuple) -> bool:
+    """Every edge of ``path`` passes the edge check at ``resolution``.
+
+    The first and last edge are checked in ``Wr``, the others in ``W``.
+    """
+    s = env.scratch
+    last = len(path) - 2
+    return all(K.edge_valid(a, b, Wr if k in (0, last) else W, s.T, s.C, s.G, s.out, float(d_min), env.lever,
+                            float(resolution))
+               for k, (a, b) in enumerate(zip(path[:-1], path[1:])))
+
+
+def _search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, res: float,
+            deadline: float, W: tuple, Wr: tuple) -> tuple[np.ndarray | None, int, str]:
+    """RRT-Connect from q0 to the goal set (a direct edge first): (path, goal index, why not).
+
+    Nodes and edges are checked in ``W``, edges leaving the start or a goal in ``Wr``.
+    """
+    s = env.scratch
+    thr, lever = float(st.d_min), env.lever
+    for k, g in enumerate(goals):
+        if K.edge_valid(q0, g, Wr, s.T, s.C, s.G, s.out, thr, lever, res):
+            return np.array([q0, g]), k, ""
+    n = len(q0)
+    cap = int(st.max_nodes)
+    nodes = np.empty((2, cap, n))
+    parent = np.full((2, cap), -1, np.int64)
+    count = np.array([1, len(goals)], np.int64)
+    nroot = count.copy()
+    nodes[0, 0] = q0
+    nodes[1, :len(goals)] = goals
+    link = np.zeros(2, np.int64)
+    R.seed(int(st.seed))
+    robot = env.robot
+    status = 0
+    while status == 0 and time.perf_counter() < deadline:
+        status = R.rrt_connect(nodes, parent, count, robot.lower, robot.upper, 32, float(st.rrt_range), W, Wr, nroot,
+                               s.T, s.C, s.G, s.out, thr, lever, res, link)
+    if status != 1:
+        why = "the search trees are full" if status < 0 else f"the time budget of {st.time_budget_s:g} s ran out"
+        return None, -1, f"{why} ({int(count.sum())} nodes)"
+    a, b = [], []
+    i = int(link[0])
+    while i >= 0:
+        a.append(nodes[0, i])
+        i = int(parent[0, i])
+    i, last = int(link[1]), 0
+    while i >= 0:
+        b.append(nodes[1, i])
+        last = i
+        i = int(parent[1, i])
+    return np.array(a[::-1] + b), last, ""
+
+
+__all__ = ["MotionSettings", "MotionPlan", "plan_motion"]

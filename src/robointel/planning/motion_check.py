@@ -1,0 +1,112 @@
+"""The dense check of a planned trajectory.
+
+Every 1 ms sample within the joint limits and at least
+``d_min - tol`` from the obstacles and from the robot itself (constraints (7.2)-(7.3) and the
+limits of (7.8), checked on the executed curve rather than at the knots).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from robointel.io.trajectory import Trajectory
+from robointel.planning import _collision_kernels as K
+from robointel.planning.environment import Environment
+
+#: clearance tolerance of the dense check below d_min, m
+CLEARANCE_TOL = 1e-3
+#: relative tolerance on the velocity and acceleration limits (floating-point rounding only)
+LIMIT_TOL = 1e-6
+
+
+@dataclass(frozen=True)
+class DenseCheck:
+    """Outcome of :func:`check_dense`.
+
+    Attributes:
+        ok: every sample passed.
+        reason: "" when ok, else the first failed property with its figure.
+        kind: "collision", "limit" or "" when ok.
+        min_clearance_m: smallest clearance over the samples, m (exact below ``d_min + 0.01`` m,
+            else a lower bound; capped at ``d_min + 0.1`` m).
+        samples: number of samples checked.
+    """
+
+    ok: bool
+    reason: str
+    kind: str
+    min_clearance_m: float
+    samples: int
+
+
+def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.ArrayLike,
+                amax: npt.ArrayLike, dt: float = 1e-3) -> DenseCheck:
+    """Resample ``traj`` every ``dt`` seconds and check limits and clearance.
+
+    Args:
+        env: the environment (robot spheres, obstacles, self-collision pairs).
+        traj: the trajectory (t, q, qd, qdd), n joints.
+        d_min: required clearance, m; samples must keep ``d_min - CLEARANCE_TOL``.
+        vmax: (n,) velocity limits, rad/s.
+        amax: (n,) acceleration limits, rad/s^2.
+        dt: resampling step, s (1 ms).
+
+    Returns:
+        The :class:`DenseCheck`.
+    """
+    robot = env.robot
+    # knots already on a grid at least as fine as dt are checked as given (their qdd is exact)
+    dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
+    Q, QD, QDD = dense.q, dense.qd, dense.qdd
+    vmax = np.asarray(vmax, float)
+    amax = np.asarray(amax, float)
+    lo = np.flatnonzero(np.any(Q < robot.lower - 1e-9, 1) | np.any(Q > robot.upper + 1e-9, 1))
+    cap = d_min + 0.1
+    s = env.scratch
+    dmin, worst = K.samples_clearance(np.ascontiguousarray(Q), env.world, s.T, s.C, s.G, s.out, env.lever,
+                                      d_min + 0.01, cap)
+    n = len(Q)
+    if lo.size:
+        k = int(lo[0])
+        return DenseCheck(False, f"joint position limit exceeded at t = {dense.t[k]:.3f} s", "limit", dmin, n)
+    rv = np.max(np.abs(QD) / vmax, axis=0)
+    ra = np.max(np.abs(QDD) / amax, axis=0)
+    if rv.max() > 1 + LIMIT_TOL:
+        j = int(np.argmax(rv))
+        return DenseCheck(False, f"velocity limit of {robot.joint_names[j]} exceeded {rv[j]:.4f}x", "limit", dmin, n)
+    if ra.max() > 1 + LIMIT_TOL:
+        j = int(np.argmax(ra))
+        return DenseCheck(False, f"acceleration limit of {robot.joint_names[j]} exceeded {ra[j]:.4f}x", "limit",
+                          dmin, n)
+    if dmin < d_min - CLEARANCE_TOL:
+        c = env.contact(Q[worst], cap=cap)
+        return DenseCheck(False, f"{c.message(f'trajectory sample at t = {dense.t[worst]:.3f} s')} "
+                          f"(required {d_min * 1e3:.1f} mm - {CLEARANCE_TOL * 1e3:.0f} mm)", "collision", dmin, n)
+    return DenseCheck(True, "", "", float(dmin), n)
+
+
+def window_clearance(env: Environment, traj: Trajectory, W: tuple, t0: float, t1: float, *, d_min: float,
+                     dt: float = 1e-3) -> float:
+    """Smallest clearance in world ``W`` over the samples of ``traj`` with t0 <= t <= t1.
+
+    Args:
+        env: the environment (its scratch arrays and levers are used).
+        traj: the trajectory.
+        W: the packed world to check in (e.g. :attr:`Environment.world_cover`).
+        t0: window start, s.
+        t1: window end, s.
+        d_min: required clearance, m (sets the exactness floor as in :func:`check_dense`).
+        dt: resampling step, s.
+
+    Returns:
+        The clearance, m (``d_min + 0.1`` when the window is empty or far from everything).
+    """
+    dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
+    Q = np.ascontiguousarray(dense.q[(dense.t >= t0) & (dense.t <= t1)])
+    if len(Q) == 0:
+        return d_min + 0.1
+    s = env.scratch
+    d, _ = K.samples_clearance(Q, W, s.T, s.C, s.G, s.out, env.lever, d_min + 0.01, d_min + 0.1)
+    return float(d)
