@@ -201,10 +201,17 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     # the mesh-covering spheres where start and a goal allow them, else the spheres as given
     env.use("cover")
     hybrid = env.cover_meshes and not _roots_free(env, q0, goals, st.d_min)
-    if hybrid:  # edges at the start and goals in the fitted spheres, the rest in the covering ones
+    if hybrid:  # edges at the start and goals in spheres grown as far as they allow, the rest covering
         env.use("fitted")
+        lo, hi = 0.0, 1.0
+        if _roots_free(env, q0, goals, st.d_min):
+            for _ in range(8):
+                mid = 0.5 * (lo + hi)
+                env.use("fitted", blend=mid)
+                lo, hi = (mid, hi) if _roots_free(env, q0, goals, st.d_min) else (lo, mid)
+        env.use("fitted", blend=lo)
     Wc = env.world_cover
-    Wr = env.world_fitted if hybrid else Wc
+    Wr = env.world if hybrid else Wc
     env.check_free(q0, d_min=st.d_min, what="start configuration")
     ok = [env.clearance(g, cap=st.d_min + 1.0) >= st.d_min for g in goals]
     if not any(ok):
