@@ -211,3 +211,23 @@ def test_attached_object_and_any_arm():
         assert plan.success, plan.reason
         tr = plan.trajectory.resample(1e-3)
         assert min(e.clearance(q) for q in tr.q[::10]) >= 0.01 - 1e-3
+
+
+def test_covering_spheres_bound_the_exact_mesh_distance(mbm):
+    from robointel.planning.exact_geometry import MeshGeometry
+
+    p = _first_valid(mbm, "bookshelf_thin")
+    env = _env(mbm, p)
+    mg = MeshGeometry(env.robot, env.obstacles)
+    checked = 0
+    rng = np.random.default_rng(5)
+    for q in np.array(p["goals"][0]) + rng.normal(0.0, 0.1, (40, 6)):  # near a goal among the shelves
+        c = env.contact(q, cap=0.3)
+        if c.self_collision or c.distance >= 0.3:
+            continue
+        hull, _, _ = mg.clearance(q, cap=0.5, thresh=-1.0)  # hull distances (lower bounds)
+        mesh, _, _ = mg.clearance(q, cap=0.5, thresh=1.0)  # refined on the meshes
+        assert hull <= mesh + 1e-5  # (penetration depths are estimates in coal)
+        assert c.distance <= mesh + 1e-3  # the covering spheres never overstate the mesh clearance
+        checked += 1
+    assert checked >= 5
