@@ -89,7 +89,7 @@ def test_kernel_kinematics_match_pinocchio(mbm):
 def test_mbm_problem_planned_and_rechecked(mbm, family):
     p = _first_valid(mbm, family)
     env = _env(mbm, p)
-    plan = plan_motion(env.robot, env, p["start"], p["goals"], settings=MotionSettings(time_budget_s=5.0))
+    plan = plan_motion(env.robot, env, p["start"], p["goals"], settings=MotionSettings(time_budget_s=30.0))
     assert plan.success, plan.reason
     assert plan.failure is Failure.NONE and plan.reason == ""
     _recheck(env, plan, p["start"], p["goals"][0], 0.0)
@@ -98,7 +98,7 @@ def test_mbm_problem_planned_and_rechecked(mbm, family):
 def test_mbm_with_clearance_and_jerk_limit(mbm):
     p = _first_valid(mbm, "box", 1)
     env = _env(mbm, p)
-    st = MotionSettings(d_min=0.002, jerk_limited=True, time_budget_s=5.0)
+    st = MotionSettings(d_min=0.002, jerk_limited=True, time_budget_s=30.0)
     plan = plan_motion(env.robot, env, p["start"], p["goals"], settings=st)
     assert plan.success, plan.reason
     _recheck(env, plan, p["start"], p["goals"][0], 0.002)
@@ -121,7 +121,7 @@ def test_pose_goal_uses_ik_and_unreachable_pose_raises(mbm):
     env = _env(mbm, p)
     robot = env.robot
     target = robot.fk(np.array(p["goals"][0]))
-    plan = plan_motion(robot, env, p["start"], target, settings=MotionSettings(time_budget_s=5.0))
+    plan = plan_motion(robot, env, p["start"], target, settings=MotionSettings(time_budget_s=30.0))
     assert plan.success, plan.reason
     assert np.allclose(robot.fk(plan.trajectory.q[-1]), target, atol=1e-6)
     far = target.copy()
@@ -194,7 +194,7 @@ def test_point_cloud_matches_primitives_and_updates(mbm):
         assert dc >= db - 1e-9  # surface points lie in the solids
         if db > -0.01:  # outside (or barely inside) the solids the cloud is within its spacing
             assert dc <= db + 0.02
-    plan = plan_motion(env.robot, env_c, p["start"], p["goals"][0], settings=MotionSettings(time_budget_s=5.0))
+    plan = plan_motion(env.robot, env_c, p["start"], p["goals"][0], settings=MotionSettings(time_budget_s=30.0))
     assert plan.success, plan.reason
 
 
@@ -207,7 +207,27 @@ def test_attached_object_and_any_arm():
     q0 = np.array([0.9, 0.3, 0.0, 0.0, -0.5, 0.0])
     q1 = np.array([-0.9, 0.3, 0.0, 0.0, -0.5, 0.0])
     for e in (env, tool):
-        plan = plan_motion(robot, e, q0, q1, settings=MotionSettings(d_min=0.01, time_budget_s=5.0))
+        plan = plan_motion(robot, e, q0, q1, settings=MotionSettings(d_min=0.01, time_budget_s=30.0))
         assert plan.success, plan.reason
         tr = plan.trajectory.resample(1e-3)
         assert min(e.clearance(q) for q in tr.q[::10]) >= 0.01 - 1e-3
+
+
+def test_covering_spheres_bound_the_exact_mesh_distance(mbm):
+    from robointel.planning.exact_geometry import MeshGeometry
+
+    p = _first_valid(mbm, "bookshelf_thin")
+    env = _env(mbm, p)
+    mg = MeshGeometry(env.robot, env.obstacles)
+    checked = 0
+    rng = np.random.default_rng(5)
+    for q in np.array(p["goals"][0]) + rng.normal(0.0, 0.1, (40, 6)):  # near a goal among the shelves
+        c = env.contact(q, cap=0.3)
+        if c.self_collision or c.distance >= 0.3:
+            continue
+        hull, _, _ = mg.clearance(q, cap=0.5, thresh=-1.0)  # hull distances (lower bounds)
+        mesh, _, _ = mg.clearance(q, cap=0.5, thresh=1.0)  # refined on the meshes
+        assert hull <= mesh + 1e-5  # (penetration depths are estimates in coal)
+        assert c.distance <= mesh + 1e-3  # the covering spheres never overstate the mesh clearance
+        checked += 1
+    assert checked >= 5

@@ -199,20 +199,30 @@ class Environment:
         self._spheres = self._cover
         self.model = "cover"
 
-    def use(self, model: str) -> None:
+    def use(self, model: str, *, blend: float = 0.0) -> None:
         """Select the spheres checked against obstacles.
 
         Args:
             model: ``"cover"``: grown to cover the collision meshes (conservative); ``"fitted"``:
-                the spheres as given (may leave parts of the meshes uncovered).
+                the spheres as given (may leave parts of the meshes uncovered), or with ``blend``
+                in (0, 1) radii that far from the given ones toward the covering ones.
+            blend: see ``model``.
 
         Raises:
-            InvalidInput: another name.
+            InvalidInput: another name, or blend outside [0, 1].
         """
-        if model not in ("cover", "fitted"):
-            raise InvalidInput(f"sphere model must be 'cover' or 'fitted', got {model!r}", value=model)
-        self._spheres = self._cover if model == "cover" else self._fitted
-        self.model = model
+        if model not in ("cover", "fitted") or not 0.0 <= blend <= 1.0:
+            raise InvalidInput(f"sphere model must be 'cover' or 'fitted' with blend in [0, 1], got {model!r}, "
+                               f"{blend}", value=model)
+        if model == "cover":
+            self._spheres = self._cover
+        elif blend == 0.0:
+            self._spheres = self._fitted
+        else:
+            f, c = self._fitted, self._cover
+            self._spheres = f[:2] + ((1 - blend) * f[2] + blend * c[2],) + f[3:5] + \
+                ((1 - blend) * f[5] + blend * c[5],) + f[6:]
+        self.model = model if model == "cover" or blend == 0.0 else f"fitted+{blend:.2f}"
         self._rebuild()
 
     @property
@@ -220,10 +230,6 @@ class Environment:
         """The packed world with the mesh-covering spheres."""
         return self._chain + self._cover + self._prims + self._self + self._cloud + self._rel
 
-    @property
-    def world_fitted(self) -> tuple:
-        """The packed world with the spheres as given (for edges at a start or goal only they allow)."""
-        return self._chain + self._fitted + self._prims + self._self + self._cloud + self._rel
 
     def _rebuild(self) -> None:
         self.world = self._chain + self._spheres + self._prims + self._self + self._cloud + self._rel

@@ -23,6 +23,7 @@ from robointel.outcome import Failure
 from robointel.planning import _collision_kernels as K
 from robointel.planning import _rrt_kernels as R
 from robointel.planning.environment import Environment
+from robointel.planning.exact_geometry import MeshGeometry
 from robointel.planning.jerk_limited import jerk_limited_polyline
 from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, check_dense, window_clearance
 from robointel.planning.polyline_timing import polyline_timing
@@ -201,10 +202,17 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     # the mesh-covering spheres where start and a goal allow them, else the spheres as given
     env.use("cover")
     hybrid = env.cover_meshes and not _roots_free(env, q0, goals, st.d_min)
-    if hybrid:  # edges at the start and goals in the fitted spheres, the rest in the covering ones
+    if hybrid:  # edges at the start and goals in spheres grown as far as they allow, the rest covering
         env.use("fitted")
+        lo, hi = 0.0, 1.0
+        if _roots_free(env, q0, goals, st.d_min):
+            for _ in range(8):
+                mid = 0.5 * (lo + hi)
+                env.use("fitted", blend=mid)
+                lo, hi = (mid, hi) if _roots_free(env, q0, goals, st.d_min) else (lo, mid)
+        env.use("fitted", blend=lo)
     Wc = env.world_cover
-    Wr = env.world_fitted if hybrid else Wc
+    Wr = env.world if hybrid else Wc
     env.check_free(q0, d_min=st.d_min, what="start configuration")
     ok = [env.clearance(g, cap=st.d_min + 1.0) >= st.d_min for g in goals]
     if not any(ok):
@@ -217,27 +225,89 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
         raise InvalidInput(f"acceleration_limit must be ({robot.nq},) positive", value=amax)
     timings["validate"] = (time.perf_counter() - t0) * 1e3
 
+    deadline = time.perf_counter() + st.time_budget_s
+    attempt = 0
+    while True:
+        path, gi, traj, chk, why = _attempt(env, q0, goals, st, deadline, Wc, Wr, hybrid, vmax, amax, timings,
+                                            attempt)
+        if path is None:
+            return _fail(f"no collision-free path found: {why}", Failure.TIMEOUT, t0, timings)
+        assert chk is not None
+        # a start/goal edge that touches the real meshes: another tree may approach differently
+        if chk.ok or not hybrid or chk.kind != "collision" or time.perf_counter() >= deadline:
+            break
+        attempt += 1
+    goal_index = int(goal_ids[gi])
+    assert traj is not None and chk is not None
+    traj.meta.update({"min_clearance_m": chk.min_clearance_m, "goal_index": goal_index,
+                      "collision_model": env.model})
+    if not chk.ok:
+        fail = Failure.COLLISION if chk.kind == "collision" else Failure.LIMIT
+        return _fail(f"dense check failed: {chk.reason}", fail, t0, timings, path, traj, chk.min_clearance_m,
+                     goal_index)
+    return MotionPlan(True, "", Failure.NONE, traj, path, (time.perf_counter() - t0) * 1e3, timings,
+                      chk.min_clearance_m, goal_index)
+
+
+def _interior(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, st: MotionSettings,
+              chk: DenseCheck) -> DenseCheck:
+    """Check a trajectory planned with partially grown spheres at the start/goal edges.
+
+    Between the first and the last inner vertex it must clear the mesh-covering spheres; before
+    and after them (the start and goal edges) the exact distance to the collision meshes
+    (:class:`MeshGeometry`: convex hulls, refined on the meshes) must be >= max(d_min - 1 mm, 0).
+    """
+    i0, i1 = len(traj.q) - 1, 0
+    if len(path) >= 3:
+        i0 = int(np.argmin(np.linalg.norm(traj.q - path[1], axis=1)))
+        i1 = len(traj.q) - 1 - int(np.argmin(np.linalg.norm(traj.q[::-1] - path[-2], axis=1)))
+        d = window_clearance(env, traj, Wc, float(traj.t[i0]), float(traj.t[i1]), d_min=st.d_min, dt=st.check_dt)
+        if d < st.d_min - CLEARANCE_TOL:
+            return DenseCheck(False, f"the covering spheres come {d * 1e3:.1f} mm from the obstacles between "
+                              f"t = {traj.t[i0]:.3f} s and {traj.t[i1]:.3f} s", "collision",
+                              min(d, chk.min_clearance_m), chk.samples)
+    mg = MeshGeometry(env.robot, env.obstacles)
+    if mg.empty:
+        return chk
+    dense = traj if float(np.max(np.diff(traj.t))) <= st.check_dt * (1 + 1e-9) else traj.resample(st.check_dt)
+    t0, t1 = float(traj.t[i0]), float(traj.t[i1])
+    thr = max(st.d_min - CLEARANCE_TOL, 0.0)  # the real geometry may not be penetrated at all
+    for sel in (dense.t <= t0, dense.t >= t1):
+        Q = dense.q[sel]
+        if len(Q) == 0:
+            continue
+        d, k, link, obs = mg.samples_clearance(Q, env.lever, thresh=thr, cap=st.d_min + 0.1)
+        if d < thr:
+            return DenseCheck(False, f"collision-mesh check: link {link!r} is {d * 1e3:.2f} mm from {obs!r} at "
+                              f"t = {dense.t[sel][k]:.3f} s", "collision", min(d, chk.min_clearance_m), chk.samples)
+    return chk
+
+
+def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, deadline: float, Wc: tuple,
+             Wr: tuple, hybrid: bool, vmax: np.ndarray, amax: np.ndarray, timings: dict[str, float],
+             attempt: int) -> tuple[np.ndarray | None, int, Trajectory | None, DenseCheck | None, str]:
+    """One search, shortcut, timing and dense check: (path, goal, trajectory, check, why not)."""
+    robot = env.robot
     # global stage ----------------------------------------------------------------------------
     t1 = time.perf_counter()
-    deadline = t1 + st.time_budget_s
     path, gi, why = None, -1, ""
     res = float(st.search_resolution)
     while path is None:
-        path, gi, why = _search(env, q0, goals, st, res, deadline, Wc, Wr)
+        path, gi, why = _search(env, q0, goals, st, res, deadline, Wc, Wr, attempt)
         if path is None:
-            timings["search"] = (time.perf_counter() - t1) * 1e3
-            return _fail(f"no collision-free path found: {why}", Failure.TIMEOUT, t0, timings)
+            timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
+            return None, -1, None, None, why
         if _path_valid(env, path, st.d_min, st.resolution, Wc, Wr):
             break
         path, res = None, res / 4  # an edge failed the fine check: search again, finer
         if res < st.resolution:
             res = float(st.resolution)
-    timings["search"] = (time.perf_counter() - t1) * 1e3
+    timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
     t2 = time.perf_counter()
     s = env.scratch
     P = np.empty((max(len(path) * 2 + 64, 256), robot.nq))
     P[:len(path)] = path
-    R.seed(int(st.seed) + 1)
+    R.seed(int(st.seed) + 1 + 7 * attempt)
     m = R.shortcut(P, len(path), int(st.shortcut_iters), Wc, Wr, s.T, s.C, s.G, s.out, float(st.d_min), env.lever,
                    float(st.resolution))
     path = P[:m].copy()
@@ -245,7 +315,6 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     keep[-1] = True
     path = path[keep]
     timings["shortcut"] = (time.perf_counter() - t2) * 1e3
-    goal_index = int(goal_ids[gi])
 
     # timing and the dense check -------------------------------------------------------------
     t3 = time.perf_counter()
@@ -269,33 +338,7 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
         if chk.ok and hybrid:
             chk = _interior(env, traj, path, Wc, st, chk)
         timings["timing"] = (time.perf_counter() - t4) * 1e3
-    assert traj is not None and chk is not None
-    traj.meta.update({"min_clearance_m": chk.min_clearance_m, "goal_index": goal_index,
-                      "collision_model": env.model})
-    if not chk.ok:
-        fail = Failure.COLLISION if chk.kind == "collision" else Failure.LIMIT
-        return _fail(f"dense check failed: {chk.reason}", fail, t0, timings, path, traj, chk.min_clearance_m,
-                     goal_index)
-    return MotionPlan(True, "", Failure.NONE, traj, path, (time.perf_counter() - t0) * 1e3, timings,
-                      chk.min_clearance_m, goal_index)
-
-
-def _interior(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, st: MotionSettings,
-              chk: DenseCheck) -> DenseCheck:
-    """Check the trajectory against the mesh-covering spheres between the inner vertices.
-
-    Only the edges at the start and goal may rely on the fitted spheres.
-    """
-    if len(path) < 3:
-        return chk
-    i0 = int(np.argmin(np.linalg.norm(traj.q - path[1], axis=1)))
-    i1 = len(traj.q) - 1 - int(np.argmin(np.linalg.norm(traj.q[::-1] - path[-2], axis=1)))
-    d = window_clearance(env, traj, Wc, float(traj.t[i0]), float(traj.t[i1]), d_min=st.d_min, dt=st.check_dt)
-    if d >= st.d_min - CLEARANCE_TOL:
-        return chk
-    return DenseCheck(False, f"the covering spheres come {d * 1e3:.1f} mm from the obstacles between "
-                      f"t = {traj.t[i0]:.3f} s and {traj.t[i1]:.3f} s", "collision", min(d, chk.min_clearance_m),
-                      chk.samples)
+    return path, gi, traj, chk, ""
 
 
 _WARM: set[int] = set()
@@ -337,7 +380,7 @@ def _path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: fl
 
 
 def _search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, res: float,
-            deadline: float, W: tuple, Wr: tuple) -> tuple[np.ndarray | None, int, str]:
+            deadline: float, W: tuple, Wr: tuple, attempt: int = 0) -> tuple[np.ndarray | None, int, str]:
     """RRT-Connect from q0 to the goal set (a direct edge first): (path, goal index, why not).
 
     Nodes and edges are checked in ``W``, edges leaving the start or a goal in ``Wr``.
@@ -345,7 +388,7 @@ def _search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetti
     s = env.scratch
     thr, lever = float(st.d_min), env.lever
     for k, g in enumerate(goals):
-        if K.edge_valid(q0, g, Wr, s.T, s.C, s.G, s.out, thr, lever, res):
+        if attempt == 0 and K.edge_valid(q0, g, Wr, s.T, s.C, s.G, s.out, thr, lever, res):
             return np.array([q0, g]), k, ""
     n = len(q0)
     cap = int(st.max_nodes)
@@ -356,7 +399,7 @@ def _search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetti
     nodes[0, 0] = q0
     nodes[1, :len(goals)] = goals
     link = np.zeros(2, np.int64)
-    R.seed(int(st.seed))
+    R.seed(int(st.seed) + 7 * attempt)
     robot = env.robot
     status = 0
     while status == 0 and time.perf_counter() < deadline:
