@@ -12,7 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from robointel.cli import _load_commands, app
-from robointel.io.trajectory import Trajectory
+from robointel.trajectory import Trajectory
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from _mbm_checker import MBMChecker  # noqa: E402

@@ -40,7 +40,8 @@ def _objects(source: str, per_category: int = 4, seed: int = 0) -> dict:
 def _templates(objs: dict, db: Path | None = None, *, sampled: bool = False):
     """One template per category (its first instance). Taught grasps: written per category for the
     generated objects; for scans (``sampled=True``) the best top-down grasps sampled on the template's
-    full model stand in for the human demonstration (toy arms keep their written grasps)."""
+    full model stand in for the human demonstration (toy arms keep their written grasps).
+    """
     from robointel.io.grasp_db import GraspDatabase
     from robointel.learning.grasp import Template, sample_points, sampled_grasps, taught_grasps
 
@@ -217,7 +218,8 @@ def classify_cmd(category: str = typer.Option("cup", help="category of the rando
 def transfer(category: str = typer.Option("cup"), seed: int = typer.Option(0), source: str = typer.Option("demo"),
              db: Path = typer.Option(None), out: Path = typer.Option(Path("grasp_transfer.png"), help="3D picture")) -> None:
     """Classify, register, transfer the taught grasps (6.14)-(6.16), score them (6.20) and run the
-    orientation search (6.21) with the LR Mate's IK; draws template, warped template, target and grasps."""
+    orientation search (6.21) with the LR Mate's IK; draws template, warped template, target and grasps.
+    """
     from robointel.learning.grasp import GraspPlanner
 
     _check_db(db)
@@ -280,8 +282,15 @@ def register(app: typer.Typer) -> None:
 
 def demo_stage(ctx: StageContext) -> StageResult:
     """Grasping (Ch. 6) on generated objects: CPD time, classification, transfer and MuJoCo trials."""
-    from robointel.learning.grasp import (GraspPlanner, confusion_matrix, cpd_nonrigid, grasp_trial,
-                                          primitive_object, random_placements, sample_points)
+    from robointel.learning.grasp import (
+        GraspPlanner,
+        confusion_matrix,
+        cpd_nonrigid,
+        grasp_trial,
+        primitive_object,
+        random_placements,
+        sample_points,
+    )
 
     ctx.advance(0.02, "objects")
     per = 2 if ctx.quick else 4

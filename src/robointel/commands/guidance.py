@@ -106,7 +106,8 @@ def _reproduce(res, out: Path):
 
 def demo_stage(ctx: StageContext) -> StageResult:
     """Scenario II (operator pushes into the upper bar on purpose) with the QP method in MuJoCo;
-    the repulsive-vector baseline beside it unless ``ctx.quick``."""
+    the repulsive-vector baseline beside it unless ``ctx.quick``.
+    """
     from robointel.errors import RobointelError
     from robointel.programming.scenarios import plot_scenario, run_scenario
 

@@ -148,7 +148,7 @@ def plot_grinding(plate, skill, res, path: Path) -> Path:
 
 def run_insertion(out: Path, *, demos: int, labelled: int, trials: int, seed: int = 0, progress=None,
                   save: Path | None = None) -> dict:
-    """demonstrate -> learn -> reproduce; returns figures and plot paths."""
+    """Demonstrate -> learn -> reproduce; returns figures and plot paths."""
     from robointel.learning import insertion as I
     from robointel.learning.rltt import learn_insertion
 

@@ -15,7 +15,8 @@ from robointel.report.demo import Figure, StageContext, StageResult
 
 def plot_joint_profiles(result, path: Path) -> Path:
     """Joint positions, velocities and accelerations of the FRMP trajectory (solid) and of the
-    fixed-dt schedule through the same path (dashed), with the limits."""
+    fixed-dt schedule through the same path (dashed), with the limits.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -63,7 +64,8 @@ def _box_faces(box):
 
 def plot_path_3d(result, path: Path) -> Path:
     """3D picture: the tool path of the FRMP trajectory, the straight joint-space reference (grey),
-    the waypoints and the obstacles."""
+    the waypoints and the obstacles.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -227,9 +229,9 @@ def register(app) -> None:
                      time_budget_s=time_budget, d_min=d_min, console=console)
             return
         from robointel.errors import RobointelError
-        from robointel.planning.scene import load_scene
         from robointel.planning.frmp import execute as run_in_sim
         from robointel.planning.frmp import plan_scene
+        from robointel.planning.scene import load_scene
 
         try:
             sc = load_scene(scene)
@@ -288,9 +290,9 @@ def demo_stage(ctx: StageContext) -> StageResult:
     import time
 
     from robointel.geometry import Sphere
-    from robointel.planning.scene import load_scene
     from robointel.planning.frmp import execute, make_planners, plan_scene, planner_settings
     from robointel.planning.replan import receding_horizon
+    from robointel.planning.scene import load_scene
 
     ctx.advance(0.02, "loading the Table 7.1 scene")
     scene = load_scene("table71")

@@ -1,5 +1,6 @@
 """Teaching interfaces (Ch. 3.2, 3.4): ``robointel imitate``, ``robointel teleop`` and the imitation
-demo stage (synthetic skeleton -> LR Mate kinematic imitation in MuJoCo + SCARA LQ tracking)."""
+demo stage (synthetic skeleton -> LR Mate kinematic imitation in MuJoCo + SCARA LQ tracking).
+"""
 from __future__ import annotations
 
 import time
@@ -19,7 +20,8 @@ console = Console()
 
 def resolve_recording(name: str):
     """A skeleton from a path (.csv Kinect / .bvh), a recording name in the reference data
-    (``Ges01_wavehand``, ``joints``), or ``synthetic`` (generated arm wave)."""
+    (``Ges01_wavehand``, ``joints``), or ``synthetic`` (generated arm wave).
+    """
     from robointel.io.reference import data_path
     from robointel.programming.skeleton import load_skeleton, synthetic_wave
 
@@ -41,7 +43,8 @@ def register(app: typer.Typer) -> None:
                 latency: float = typer.Option(0.1, help="Kinect latency for the SCARA run [s]")) -> None:
         """Imitate a recorded human arm: LR Mate kinematic imitation (3.1) in MuJoCo, optionally SCARA
         computed-torque LQ tracking (3.7)-(3.9): live with the Kinect latency, with and without delay
-        compensation, and offline replay of the recording; writes plots."""
+        compensation, and offline replay of the recording; writes plots.
+        """
         from robointel.programming.imitation import kinematic_imitation, plot_imitation, simulate_imitation
         from robointel.robot import Robot
 
@@ -64,9 +67,15 @@ def register(app: typer.Typer) -> None:
             console.print(f"TCP RMS to the scaled hand path: {run.tcp_rms * 1000:.1f} mm; "
                           f"unreachable frames: {int((~run.plan.reachable).sum())}; plot: {out / 'lrmate_imitation.png'}")
             if scara:
-                from robointel.programming.scara import (PAPER_RMS, PAPER_RMS_COMPENSATED, SMOOTH_HZ,
-                                                         delay_aligned_rms, plot_scara, simulate_scara,
-                                                         training_predictor)
+                from robointel.programming.scara import (
+                    PAPER_RMS,
+                    PAPER_RMS_COMPENSATED,
+                    SMOOTH_HZ,
+                    delay_aligned_rms,
+                    plot_scara,
+                    simulate_scara,
+                    training_predictor,
+                )
 
                 with console.status("SCARA LQ tracking in MuJoCo"):
                     ar, fitted_on = training_predictor(skel.source, latency=latency)
@@ -105,7 +114,8 @@ def register(app: typer.Typer) -> None:
                program: Path = typer.Option(Path("teleop_program.yaml"), help="where 'Save program' writes"),
                duration: float = typer.Option(0.0, help="stop after this many seconds (0: until Ctrl-C)")) -> None:
         """Serve the teleoperation page (viser) and the robot streaming interface (WebSocket) on the
-        simulated LR Mate; programs saved from the page load with `robointel plan`."""
+        simulated LR Mate; programs saved from the page load with `robointel plan`.
+        """
         from robointel.programming.streaming import StreamingController, StreamingServer
         from robointel.programming.teleop import TeleopApp
 
@@ -139,10 +149,18 @@ def register(app: typer.Typer) -> None:
 
 def demo_stage(ctx: StageContext) -> StageResult:
     """Imitation stage on a SYNTHETIC arm-waving skeleton (generated BVH with a simulated Kinect
-    dropout), so it runs without the reference data."""
+    dropout), so it runs without the reference data.
+    """
     from robointel.programming.imitation import kinematic_imitation, plot_imitation, simulate_imitation
-    from robointel.programming.scara import (PAPER_RMS, PAPER_RMS_COMPENSATED, SMOOTH_HZ, delay_aligned_rms,
-                                             fit_predictor, plot_scara, simulate_scara)
+    from robointel.programming.scara import (
+        PAPER_RMS,
+        PAPER_RMS_COMPENSATED,
+        SMOOTH_HZ,
+        delay_aligned_rms,
+        fit_predictor,
+        plot_scara,
+        simulate_scara,
+    )
     from robointel.programming.skeleton import clean, synthetic_wave
     from robointel.robot import Robot
 

@@ -12,7 +12,7 @@ from ruckig import Trajectory as RuckigTrajectory
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput, SolverFailure
-from robointel.io.trajectory import Trajectory
+from robointel.trajectory import Trajectory
 
 
 def jerk_limited_polyline(path: npt.ArrayLike, vmax: npt.ArrayLike, amax: npt.ArrayLike, jmax: npt.ArrayLike,

@@ -18,7 +18,6 @@ import numpy as np
 import numpy.typing as npt
 
 from robointel.errors import IKFailure, InvalidInput
-from robointel.io.trajectory import Trajectory
 from robointel.outcome import Failure
 from robointel.planning import _collision_kernels as K
 from robointel.planning import _rrt_kernels as R
@@ -29,6 +28,7 @@ from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, check_den
 from robointel.planning.polyline_timing import polyline_timing
 from robointel.planning.temporal import temporal_optimize
 from robointel.robot.model import Robot
+from robointel.trajectory import Trajectory
 
 #: random seeds of the numeric IK for a pose goal (each distinct solution joins the goal set)
 IK_SEEDS = 32
@@ -322,7 +322,8 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     traj, chk = None, None
     if st.smooth and not st.jerk_limited and len(path) > 2:
         tr = temporal_optimize(_densify(path, float(st.knot_step)), vmax, amax)
-        traj = Trajectory(tr.t, tr.q, tr.qd, tr.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
+        tt = tr.trajectory
+        traj = Trajectory(tt.t, tt.q, tt.qd, tt.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
         chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
         if chk.ok and hybrid:
             chk = _interior(env, traj, path, Wc, st, chk)

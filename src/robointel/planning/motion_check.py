@@ -11,9 +11,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from robointel.io.trajectory import Trajectory
 from robointel.planning import _collision_kernels as K
 from robointel.planning.environment import Environment
+from robointel.trajectory import Trajectory
 
 #: clearance tolerance of the dense check below d_min, m
 CLEARANCE_TOL = 1e-3

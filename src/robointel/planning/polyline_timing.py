@@ -10,7 +10,7 @@ import numpy.typing as npt
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
-from robointel.io.trajectory import Trajectory
+from robointel.trajectory import Trajectory
 
 
 def _segment(delta: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> tuple[float, float, float]:

@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -169,7 +169,8 @@ class TeleopApp:
     # ------------------------------------------------------------------ logic (no browser needed)
     def move_hand(self, position, wxyz) -> bool:
         """The operator's hand moved: IK closest to the current target; stream it when reachable.
-        Returns whether the pose is reachable (unreachable poses are never sent)."""
+        Returns whether the pose is reachable (unreachable poses are never sent).
+        """
         p = as_array(position, "position", (3,))
         R = _matrix(as_array(wxyz, "wxyz", (4,)))
         T = np.eye(4)
@@ -195,7 +196,8 @@ class TeleopApp:
     def _send(self, q) -> bool:
         """Stream a joint target through the controller's checks (control, latch, limits, table,
         floor and self-collision); a refusal is shown on the page and nothing moves. Returns whether
-        the controller accepted it."""
+        the controller accepted it.
+        """
         if not self._authed:
             return False
         if self.controller.owner != self.client:
@@ -234,7 +236,8 @@ class TeleopApp:
 
     def replay(self, *, timeout_per_waypoint: float = 10.0, dwell: float = 0.2) -> list[float]:
         """Drive the robot through the recorded waypoints (streaming each until reached).
-        Returns the joint error [rad] at each waypoint when it was declared reached."""
+        Returns the joint error [rad] at each waypoint when it was declared reached.
+        """
         with self._lock:
             program = [w.copy() for w in self.waypoints]
             self.replaying = True
@@ -408,7 +411,8 @@ class TeleopApp:
 
     def _stream_loop(self) -> None:
         """Keep the live target alive while a browser is connected: when the last page closes
-        (or its link dies) the stream stops and the controller's deadman brings the robot to rest."""
+        (or its link dies) the stream stops and the controller's deadman brings the robot to rest.
+        """
         while self._running:
             with self._lock:
                 q = None if (self.replaying or self.desired is None) else self.desired.copy()
@@ -416,7 +420,7 @@ class TeleopApp:
                 self._send(q)
             time.sleep(1.0 / self.stream_hz)
 
-    def start(self) -> "TeleopApp":
+    def start(self) -> TeleopApp:
         import viser
 
         self._syncing = False

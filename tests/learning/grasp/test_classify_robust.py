@@ -5,8 +5,14 @@ import pytest
 import trimesh
 
 from robointel.errors import InvalidInput
-from robointel.learning.grasp.classify import (Template, classify, fit_template, footprint_rectangle,
-                                               normal_obliqueness, yaw_matrix)
+from robointel.learning.grasp.classify import (
+    Template,
+    classify,
+    fit_template,
+    footprint_rectangle,
+    normal_obliqueness,
+    yaw_matrix,
+)
 
 
 def _visible(mesh: trimesh.Trimesh, n: int, seed: int, yaw: float, at=(0.5, 0.1, 0.0)) -> np.ndarray:

@@ -6,8 +6,7 @@ from robointel.errors import InvalidInput
 from robointel.learning.grasp.classify import Template, classify, confusion_matrix, yaw_matrix
 from robointel.learning.grasp.cpd import AffineWarp, RigidWarp, cpd_nonrigid
 from robointel.learning.grasp.objects import primitive_object, sample_points, taught_grasps
-from robointel.learning.grasp.quality import (OFF_AXIS, SLIP, TOO_WIDE, ParallelGripper, estimate_normals,
-                                              grasp_quality)
+from robointel.learning.grasp.quality import OFF_AXIS, SLIP, TOO_WIDE, ParallelGripper, estimate_normals, grasp_quality
 from robointel.learning.grasp.search import orientation_search
 from robointel.learning.grasp.transfer import Grasp, grasp_from_axis, nearest_rotation, transfer_grasp
 

@@ -4,10 +4,24 @@ import numpy as np
 import pytest
 
 from robointel.errors import DataMissing, InvalidInput
+from robointel.learning.grasp import (
+    GraspPlanner,
+    Placement,
+    Template,
+    default_cameras,
+    depth_image,
+    grasp_trial,
+    perceive,
+    primitive_object,
+    random_placements,
+    sample_points,
+    scene_xml,
+    taught_grasps,
+    toy_arm,
+    voxel_downsample,
+    ycb_object,
+)
 from robointel.learning.grasp_database import GraspDatabase
-from robointel.learning.grasp import (GraspPlanner, Placement, Template, default_cameras, depth_image, grasp_trial,
-                                      perceive, primitive_object, random_placements, sample_points, scene_xml,
-                                      split_convex, taught_grasps, toy_arm, voxel_downsample, ycb_object)
 
 
 def test_grasp_db_roundtrip(tmp_path):

@@ -9,8 +9,8 @@ target's category is that of the template with the smallest score.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -28,7 +28,8 @@ __all__ = ["Template", "ComposedWarp", "Fit", "Classification", "fit_template", 
 @dataclass
 class Template:
     """A taught object: ``points`` (M, 3) in its own frame (metres), taught ``grasps`` in that frame,
-    its ``category`` and ``name``."""
+    its ``category`` and ``name``.
+    """
 
     name: str
     category: str
@@ -82,7 +83,8 @@ class Fit:
     shape)``), the symmetric mean nearest-neighbour ``distance`` (6.17)-(6.19) (m), the ``normals``
     disagreement (see :func:`normal_disagreement`), the ``shape`` difference (absolute difference of
     the :func:`normal_obliqueness` of the warped template and of the target), the warped (subsampled)
-    template ``warped`` and the CPD results."""
+    template ``warped`` and the CPD results.
+    """
 
     template: Template
     warp: ComposedWarp
@@ -106,7 +108,8 @@ def normal_disagreement(A: np.ndarray, B: np.ndarray, k: int = 10) -> float:
     ``B`` (m, 3), normals by PCA of ``k`` neighbours (sign-free): 0 when the surfaces are parallel
     wherever they meet, up to 1. Shape information the point distance misses: a smooth warp can pull
     a can's flat lid into a cup's open top, or round a box, and land close to every point, but the
-    surface directions then disagree."""
+    surface directions then disagree.
+    """
     from robointel.learning.grasp.quality import estimate_normals
 
     nA, nB = estimate_normals(A, k), estimate_normals(B, k)
@@ -123,7 +126,8 @@ def normal_obliqueness(P: np.ndarray, k: int = 10) -> float:
     sphere gives 2/3 (``|n_z|`` is uniform over a sphere; 0.65 from PCA normals of 800 samples)
     whatever its size or heading, upright boxes and cylinders under 0.2 (only edges and rims count).
     A ball template squashed by a smooth warp onto a flat tuna can lands close to every point and its
-    local normals follow, but it keeps rounded shoulders. Dimensionless, in [0, 1]."""
+    local normals follow, but it keeps rounded shoulders. Dimensionless, in [0, 1].
+    """
     from robointel.learning.grasp.quality import estimate_normals
 
     z = np.abs(estimate_normals(as_array(P, "points", (None, 3)), k)[:, 2])
@@ -137,7 +141,8 @@ def footprint_rectangle(points, percentile: float = 2.0) -> tuple[float, np.ndar
     rectangle's heading ``angle`` (rad, in [0, pi/2)) is that of the hull edge giving the smallest
     area. Returns ``(angle, extents)``, ``extents`` (3,) the robust extents (``percentile`` to
     ``100 - percentile``) of the points along the rectangle's two axes and along z. Degenerate
-    footprints (fewer than 3 distinct points, collinear) give angle 0."""
+    footprints (fewer than 3 distinct points, collinear) give angle 0.
+    """
     from scipy.spatial import ConvexHull, QhullError
 
     P = as_array(points, "points", (None, 3))
@@ -230,7 +235,8 @@ def fit_template(target, template: Template, *, n_points: int = 200, yaw_steps: 
     placements per seed. The shape term without the footprint starts: 132, 133, 135, 134 (the
     diagonal wood blocks read as cans again: 2, 2, 0, 2). The benchmark's seed 2018, run once after
     these choices: 131/140 before, 137/140 after (cans 17/20, 3 read as boxes; boxes 20/20 from 17/20;
-    every other category 20/20)."""
+    every other category 20/20).
+    """
     X = as_array(target, "target", (None, 3))
     if len(X) < 4:
         raise InvalidInput(f"target cloud has {len(X)} points; need at least 4", value=len(X))

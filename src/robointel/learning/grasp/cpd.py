@@ -170,7 +170,8 @@ def single_thread_blas():
 
     The ``threadpoolctl`` controller is built once (the first call) and reused: building it scans
     the process's loaded libraries, ~3-7 ms a call, a third of a whole 1k-point registration.
-    BLAS libraries loaded after the first call are not limited (numpy's and scipy's are loaded by then)."""
+    BLAS libraries loaded after the first call are not limited (numpy's and scipy's are loaded by then).
+    """
     global _BLAS_CONTROLLER
     try:
         from threadpoolctl import ThreadpoolController
@@ -228,7 +229,7 @@ def _normalise(P: np.ndarray, name: str):
 
 
 def _init_sigma2(X: np.ndarray, Y: np.ndarray) -> float:
-    """pycpd's sigma2 = sum |x_n - y_m|^2 / (D M N), in closed form."""
+    """Pycpd's sigma2 = sum |x_n - y_m|^2 / (D M N), in closed form."""
     N, D = X.shape
     M = Y.shape[0]
     sx, sy = X.sum(0), Y.sum(0)
@@ -344,7 +345,8 @@ def _estep_kernel(x0, x1, x2, y0, y1, y2, inv2s2, c, pt1, s0, s1, s2, s3, kb, ib
 @numba.njit(parallel=True, cache=True)
 def _estep_chunks(x0, x1, x2, y0, y1, y2, inv2s2, c, pt1, S, KB, IB):  # pragma: no cover - numba
     """The fused E-step on ``S.shape[0]`` threads: chunk j of the targets accumulates into S[j]
-    (4, M) with its own kernel buffers KB[j], IB[j]; the caller sums S over the chunks."""
+    (4, M) with its own kernel buffers KB[j], IB[j]; the caller sums S over the chunks.
+    """
     C = S.shape[0]
     N = x0.shape[0]
     for j in numba.prange(C):

@@ -124,7 +124,8 @@ def _ring(r_in: float, r_out: float, z0: float, z1: float, segments: int) -> lis
 
 def primitive_object(category: str, rng: np.random.Generator | int = 0, name: str | None = None) -> ObjectModel:
     """A generated object of ``category`` ("cup", "can", "box", "ball", "long_tool") with random
-    proportions (seeded ``rng``). Sizes fit a 48 mm gripper where the category's taught grasp needs it."""
+    proportions (seeded ``rng``). Sizes fit a 48 mm gripper where the category's taught grasp needs it.
+    """
     rng = np.random.default_rng(rng)
     name = name or f"{category}-{int(rng.integers(1 << 30))}"
     if category == "cup":
@@ -173,7 +174,8 @@ def toy_arm(q=None, *, robot: str = "ur5", height: float = 0.25, rng: np.random.
             name: str | None = None) -> ObjectModel:
     """A robot arm from ``example-robot-data`` posed at joint angles ``q`` (random within a safe band
     of its limits when None, seeded by ``rng``), its collision meshes merged and scaled so that its
-    base-to-top height at the home pose is about ``height`` metres (a toy manipulator)."""
+    base-to-top height at the home pose is about ``height`` metres (a toy manipulator).
+    """
     import pinocchio as pin
 
     from robointel.robot.model import _example_robot_data_dir
@@ -235,7 +237,8 @@ def taught_grasps(obj: ObjectModel) -> list[Grasp]:
     """The demonstrated grasps of a category template (object frame), a few per object as a human
     would teach them: cups on the rim wall at four places, cans and balls across from above in two
     directions, boxes across the narrow side at three places, long tools across the handle at three
-    places, toy arms around the upper arm in four directions, clamps across the body."""
+    places, toy arms around the upper arm in four directions, clamps across the body.
+    """
     b = obj.mesh.bounds
     ext = b[1] - b[0]
     h = b[1, 2]
@@ -287,7 +290,8 @@ def sampled_grasps(obj: ObjectModel, n: int = 3, *, gripper=None, samples: int =
     stand-in for a human's demonstration on the template). Candidates pass through a surface point and
     close along the horizontal part of its normal; they are re-centred between the contacts, scored by
     (6.20) and must not collide with the object or the table. Distinct grasps are at least
-    ``min_separation`` m apart. Object frame."""
+    ``min_separation`` m apart. Object frame.
+    """
     from robointel.learning.grasp.quality import ParallelGripper, estimate_normals, grasp_quality
 
     gripper = gripper or ParallelGripper()
@@ -323,7 +327,8 @@ def sampled_grasps(obj: ObjectModel, n: int = 3, *, gripper=None, samples: int =
 
 def demo_objects(per_category: int = 4, seed: int = 0, *, arms: bool = True) -> dict[str, list[ObjectModel]]:
     """Objects that need no shared data: primitives of five categories with varied proportions and
-    toy UR5 arms at random joint angles (``per_category`` instances each)."""
+    toy UR5 arms at random joint angles (``per_category`` instances each).
+    """
     rng = np.random.default_rng(seed)
     out = {c: [primitive_object(c, rng, f"{c}{i}") for i in range(per_category)]
            for c in ("cup", "can", "box", "ball", "long_tool")}

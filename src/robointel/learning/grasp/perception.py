@@ -72,7 +72,8 @@ def depth_image(model: mujoco.MjModel, data: mujoco.MjData, cam: DepthCamera, rn
     """Ray-cast range along each pixel ray (H, W) in metres; NaN where nothing is hit or dropped.
 
     Noise (when ``cam.noise``): axial Gaussian noise growing with depth, 1 mm quantisation and random
-    drop-outs."""
+    drop-outs.
+    """
     rng = np.random.default_rng(rng)
     vec = cam.rays()
     n = vec.shape[0]
@@ -119,7 +120,8 @@ def voxel_downsample(points, voxel: float = 0.005) -> np.ndarray:
 
 def cluster_objects(points, *, eps: float = 0.02, min_samples: int = 8, min_points: int = 30) -> list[np.ndarray]:
     """DBSCAN (scikit-learn) clusters of the foreground points, largest first; noise and clusters
-    smaller than ``min_points`` are dropped."""
+    smaller than ``min_points`` are dropped.
+    """
     P = as_array(points, "points", (None, 3))
     if len(P) == 0:
         return []
@@ -132,7 +134,8 @@ def cluster_objects(points, *, eps: float = 0.02, min_samples: int = 8, min_poin
 def perceive(model, data, cameras: list[DepthCamera], backgrounds: list[np.ndarray], *, voxel: float = 0.005,
              rng=None, table_z: float = 0.0, min_height: float = 0.004) -> list[np.ndarray]:
     """The Fig. 6.4 pipeline: depth from each camera, background removal, merge, drop points at the
-    table plane, DBSCAN, voxel downsampling. Returns one (k, 3) cloud per object, largest first."""
+    table plane, DBSCAN, voxel downsampling. Returns one (k, 3) cloud per object, largest first.
+    """
     rng = np.random.default_rng(rng)
     pts = [foreground_points(depth_image(model, data, c, rng), b, c) for c, b in zip(cameras, backgrounds)]
     P = np.vstack(pts) if pts else np.zeros((0, 3))

@@ -53,7 +53,8 @@ def carve_above_seen(completion: np.ndarray, observed: np.ndarray, *, radius: fl
     target (a fork) otherwise left template points floating above and beside the handle, and jaws
     planned on them closed on nothing. ``margin`` and ``footprint`` cover the 5 mm voxels (a voxel
     mean sits up to 2.5 mm inside the surface) and the depth noise. Assumes no undercut wider than
-    the object's top (objects lying or standing on the table)."""
+    the object's top (objects lying or standing on the table).
+    """
     W = np.asarray(completion, float)
     X = np.asarray(observed, float)
     if len(W) == 0 or len(X) == 0:
@@ -72,7 +73,8 @@ def carve_above_seen(completion: np.ndarray, observed: np.ndarray, *, radius: fl
 @dataclass
 class GraspPlan:
     """A planned grasp: the classification, the transferred grasps, the chosen search result and the
-    wall-clock time of each step (s)."""
+    wall-clock time of each step (s).
+    """
 
     classification: Classification
     transferred: list[Grasp]
@@ -136,7 +138,8 @@ class GraspPlanner:
     def _transfer(self, fit, g: Grasp, cloud: np.ndarray) -> Grasp:
         """(6.14)-(6.16) through the fitted warp, optionally followed by a local rigid CPD of the
         template's neighbourhood of the grasp (radius ``local_radius``) onto the target's, which keeps
-        grasps on articulated or locally different parts where a smooth global warp lags."""
+        grasps on articulated or locally different parts where a smooth global warp lags.
+        """
         h = transfer_grasp(fit.warp, g)
         r = self.local_radius
         if not r:
@@ -158,7 +161,8 @@ class GraspPlanner:
 
     def plan(self, cloud, exclude=()) -> GraspPlan:
         """Plan a grasp on ``cloud`` (n, 3) in the world frame; classifying templates named in
-        ``exclude`` are left out (a held-out target is never its own template)."""
+        ``exclude`` are left out (a held-out target is never its own template).
+        """
         with single_thread_blas():
             return self._plan(cloud, set(exclude))
 
@@ -223,7 +227,8 @@ class GraspPlanner:
 class TrialResult:
     """One lift-and-shake trial: ``success``, the planned ``plan`` (None if perception failed),
     the predicted ``category``, the object's final height (m), a ``reason`` and a ``log``: the state at
-    the end of each phase (:data:`PHASES`; see :func:`_phase_state`)."""
+    the end of each phase (:data:`PHASES`; see :func:`_phase_state`).
+    """
 
     success: bool
     reason: str
@@ -243,7 +248,8 @@ def _phase_state(m, d, phase: str, body: int, gbody: int, fingers: set, fp: int,
     frame ``obj_in_gripper`` (m, (3,)); its height ``obj_z`` (m); the lowest fingertip corner's height
     ``fingertip_z`` (m, world); the jaw opening ``opening`` (m); the
     summed normal force of the finger-object contacts ``grip_normal_N`` (N) and their summed
-    tangential (friction) force ``grip_tangential_N`` (N); ``contacts`` (count)."""
+    tangential (friction) force ``grip_tangential_N`` (N); ``contacts`` (count).
+    """
     R = d.xmat[gbody].reshape(3, 3)
     rel = R.T @ (d.xpos[body] - d.xpos[gbody])
     fn = ft = 0.0
@@ -285,7 +291,8 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
     joint servos track the planned joint path (park -> pre-grasp 8 cm back along the approach ->
     grasp -> close -> lift 10 cm -> shake with J1 and J6), its links collide with the table and the
     object, and the held object loads its joints. ``arm=False``: the earlier simplification, the
-    gripper alone follows the forward kinematics of the same joint path (a mocap weld), no arm links."""
+    gripper alone follows the forward kinematics of the same joint path (a mocap weld), no arm links.
+    """
     rng = np.random.default_rng(rng)
     g = planner.gripper
     cams = cameras or default_cameras()
@@ -407,7 +414,8 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
 def perceived_template(obj: ObjectModel, *, rng=0, cameras=None, placement: Placement | None = None) -> np.ndarray:
     """The template cloud as the cameras see it at teach time: ``obj`` placed at ``placement``
     (default: workspace centre, heading 0), perceived (Fig. 6.4 pipeline) and mapped back into the
-    object frame (n, 3). Templates and targets then share the cameras' viewpoints and sampling."""
+    object frame (n, 3). Templates and targets then share the cameras' viewpoints and sampling.
+    """
     rng = np.random.default_rng(rng)
     cams = cameras or default_cameras()
     p = placement or Placement(obj, 0.5, 0.0, 0.0)

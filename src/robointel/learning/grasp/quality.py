@@ -75,7 +75,8 @@ class ParallelGripper:
     def collides(self, grasp: Grasp, cloud: np.ndarray, *, opening: float | None = None, margin: float = 0.001,
                  table_z: float | None = None) -> bool:
         """True when any cloud point is inside a finger or the palm (grown by ``margin``), or a box
-        reaches below the table plane ``z = table_z`` (world frame)."""
+        reaches below the table plane ``z = table_z`` (world frame).
+        """
         local = (np.asarray(cloud, float) - grasp.centre) @ grasp.rotation
         for c, size in self.boxes(opening):
             h = size / 2 + margin
@@ -93,7 +94,8 @@ class ParallelGripper:
 class GraspQuality:
     """Result of :func:`grasp_quality`: ``quality`` (isotropy in [0, 1], or a negative code),
     ``reason``, the two ``contacts`` (2, 3), outward ``normals`` (2, 3), ``width`` (m) and the
-    re-centred grasp (centre at the contacts' midpoint)."""
+    re-centred grasp (centre at the contacts' midpoint).
+    """
 
     quality: float
     reason: str
@@ -105,7 +107,8 @@ class GraspQuality:
 
 def estimate_normals(cloud, k: int = 12, *, viewpoint=None, tree: cKDTree | None = None) -> np.ndarray:
     """Unit normals (n, 3) by PCA of the ``k`` nearest neighbours, oriented away from the centroid
-    (or toward ``viewpoint``)."""
+    (or toward ``viewpoint``).
+    """
     P = as_array(cloud, "cloud", (None, 3))
     if len(P) < 3:
         raise InvalidInput(f"need at least 3 points to estimate normals, got {len(P)}", value=P.shape)
@@ -127,7 +130,8 @@ def grasp_map(contacts: np.ndarray, normals: np.ndarray, centre: np.ndarray, *, 
               mu_t: float = 0.3, edges: int = 4, length: float | None = None) -> np.ndarray:
     """The grasp map G (6, 2 (edges + 2)): friction-cone edge forces and soft-finger torsion about
     ``centre``; torques divided by ``length`` (default half the contact distance) to be unit-free.
-    ``normals`` point out of the object; contact forces push along -normal."""
+    ``normals`` point out of the object; contact forces push along -normal.
+    """
     contacts = np.asarray(contacts, float)
     normals = np.asarray(normals, float)
     L = length or max(0.5 * float(np.linalg.norm(contacts[0] - contacts[1])), 1e-3)
@@ -167,7 +171,8 @@ def _rim_normal(contact: np.ndarray, mean: np.ndarray, face: np.ndarray, closing
     Used only when the face normal is more than 60 deg from the closing axis (a jaw sliding along the
     face) and the contact is a boundary: the in-plane offset is at least a quarter of ``radius`` (m)
     and points outward along the closing axis; otherwise ``face`` is returned unchanged (and the
-    friction-cone check of (6.20) decides, e.g. SLIP for a slanted face)."""
+    friction-cone check of (6.20) decides, e.g. SLIP for a slanted face).
+    """
     d = contact - mean
     d = d - (d @ face) * face
     nd = float(np.linalg.norm(d))

@@ -142,7 +142,8 @@ def arm_scene(placements: list[Placement], robot, gripper: ParallelGripper, *, t
     (MuJoCo ``gravcomp``, the controller's gravity feed-forward); the held object is a real payload.
     Actuators: ``arm/joint_1..6`` (joint angle, rad) then ``arm/afp``, ``arm/afn`` (finger travel, m;
     0 = open). ``obstacles``: ``robointel.geometry`` shapes added as static bodies ``obstacle/<name>``
-    (fixtures the arm and the objects collide with). Returns the compiled ``MjModel``."""
+    (fixtures the arm and the objects collide with). Returns the compiled ``MjModel``.
+    """
     import mujoco
 
     from robointel.sim.mjcf import build_spec, shape_geoms, shape_name

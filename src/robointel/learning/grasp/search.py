@@ -27,7 +27,8 @@ PENALTY = 10.0
 class SearchResult:
     """Best grasp of the search: ``grasp`` (world frame), joint solution ``q`` (None if none reachable),
     ``quality`` (6.20), ``angle`` (rad), ``cost``, ``feasible`` (IK ok, no collision, quality > 0) and
-    per-angle ``table`` rows (angle, quality, ik_ok, collision_free, cost)."""
+    per-angle ``table`` rows (angle, quality, ik_ok, collision_free, cost).
+    """
 
     grasp: Grasp
     q: np.ndarray | None
@@ -130,7 +131,8 @@ def refine_position(grasp: Grasp, cloud, *, gripper: ParallelGripper = ParallelG
     ``rest_height``: the re-heighted grasps are also tried at half the column's top height above
     the table (not below the fingertip clearance): the middle of a part lying on the table, whose
     underside the cameras never see (the lowest seen point of a fork's 12 mm thick scan was 4 mm up,
-    which put the jaws 1 mm over its widest section)."""
+    which put the jaws 1 mm over its widest section).
+    """
     P = np.asarray(cloud, float)
     Pobs = P if observed is None else np.asarray(observed, float)
     obs_tree = None if observed is None else cKDTree(Pobs)

@@ -51,12 +51,12 @@ class Grasp:
         T[:3, 3] = self.centre
         return T
 
-    def transformed(self, T: np.ndarray) -> "Grasp":
+    def transformed(self, T: np.ndarray) -> Grasp:
         """The grasp moved by a rigid 4x4 transform ``T``."""
         T = as_array(T, "T", (4, 4))
         return replace(self, centre=T[:3, :3] @ self.centre + T[:3, 3], rotation=T[:3, :3] @ self.rotation)
 
-    def rotated_about_axis(self, angle: float) -> "Grasp":
+    def rotated_about_axis(self, angle: float) -> Grasp:
         """The grasp turned by ``angle`` (rad) about its own closing axis (the search of (6.21))."""
         c, s = np.cos(angle), np.sin(angle)
         Ry = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
