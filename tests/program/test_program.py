@@ -152,9 +152,10 @@ def test_cli_run_and_refusal(tmp_path):
     bad.write_text(yaml.safe_dump({"scene": "table71", "steps": [{"move": "home"},
                                                                  {"move": {"pose": {"xyz": [3, 0, 0]}}}]}))
     res = runner.invoke(app, ["run", str(bad)])
-    assert res.exit_code == 2 and "refused before moving" in res.output and "step 1" in res.output
+    out = " ".join(res.output.split())
+    assert res.exit_code == 2 and "refused before moving" in out and "step 1" in out
     res = runner.invoke(app, ["run", str(tmp_path / "missing.yaml")])
-    assert res.exit_code == 2 and "not found" in res.output
+    assert res.exit_code == 2 and "not found" in " ".join(res.output.split())
 
 
 def test_pick_and_place_program_moves_the_part_to_its_target():

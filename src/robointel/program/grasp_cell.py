@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from robointel.errors import IKFailure, InvalidInput
+from robointel.geometry.table import ENVIRONMENT_NAMES
 from robointel.learning.grasp import (
     GraspPlanner,
     ParallelGripper,
@@ -94,7 +95,8 @@ class GraspCell:
                 p = Placement(m, p.x, p.y, o.yaw)
             self.placements.append(p)
         self.categories = [o.category for o in program.objects]
-        self.model = arm_scene(self.placements, self.robot, self.gripper, obstacles=program.scene.obstacles)
+        fixtures = [o for o in program.scene.obstacles if getattr(o, "name", None) not in ENVIRONMENT_NAMES]
+        self.model = arm_scene(self.placements, self.robot, self.gripper, obstacles=fixtures)  # has its own table
         m = self.model
         self.data = mujoco.MjData(m)
         self.names = list(self.robot.joint_names)
