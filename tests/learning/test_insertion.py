@@ -2,8 +2,16 @@ import numpy as np
 import pytest
 
 from robointel.errors import InvalidInput
-from robointel.learning.insertion import (PHASES, POLICY, HDDScene, InsertionSkill, PegHole, demonstrate, press_test,
-                                          tool_velocities)
+from robointel.learning.insertion import (
+    PHASES,
+    POLICY,
+    HDDScene,
+    InsertionSkill,
+    PegHole,
+    demonstrate,
+    press_test,
+    tool_velocities,
+)
 
 
 @pytest.fixture(scope="module")

@@ -1,8 +1,6 @@
 """Teleoperation logic without a browser: IK on hand moves, unreachable not sent, program files."""
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
