@@ -273,6 +273,14 @@ def _flooders(url: str, modes: list[str], seconds: float, hold: float) -> list[s
     return procs
 
 
+def _release(procs: list[subprocess.Popen[str]]) -> None:
+    """Start the flooders: each waits for a ``go`` line on its stdin."""
+    for p in procs:
+        assert p.stdin is not None
+        p.stdin.write("go\n")
+        p.stdin.flush()
+
+
 def stream_safety(runs: int = 3, probe_seconds: float = 3.0) -> dict[str, Any]:
     """Issue 15's two figures: how long after the last send of a 0.4 s flood the stop begins
     (``deadman_after_flood_ms``; deadman 100 ms), and another client's get_state round trip while 5
@@ -290,9 +298,8 @@ def stream_safety(runs: int = 3, probe_seconds: float = 3.0) -> dict[str, Any]:
                     time.sleep(0.01)
             time.sleep(0.3)
             procs = _flooders(srv.url, ["command"], 0.4, 1.5)
-            for p in procs:
-                p.stdin.write("go\n")
-                p.stdin.flush()
+            _release(procs)
+            assert procs[0].stdout is not None
             last = json.loads(procs[0].stdout.readline())["last_send"]
             time.sleep(1.0)
             delays.append((ctrl.stop_began - last) * 1e3)
@@ -320,9 +327,7 @@ def stream_safety(runs: int = 3, probe_seconds: float = 3.0) -> dict[str, Any]:
 
         idle = probe(probe_seconds)
         procs = _flooders(srv.url, ["command_poses", "junk", "junk", "junk", "junk"], probe_seconds + 0.5, 0.5)
-        for p in procs:
-            p.stdin.write("go\n")
-            p.stdin.flush()
+        _release(procs)
         time.sleep(0.3)
         loaded = probe(probe_seconds)
         for p in procs:
@@ -391,4 +396,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()
