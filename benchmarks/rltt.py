@@ -15,19 +15,30 @@ from __future__ import annotations
 import argparse
 import json
 import time
+import warnings
 from collections import Counter
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
+from sklearn.model_selection import GridSearchCV, StratifiedKFold, cross_val_score
+from sklearn.pipeline import make_pipeline
+from sklearn.preprocessing import StandardScaler
+from sklearn.svm import SVC
+
+from robointel.learning import grinding as G
+from robointel.learning import insertion as I
+from robointel.learning.datasets import lasa_names, load_ft, load_lasa
+from robointel.learning.ft_features import ft_episode_features
+from robointel.learning.gmr import GaussianMixtureRegression
+from robointel.learning.peer_checks import dtw_speed, gmr_agreement
+from robointel.learning.rltt import learn_insertion
 
 
-def lasa_rmse(*, n_components: int = 8, samples: int = 100, names: Sequence[str] | None = None) -> dict:
+def lasa_rmse(*, n_components: int = 8, samples: int = 100, names: Sequence[str] | None = None) -> dict[str, Any]:
     """GMR reproduction of the LASA shapes: for each shape a GMM over (t, x, y) of its 7
     demonstrations, the GMR mean x(t), y(t) against the demonstrations' mean (mm RMSE)."""
-    from robointel.learning.datasets import lasa_names, load_lasa
-    from robointel.learning.gmr import GaussianMixtureRegression
-
-    out = {}
+    out: dict[str, float] = {}
     for name in names or lasa_names():
         s = load_lasa(name)
         idx = np.linspace(0, s.pos.shape[1] - 1, samples).astype(int)
@@ -41,22 +52,12 @@ def lasa_rmse(*, n_components: int = 8, samples: int = 100, names: Sequence[str]
             "shapes": len(vals)}
 
 
-def ft_svm_accuracy(*, folds: int = 5) -> dict:
+def ft_svm_accuracy(*, folds: int = 5) -> dict[str, float]:
     """Soft-margin RBF SVM on the UCI robot-failure F/T episodes (lp1-lp5): stratified k-fold
     cross-validated accuracy per problem, features :func:`ft_episode_features` (standardised), C and
     gamma chosen by an inner 3-fold grid search on each training fold only (nested: the held-out
     fold never picks a parameter)."""
-    import warnings
-
-    from sklearn.model_selection import GridSearchCV, StratifiedKFold, cross_val_score
-    from sklearn.pipeline import make_pipeline
-    from sklearn.preprocessing import StandardScaler
-    from sklearn.svm import SVC
-
-    from robointel.learning.datasets import load_ft
-    from robointel.learning.ft_features import ft_episode_features
-
-    acc = {}
+    acc: dict[str, float] = {}
     for p in ("lp1", "lp2", "lp3", "lp4", "lp5"):
         e = load_ft(p)
         X = ft_episode_features(e.X)
@@ -86,12 +87,7 @@ def main() -> None:
                     help='JSON of ImpedanceGains fields for the impedance trials, e.g. \'{"rot_stiffness": 300}\'')
     args = ap.parse_args()
 
-    from robointel.learning import grinding as G
-    from robointel.learning import insertion as I
-    from robointel.learning.peer_checks import dtw_speed, gmr_agreement
-    from robointel.learning.rltt import learn_insertion
-
-    out: dict = {}
+    out: dict[str, Any] = {}
     t_all = time.perf_counter()
     out.update(dtw_speed())
     out["dtw_speedup"] = out["dtaidistance_ms"] / out["dtw_ms"]
@@ -183,8 +179,8 @@ def main() -> None:
     if args.json:
         print(json.dumps(out, default=float))
     else:
-        for k, v in out.items():
-            print(f"{k:40s} {v}")
+        for key, val in out.items():
+            print(f"{key:40s} {val}")
 
 
 if __name__ == "__main__":

@@ -19,33 +19,42 @@ from __future__ import annotations
 
 import argparse
 import json
+import subprocess
 import sys
 import time
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
+from rich.console import Console
+from rich.table import Table
+from websockets.sync.client import connect
+
+from robointel.errors import IKFailure
+from robointel.io.reference import data_path
+from robointel.programming.imitation import kinematic_imitation, simulate_imitation
+from robointel.programming.scara import (
+    BLEND_FRAMES,
+    PAPER_RMS,
+    PAPER_RMS_COMPENSATED,
+    KalmanPredictor,
+    delay_aligned_rms,
+    delayed_copy_rms,
+    fit_predictor,
+    simulate_scara,
+)
+from robointel.programming.scara import FeasibleReference as FR
+from robointel.programming.skeleton import read_kinect_csv
+from robointel.programming.stream_client import StreamClient
+from robointel.programming.streaming import StreamingController, StreamingServer
+from robointel.robot import Robot
 
 RECORDINGS = ["Ges01_wavehand", "Ges02_balancinghands", "Ges03_drawlines", "Ges04_comehere",
               "Ges05_demopoint", "Ges06_chickenwing", "joints"]
 
 
-def imitation(recordings):
-    from robointel.io.reference import data_path
-    from robointel.programming.imitation import kinematic_imitation, simulate_imitation
-    from robointel.programming.scara import (
-        BLEND_FRAMES,
-        PAPER_RMS,
-        PAPER_RMS_COMPENSATED,
-        KalmanPredictor,
-        delay_aligned_rms,
-        delayed_copy_rms,
-        fit_predictor,
-        simulate_scara,
-    )
-    from robointel.programming.scara import FeasibleReference as FR
-    from robointel.programming.skeleton import read_kinect_csv
-    from robointel.robot import Robot
-
+def imitation(recordings: list[str]) -> dict[str, Any]:
+    """LR Mate imitation and SCARA tracking figures on the Kinect recordings (see the module docstring)."""
     lr, sc = Robot.load("lrmate200id7l"), Robot.load("scara2")
     skels = {name: read_kinect_csv(data_path("kinect", f"{name}.csv")) for name in RECORDINGS}
     scara_keys = ("scara_rms_rad", "scara_rms_delay_aligned_rad", "scara_rms_best_lag_rad",
@@ -60,7 +69,7 @@ def imitation(recordings):
                   "scara_rms_unshaped_rad", "scara_rms_compensated_unshaped_rad",
                   "scara_controller_rms_unshaped_rad", "scara_controller_rms_compensated_unshaped_rad",
                   "scara_prediction_rms_insample_rad")
-    out = {"imitation_rms_rad": {}, "imitation_controller_rms_rad": {}, "imitation_tcp_rms_mm": {},
+    out: dict[str, Any] = {"imitation_rms_rad": {}, "imitation_controller_rms_rad": {}, "imitation_tcp_rms_mm": {},
            "imitation_limit_hits": {}, "imitation_unreachable_frames": {}, "scara_torque_saturation": {},
            "scara_torque_saturation_unshaped": {}, "scara_predictor_ridge_alpha": {}, "scara_lag_s": {},
            **{k: {} for k in scara_keys}}
@@ -175,10 +184,8 @@ def imitation(recordings):
     return out
 
 
-def ik_speed(n=300):
+def ik_speed(n: int = 300) -> dict[str, Any]:
     """Closed-form IK per imitation frame (ours) vs Pinocchio damped least squares (peer path)."""
-    from robointel.robot import Robot
-
     r = Robot.load("lrmate200id7l")
     qs = r.random_configuration(1, 20)
     Ts = [r.fk(q) for q in qs]
@@ -186,8 +193,6 @@ def ik_speed(n=300):
     for i in range(n):
         r.ik(Ts[i % 20], q_ref=qs[i % 20])
     ours = (time.perf_counter() - t0) / n * 1e6
-    from robointel.errors import IKFailure
-
     rng = np.random.default_rng(2)
     starts = [q + rng.normal(0, 0.05, 6) for q in qs]  # warm start: the previous frame's solution
     t0 = time.perf_counter()
@@ -204,13 +209,10 @@ def ik_speed(n=300):
                        "damped least squares warm-started 0.05 rad away"}
 
 
-def streaming(latency_samples=500, rate_seconds=3.0):
-    from websockets.sync.client import connect
-
-    from robointel.programming.streaming import StreamingController, StreamingServer
-
+def streaming(latency_samples: int = 500, rate_seconds: float = 3.0) -> dict[str, Any]:
+    """Teleoperation latency (target -> applied round trip) and the sustained streaming rate on loopback."""
     srv = StreamingServer(StreamingController(), port=0).start()
-    res = {}
+    res: dict[str, Any] = {}
     try:
         with connect(srv.url, compression=None) as ws:
             ws.recv(timeout=5)
@@ -233,8 +235,9 @@ def streaming(latency_samples=500, rate_seconds=3.0):
                                         "p99": round(float(np.percentile(lat, 99)), 3), "n": len(lat),
                                         "what": "WebSocket target message -> first 1 kHz control step using it "
                                                 "-> 'applied' reply (round trip, loopback)"}
-            # sustained rate: targets paced at 900 Hz in bursts of 9 per 10 ms (under the server's 1000 messages/s per-client limit;
-            # a faster client is throttled and its late targets are dropped as stale), 3 s
+            # sustained rate: targets paced at 900 Hz in bursts of 9 per 10 ms (under the server's 1000
+            # messages/s per-client limit; a faster client is throttled and its late targets are dropped
+            # as stale), 3 s
             a0, r0 = srv.controller.accepted, srv.controller.rejected
             t0 = time.perf_counter()
             k = 0
@@ -260,28 +263,31 @@ def streaming(latency_samples=500, rate_seconds=3.0):
     return res
 
 
-def _flooders(url, modes, seconds, hold):
+def _flooders(url: str, modes: list[str], seconds: float, hold: float) -> list[subprocess.Popen[str]]:
     """Flooding clients, each in its own process at the lowest CPU priority (see the tests)."""
-    import subprocess
-
     procs = [subprocess.Popen(["nice", "-n", "19", sys.executable, "-m", "robointel.programming.stream_client", url, m,
                                str(seconds), str(hold)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
              for m in modes]
     for p in procs:
-        assert p.stdout.readline().strip() == "ready"
+        assert p.stdout is not None and p.stdout.readline().strip() == "ready"
     return procs
 
 
-def stream_safety(runs=3, probe_seconds=3.0):
+def _release(procs: list[subprocess.Popen[str]]) -> None:
+    """Start the flooders: each waits for a ``go`` line on its stdin."""
+    for p in procs:
+        assert p.stdin is not None
+        p.stdin.write("go\n")
+        p.stdin.flush()
+
+
+def stream_safety(runs: int = 3, probe_seconds: float = 3.0) -> dict[str, Any]:
     """Issue 15's two figures: how long after the last send of a 0.4 s flood the stop begins
     (``deadman_after_flood_ms``; deadman 100 ms), and another client's get_state round trip while 5
     clients flood (``get_state_p99_ms_under_load``), beside the same client's p99 with no load."""
-    from robointel.programming.stream_client import StreamClient
-    from robointel.programming.streaming import StreamingController, StreamingServer
-
     srv = StreamingServer(StreamingController(), port=0).start()
     ctrl = srv.controller
-    res = {}
+    res: dict[str, Any] = {}
     try:
         delays, rest = [], []
         for _ in range(runs):
@@ -292,9 +298,8 @@ def stream_safety(runs=3, probe_seconds=3.0):
                     time.sleep(0.01)
             time.sleep(0.3)
             procs = _flooders(srv.url, ["command"], 0.4, 1.5)
-            for p in procs:
-                p.stdin.write("go\n")
-                p.stdin.flush()
+            _release(procs)
+            assert procs[0].stdout is not None
             last = json.loads(procs[0].stdout.readline())["last_send"]
             time.sleep(1.0)
             delays.append((ctrl.stop_began - last) * 1e3)
@@ -309,7 +314,7 @@ def stream_safety(runs=3, probe_seconds=3.0):
             "what": "stop began - client's last send of a 0.4 s flood (one client in control, as fast as the "
                     "link takes); negative: the flood's late targets were already dropped as stale"}
 
-        def probe(seconds):
+        def probe(seconds: float) -> list[float]:
             lat = []
             with StreamClient(srv.url) as c:
                 t_end = time.monotonic() + seconds
@@ -322,9 +327,7 @@ def stream_safety(runs=3, probe_seconds=3.0):
 
         idle = probe(probe_seconds)
         procs = _flooders(srv.url, ["command_poses", "junk", "junk", "junk", "junk"], probe_seconds + 0.5, 0.5)
-        for p in procs:
-            p.stdin.write("go\n")
-            p.stdin.flush()
+        _release(procs)
         time.sleep(0.3)
         loaded = probe(probe_seconds)
         for p in procs:
@@ -347,7 +350,7 @@ def main() -> None:
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     ap.add_argument("--quick", action="store_true", help="two recordings only")
     args = ap.parse_args()
-    out = {"benchmark": "teach"}
+    out: dict[str, Any] = {"benchmark": "teach"}
     out.update(imitation(RECORDINGS[:2] if args.quick else RECORDINGS))
     out.update(ik_speed())
     out.update(streaming())
@@ -359,9 +362,6 @@ def main() -> None:
     if args.json:
         print(json.dumps(out))
         return
-    from rich.console import Console
-    from rich.table import Table
-
     c = Console()
     t = Table(title="LR Mate kinematic imitation (RMS vs per-frame IK target, rad)")
     t.add_column("recording")
@@ -388,11 +388,12 @@ def main() -> None:
     c.print(s)
     c.print(f"IK per frame: closed form {out['ik_closed_form_us']} us vs numeric DLS {out['ik_numeric_dls_us']} us "
             f"({out['ik_speedup']}x)")
-    c.print(f"teleop latency: median {out['teleop_latency_ms']['median']} ms, p99 {out['teleop_latency_ms']['p99']} ms; "
+    c.print(f"teleop latency: median {out['teleop_latency_ms']['median']} ms, "
+            f"p99 {out['teleop_latency_ms']['p99']} ms; "
             f"sustained stream {out['stream_rate_hz']} Hz ({out['stream_messages']})")
     c.print(f"stop after a 0.4 s flood: {out['deadman_after_flood_ms']} ms after the last send; get_state p99 "
             f"under 5 flooding clients {out['get_state_p99_ms_under_load']} ms ({out['get_state_under_load']})")
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

@@ -75,7 +75,8 @@ def test_page_record_replay_save(lrmate, tmp_path):
                 assert boxes.count() == 3
 
                 def field(label):
-                    return page.get_by_text(label, exact=True).locator("xpath=ancestor::div[.//input][1]").locator("input")
+                    row = page.get_by_text(label, exact=True).locator("xpath=ancestor::div[.//input][1]")
+                    return row.locator("input")
 
                 def type_hand(p):
                     for box, v in zip([boxes.nth(i) for i in range(3)], p):

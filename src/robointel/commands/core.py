@@ -7,18 +7,41 @@ from __future__ import annotations
 
 import time
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
+import numpy.typing as npt
 
 from robointel.report.demo import Figure, StageContext, StageResult
+from robointel.robot import Robot
+from robointel.robot._kernels import points_jacobians  # noqa: F401  (compiled before the timing below)
+from robointel.sim import Workcell
 
 #: Cartesian TCP waypoints (position m in the base_link frame), tool pointing down.
 WAYPOINTS = np.array([[0.45, -0.25, 0.45], [0.55, 0.0, 0.30], [0.45, 0.30, 0.45], [0.35, 0.0, 0.65],
                       [0.45, -0.25, 0.45]])
 
 
-def quintic_path(waypoints: np.ndarray, durations: np.ndarray, dt: float = 0.001):
-    """Rest-to-rest quintic segments through joint waypoints: (t, q, qd, qdd) sampled every dt."""
-    ts, qs, qds, qdds = [], [], [], []
+def quintic_path(waypoints: npt.NDArray[np.float64], durations: npt.NDArray[np.float64], dt: float = 0.001
+                 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64],
+                            npt.NDArray[np.float64]]:
+    """Sample rest-to-rest quintic segments through joint waypoints.
+
+    Each segment follows ``a + (10 s^3 - 15 s^4 + 6 s^5) (b - a)`` with ``s = t / T``.
+
+    Args:
+        waypoints: Joint waypoints, shape (m, n), rad.
+        durations: Segment durations, shape (m - 1,), s.
+        dt: Sample interval, s.
+
+    Returns:
+        ``(t, q, qd, qdd)``: times (k,) s and joint positions, velocities and accelerations (k, n)
+        in rad, rad/s, rad/s^2, ending at rest on the last waypoint.
+    """
+    ts: list[npt.NDArray[np.floating]] = []
+    qs: list[npt.NDArray[np.floating]] = []
+    qds: list[npt.NDArray[np.floating]] = []
+    qdds: list[npt.NDArray[np.floating]] = []
     t0 = 0.0
     for a, b, T in zip(waypoints[:-1], waypoints[1:], durations):
         n = int(round(T / dt))
@@ -32,7 +55,7 @@ def quintic_path(waypoints: np.ndarray, durations: np.ndarray, dt: float = 0.001
         qds.append(pd[:, None] * d)
         qdds.append(pdd[:, None] * d)
         t0 += T
-    ts.append([t0])
+    ts.append(np.array([t0]))
     qs.append(waypoints[-1][None])
     qds.append(np.zeros((1, waypoints.shape[1])))
     qdds.append(np.zeros((1, waypoints.shape[1])))
@@ -40,25 +63,28 @@ def quintic_path(waypoints: np.ndarray, durations: np.ndarray, dt: float = 0.001
 
 
 def demo_stage(ctx: StageContext) -> StageResult:
-    import matplotlib
+    """Run the demo's core stage: IK through Cartesian waypoints, quintic joint path, MuJoCo tracking.
 
+    Also times the collision-sphere kinematics and the closed-form IK.
+
+    Args:
+        ctx: The demo stage context (output folder, quick flag, progress).
+
+    Returns:
+        The stage's figures, images and text.
+    """
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from robointel.robot import Robot
-    from robointel.sim import Workcell
-
     robot = Robot.load("lrmate200id7l")
     ctx.advance(0.05, "IK through waypoints")
     down = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0.0]])  # flange x axis (approach) pointing down
     q_prev = np.array([0.0, 0.0, 0.0, 0.0, -np.pi / 2, 0.0])
-    joints = []
+    joint_list = []
     for p in WAYPOINTS:
         T = np.eye(4)
         T[:3, :3], T[:3, 3] = down, p
         q_prev = robot.ik(T, q_ref=q_prev)[0]
-        joints.append(q_prev)
-    joints = np.array(joints)
+        joint_list.append(q_prev)
+    joints = np.array(joint_list)
     # segment durations from the joint speed limits (at most 40% of the limit at the quintic peak)
     dur = np.array([max(0.6, float(np.max(1.875 * np.abs(b - a) / (0.4 * robot.velocity_limit))))
                     for a, b in zip(joints[:-1], joints[1:])])
@@ -93,8 +119,6 @@ def demo_stage(ctx: StageContext) -> StageResult:
     png = ctx.out / "tracking.png"
     fig.savefig(png, dpi=110)
     plt.close(fig)
-
-    from robointel.robot._kernels import points_jacobians  # noqa: F401  (compiled already)
 
     reps = 2000
     qs = robot.random_configuration(0, 16)

@@ -27,13 +27,24 @@ from robointel.io.episode import Episode
 from robointel.io.lerobot import read_lerobot, write_lerobot
 from robointel.io.robomimic import read_robomimic, write_robomimic
 from robointel.learning.demonstration_episode import demonstration_to_episode, episode_to_demonstration
+from robointel.programming.imitation import kinematic_imitation, simulate_imitation
+from robointel.programming.recording_episodes import (
+    guidance_episode,
+    imitation_episode,
+    scara_episode,
+    teleop_episode,
+)
+from robointel.programming.scara import simulate_scara
+from robointel.programming.scenarios import run_scenario
+from robointel.programming.teleop import load_program
+from robointel.robot import Robot
 
 console = Console()
 FORMATS = ("lerobot", "robomimic")
 
 
 def episodes_from(source: str, *, guidance_seconds: float | None = None) -> list[Episode]:
-    """The episodes of one export source (see the module docstring).
+    """Record or load the episodes of one export source (see the module docstring).
 
     Args:
         source: ``FILE.h5``, ``imitation:REC``, ``scara:REC``, ``guidance:N`` or ``teleop:FILE.yaml``.
@@ -45,19 +56,6 @@ def episodes_from(source: str, *, guidance_seconds: float | None = None) -> list
     Raises:
         InvalidInput: an unknown source.
     """
-    # the simulators load here, not when the CLI starts (they would add seconds to every `robointel` call)
-    from robointel.programming.imitation import kinematic_imitation, simulate_imitation
-    from robointel.programming.recording_episodes import (
-        guidance_episode,
-        imitation_episode,
-        scara_episode,
-        teleop_episode,
-    )
-    from robointel.programming.scara import simulate_scara
-    from robointel.programming.scenarios import run_scenario
-    from robointel.programming.teleop import load_program
-    from robointel.robot import Robot
-
     kind, _, arg = source.partition(":")
     if kind == "imitation" and arg:
         robot = Robot.load("lrmate200id7l")
@@ -98,7 +96,11 @@ def read_dataset(path: Path) -> list[Episode]:
 
 
 def register(app: typer.Typer) -> None:
-    """Add ``robointel dataset export|import``."""
+    """Add ``robointel dataset export|import`` to ``app``.
+
+    Args:
+        app: The top-level typer application.
+    """
     dataset = typer.Typer(no_args_is_help=True, help="export/import demonstrations as LeRobot v3 or robomimic data")
 
     @dataset.command("export")

@@ -12,15 +12,31 @@ from pathlib import Path
 
 import numpy as np
 import typer
+from rich.console import Console
+from rich.progress import Progress
+from rich.table import Table
 
 from robointel.commands.failure import fail
+from robointel.commands.robot_run import guide_on_robot
+from robointel.errors import RobointelError
+from robointel.programming.guidance import METHODS
+from robointel.programming.keypoints import plot_reproduction, reproduce_path
+from robointel.programming.scenarios import ScenarioResult, plot_scenario, run_scenario, scenario
 from robointel.report.demo import Figure, StageContext, StageResult
+from robointel.robot import Robot
+from robointel.sim import Workcell
 
 METHOD_HELP = ("qp: relaxed QP (4.11); equality: (4.10); repulsive: repulsive vector (4.1); "
                "nullspace: task-priority null space (4.2)-(4.3)")
 
 
 def register(app: typer.Typer) -> None:
+    """Add the ``guide`` command to ``app``.
+
+    Args:
+        app: The top-level typer application.
+    """
+
     @app.command()
     def guide(scenario: int = typer.Option(2, "--scenario", "-s", help="Table 4.1 scenario: 1, 2 or 3"),
               method: str = typer.Option("qp", "--method", "-m", help=METHOD_HELP),
@@ -31,22 +47,12 @@ def register(app: typer.Typer) -> None:
               record: Path = typer.Option(None, help="with --robot fanuc://...: record the run as a ROS 2 bag (.mcap)"),
               ) -> None:
         """Run a guidance scenario with a simulated operator and write Fig. 4.6b-style plots."""
-        from rich.console import Console
-        from rich.progress import Progress
-        from rich.table import Table
-
-        from robointel.errors import RobointelError
-        from robointel.programming.guidance import METHODS
-        from robointel.programming.scenarios import plot_scenario, run_scenario
-
         console = Console()
         if scenario not in (1, 2, 3):
             fail(f"--scenario must be 1, 2 or 3 (Table 4.1), got {scenario}")
         if duration is not None and not (np.isfinite(duration) and duration > 0):
             fail(f"--duration must be a positive number of simulated seconds, got {duration}")
         if robot != "sim":  # lead-through on a real arm through the robot interface (issue 14)
-            from robointel.commands.robot_run import guide_on_robot
-
             try:
                 guide_on_robot(robot, record, duration or 30.0, method, console)
             except RobointelError as exc:
@@ -78,13 +84,8 @@ def register(app: typer.Typer) -> None:
         console.print(f"plot: [bold]{png}[/bold]")
 
 
-def _reproduce(res, out: Path):
+def _reproduce(res: ScenarioResult, out: Path) -> tuple[list[Figure], Path]:
     """Key points of a guided TCP path -> blended trajectory -> joint reference, tracked in MuJoCo."""
-    from robointel.programming.keypoints import plot_reproduction, reproduce_path
-    from robointel.programming.scenarios import scenario
-    from robointel.robot import Robot
-    from robointel.sim import Workcell
-
     robot = Robot.load("lrmate200id7l")
     rot = np.array([robot.fk(q)[:3, :3] for q in res.q])
     rep = reproduce_path(robot, res.t, res.tcp, res.q[0], rotations=rot, tolerance=0.01, speed=0.15)
@@ -105,12 +106,17 @@ def _reproduce(res, out: Path):
 
 
 def demo_stage(ctx: StageContext) -> StageResult:
-    """Scenario II (operator pushes into the upper bar on purpose) with the QP method in MuJoCo;
-    the repulsive-vector baseline beside it unless ``ctx.quick``.
-    """
-    from robointel.errors import RobointelError
-    from robointel.programming.scenarios import plot_scenario, run_scenario
+    """Run the demo's guidance stage: scenario II with the QP method in MuJoCo.
 
+    The operator pushes into the upper bar on purpose; the repulsive-vector baseline runs beside it
+    unless ``ctx.quick``.
+
+    Args:
+        ctx: The demo stage context (output folder, quick flag, progress).
+
+    Returns:
+        The stage's figures, images and text.
+    """
     dur = 3.5 if ctx.quick else None
     ctx.advance(0.02, "scenario II, relaxed QP (MuJoCo)")
     qp = run_scenario(2, "qp", duration=dur, progress=lambda f: ctx.advance(0.02 + 0.5 * f, "scenario II, QP"))

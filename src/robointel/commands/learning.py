@@ -6,27 +6,53 @@ plots like the dissertation's Figs. 5.10-5.13.
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
+import numpy.typing as npt
+import typer
+from rich.console import Console
+from rich.progress import Progress
+from rich.table import Table
 
 from robointel.commands.failure import fail
+from robointel.errors import RobointelError
+from robointel.io.demonstrations import DemonstrationFile, save_demonstrations
+from robointel.learning import grinding as G
+from robointel.learning import insertion as I
+from robointel.learning.demonstration import Demonstration
+from robointel.learning.insertion import PHASES, POLICY, HDDScene, InsertionSkill, InsertionTrial, tool_velocities
+from robointel.learning.peer_checks import dtw_speed, gmr_agreement
+from robointel.learning.rltt import LearnedInsertion, learn_insertion
 from robointel.report.demo import Figure, StageContext, StageResult
 
 PHASE_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red")
 
+#: A progress callback: fraction done in [0, 1] and a message.
+ProgressFn = Callable[[float, str], None]
 
-def _plt():
-    import matplotlib
 
+def _plt() -> Any:
+    """Select the non-interactive Agg backend and return :mod:`matplotlib.pyplot`."""
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     return plt
 
 
-def plot_synchronised(demos, learned, path: Path) -> Path:
-    """Fig. 5.10: tool height and axial force of the demonstrations before and after DTW."""
+def plot_synchronised(demos: Sequence[Demonstration], learned: LearnedInsertion, path: Path) -> Path:
+    """Plot Fig. 5.10: tool height and axial force of the demonstrations before and after DTW.
+
+    Args:
+        demos: The raw demonstrations.
+        learned: The learning result holding the synchronised features.
+        path: PNG file to write.
+
+    Returns:
+        ``path``.
+    """
     plt = _plt()
     fig, ax = plt.subplots(2, 2, figsize=(11, 6), sharey="row")
     for d, a in zip(demos, learned.aligned):
@@ -47,10 +73,19 @@ def plot_synchronised(demos, learned, path: Path) -> Path:
     return Path(path)
 
 
-def plot_decomposed(demos, labels, path: Path, n: int = 6) -> Path:
-    """Fig. 5.11: demonstrations coloured by the decomposed action (ground truth dashed)."""
-    from robointel.learning.insertion import PHASES
+def plot_decomposed(demos: Sequence[Demonstration], labels: Sequence[npt.NDArray[np.int_]], path: Path,
+                    n: int = 6) -> Path:
+    """Plot Fig. 5.11: demonstrations coloured by the decomposed action (ground truth dashed).
 
+    Args:
+        demos: The demonstrations.
+        labels: Per demonstration, the (N_i,) action labels.
+        path: PNG file to write.
+        n: How many of the last demonstrations to draw.
+
+    Returns:
+        ``path``.
+    """
     plt = _plt()
     fig, axes = plt.subplots(min(n, len(demos)), 1, figsize=(10, 1.6 * min(n, len(demos))), sharex=True)
     axes = np.atleast_1d(axes)
@@ -72,10 +107,18 @@ def plot_decomposed(demos, labels, path: Path, n: int = 6) -> Path:
     return Path(path)
 
 
-def plot_skill(skill, demo, labels, path: Path) -> Path:
-    """Fig. 5.12: the skill model's corrective velocity against the demonstration's."""
-    from robointel.learning.insertion import POLICY, tool_velocities
+def plot_skill(skill: InsertionSkill, demo: Demonstration, labels: npt.NDArray[np.int_], path: Path) -> Path:
+    """Plot Fig. 5.12: the skill model's corrective velocity against the demonstration's.
 
+    Args:
+        skill: The learned insertion skill.
+        demo: One demonstration.
+        labels: Its (N,) action labels (the insertion phase, label 2, is drawn).
+        path: PNG file to write.
+
+    Returns:
+        ``path``.
+    """
     plt = _plt()
     m = labels == 2
     tw = tool_velocities(demo)[m]
@@ -97,8 +140,19 @@ def plot_skill(skill, demo, labels, path: Path) -> Path:
     return Path(path)
 
 
-def plot_trials(results, baseline, task, path: Path) -> Path:
-    """Tip height of the robot's insertions: skill (solid) and position-only (dashed)."""
+def plot_trials(results: Sequence[InsertionTrial], baseline: Sequence[InsertionTrial], task: I.PegHole,
+                path: Path) -> Path:
+    """Plot the tip height of the robot's insertions: skill (solid) and position-only (dashed).
+
+    Args:
+        results: Trials with the learned skill.
+        baseline: Trials from the same starts, position control only.
+        task: The peg-in-hole task (hole bottom and depth).
+        path: PNG file to write.
+
+    Returns:
+        ``path``.
+    """
     plt = _plt()
     fig, ax = plt.subplots(figsize=(9, 4))
     for r in results:
@@ -119,8 +173,18 @@ def plot_trials(results, baseline, task, path: Path) -> Path:
     return Path(path)
 
 
-def plot_grinding(plate, skill, res, path: Path) -> Path:
-    """Fig. 5.13: the learned force map and the force along the robot's diagonal path."""
+def plot_grinding(plate: G.Plate, skill: G.GrindingSkill, res: G.GrindingResult, path: Path) -> Path:
+    """Plot Fig. 5.13: the learned force map and the force along the robot's diagonal path.
+
+    Args:
+        plate: The workpiece.
+        skill: The learned position-to-force skill.
+        res: The robot's reproduction.
+        path: PNG file to write.
+
+    Returns:
+        ``path``.
+    """
     plt = _plt()
     fig, ax = plt.subplots(1, 2, figsize=(12, 4.5))
     hx, hy = 0.5 * np.array(plate.size)
@@ -146,12 +210,26 @@ def plot_grinding(plate, skill, res, path: Path) -> Path:
     return Path(path)
 
 
-def run_insertion(out: Path, *, demos: int, labelled: int, trials: int, seed: int = 0, progress=None,
-                  save: Path | None = None) -> dict:
-    """Demonstrate -> learn -> reproduce; returns figures and plot paths."""
-    from robointel.learning import insertion as I
-    from robointel.learning.rltt import learn_insertion
+def run_insertion(out: Path, *, demos: int, labelled: int, trials: int, seed: int = 0,
+                  progress: ProgressFn | None = None, save: Path | None = None) -> dict[str, Any]:
+    """Demonstrate, learn and reproduce the insertion (Sec. 5.5), writing Figs. 5.10-5.12.
 
+    Args:
+        out: Folder for the plots (created).
+        demos: Number of scripted HDD demonstrations.
+        labelled: How many of them carry hand labels (the rest are decomposed by Algorithm 1).
+        trials: Number of robot insertion trials (each also run position-only).
+        seed: Seed of the demonstrations; ``seed + 1`` draws the start errors.
+        progress: Called with the fraction done and a message.
+        save: Append the demonstrations to this HDF5 file.
+
+    Returns:
+        A dict with ``task``, ``demos``, ``learned``, ``results``, ``baseline``, ``images``,
+        ``boundary_ms`` (median decomposition boundary error, ms), ``success`` and ``success_pos``.
+
+    Raises:
+        InvalidInput: bad counts (see :func:`robointel.learning.rltt.learn_insertion`).
+    """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     step = progress or (lambda frac, msg: None)
@@ -163,8 +241,6 @@ def run_insertion(out: Path, *, demos: int, labelled: int, trials: int, seed: in
         step(0.6 * i / demos, f"demonstration {i + 1}/{demos}")
         ds.append(I.demonstrate(task, rng, scene=scene, name=f"demo_{i:02d}"))
     if save is not None:
-        from robointel.io.demonstrations import save_demonstrations
-
         save_demonstrations(save, ds)
     step(0.6, "synchronise, decompose, learn")
     learned = learn_insertion(ds, n_labelled=labelled, centre=scene.tool.tip - scene.tool.radius)
@@ -187,10 +263,18 @@ def run_insertion(out: Path, *, demos: int, labelled: int, trials: int, seed: in
             "success": sum(r.success for r in res), "success_pos": sum(r.success for r in base)}
 
 
-def run_grinding(out: Path, *, demos: int = 3, seed: int = 0, progress=None) -> dict:
-    from robointel.learning import grinding as G
-    from robointel.learning.insertion import HDDScene
+def run_grinding(out: Path, *, demos: int = 3, seed: int = 0, progress: ProgressFn | None = None) -> dict[str, Any]:
+    """Demonstrate, learn and reproduce grinding (Sec. 5.5), writing Fig. 5.13.
 
+    Args:
+        out: Folder for the plot (created).
+        demos: Number of scripted HDD demonstrations.
+        seed: Seed of the demonstrations.
+        progress: Called with the fraction done and a message.
+
+    Returns:
+        A dict with ``plate``, ``skill``, ``result`` (:class:`GrindingResult`) and ``images``.
+    """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     step = progress or (lambda frac, msg: None)
@@ -209,12 +293,12 @@ def run_grinding(out: Path, *, demos: int = 3, seed: int = 0, progress=None) -> 
     return {"plate": plate, "skill": skill, "result": res, "images": [img]}
 
 
-def register(app) -> None:
-    import typer
-    from rich.console import Console
-    from rich.progress import Progress
-    from rich.table import Table
+def register(app: typer.Typer) -> None:
+    """Add the ``learn insertion`` and ``learn grinding`` commands to ``app``.
 
+    Args:
+        app: The top-level typer application.
+    """
     console = Console()
     learn = typer.Typer(help="Learning from demonstration (Ch. 5): HDD demonstrations in MuJoCo -> skill -> LR Mate.",
                         no_args_is_help=True)
@@ -227,13 +311,9 @@ def register(app) -> None:
                   seed: int = typer.Option(0),
                   save: Path = typer.Option(None, help="append the demonstrations to this HDF5 file")) -> None:
         """Tight peg-in-hole: demonstrate, synchronise, decompose, learn the GMR skill, insert with the LR Mate."""
-        from robointel.errors import RobointelError
-
         if labelled >= demos:
             fail("--labelled must be smaller than --demos")
         if save is not None and save.exists():  # a corrupt or foreign file is refused before the work
-            from robointel.io.demonstrations import DemonstrationFile
-
             try:
                 DemonstrationFile(save).names()
             except RobointelError as exc:
@@ -272,9 +352,17 @@ def register(app) -> None:
 
 
 def demo_stage(ctx: StageContext) -> StageResult:
-    """Quick RLTT: a few demonstrations, learn, a few insertion trials; DTW speed and GMR agreement."""
-    from robointel.learning.peer_checks import dtw_speed, gmr_agreement
+    """Run the demo's learning stage: a quick RLTT and the peer checks.
 
+    A few demonstrations, learn, a few insertion trials; DTW speed against dtaidistance and GMR
+    agreement with the gmr package.
+
+    Args:
+        ctx: The demo stage context (output folder, quick flag, progress).
+
+    Returns:
+        The stage's figures, images and text.
+    """
     quick = ctx.quick
     ctx.advance(0.02, "DTW vs dtaidistance")
     d = dtw_speed(reps=5 if quick else 15, pairs=5 if quick else 20)

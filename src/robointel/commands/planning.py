@@ -5,23 +5,51 @@ of the joint profiles and a 3D picture of the tool path among the obstacles.
 """
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
+import numpy.typing as npt
+import typer
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+from rich.console import Console
+from rich.progress import Progress
+from rich.table import Table
 
 from robointel.commands.failure import fail
+from robointel.commands.robot_run import run_on_robot
+from robointel.errors import InvalidInput, RobointelError
+from robointel.geometry import Box, Sphere
+from robointel.geometry.table import table_obstacles
+from robointel.io.mbm import load_mbm_problems
+from robointel.io.trajectory import save_trajectory
+from robointel.planning import Environment, MotionPlan, MotionSettings, plan_motion
+from robointel.planning.frmp import FRMPResult, make_planners, plan_scene, planner_settings
+from robointel.planning.frmp import execute as run_in_sim
+from robointel.planning.replan import receding_horizon
+from robointel.planning.scene import load_scene
+from robointel.programming.collision_guard import CollisionGuard
 from robointel.report.demo import Figure, StageContext, StageResult
+from robointel.robot import Robot
+from robointel.sim import Workcell
 
 
-def plot_joint_profiles(result, path: Path) -> Path:
-    """Joint positions, velocities and accelerations of the FRMP trajectory (solid) and of the
+def plot_joint_profiles(result: FRMPResult, path: Path) -> Path:
+    """Plot the joint profiles of the FRMP trajectory against the fixed-dt schedule.
+
+    Joint positions, velocities and accelerations of the FRMP trajectory (solid) and of the
     fixed-dt schedule through the same path (dashed), with the limits.
+
+    Args:
+        result: The FRMP plan of a scene.
+        path: PNG file to write.
+
+    Returns:
+        ``path``.
     """
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     scene = result.scene
     fr = result.trajectory.resample(0.005)
     fx = result.fixed.resample(0.005)
@@ -54,7 +82,8 @@ def plot_joint_profiles(result, path: Path) -> Path:
     return Path(path)
 
 
-def _box_faces(box):
+def _box_faces(box: Box) -> list[list[npt.NDArray[np.float64]]]:
+    """Return the six quadrilateral faces of ``box`` as lists of four (3,) corner points, m."""
     c, h, R = np.asarray(box.center), np.asarray(box.size) / 2, np.asarray(box.rotation)
     s = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
     V = c + (s * h) @ R.T
@@ -62,25 +91,29 @@ def _box_faces(box):
     return [[V[i] for i in f] for f in idx]
 
 
-def plot_path_3d(result, path: Path) -> Path:
-    """3D picture: the tool path of the FRMP trajectory, the straight joint-space reference (grey),
-    the waypoints and the obstacles.
+def plot_path_3d(result: FRMPResult, path: Path) -> Path:
+    """Draw a 3D picture of the tool path among the obstacles.
+
+    The tool path of the FRMP trajectory, the straight joint-space reference (grey), the waypoints
+    and the obstacles.
+
+    Args:
+        result: The FRMP plan of a scene.
+        path: PNG file to write.
+
+    Returns:
+        ``path``.
     """
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
-
     scene = result.scene
     robot = scene.robot
     dense = result.trajectory.resample(0.02)
     P = np.array([robot.fk(q)[:3, 3] for q in dense.q])
-    ref = []
+    ref_points: list[npt.NDArray[np.float64]] = []
     for a, b, N in zip(scene.waypoints[:-1], scene.waypoints[1:], scene.steps):
         for s in np.linspace(0, 1, 4 * N + 1):
-            ref.append(robot.fk(a + s * (b - a))[:3, 3])
-    ref = np.array(ref)
+            ref_points.append(robot.fk(a + s * (b - a))[:3, 3])
+    ref = np.array(ref_points)
     fig = plt.figure(figsize=(8, 7))
     ax = fig.add_subplot(111, projection="3d")
     ax.plot(*ref.T, color="0.6", ls="--", lw=1, label="straight joint-space reference")
@@ -90,9 +123,9 @@ def plot_path_3d(result, path: Path) -> Path:
     for name, w in zip(scene.waypoint_names, W):
         ax.text(*w, f" {name}", fontsize=8)
     for o in scene.obstacles:
-        if o.type == "box":
+        if isinstance(o, Box):
             ax.add_collection3d(Poly3DCollection(_box_faces(o), alpha=0.25, facecolor="C1", edgecolor="k", lw=0.4))
-        elif o.type == "sphere":
+        elif isinstance(o, Sphere):
             u, v = np.mgrid[0:2 * np.pi:16j, 0:np.pi:8j]
             r, c = o.radius, o.center
             ax.plot_wireframe(c[0] + r * np.cos(u) * np.sin(v), c[1] + r * np.sin(u) * np.sin(v),
@@ -119,7 +152,7 @@ def plot_path_3d(result, path: Path) -> Path:
 
 def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | None = None, index: int | None = None,
              per_family: int | None = None, out: Path | None = None, time_budget_s: float = 1.0,
-             d_min: float = 0.001, console=None) -> list:
+             d_min: float = 0.001, console: Console | None = None) -> list[MotionPlan]:
     """``robointel plan --mbm PROBLEMS.json --robot URDF``: plan the valid MBM problems start to goal.
 
     Each selected problem is read by :func:`robointel.io.mbm.load_mbm_problems`, planned by
@@ -144,16 +177,6 @@ def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | No
     Raises:
         typer.Exit: code 2 on bad input (message printed), code 1 when a problem failed.
     """
-    import typer
-    from rich.console import Console
-    from rich.progress import Progress
-    from rich.table import Table
-
-    from robointel.errors import InvalidInput, RobointelError
-    from robointel.io.mbm import load_mbm_problems
-    from robointel.planning import Environment, MotionSettings, plan_motion
-    from robointel.robot import Robot
-
     console = console or Console()
     try:
         if problems is None or robot_urdf is None:
@@ -177,8 +200,7 @@ def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | No
                                          settings=MotionSettings(d_min=d_min, time_budget_s=time_budget_s)))
                 bar.advance(task)
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2) from None
+        fail(exc)
     t = Table(title=f"{problems}: {len(selected)} problems, robot {urdf.name}")
     for c in ("problem", "success", "plan (ms)", "duration (s)", "min clearance (mm)", "reason"):
         t.add_column(c, justify="right")
@@ -188,7 +210,7 @@ def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | No
                   f"{1e3 * r.min_clearance_m:.1f}", r.reason)
         if out is not None and r.trajectory is not None:
             out.parent.mkdir(parents=True, exist_ok=True)
-            r.trajectory.save(out.with_name(f"{out.stem}_{p.family}_{p.index}.npz"))
+            save_trajectory(r.trajectory, out.with_name(f"{out.stem}_{p.family}_{p.index}.npz"))
     console.print(t)
     ok = sum(r.success for r in plans)
     console.print(f"{ok}/{len(plans)} planned and passed the 1 ms dense check")
@@ -197,11 +219,12 @@ def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | No
     return plans
 
 
-def register(app) -> None:
-    import typer
-    from rich.console import Console
-    from rich.table import Table
+def register(app: typer.Typer) -> None:
+    """Add the ``plan`` command to ``app``.
 
+    Args:
+        app: The top-level typer application.
+    """
     console = Console()
 
     @app.command()
@@ -225,14 +248,10 @@ def register(app) -> None:
         With --mbm, plan and check MotionBenchMaker problems start to goal instead.
         """
         if mbm is not None or scene is None:
-            plan_mbm(mbm, None if robot == "sim" else Path(robot), family=family, index=index, per_family=per_family, out=out if mbm else None,
-                     time_budget_s=time_budget, d_min=d_min, console=console)
+            plan_mbm(mbm, None if robot == "sim" else Path(robot), family=family, index=index,
+                     per_family=per_family, out=out if mbm else None, time_budget_s=time_budget, d_min=d_min,
+                     console=console)
             return
-        from robointel.errors import RobointelError
-        from robointel.planning.frmp import execute as run_in_sim
-        from robointel.planning.frmp import plan_scene
-        from robointel.planning.scene import load_scene
-
         try:
             sc = load_scene(scene)
             with console.status("planning"):
@@ -241,8 +260,10 @@ def register(app) -> None:
             res.trajectory.save(out)
         except RobointelError as exc:
             fail(exc)
-        t = Table(title=f"{sc.name}: {len(sc.steps)} segments, {sc.total_steps} steps, d_min {sc.d_min * 1000:.0f} mm")
-        for c in ("segment", "blocked", "CFS [ms]", "iterations", "status", "min dist [mm]", "temporal [ms]", "time [s]"):
+        t = Table(title=f"{sc.name}: {len(sc.steps)} segments, {sc.total_steps} steps, "
+                        f"d_min {sc.d_min * 1000:.0f} mm")
+        for c in ("segment", "blocked", "CFS [ms]", "iterations", "status", "min dist [mm]", "temporal [ms]",
+                  "time [s]"):
             t.add_column(c, justify="right")
         for i, (s, tr) in enumerate(zip(res.segments, res.temporal)):
             t.add_row(f"{sc.waypoint_names[i]} -> {sc.waypoint_names[i + 1]}", "yes" if s.blocked else "",
@@ -259,18 +280,12 @@ def register(app) -> None:
             b = plot_path_3d(res, Path(f"{stem}_path3d.png"))
             console.print(f"plots: {a}, {b}")
         if execute:
-            from robointel.geometry.table import table_obstacles
-            from robointel.programming.collision_guard import CollisionGuard
-
             try:  # the table, the floor, the obstacles and self-collision on a 10 ms resample, before moving
                 env = list(sc.obstacles) + ([] if getattr(sc, "table", False) else table_obstacles())
                 CollisionGuard(sc.robot, env).check_many(res.trajectory.resample(0.01).q, "planned trajectory")
             except RobointelError as exc:
                 fail(exc)
         if execute and (robot != "sim" or record is not None):  # the robot interface (issue 14)
-            from robointel.commands.robot_run import run_on_robot
-            from robointel.sim import Workcell
-
             try:
                 wc = {"workcell": Workcell(sc.robot, obstacles=sc.obstacles)} if robot == "sim" else {}
                 run_on_robot(res.trajectory, robot, record, console, sim_kwargs=wc)
@@ -286,14 +301,14 @@ def register(app) -> None:
 
 
 def demo_stage(ctx: StageContext) -> StageResult:
-    """Plan the Table 7.1 workcell with the FRMP, run it in MuJoCo, re-plan around a moving hand."""
-    import time
+    """Plan the Table 7.1 workcell with the FRMP, run it in MuJoCo, re-plan around a moving hand.
 
-    from robointel.geometry import Sphere
-    from robointel.planning.frmp import execute, make_planners, plan_scene, planner_settings
-    from robointel.planning.replan import receding_horizon
-    from robointel.planning.scene import load_scene
+    Args:
+        ctx: The demo stage context (output folder, quick flag, progress).
 
+    Returns:
+        The stage's figures, images and text.
+    """
     ctx.advance(0.02, "loading the Table 7.1 scene")
     scene = load_scene("table71")
     planners = make_planners(scene)
@@ -314,7 +329,7 @@ def demo_stage(ctx: StageContext) -> StageResult:
     img2 = plot_path_3d(res, ctx.out / "frmp_path3d.png")
     res.trajectory.save(ctx.out / "table71_frmp.npz")
     ctx.advance(0.6, "tracking in MuJoCo")
-    ex = execute(res)
+    ex = run_in_sim(res)
     ctx.advance(0.8, "replanning around a moving hand")
     stop, s0 = np.array([0.62, 0.16, 0.30]), np.array([0.62, 0.16, 0.75])
     st = planner_settings(scene)

@@ -10,6 +10,9 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 from robointel.interface import ExecutionResult, RobotState, open_robot
 from robointel.io.mcap_log import McapRecorder
+from robointel.programming.guidance import GuidanceConfig
+from robointel.programming.lead_through import lead_through
+from robointel.robot import Robot
 from robointel.trajectory import Trajectory
 
 
@@ -57,13 +60,16 @@ def run_on_robot(trajectory: Trajectory, url: str, record: Path | None, console:
 def guide_on_robot(url: str, record: Path | None, duration: float, method: str, console: Console) -> None:
     """Lead-through on the robot at ``url`` for ``duration`` s (guidance ``method``), with a progress bar.
 
+    Args:
+        url: The robot, ``sim`` or ``fanuc://HOST[:RMI_PORT][?sm_port=N]``.
+        record: Record the run as a ROS 2 bag (.mcap) here, if given.
+        duration: How long to guide, s.
+        method: Guidance method (``qp``, ``equality``, ``repulsive`` or ``nullspace``).
+        console: Where the progress bar and the summary are printed.
+
     Raises:
         RobointelError: no F/T wrench from the robot, a fault, a bad URL or method.
     """
-    from robointel.programming.guidance import GuidanceConfig
-    from robointel.programming.lead_through import lead_through
-    from robointel.robot import Robot
-
     robot = Robot.load("lrmate200id7l")
     cfg = GuidanceConfig(method=method)
     rec = McapRecorder(record, list(robot.joint_names)) if record is not None else None

@@ -1,5 +1,7 @@
-"""Teaching interfaces (Ch. 3.2, 3.4): ``robointel imitate``, ``robointel teleop`` and the imitation
-demo stage (synthetic skeleton -> LR Mate kinematic imitation in MuJoCo + SCARA LQ tracking).
+"""Teaching interfaces (Ch. 3.2, 3.4): ``robointel imitate``, ``robointel teleop`` and the imitation demo stage.
+
+The demo stage drives the LR Mate by kinematic imitation in MuJoCo and the SCARA by LQ tracking
+from a synthetic skeleton.
 """
 from __future__ import annotations
 
@@ -13,18 +15,40 @@ from rich.table import Table
 
 from robointel.commands.failure import fail
 from robointel.errors import RobointelError
+from robointel.io.reference import data_path
+from robointel.programming.imitation import kinematic_imitation, plot_imitation, simulate_imitation
+from robointel.programming.scara import (
+    PAPER_RMS,
+    PAPER_RMS_COMPENSATED,
+    SMOOTH_HZ,
+    delay_aligned_rms,
+    fit_predictor,
+    plot_scara,
+    simulate_scara,
+    training_predictor,
+)
+from robointel.programming.skeleton import Skeleton, clean, load_skeleton, synthetic_wave
+from robointel.programming.streaming import StreamingController, StreamingServer
+from robointel.programming.teleop import TeleopApp
 from robointel.report.demo import Figure, StageContext, StageResult
+from robointel.robot import Robot
 
 console = Console()
 
 
-def resolve_recording(name: str):
-    """A skeleton from a path (.csv Kinect / .bvh), a recording name in the reference data
-    (``Ges01_wavehand``, ``joints``), or ``synthetic`` (generated arm wave).
-    """
-    from robointel.io.reference import data_path
-    from robointel.programming.skeleton import load_skeleton, synthetic_wave
+def resolve_recording(name: str) -> Skeleton:
+    """Load the skeleton recording named on the command line.
 
+    Args:
+        name: A path (.csv Kinect / .bvh), a recording name in the reference data
+            (``Ges01_wavehand``, ``joints``), or ``synthetic`` (generated arm wave).
+
+    Returns:
+        The skeleton recording.
+
+    Raises:
+        RobointelError: the file is missing or unreadable (see :func:`load_skeleton`).
+    """
     if name == "synthetic":
         return synthetic_wave()
     p = Path(name).expanduser()
@@ -35,19 +59,23 @@ def resolve_recording(name: str):
 
 
 def register(app: typer.Typer) -> None:
+    """Add the ``imitate`` and ``teleop`` commands to ``app``.
+
+    Args:
+        app: The top-level typer application.
+    """
+
     @app.command()
     def imitate(recording: str = typer.Argument(..., help="Kinect .csv or .bvh path, a reference recording name "
                                                           "(e.g. Ges01_wavehand) or 'synthetic'"),
                 scara: bool = typer.Option(False, "--scara", help="also run dynamic imitation on the 2-link SCARA"),
                 out: Path = typer.Option(Path("imitation"), help="folder for the plots"),
                 latency: float = typer.Option(0.1, help="Kinect latency for the SCARA run [s]")) -> None:
-        """Imitate a recorded human arm: LR Mate kinematic imitation (3.1) in MuJoCo, optionally SCARA
-        computed-torque LQ tracking (3.7)-(3.9): live with the Kinect latency, with and without delay
-        compensation, and offline replay of the recording; writes plots.
-        """
-        from robointel.programming.imitation import kinematic_imitation, plot_imitation, simulate_imitation
-        from robointel.robot import Robot
+        """Imitate a recorded human arm: LR Mate kinematic imitation (3.1) in MuJoCo, optionally the SCARA.
 
+        The SCARA runs computed-torque LQ tracking (3.7)-(3.9): live with the Kinect latency, with and
+        without delay compensation, and offline replay of the recording; writes plots.
+        """
         if not (np.isfinite(latency) and 0.0 <= latency <= 2.0):
             fail(f"--latency must be in [0, 2] s (the Kinect's delay), got {latency}")
         try:
@@ -65,18 +93,9 @@ def register(app: typer.Typer) -> None:
                           str(int(run.plan.limit_hits[j])))
             console.print(t)
             console.print(f"TCP RMS to the scaled hand path: {run.tcp_rms * 1000:.1f} mm; "
-                          f"unreachable frames: {int((~run.plan.reachable).sum())}; plot: {out / 'lrmate_imitation.png'}")
+                          f"unreachable frames: {int((~run.plan.reachable).sum())}; "
+                          f"plot: {out / 'lrmate_imitation.png'}")
             if scara:
-                from robointel.programming.scara import (
-                    PAPER_RMS,
-                    PAPER_RMS_COMPENSATED,
-                    SMOOTH_HZ,
-                    delay_aligned_rms,
-                    plot_scara,
-                    simulate_scara,
-                    training_predictor,
-                )
-
                 with console.status("SCARA LQ tracking in MuJoCo"):
                     ar, fitted_on = training_predictor(skel.source, latency=latency)
                     r0 = simulate_scara(skel, latency=latency)
@@ -113,12 +132,10 @@ def register(app: typer.Typer) -> None:
                token: str = typer.Option(None, help="shared secret, required for non-loopback binds"),
                program: Path = typer.Option(Path("teleop_program.yaml"), help="where 'Save program' writes"),
                duration: float = typer.Option(0.0, help="stop after this many seconds (0: until Ctrl-C)")) -> None:
-        """Serve the teleoperation page (viser) and the robot streaming interface (WebSocket) on the
-        simulated LR Mate; programs saved from the page load with `robointel plan`.
-        """
-        from robointel.programming.streaming import StreamingController, StreamingServer
-        from robointel.programming.teleop import TeleopApp
+        """Serve the teleoperation page (viser) and the robot streaming interface (WebSocket).
 
+        Both drive the simulated LR Mate; programs saved from the page load with `robointel plan`.
+        """
         for opt, p in (("--port", port), ("--stream-port", stream_port)):
             if not 1 <= p <= 65535:
                 fail(f"{opt} must be a TCP port in 1..65535, got {p}")
@@ -148,26 +165,22 @@ def register(app: typer.Typer) -> None:
 
 
 def demo_stage(ctx: StageContext) -> StageResult:
-    """Imitation stage on a SYNTHETIC arm-waving skeleton (generated BVH with a simulated Kinect
-    dropout), so it runs without the reference data.
-    """
-    from robointel.programming.imitation import kinematic_imitation, plot_imitation, simulate_imitation
-    from robointel.programming.scara import (
-        PAPER_RMS,
-        PAPER_RMS_COMPENSATED,
-        SMOOTH_HZ,
-        delay_aligned_rms,
-        fit_predictor,
-        plot_scara,
-        simulate_scara,
-    )
-    from robointel.programming.skeleton import clean, synthetic_wave
-    from robointel.robot import Robot
+    """Run the imitation stage on a SYNTHETIC arm-waving skeleton.
 
+    The skeleton is a generated BVH with a simulated Kinect dropout, so the stage runs without the
+    reference data.
+
+    Args:
+        ctx: The demo stage context (output folder, quick flag, progress).
+
+    Returns:
+        The stage's figures, images and text.
+    """
     dur = 4.0 if ctx.quick else 8.0
     ctx.advance(0.02, "synthetic skeleton")
     skel = synthetic_wave(dur, dropout_at=dur / 2)
     c = clean(skel)
+    assert c.bridged is not None  # clean() always marks the bridged frames
     bridged = int(c.bridged[:, c.index("HandRight")].sum())
     robot = Robot.load("lrmate200id7l")
     ctx.advance(0.1, "LR Mate imitation (IK + ruckig)")

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
 from robointel.errors import InvalidInput
@@ -26,6 +27,7 @@ from robointel.learning.insertion import R_DOWN, HDDScene, RobotCell, tip_point
 @dataclass(frozen=True)
 class Plate:
     """The workpiece: a plate of ``size`` (m) centred at ``center`` (x, y), top surface at ``top`` z.
+
     The demonstrator's intended pressing force is ``light`` N, rising to ``hard`` N in Gaussian
     regions (std ``spread`` m) around ``hard_spots`` (plate coordinates, m).
     """
@@ -38,16 +40,20 @@ class Plate:
     light: float = 5.0
     hard: float = 25.0
     # a grinding pad is compliant and progressive: 10 ms contact time constant, impedance rising from
-    # 0.5 at first touch to 0.99 at 0.2 mm compression. MuJoCo's contact softness is mass-normalised:
-    # with a stiff first touch (impedance 0.95) the pad gave ~30 um under the light hand-held device
-    # but under 2 um under the heavy position-servoed arm, and the sliding (friction) contact then
-    # chattered, losing contact for 1 ms every 5-7 ms (14 % of the 1 kHz force samples at zero).
-    # The soft first touch compresses the pad ~0.1-0.2 mm at 15-20 N under either device, no chatter.
+    # 0.5 at first touch to 0.99 at 0.2 mm compression (why: docs/decisions.md, "lint: grinding").
     contact: Contact = field(default_factory=lambda: Contact(friction=0.15, solref=(0.01, 1.0),
                                                              solimp=(0.5, 0.99, 0.0002, 0.5, 2.0)))
 
-    def force_profile(self, xy) -> np.ndarray:
-        """Intended pressing force (N) at plate coordinates ``xy`` (n, 2) m -> (n,)."""
+    def force_profile(self, xy: npt.ArrayLike) -> npt.NDArray[np.float64]:
+        """Intended pressing force of the demonstrator at plate coordinates.
+
+        Args:
+            xy: Plate coordinates, shape (n, 2) or (2,), m.
+
+        Returns:
+            The intended force, shape (n,), N: ``light`` plus ``hard - light`` times the largest
+            Gaussian bump (std ``spread``) around the ``hard_spots``.
+        """
         xy = np.atleast_2d(np.asarray(xy, float))
         g = np.zeros(len(xy))
         for s in self.hard_spots:
@@ -55,6 +61,11 @@ class Plate:
         return self.light + (self.hard - self.light) * g
 
     def build(self, spec: mujoco.MjSpec) -> None:
+        """Add the plate (and a pedestal below it, if it is raised) to a MuJoCo model spec.
+
+        Args:
+            spec: The model specification to add the geoms to (its world body).
+        """
         cx, cy = self.center
         g = spec.worldbody.add_geom(name="plate", type=mujoco.mjtGeom.mjGEOM_BOX,
                                     size=[self.size[0] / 2, self.size[1] / 2, 0.01], pos=[cx, cy, self.top - 0.01],
@@ -65,29 +76,52 @@ class Plate:
                                     size=[0.05, 0.05, (self.top - 0.02) / 2], pos=[cx, cy, (self.top - 0.02) / 2],
                                     rgba=[0.4, 0.4, 0.45, 1], contype=2, conaffinity=3)
 
-    def pre_insert_pose(self, tool: Tool, height: float = 0.003) -> np.ndarray:
-        """Tool pointing down over the plate centre, tip ``height`` above the surface."""
+    def pre_insert_pose(self, tool: Tool, height: float = 0.003) -> npt.NDArray[np.float64]:
+        """Tool pose pointing down over the plate centre.
+
+        Args:
+            tool: The tool whose tip length places the tool frame.
+            height: Gap between the tool tip and the plate's top surface, m.
+
+        Returns:
+            The (4, 4) homogeneous tool pose in the world frame (m).
+        """
         T = np.eye(4)
         T[:3, :3] = R_DOWN
         T[:3, 3] = [self.center[0], self.center[1], self.top + height + tool.tip]
         return T
 
     def tool(self) -> Tool:
-        """The grinding stylus (a 6 mm radius capsule tip)."""
+        """Return the grinding stylus (a 6 mm radius capsule tip)."""
         return Tool(radius=0.006, length=0.04, offset=0.03, mass=0.2, name="stylus")
 
 
 def demonstrate_grinding(plate: Plate, rng: np.random.Generator, *, scene: HDDScene | None = None,
                          lines: int | None = None, speed: float = 0.06, stiffness: float = 2000.0,
                          damping: float = 100.0, record_dt: float = 0.01, name: str = "") -> Demonstration:
-    """One demonstration: serpentine strokes along x at ``lines`` y-offsets (randomly shifted), the
-    hand pressing with the intended force (plus a human's 8 % force variation and tremor).
+    """Record one hand-held grinding demonstration on the plate (Sec. 5.5).
 
-    By default the strokes are at most one tool diameter apart, as grinding strokes overlap to cover
-    the surface: a stroke grinds (and the F/T sensor samples) a track one tool diameter wide, and
-    wider spacing leaves unground, undemonstrated stripes where the skill model can only
-    interpolate (with the former 6 strokes 30 mm apart, the hard spots' peaks fell between strokes
-    and the learned map missed them by up to 20 %).
+    Serpentine strokes along x at ``lines`` y-offsets (randomly shifted), the hand pressing with the
+    intended force (plus a human's 8 % force variation and tremor). By default the strokes are at
+    most one tool diameter apart, as grinding strokes overlap to cover the surface: a stroke grinds
+    (and the F/T sensor samples) a track one tool diameter wide.
+
+    Args:
+        plate: The workpiece and the demonstrator's intended force profile.
+        rng: Random generator for the stroke offsets, force gain, tremor and sensor noise.
+        scene: The demonstration-device scene; a new one for ``plate`` when None.
+        lines: Number of strokes; None spaces them one tool diameter apart.
+        speed: Stroke speed, m/s.
+        stiffness: Axial stiffness of the hand, N/m.
+        damping: Translational damping of the hand, N s/m.
+        record_dt: F/T and pose sample interval, s (the mean over each interval is recorded).
+        name: Name stored in the demonstration.
+
+    Returns:
+        The demonstration: time (n,) s, tool poses (n, 4, 4) and wrenches (n, 6) N, N m.
+
+    Raises:
+        InvalidInput: ``lines`` is not a positive number.
     """
     tool = plate.tool()
     scene = scene or HDDScene(plate, tool)
@@ -106,14 +140,16 @@ def demonstrate_grinding(plate: Plate, rng: np.random.Generator, *, scene: HDDSc
     T0[:3, 3] += np.array([-half[0], ys[0], 0.0])
     scene.reset(T0)
     mg = np.array([0, 0, scene.mass * 9.81])
-    ts, poses, wr = [], [], []
+    ts: list[float] = []
+    poses: list[npt.NDArray[np.float64]] = []
+    wr: list[npt.NDArray[np.float64]] = []
     rot_k, rot_d = 6.0, 0.2
     step = 0
     every = max(1, int(round(record_dt / dt)))
     phase = rng.uniform(0, 2 * np.pi, 2)
     acc = np.zeros(6)
 
-    def hand(xy, press):
+    def hand(xy: npt.NDArray[np.float64], press: float) -> None:
         nonlocal step, acc
         T = scene.pose()
         v, w = scene.twist()
@@ -151,15 +187,29 @@ def demonstrate_grinding(plate: Plate, rng: np.random.Generator, *, scene: HDDSc
 
 
 class GrindingSkill:
-    """GMR from the tool-tip position on the plate (x, y) to the pressing force (N), (5.14)-(5.17)."""
+    """GMR from the tool-tip position on the plate (x, y) to the pressing force (N), (5.14)-(5.17).
+
+    Args:
+        plate: The workpiece (its centre defines the plate coordinates).
+        n_components: Number of Gaussian components of the mixture.
+        random_state: Seed of the EM initialisation.
+    """
 
     def __init__(self, plate: Plate, n_components: int = 25, *, random_state: int = 0) -> None:
         self.plate = plate
         self.tool = plate.tool()
         self.gmr = GaussianMixtureRegression(n_components, random_state=random_state)
 
-    def samples(self, demo: Demonstration) -> tuple[np.ndarray, np.ndarray]:
-        """(x, y) plate coordinates of the tip and the pressing force of the samples in contact."""
+    def samples(self, demo: Demonstration) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """Extract the training pairs of one demonstration.
+
+        Args:
+            demo: A grinding demonstration (poses and wrenches).
+
+        Returns:
+            The tool-tip plate coordinates (m, 2) m and pressing forces (m,) N of the samples in
+            contact (pressing force above 1 N).
+        """
         tips = np.array([tip_point(T, self.tool) for T in demo.pose])
         xy = tips[:, :2] - np.array(self.plate.center)
         push = -demo.wrench[:, 2]
@@ -167,10 +217,22 @@ class GrindingSkill:
         return xy[m], push[m]
 
     def fit(self, demos: Sequence[Demonstration]) -> GrindingSkill:
+        """Fit the position-to-force GMR (5.14)-(5.17) to the demonstrations' contact samples.
+
+        Args:
+            demos: Grinding demonstrations.
+
+        Returns:
+            This skill, fitted.
+
+        Raises:
+            InvalidInput: ``demos`` is empty.
+        """
         if len(demos) == 0:
             raise InvalidInput("GrindingSkill.fit needs demonstrations")
-        X, Y = zip(*(self.samples(d) for d in demos))
-        X, Y = np.concatenate(X), np.concatenate(Y)
+        pairs = [self.samples(d) for d in demos]
+        X = np.concatenate([p[0] for p in pairs])
+        Y = np.concatenate([p[1] for p in pairs])
         self.y_mean_, self.y_scale_ = float(Y.mean()), float(Y.std() + 1e-9)
         self.y_lo_, self.y_hi_ = float(Y.min()), float(Y.max())
         with threadpool_limits(limits=1, user_api="blas"):  # 3-D EM steps: threads cost more than they save
@@ -178,10 +240,17 @@ class GrindingSkill:
         self.X_, self.Y_ = X, Y
         return self
 
-    def predict(self, xy) -> np.ndarray:
-        """Pressing force (n,) N at plate coordinates (n, 2), saturated to the demonstrated force
-        range (the regression's local linear models would extrapolate to pulling forces off the
-        demonstrated area).
+    def predict(self, xy: npt.ArrayLike) -> npt.NDArray[np.float64]:
+        """Predict the pressing force by GMR (5.17), saturated to the demonstrated force range.
+
+        The saturation stops the regression's local linear models from extrapolating to pulling
+        forces off the demonstrated area.
+
+        Args:
+            xy: Plate coordinates, shape (n, 2) or (2,), m.
+
+        Returns:
+            The pressing force set-points, shape (n,), N.
         """
         f = self.gmr.predict(np.atleast_2d(np.asarray(xy, float)) / 0.05)[:, 0] * self.y_scale_ + self.y_mean_
         return np.clip(f, self.y_lo_, self.y_hi_)
@@ -189,8 +258,10 @@ class GrindingSkill:
 
 @dataclass
 class GrindingResult:
-    """Reproduction along the path: ``t`` (n,), plate coordinates ``xy`` (n, 2), measured force
-    (n,) N, the skill's set-point (n,), the demonstrator's intended profile (n,) and
+    """Reproduction along the path of :func:`reproduce_grinding`.
+
+    Fields: ``t`` (n,) s, plate coordinates ``xy`` (n, 2) m, measured force (n,) N, the skill's
+    set-point (n,) N, the demonstrator's intended profile (n,) N and
     ``rms_rel`` = RMS(measured - intended) / peak intended force (``rms_rel_setpoint``: against
     the skill's set-point, i.e. the force controller alone).
     """
@@ -207,12 +278,28 @@ class GrindingResult:
 def reproduce_grinding(plate: Plate, skill: GrindingSkill, *, cell: RobotCell | None = None,
                        speed: float = 0.03, k_force: float = 1.0 / 1500.0, filter_hz: float = 5.0,
                        t_touch: float = 1.0, seed: int = 0) -> GrindingResult:
-    """The LR Mate follows the plate's diagonal with the learned pressing force (Fig. 5.13):
-    lateral motion is position controlled, the tool axis is force controlled by an admittance
+    """Reproduce the grinding skill: the LR Mate follows the plate's diagonal (Fig. 5.13).
+
+    Lateral motion is position controlled, the tool axis is force controlled by an admittance
     ``v = k_force (F_set - F_filtered)`` on the joint servo's reference (``filter_hz`` low-pass on
     the F/T signal). The reported force is the raw sensor force averaged over each 10 ms sample.
-    ``skill`` is the learned :class:`GrindingSkill` (any object whose ``predict`` maps plate
-    coordinates (n, 2) m to set-points (n,) N).
+
+    Args:
+        plate: The workpiece and the demonstrator's intended force profile.
+        skill: The learned :class:`GrindingSkill` (any object whose ``predict`` maps plate
+            coordinates (n, 2) m to set-points (n,) N).
+        cell: The robot cell; a new one for ``plate`` when None.
+        speed: Path speed along the diagonal, m/s.
+        k_force: Admittance gain, m/(N s).
+        filter_hz: Cut-off of the F/T low-pass filter, Hz.
+        t_touch: Time pressing at the start point before moving, s.
+        seed: Seed of the sensor noise.
+
+    Returns:
+        The measured, set-point and intended forces along the path and their relative RMS errors.
+
+    Raises:
+        IKFailure: The start pose is out of reach.
     """
     cell = cell or RobotCell(plate, tool=plate.tool())
     tool = cell.tool
@@ -230,8 +317,12 @@ def reproduce_grinding(plate: Plate, skill: GrindingSkill, *, cell: RobotCell | 
     p_f = 0.0
     z_cmd = float(tip_point(cell.tool_pose(), tool)[2])
     n = int((t_touch + L / speed) / dt)
-    ts, xys, fs, sp = [], [], [], []
+    ts: list[float] = []
+    xy_log: list[npt.NDArray[np.float64]] = []
+    f_log: list[float] = []
+    sp_log: list[float] = []
     acc = 0.0
+    f_set = 0.0
     for k in range(n):
         t = k * dt
         Tm = cell.ft.pose(cell.data)
@@ -241,7 +332,8 @@ def reproduce_grinding(plate: Plate, skill: GrindingSkill, *, cell: RobotCell | 
         acc += push
         s = float(np.clip((t - t_touch) * speed / L, 0.0, 1.0))
         xy = a_xy + s * (b_xy - a_xy)
-        f_set = float(skill.predict(xy[None])[0]) if k % 10 == 0 or k == 0 else f_set
+        if k % 10 == 0:
+            f_set = float(skill.predict(xy[None])[0])
         z_cmd += -k_force * (f_set - p_f) * dt
         tip_cmd = np.array([c[0] + xy[0], c[1] + xy[1], z_cmd])
         T_cmd = np.eye(4)
@@ -257,13 +349,13 @@ def reproduce_grinding(plate: Plate, skill: GrindingSkill, *, cell: RobotCell | 
             if t >= t_touch:  # logged like the HDD: the sensor's mean over the 10 ms sample
                 tip = tip_point(Tm, tool)
                 ts.append(t)
-                xys.append(tip[:2] - c)
-                fs.append(acc / 10)
-                sp.append(f_set)
+                xy_log.append(tip[:2] - c)
+                f_log.append(acc / 10)
+                sp_log.append(f_set)
             acc = 0.0
-    xys = np.array(xys)
+    xys = np.array(xy_log)
     intended = plate.force_profile(xys)
-    fs, sp = np.array(fs), np.array(sp)
+    fs, sp = np.array(f_log), np.array(sp_log)
     peak = float(intended.max())
     return GrindingResult(np.array(ts), xys, fs, sp, intended,
                           float(np.sqrt(np.mean((fs - intended) ** 2)) / peak),

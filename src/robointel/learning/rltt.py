@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
 from robointel.errors import InvalidInput
@@ -36,10 +37,10 @@ class LearnedInsertion:
 
     skill: InsertionSkill
     segmenter: ActionSegmenter
-    aligned: list[np.ndarray]
-    labels: list[np.ndarray]
-    boundary_errors: np.ndarray
-    timings: dict = field(default_factory=dict)
+    aligned: list[npt.NDArray[np.float64]]
+    labels: list[npt.NDArray[np.int_]]
+    boundary_errors: npt.NDArray[np.float64]
+    timings: dict[str, float] = field(default_factory=dict)
 
 
 def learn_insertion(demos: Sequence[Demonstration], *, n_labelled: int = 20, reference: int = 0,
@@ -79,8 +80,9 @@ def learn_insertion(demos: Sequence[Demonstration], *, n_labelled: int = 20, ref
                                 only_successful, centre)
 
 
-def _learn_insertion(demos, n_labelled, reference, sync_window, seg_window, seg_band, n_components,
-                     only_successful, centre) -> LearnedInsertion:
+def _learn_insertion(demos: Sequence[Demonstration], n_labelled: int, reference: int, sync_window: int,
+                     seg_window: int, seg_band: int, n_components: int, only_successful: bool,
+                     centre: float) -> LearnedInsertion:
     t0 = time.perf_counter()
     feats = [demo_features(d) for d in demos]
     allf = np.concatenate(feats)
@@ -91,8 +93,8 @@ def _learn_insertion(demos, n_labelled, reference, sync_window, seg_window, seg_
     t1 = time.perf_counter()
     seg = ActionSegmenter(window=seg_window, band=seg_band, stride=2, max_train_windows=1500)
     seg.fit(feats[:n_labelled], [d.labels for d in demos[:n_labelled]])
-    labels = [d.labels for d in demos[:n_labelled]]
-    errs = []
+    labels: list[npt.NDArray[np.int_]] = [d.labels for d in demos[:n_labelled] if d.labels is not None]
+    errs: list[npt.NDArray[np.float64]] = []
     for d, f in zip(demos[n_labelled:], feats[n_labelled:]):
         r = seg.predict(f)
         labels.append(r.labels)
