@@ -55,8 +55,6 @@ def test_cli_plans_every_family(planned):
             assert np.all(np.abs(tr.qd) <= 0.5 * (1 + 1e-6))  # the URDF's velocity limit
 
 
-@pytest.mark.xfail(strict=False, reason="plan_motion's sphere model still under-covers the Robotiq finger tips "
-                   "in places: measured 1 of 7 (bookshelf_tall/1, finger tip 0.013 mm into shelf_top) at d_min 1 mm")
 def test_cli_trajectories_pass_the_independent_checker(planned, root):
     res, out, raw = planned
     checker = MBMChecker(root / "ur5.urdf", root / "ur5.srdf")
