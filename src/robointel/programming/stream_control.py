@@ -1,7 +1,8 @@
 """The robot side of the streaming interface: a 1 kHz control thread over the MuJoCo workcell.
 
-It has a jerk-limited generator (``ruckig``), one commanding client, a latched stop and a deadman
-that counts from the client's send time (protocol: :mod:`robointel.programming.streaming`).
+It has the jerk-limited follower of :mod:`robointel.control` (``ruckig``), one commanding client, a
+latched stop and a deadman that counts from the client's send time (protocol:
+:mod:`robointel.programming.streaming`).
 
 Between targets the generator moves the reference within the joint velocity, acceleration and jerk
 limits; the workcell's joint controller tracks it. A target reaches the generator only after the
@@ -13,6 +14,7 @@ joint-space move to it is clear of the table, the floor and the robot itself
 from __future__ import annotations
 
 import atexit
+import contextlib
 import threading
 import time
 import weakref
@@ -23,7 +25,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from robointel.errors import IKFailure, InvalidInput, TargetInCollision
+from robointel.control import JerkLimitedFollower
+from robointel.errors import IKFailure, InvalidInput, SolverFailure, TargetInCollision
 from robointel.programming.collision_guard import CollisionGuard
 from robointel.programming.stream_protocol import Rejected, flag, numbers, pose, sequence
 
@@ -33,13 +36,14 @@ LOCAL = "local"  # the client id of in-process callers (the teleoperation page u
 
 @atexit.register
 def _release_generators() -> None:
-    """Join the control threads still running at exit, drop the ruckig objects of live controllers.
+    """Join the control threads still running at exit, drop the followers (ruckig) of live controllers.
 
     A daemon thread left inside MuJoCo when the interpreter finalises would crash it.
     """
     for c in list(_LIVE):
         c.stop()
-        c.otg = c.inp = c.out = None
+        with contextlib.suppress(AttributeError):
+            del c.follower
 
 
 @dataclass
@@ -84,8 +88,6 @@ class StreamingController:
     def __init__(self, robot: Any = None, workcell: Any = None, *, deadman: float = 0.1,
                  q0: npt.ArrayLike | None = None, jerk_factor: float = 20.0, realtime: bool = True,
                  guard: CollisionGuard | None = None) -> None:
-        from ruckig import InputParameter, OutputParameter, Ruckig
-
         from robointel.robot import Robot
 
         if not (0.0 < deadman <= 5.0):
@@ -112,14 +114,10 @@ class StreamingController:
             self.guard.check(q0, "q0")
         self.wc.reset(q0)
         self.dt = 0.001
-        self.otg = Ruckig(n, self.dt)
-        self.inp, self.out = InputParameter(n), OutputParameter(n)
-        self.inp.max_velocity = self.robot.velocity_limit.tolist()
-        self.inp.max_acceleration = self.robot.acceleration_limit.tolist()
-        self.inp.max_jerk = (jerk_factor * self.robot.acceleration_limit).tolist()
-        self.inp.current_position = q0.tolist()
-        self.inp.current_velocity = [0.0] * n
-        self.inp.current_acceleration = [0.0] * n
+        self.follower = JerkLimitedFollower(self.robot.velocity_limit, self.robot.acceleration_limit,
+                                            jerk_factor * self.robot.acceleration_limit, dt=self.dt,
+                                            lower=self.robot.lower, upper=self.robot.upper)
+        self.follower.reset(q0)
         self.q_ref, self.qd_ref, self.qdd_ref = q0.copy(), np.zeros(n), np.zeros(n)
         self.mode = "idle"
         self._lock = threading.Lock()
@@ -330,8 +328,6 @@ class StreamingController:
     # ------------------------------------------------------------------ 1 kHz loop
     def advance(self, steps: int = 1) -> None:
         """Run ``steps`` 1 kHz control periods (the control thread calls this)."""
-        from ruckig import ControlInterface, Result
-
         for _ in range(steps):
             applied = None
             now = time.perf_counter()
@@ -345,27 +341,17 @@ class StreamingController:
                 self._drop_target = False
                 target = self._target
             if target is not None:
-                self.inp.control_interface = ControlInterface.Position
-                self.inp.target_position = target.q.tolist()
-                self.inp.target_velocity = [0.0] * self.n
-                self.inp.target_acceleration = [0.0] * self.n
                 self.mode = "tracking"
             elif self.mode in ("tracking", "stopping"):
-                self.inp.control_interface = ControlInterface.Velocity
-                self.inp.target_velocity = [0.0] * self.n
-                self.inp.target_acceleration = [0.0] * self.n
                 self.mode = "stopping"
             if self.mode in ("tracking", "stopping"):
-                res = self.otg.update(self.inp, self.out)
-                if res not in (Result.Working, Result.Finished):  # pragma: no cover - defensive
-                    self.inp.control_interface = ControlInterface.Velocity
-                    self.inp.target_velocity = [0.0] * self.n
+                try:
+                    q, qd, qdd = (self.follower.step_position(target.q) if target is not None
+                                  else self.follower.brake())
+                except SolverFailure:  # pragma: no cover - defensive: brake instead
                     self.mode = "stopping"
-                    self.otg.update(self.inp, self.out)
-                q = np.clip(np.array(self.out.new_position), self.robot.lower, self.robot.upper)
-                qd, qdd = np.array(self.out.new_velocity), np.array(self.out.new_acceleration)
-                self.out.pass_to_input(self.inp)
-                if self.mode == "stopping" and np.max(np.abs(qd)) < 1e-9 and np.max(np.abs(qdd)) < 1e-9:
+                    q, qd, qdd = self.follower.brake()
+                if self.mode == "stopping" and self.follower.at_rest:
                     self.mode = "stopped"
                     self.rest_at = now
                 self.q_ref, self.qd_ref, self.qdd_ref = q, qd, qdd
