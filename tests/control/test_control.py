@@ -31,17 +31,48 @@ def test_follower_respects_limits_and_reaches_a_moving_target():
         JerkLimitedFollower([1.0], [0.0], [1.0])
 
 
-def test_follower_matches_the_imitation_follower_it_replaces():
-    from robointel.programming.imitation import LimitedFollower
+def test_follower_position_interface_brake_and_per_period_limits():
+    v, a, j = np.array([1.0, 2.0]), np.array([5.0, 5.0]), np.array([100.0, 100.0])
+    f = JerkLimitedFollower(v, a, j, dt=0.001, lower=[-1.0, -1.0], upper=[1.0, 1.0])
+    f.reset([0.0, 0.0])
+    # position interface: reaches the target state and rests there
+    for _ in range(2000):
+        q, qd, qdd = f.step_position([0.4, -0.6])
+    np.testing.assert_allclose(q, [0.4, -0.6], atol=1e-9)
+    assert f.at_rest
+    # a brake from full speed stops within the (changed, asymmetric) limits
+    f.reset([0.0, 0.0], [0.9, -1.5])
+    f.set_limits(min_acceleration=[-2.0, -4.0], max_acceleration=[3.0, 1.0], max_jerk=[50.0, 50.0])
+    qdds = []
+    for _ in range(3000):
+        q, qd, qdd = f.brake()
+        qdds.append(qdd)
+        assert np.all(q >= -1.0) and np.all(q <= 1.0)
+    qdds = np.array(qdds)
+    assert f.at_rest
+    assert np.all(qdds >= [-2.0 - 1e-9, -4.0 - 1e-9]) and np.all(qdds <= [3.0 + 1e-9, 1.0 + 1e-9])
+    assert np.all(np.abs(np.diff(qdds, axis=0)) / 0.001 <= 50.0 + 1e-6)
+    with pytest.raises(InvalidInput):
+        f.set_limits(min_acceleration=[1.0, -1.0])
+    with pytest.raises(InvalidInput):
+        JerkLimitedFollower(v, a, j, brake_share=0.0)
 
-    old = LimitedFollower(3, 2.0, 8.0, 80.0, dt=0.001)
-    new = JerkLimitedFollower([2.0] * 3, 8.0, 80.0, dt=0.001)
-    old.reset(np.zeros(3)), new.reset(np.zeros(3))
-    rng = np.random.default_rng(0)
-    for _ in range(200):
-        tgt = rng.normal(size=3)
-        for _ in range(5):
-            np.testing.assert_allclose(new.step(tgt)[0], old.step(tgt)[0], atol=1e-12)
+
+def test_jerk_limited_reference_goes_through_the_one_follower(monkeypatch):
+    import robointel.programming.imitation as imitation
+
+    made = []
+
+    class Spy(JerkLimitedFollower):
+        def __init__(self, *args, **kw):
+            super().__init__(*args, **kw)
+            made.append(self)
+
+    monkeypatch.setattr(imitation, "JerkLimitedFollower", Spy)
+    t = np.linspace(0.0, 1.0, 11)
+    ref = imitation.jerk_limited(t, np.c_[np.sin(t), t], [2.0, 2.0], [8.0, 8.0], [80.0, 80.0])
+    assert len(made) == 1 and ref.q.shape == (1001, 2)
+    assert np.all(np.abs(ref.qdd) <= 8.0 + 1e-9)
 
 
 def test_payload_compensation_removes_weight_at_any_orientation():

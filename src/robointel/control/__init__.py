@@ -2,7 +2,8 @@
 
 - :class:`JointController`, :class:`PIDGains` -- joint servo: PID + model feed-forward (Fig. 2.3).
 - :class:`JerkLimitedFollower` -- the jerk-limited online follower of a moving target (ruckig).
-- :class:`AdmittanceController`, :func:`admittance_twist`, :func:`damped_pinv` -- Cartesian
+- :class:`AdmittanceController`, :func:`admittance_twist`, :func:`admittance_velocity`,
+  :func:`damped_pinv` -- Cartesian
   admittance (3.10)-(3.13): wrench -> twist -> joint position command.
 - :class:`PayloadCompensation` -- F/T payload and bias compensation (3.14)-(3.15), (3.20).
 """
@@ -10,6 +11,7 @@ from robointel.control.admittance import (
                                           AdmittanceController,
                                           AdmittanceGains,
                                           admittance_twist,
+                                          admittance_velocity,
                                           damped_pinv,
                                           shift_wrench,
                                           wrench_to_world,
@@ -19,5 +21,5 @@ from robointel.control.payload import GRAVITY, PayloadCompensation
 from robointel.control.servo import JointController, PIDGains, max_inertia, model_with_payload
 
 __all__ = ["JointController", "PIDGains", "max_inertia", "model_with_payload", "JerkLimitedFollower",
-           "AdmittanceController", "AdmittanceGains", "admittance_twist", "damped_pinv", "shift_wrench",
-           "wrench_to_world", "PayloadCompensation", "GRAVITY"]
+           "AdmittanceController", "AdmittanceGains", "admittance_twist", "admittance_velocity", "damped_pinv",
+           "shift_wrench", "wrench_to_world", "PayloadCompensation", "GRAVITY"]

@@ -45,6 +45,11 @@ class AdmittanceGains:
             if not np.isfinite(v) or v < 0:
                 raise InvalidInput(f"AdmittanceGains.{name} must be finite and >= 0, got {v!r}", value=v)
 
+    @property
+    def matrix(self) -> Vector:
+        """C = diag(K_d I_3, K_r I_3), (6, 6) (3.11)."""
+        return np.diag([self.translational] * 3 + [self.rotational] * 3)
+
 
 def shift_wrench(wrench: npt.ArrayLike, r: npt.ArrayLike) -> Vector:
     """Move a wrench [f; tau] (6,) to a point displaced by ``r`` (3,) m (same axes): tau' = tau - r x f."""
@@ -102,6 +107,30 @@ def damped_pinv(J: npt.ArrayLike, *, epsilon: float = 0.04, max_damping: float =
     return np.asarray((Vt.T * inv) @ U.T)
 
 
+def admittance_velocity(robot: Any, q: npt.ArrayLike, wrench_world: npt.ArrayLike,
+                        gains: AdmittanceGains = AdmittanceGains(), *, epsilon: float = 0.04,
+                        max_damping: float = 0.04) -> Vector:
+    """Joint velocity reference dq_r = J^#(q) C F_E (3.12)-(3.13) for a wrench at the robot's TCP (unscaled).
+
+    Args:
+        robot: a :class:`robointel.robot.Robot` (its TCP is the handle point).
+        q: (n,) joint angles, rad.
+        wrench_world: (6,) [f; tau] in world axes about the TCP, N and N m.
+        gains: the damping gains C of (3.11).
+        epsilon: singular-value threshold of the damped pseudo-inverse J^#.
+        max_damping: largest damping of the pseudo-inverse near a singularity.
+
+    Returns:
+        (n,) joint velocities, rad/s (not scaled to the speed limits: see :class:`AdmittanceController`).
+
+    Raises:
+        ShapeError, NotFinite, LimitViolation: bad ``q`` or wrench.
+    """
+    q = robot.check_q(q)
+    V = admittance_twist(wrench_world, gains)
+    return np.asarray(damped_pinv(robot.jacobian(q), epsilon=epsilon, max_damping=max_damping) @ V)
+
+
 class AdmittanceController:
     """Wrench at the TCP -> next joint position command, one controller period per call.
 
@@ -124,9 +153,8 @@ class AdmittanceController:
 
     def velocity(self, q: npt.ArrayLike, wrench_world: npt.ArrayLike) -> Vector:
         """Joint velocity dq_r = J^#(q) C F_E (3.12)-(3.13), (n,) rad/s, scaled into the speed limits."""
-        q = self.robot.check_q(q)
-        V = admittance_twist(wrench_world, self.gains)
-        qd = damped_pinv(self.robot.jacobian(q), epsilon=self.epsilon, max_damping=self.max_damping) @ V
+        qd = admittance_velocity(self.robot, q, wrench_world, self.gains, epsilon=self.epsilon,
+                                 max_damping=self.max_damping)
         ratio = float(np.max(np.abs(qd) / self.robot.velocity_limit))
         return np.asarray(qd / ratio if ratio > 1.0 else qd)
 

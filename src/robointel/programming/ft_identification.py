@@ -16,26 +16,27 @@ problems (3.16)-(3.19):
 
 The compensated (external) wrench is then (3.20)
 
-    f_E = f - f_B - m R^T g,  tau_E = tau - tau_B - r_P x (m R^T g).
+    f_E = f - f_B - m R^T g,  tau_E = tau - tau_B - r_P x (m R^T g),
+
+computed by :class:`robointel.control.PayloadCompensation` (written once, used on every backend).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from robointel._validate import as_array
+from robointel.control.payload import GRAVITY, PayloadCompensation
 from robointel.errors import InvalidInput
 
 if TYPE_CHECKING:  # pragma: no cover
     from robointel.sim import Workcell
 
 __all__ = ["FTCalibration", "GRAVITY", "calibrate_in_workcell", "identify_ft", "skew"]
-
-GRAVITY = np.array([0.0, 0.0, -9.81])
-
 
 def skew(v: np.ndarray) -> np.ndarray:
     """Cross-product matrices [v]_x: (3,) -> (3, 3) or (N, 3) -> (N, 3, 3)."""
@@ -72,16 +73,25 @@ class FTCalibration:
         """|f_P| = m |g|, N."""
         return self.mass * float(np.linalg.norm(self.gravity))
 
-    def payload_wrench(self, R_world_sensor: ArrayLike) -> np.ndarray:
-        """Wrench the payload and biases put on the sensor at orientation(s) R.
+    @cached_property
+    def payload(self) -> PayloadCompensation:
+        """The identified payload and biases as the one F/T compensation of :mod:`robointel.control`.
 
-        (3,3) -> (6,), (N,3,3) -> (N,6) (the right-hand sides of (3.14)-(3.15)).
+        Raises:
+            InvalidInput: the identified mass is negative (no payload and noise, or poorly exciting poses).
         """
-        R = np.asarray(R_world_sensor, float)
-        g_s = np.einsum("...ji,j->...i", R, self.gravity) * self.mass
-        f = g_s + self.force_bias
-        t = np.cross(self.com, g_s) + self.torque_bias
-        return np.concatenate([f, t], -1)
+        return PayloadCompensation(self.mass, self.com, self.force_bias, self.torque_bias, self.gravity)
+
+    def payload_wrench(self, R_world_sensor: ArrayLike) -> np.ndarray:
+        """Wrench the payload and biases put on the sensor at orientation(s) R (3.14)-(3.15).
+
+        Args:
+            R_world_sensor: (3, 3) or (N, 3, 3) sensor orientation(s), world <- sensor.
+
+        Returns:
+            (6,) or (N, 6) [f (N); tau (N m)], sensor frame.
+        """
+        return self.payload.payload_wrench(R_world_sensor)
 
     def compensate(self, wrench: ArrayLike, R_world_sensor: ArrayLike) -> np.ndarray:
         """External wrench (3.20): reading minus payload weight and biases, in the sensor frame.
@@ -89,12 +99,14 @@ class FTCalibration:
         Args:
             wrench: raw reading(s) [f; tau], (6,) or (N, 6).
             R_world_sensor: sensor orientation(s), (3, 3) or (N, 3, 3).
+
+        Returns:
+            Same shape as ``wrench``.
+
+        Raises:
+            InvalidInput: shapes that do not match or values that are not finite.
         """
-        w = np.asarray(wrench, float)
-        R = np.asarray(R_world_sensor, float)
-        if w.shape[-1] != 6 or R.shape[-2:] != (3, 3) or w.shape[:-1] != R.shape[:-2]:
-            raise InvalidInput(f"wrench (..., 6) and R (..., 3, 3) must match, got {w.shape} and {R.shape}")
-        return w - self.payload_wrench(R)
+        return self.payload.compensate(wrench, R_world_sensor)
 
 
 def identify_ft(wrenches: ArrayLike, rotations: ArrayLike, *, gravity: ArrayLike = GRAVITY) -> FTCalibration:

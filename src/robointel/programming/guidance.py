@@ -49,9 +49,9 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from robointel._validate import as_array
+from robointel.control.admittance import AdmittanceGains
 from robointel.errors import InvalidInput, SafetyStop, ShapeError
 from robointel.geometry.distance import ObstacleSet, sphere_distances
-from robointel.programming.compliance import ComplianceGains
 from robointel.programming.guidance_kernels import active_rows, check_wrench, filter_lead, qp_terms, soft_min
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -124,7 +124,7 @@ class GuidanceConfig:
     """
 
     method: str = "qp"
-    gains: ComplianceGains = field(default_factory=ComplianceGains)
+    gains: AdmittanceGains = field(default_factory=AdmittanceGains)
     d0: float = 0.15
     alpha: float = 6.0
     rot_weight: float = 0.01

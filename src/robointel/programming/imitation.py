@@ -20,10 +20,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
-from ruckig import ControlInterface, InputParameter, OutputParameter, Result, Ruckig
 from scipy.interpolate import CubicSpline
 
 from robointel._validate import as_array
+from robointel.control import JerkLimitedFollower
 from robointel.errors import IKFailure, InvalidInput
 from robointel.programming.skeleton import Skeleton, clean
 from robointel.sim import TrackingLog, Workcell
@@ -137,69 +137,13 @@ def solve_ik_path(robot: Robot, p: np.ndarray, R: np.ndarray,
     return out, ok
 
 
-class LimitedFollower:
-    """Online jerk-limited follower of a moving target (``ruckig``, velocity interface).
-
-    Each period the commanded velocity is the target's velocity plus a feedback on the position
-    error (``gain`` times it near the target, at most sqrt(amax |e| / 2) far from it, so that
-    catching up never overshoots), clipped to the velocity limit; ruckig reaches it within the
-    acceleration and jerk limits. Positions are clipped to [lower, upper].
-
-    Args:
-        n: joints.  vmax, amax, jmax: (n,) limits [rad/s, rad/s^2, rad/s^3].  dt: period [s].
-    """
-
-    def __init__(self, n: int, vmax: ArrayLike, amax: ArrayLike, jmax: ArrayLike, *, dt: float = 0.001,
-                 gain: float = 12.0, lower: ArrayLike | None = None, upper: ArrayLike | None = None) -> None:
-        self.n = n
-        self.vmax, self.amax, self.jmax = (np.broadcast_to(as_array(x, "limit"), (n,)).astype(float)
-                                           for x in (vmax, amax, jmax))
-        if np.any(self.vmax <= 0) or np.any(self.amax <= 0) or np.any(self.jmax <= 0):
-            raise InvalidInput("velocity, acceleration and jerk limits must be positive")
-        self.gain = float(gain)
-        self.lower, self.upper = lower, upper
-        self.otg = Ruckig(n, dt)
-        self.inp, self.out = InputParameter(n), OutputParameter(n)
-        self.inp.control_interface = ControlInterface.Velocity
-        self.inp.max_velocity = self.vmax.tolist()
-        self.inp.max_acceleration = self.amax.tolist()
-        self.inp.max_jerk = self.jmax.tolist()
-        self.inp.target_acceleration = [0.0] * n
-        self.q = np.zeros(n)
-
-    def reset(self, q: np.ndarray, qd: np.ndarray | None = None) -> None:
-        """Restart the follower at ``q`` (n,), rad, with velocity ``qd`` (n,), rad/s (default 0)."""
-        self.q = np.array(q, float)
-        self.inp.current_position = self.q.tolist()
-        self.inp.current_velocity = [0.0] * self.n if qd is None else list(map(float, qd))
-        self.inp.current_acceleration = [0.0] * self.n
-
-    def step(self, target: ArrayLike,
-             target_velocity: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One period toward ``target`` (n,) moving at ``target_velocity`` (n,): (q, qd, qdd)."""
-        e = np.asarray(target, float) - self.q
-        fb = np.sign(e) * np.minimum(self.gain * np.abs(e), np.sqrt(0.5 * self.amax * np.abs(e)))
-        tv = np.zeros(self.n) if target_velocity is None else np.asarray(target_velocity, float)
-        self.inp.target_velocity = np.clip(tv + fb, -self.vmax, self.vmax).tolist()
-        res = self.otg.update(self.inp, self.out)
-        if res not in (Result.Working, Result.Finished):
-            raise InvalidInput(f"ruckig failed ({res})", value=res)
-        q = np.array(self.out.new_position)
-        if self.lower is not None:
-            q = np.clip(q, self.lower, self.upper)
-        self.q = q
-        qd, qdd = np.array(self.out.new_velocity), np.array(self.out.new_acceleration)
-        self.out.pass_to_input(self.inp)
-        return q, qd, qdd
-
-
 def jerk_limited(t: np.ndarray, q: np.ndarray, vmax: ArrayLike, amax: ArrayLike, jmax: ArrayLike, *, dt: float = 0.001,
                  lower: ArrayLike | None = None, upper: ArrayLike | None = None, gain: float = 12.0,
                  joint_names: list[str] | None = None) -> Trajectory:
     """Jerk-limited joint reference through joint targets.
 
     Follows the C2 spline through the targets within velocity, acceleration and jerk limits with a
-    :class:`LimitedFollower` (ruckig).
+    :class:`~robointel.control.JerkLimitedFollower` (ruckig).
 
     Args:
         t: (N,) target times, s.
@@ -222,7 +166,8 @@ def jerk_limited(t: np.ndarray, q: np.ndarray, vmax: ArrayLike, amax: ArrayLike,
     t = as_array(t, "t", (None,))
     q = as_array(q, "q", (len(t), None))
     n = q.shape[1]
-    fol = LimitedFollower(n, vmax, amax, jmax, dt=dt, gain=gain, lower=lower, upper=upper)
+    fol = JerkLimitedFollower(np.broadcast_to(as_array(vmax, "vmax"), (n,)), amax, jmax, dt=dt, gain=gain,
+                              lower=lower, upper=upper)
     fol.reset(q[0])
     tg = np.arange(t[0], t[-1] + 0.5 * dt, dt)
     sp = CubicSpline(t, q, axis=0)

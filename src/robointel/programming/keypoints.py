@@ -22,8 +22,8 @@ from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation, Slerp
 
 from robointel._validate import as_array
+from robointel.control.admittance import damped_pinv
 from robointel.errors import InvalidInput
-from robointel.programming.compliance import damped_pinv
 from robointel.trajectory import Trajectory
 
 if TYPE_CHECKING:  # pragma: no cover

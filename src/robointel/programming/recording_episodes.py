@@ -23,7 +23,7 @@ from robointel.io.episode import Episode
 from robointel.programming.imitation import ImitationRun
 from robointel.programming.scara import ScaraResult
 from robointel.programming.scenarios import ScenarioResult
-from robointel.programming.streaming import StreamingController
+from robointel.programming.stream_control import LOCAL, StreamingController
 from robointel.robot import Robot
 
 TWIST_NAMES = ("vx", "vy", "vz", "wx", "wy", "wz")
@@ -129,9 +129,7 @@ def teleop_episode(waypoints: npt.ArrayLike, *, robot: Robot | None = None, stre
     for i, w in enumerate(W):
         robot.check_q(w, f"waypoints[{i}]", limits=True)
     ctrl = StreamingController(robot, q0=W[0], realtime=False)
-    reply = ctrl.submit({"type": "acquire"})  # one commanding client at a time: this export is it
-    if reply is not None and reply.get("type") == "error":
-        raise InvalidInput(f"the streaming controller refused control: {reply['message']}", value=reply)
+    ctrl.acquire(LOCAL)  # this program is the one commanding client
     every = max(1, int(round(1.0 / (stream_hz * ctrl.dt))))
     t, q, ref, target = [], [], [], []
     for i, w in enumerate(W):

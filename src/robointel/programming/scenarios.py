@@ -34,10 +34,11 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike
 
+from robointel.control import PayloadCompensation, shift_wrench, wrench_to_world
 from robointel.errors import InvalidInput, TargetInCollision
 from robointel.geometry import Cylinder
 from robointel.programming.collision_guard import CollisionGuard
-from robointel.programming.ft_identification import FTCalibration, calibrate_in_workcell
+from robointel.programming.ft_identification import calibrate_in_workcell
 from robointel.programming.guidance import GuidanceConfig, GuidanceController
 from robointel.programming.keypoints import blended_trajectory
 from robointel.robot import Robot
@@ -294,7 +295,7 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
     cpu = np.zeros(N)
     contacts = 0
     extra: dict = {}
-    wc = cal = None
+    wc = comp = None
     if physics:
         payload = Payload(mass=0.6, com=(0.04, 0.0, 0.01), radius=0.03)
         sens = FTSensor(bias=np.asarray(ft_bias, float), noise_std=np.r_[[ft_noise] * 3, [ft_noise / 10] * 3],
@@ -304,9 +305,10 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
             cal = calibrate_in_workcell(wc, q0)
             extra["identified_mass"] = cal.mass
             extra["identified_com"] = cal.com.tolist()
+            comp = cal.payload
         else:
             bias = np.asarray(ft_bias, float)
-            cal = FTCalibration(payload.mass, np.asarray(payload.com, float), bias[:3], bias[3:], 0.0, 0.0)
+            comp = PayloadCompensation(payload.mass, np.asarray(payload.com, float), bias[:3], bias[3:])
         wc.reset(q0)
         wc.hold(0.05)
     q = q0.copy()
@@ -325,15 +327,9 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
             wc.apply_wrench(hand[:3], hand[3:], point=T[:3, 3])
             raw = wc.ft_reading()
             Rs = wc.sensor_pose()[:3, :3]
-            assert cal is not None  # identified or given above whenever there is a workcell
-            ext = cal.compensate(raw, Rs)
-            w_world = np.concatenate([Rs @ ext[:3], Rs @ ext[3:]])
-            # torque about the TCP (the sensor origin is the flange; TCP = flange + tool offset)
-            r = T[:3, 3] - wc.sensor_pose()[:3, 3]
-            fx, fy, fz = w_world[:3]
-            w_world[3] -= r[1] * fz - r[2] * fy
-            w_world[4] -= r[2] * fx - r[0] * fz
-            w_world[5] -= r[0] * fy - r[1] * fx
+            assert comp is not None  # identified or given above whenever there is a workcell
+            # external wrench in world axes, torque about the TCP (sensor origin: the flange; TCP = flange + tool)
+            w_world = shift_wrench(wrench_to_world(comp.compensate(raw, Rs), Rs), T[:3, 3] - wc.sensor_pose()[:3, 3])
         else:
             w_world = hand
         k0, c0 = time.thread_time_ns(), time.perf_counter_ns()

@@ -1,7 +1,8 @@
 """The robot side of the streaming interface: a 1 kHz control thread over the MuJoCo workcell.
 
-It has a jerk-limited generator (``ruckig``), one commanding client, a latched stop and a deadman
-that counts from the client's send time (protocol: :mod:`robointel.programming.streaming`).
+It has the jerk-limited follower of :mod:`robointel.control` (``ruckig``), one commanding client, a
+latched stop and a deadman that counts from the client's send time (protocol:
+:mod:`robointel.programming.streaming`).
 
 Between targets the generator moves the reference within the joint velocity, acceleration and jerk
 limits; the workcell's joint controller tracks it. A target reaches the generator only after the
@@ -9,23 +10,34 @@ checks of :meth:`StreamingController.command`: the sender holds control, the sto
 the target is fresh (sent less than ``deadman`` ago), inside the joint limits and the straight
 joint-space move to it is clear of the table, the floor and the robot itself
 (:class:`~robointel.programming.collision_guard.CollisionGuard`).
+
+With a robot interface (``interface=open_robot("sim" | "fanuc://HOST")``) the loop runs at the
+interface's period and streams the follower's reference to it instead of stepping a workcell: the
+same teleoperation stream drives the simulated cell or a FANUC controller. A fault the interface
+reports (e-stop, stalled link, refused command) stops the commanding at once and latches; the
+state says why, and ``resume`` recovers the interface once the cause is cleared.
 """
 from __future__ import annotations
 
 import atexit
+import contextlib
 import threading
 import time
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
-from robointel.errors import IKFailure, InvalidInput, TargetInCollision
+from robointel.control import JerkLimitedFollower
+from robointel.errors import IKFailure, InvalidInput, RobointelError, SafetyStop, SolverFailure, TargetInCollision
 from robointel.programming.collision_guard import CollisionGuard
 from robointel.programming.stream_protocol import Rejected, flag, numbers, pose, sequence
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.interface.protocol import RobotInterface
 
 _LIVE: weakref.WeakSet[StreamingController] = weakref.WeakSet()
 LOCAL = "local"  # the client id of in-process callers (the teleoperation page uses its own)
@@ -33,13 +45,14 @@ LOCAL = "local"  # the client id of in-process callers (the teleoperation page u
 
 @atexit.register
 def _release_generators() -> None:
-    """Join the control threads still running at exit, drop the ruckig objects of live controllers.
+    """Join the control threads still running at exit, drop the followers (ruckig) of live controllers.
 
     A daemon thread left inside MuJoCo when the interpreter finalises would crash it.
     """
     for c in list(_LIVE):
         c.stop()
-        c.otg = c.inp = c.out = None
+        with contextlib.suppress(AttributeError):
+            del c.follower
 
 
 @dataclass
@@ -76,16 +89,17 @@ class StreamingController:
         realtime: pace the simulation with the wall clock (False: step only via :meth:`advance`).
         guard: the environment check of every target (default: the workcell's table and floor and
             self-collision, :class:`CollisionGuard`).
+        interface: a robot interface to stream to at its period instead of stepping ``workcell``
+            (:func:`robointel.interface.open_robot`); the robot starts where the interface reports it.
 
     Raises:
-        InvalidInput: ``deadman`` outside (0, 5] s, or ``q0`` outside the limits or in collision.
+        InvalidInput: ``deadman`` outside (0, 5] s, ``q0`` outside the limits or in collision, both a
+            workcell and an interface, ``q0`` with an interface, or an interface with another joint count.
     """
 
     def __init__(self, robot: Any = None, workcell: Any = None, *, deadman: float = 0.1,
                  q0: npt.ArrayLike | None = None, jerk_factor: float = 20.0, realtime: bool = True,
-                 guard: CollisionGuard | None = None) -> None:
-        from ruckig import InputParameter, OutputParameter, Ruckig
-
+                 guard: CollisionGuard | None = None, interface: RobotInterface | None = None) -> None:
         from robointel.robot import Robot
 
         if not (0.0 < deadman <= 5.0):
@@ -97,29 +111,38 @@ class StreamingController:
         self._ik_lock = threading.Lock()
         self.guard = guard or CollisionGuard(r)
         self._guard_lock = threading.Lock()
-        if workcell is None:
+        self.interface = interface
+        self.fault: str | None = None  # why the interface stopped the robot (latched until resume)
+        n = self.n = self.robot.nq
+        if interface is not None:
+            if workcell is not None or q0 is not None:
+                raise InvalidInput("give a workcell and q0, or a robot interface (the robot starts where it is), "
+                                   "not both", value=q0)
+            if len(interface.joint_names) != n:
+                raise InvalidInput(f"the robot interface has {len(interface.joint_names)} joints, the robot {n}",
+                                   value=interface.joint_names)
+            workcell = getattr(interface, "workcell", None)  # the sim backend's workcell (None on a real robot)
+            st = interface.state()
+            q0 = st.q_cmd if st.q_cmd is not None else st.q
+        elif workcell is None:
             from robointel.sim import Workcell
 
             workcell = Workcell(self.robot, ft_sensor=False)
         self.wc = workcell
         self.deadman = float(deadman)
-        n = self.n = self.robot.nq
         if q0 is None:
             q0 = np.clip(np.array([0.0, 0.0, 0.0, 0.0, -np.pi / 2, 0.0][:n] + [0.0] * max(0, n - 6)),
                          self.robot.lower, self.robot.upper)
         q0 = self.robot.check_q(q0, "q0", limits=True)
         with self._guard_lock:
             self.guard.check(q0, "q0")
-        self.wc.reset(q0)
-        self.dt = 0.001
-        self.otg = Ruckig(n, self.dt)
-        self.inp, self.out = InputParameter(n), OutputParameter(n)
-        self.inp.max_velocity = self.robot.velocity_limit.tolist()
-        self.inp.max_acceleration = self.robot.acceleration_limit.tolist()
-        self.inp.max_jerk = (jerk_factor * self.robot.acceleration_limit).tolist()
-        self.inp.current_position = q0.tolist()
-        self.inp.current_velocity = [0.0] * n
-        self.inp.current_acceleration = [0.0] * n
+        if interface is None:
+            self.wc.reset(q0)
+        self.dt = 0.001 if interface is None else float(interface.period)
+        self.follower = JerkLimitedFollower(self.robot.velocity_limit, self.robot.acceleration_limit,
+                                            jerk_factor * self.robot.acceleration_limit, dt=self.dt,
+                                            lower=self.robot.lower, upper=self.robot.upper)
+        self.follower.reset(q0)
         self.q_ref, self.qd_ref, self.qdd_ref = q0.copy(), np.zeros(n), np.zeros(n)
         self.mode = "idle"
         self._lock = threading.Lock()
@@ -175,12 +198,25 @@ class StreamingController:
     def resume(self, client: str) -> None:
         """Clear a latched stop. The robot stays where it stopped until a new target arrives.
 
+        After a fault of the robot interface, the interface is recovered first.
+
         Raises:
-            Rejected: ``not_in_control`` when ``client`` does not hold control.
+            Rejected: ``not_in_control`` when ``client`` does not hold control; ``fault`` when the robot
+                interface still reports the fault.
         """
         with self._lock:
             if self.owner != client:
                 raise Rejected("not_in_control", "only the client in control may resume; send acquire first")
+            if self.fault is not None and self.interface is not None:
+                try:
+                    self.interface.recover()
+                except RobointelError as exc:
+                    raise Rejected("fault", f"the robot still reports a fault: {exc}") from None
+                st = self.interface.state()
+                q = st.q_cmd if st.q_cmd is not None else st.q
+                self.follower.reset(q)
+                self.q_ref, self.qd_ref, self.qdd_ref = q.copy(), np.zeros(self.n), np.zeros(self.n)
+                self.fault, self.mode = None, "stopped"
             self.latched = False
 
     def may_command(self, client: str, sent: float, now: float) -> None:
@@ -317,21 +353,27 @@ class StreamingController:
             self.rejected += 1
             return {"type": "error", "code": exc.code, "message": str(exc), "seq": seq}
 
+    def measured(self) -> tuple[float, npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """The robot's time (s), joint positions (n,) rad and velocities (n,) rad/s: workcell or interface."""
+        if self.interface is not None:
+            st = self.interface.state()
+            return st.t, np.asarray(st.q, float), np.asarray(st.qd, float)
+        return self.wc.time, self.wc.q, self.wc.qd
+
     def state(self, client: str | None = None) -> dict[str, Any]:
-        """The ``state`` reply: time, joints, target, mode, latch, control and counters."""
+        """The ``state`` reply: time, joints, target, mode, latch, control, counters and the fault if any."""
         with self._lock:
             tgt = None if self._target is None else self._target.q.tolist()
             owner = self.owner
-        return {"type": "state", "t": self.wc.time, "q": self.wc.q.tolist(), "qd": self.wc.qd.tolist(),
+        t, q, qd = self.measured()
+        return {"type": "state", "t": t, "q": q.tolist(), "qd": qd.tolist(),
                 "target": tgt, "mode": self.mode, "latched": self.latched, "in_control": owner is not None
                 and owner == client, "controlled": owner is not None, "accepted": self.accepted,
-                "rejected": self.rejected}
+                "rejected": self.rejected, "fault": self.fault}
 
     # ------------------------------------------------------------------ 1 kHz loop
     def advance(self, steps: int = 1) -> None:
         """Run ``steps`` 1 kHz control periods (the control thread calls this)."""
-        from ruckig import ControlInterface, Result
-
         for _ in range(steps):
             applied = None
             now = time.perf_counter()
@@ -345,36 +387,49 @@ class StreamingController:
                 self._drop_target = False
                 target = self._target
             if target is not None:
-                self.inp.control_interface = ControlInterface.Position
-                self.inp.target_position = target.q.tolist()
-                self.inp.target_velocity = [0.0] * self.n
-                self.inp.target_acceleration = [0.0] * self.n
                 self.mode = "tracking"
             elif self.mode in ("tracking", "stopping"):
-                self.inp.control_interface = ControlInterface.Velocity
-                self.inp.target_velocity = [0.0] * self.n
-                self.inp.target_acceleration = [0.0] * self.n
                 self.mode = "stopping"
             if self.mode in ("tracking", "stopping"):
-                res = self.otg.update(self.inp, self.out)
-                if res not in (Result.Working, Result.Finished):  # pragma: no cover - defensive
-                    self.inp.control_interface = ControlInterface.Velocity
-                    self.inp.target_velocity = [0.0] * self.n
+                try:
+                    q, qd, qdd = (self.follower.step_position(target.q) if target is not None
+                                  else self.follower.brake())
+                except SolverFailure:  # pragma: no cover - defensive: brake instead
                     self.mode = "stopping"
-                    self.otg.update(self.inp, self.out)
-                q = np.clip(np.array(self.out.new_position), self.robot.lower, self.robot.upper)
-                qd, qdd = np.array(self.out.new_velocity), np.array(self.out.new_acceleration)
-                self.out.pass_to_input(self.inp)
-                if self.mode == "stopping" and np.max(np.abs(qd)) < 1e-9 and np.max(np.abs(qdd)) < 1e-9:
+                    q, qd, qdd = self.follower.brake()
+                if self.mode == "stopping" and self.follower.at_rest:
                     self.mode = "stopped"
                     self.rest_at = now
                 self.q_ref, self.qd_ref, self.qdd_ref = q, qd, qdd
             else:
                 self.qd_ref, self.qdd_ref = np.zeros(self.n), np.zeros(self.n)
-            self.wc.track(self.q_ref, self.qd_ref, self.qdd_ref)
+            if self.interface is None:
+                self.wc.track(self.q_ref, self.qd_ref, self.qdd_ref)
+                t_robot = self.wc.time
+            elif self.fault is None:
+                try:
+                    t_robot = self.interface.stream(self.q_ref).t
+                except SafetyStop as exc:  # e-stop, fault, lost link, refused target: stop commanding now
+                    self._interface_fault(str(exc))
+                    continue
+            else:
+                continue  # faulted: nothing is sent until resume() recovers the interface
             self.steps += 1
             if applied is not None and applied.ack and self.on_applied is not None:
-                self.on_applied(applied, self.wc.time)
+                self.on_applied(applied, t_robot)
+
+    def _interface_fault(self, why: str) -> None:
+        """Latch a fault the robot interface reported; the reference rests where the robot is."""
+        assert self.interface is not None
+        with self._lock:
+            self.latched = True
+            self._pending = self._target = None
+        self.fault = why
+        q = np.asarray(self.interface.state().q, float)
+        self.follower.reset(q)
+        self.q_ref, self.qd_ref, self.qdd_ref = q.copy(), np.zeros(self.n), np.zeros(self.n)
+        self.mode = "faulted"
+        self.stop_began, self.rest_at = time.perf_counter(), None
 
     def _loop(self) -> None:
         t0 = time.perf_counter()

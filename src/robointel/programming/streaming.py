@@ -64,10 +64,10 @@ Server -> client:
 ``{"type": "applied", "seq": int, "t": sim time}`` to the sender of a target with ``"ack": true``
 when the controller first acts on it;
 ``{"type": "state", "t": s, "q": [...], "qd": [...], "target": [...] | null, "mode": "idle" |
-"tracking" | "stopping" | "stopped", "latched": bool, "in_control": bool, "controlled": bool,
-"accepted": int, "rejected": int}``;
+"tracking" | "stopping" | "stopped" | "faulted", "latched": bool, "in_control": bool, "controlled": bool,
+"accepted": int, "rejected": int, "fault": "why the robot interface stopped" | null}``;
 ``{"type": "error", "code": "malformed" | "unknown_type" | "bad_shape" | "not_finite" |
-"out_of_limits" | "unreachable" | "collision" | "stale" | "superseded" | "stopped" |
+"out_of_limits" | "unreachable" | "collision" | "stale" | "superseded" | "stopped" | "fault" |
 "not_in_control" | "control_held" | "rate_limited" | "unauthorized" | "internal", "message": "...",
 "seq": int | null}``.
 """

@@ -18,22 +18,27 @@ import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from robointel._validate import as_array
 from robointel.errors import IKFailure, InvalidInput
 from robointel.programming.streaming import StreamingController, check_bind
 
+if TYPE_CHECKING:  # pragma: no cover
+    from robointel.robot import Robot
+
 PROGRAM_FORMAT = "robointel-scene/1"
 
 
 # ----------------------------------------------------------------------------- program files
-def _shape_to_dict(shape) -> dict:
+def _shape_to_dict(shape: Any) -> dict[str, Any]:
     if hasattr(shape, "to_dict"):  # robointel.geometry obstacles: the scene format's own dict
         return shape.to_dict()
     kind = type(shape).__name__.lower()
-    d: dict = {"type": kind, "name": getattr(shape, "name", None) or kind}
+    d: dict[str, Any] = {"type": kind, "name": getattr(shape, "name", None) or kind}
     for key in ("center", "radius", "a", "b", "size"):
         if hasattr(shape, key):
             v = getattr(shape, key)
@@ -43,13 +48,26 @@ def _shape_to_dict(shape) -> dict:
     return d
 
 
-def save_program(path, robot, waypoints: Sequence, *, obstacles: Sequence = (), name: str = "teleop_program",
-                 speed_scale: float = 0.3, steps: int = 19) -> Path:
-    """Write a teleoperated program as a planning scene (``robointel.io.scene`` YAML, loadable by
-    ``robointel plan``): ``robot``, ``obstacles`` (robointel.geometry dicts), stop-by ``waypoints``
+def save_program(path: str | Path, robot: Robot, waypoints: Sequence[npt.ArrayLike], *, obstacles: Sequence[Any] = (),
+                 name: str = "teleop_program", speed_scale: float = 0.3, steps: int = 19) -> Path:
+    """Write a teleoperated program as a planning scene (``robointel.io.scene`` YAML, loadable by ``robointel plan``).
+
+    The file holds ``robot``, ``obstacles`` (robointel.geometry dicts), stop-by ``waypoints``
     (each ``{name, q [rad], tcp: {position [m], quaternion [w, x, y, z]}}``, the TCP pose from FK),
     ``steps`` per segment, ``limits`` (``speed_scale`` of the robot's), and an ``operational_time``
-    long enough for the largest joint move of each segment at that speed. Returns the path.
+    long enough for the largest joint move of each segment at that speed.
+
+    Args:
+        path: the YAML file to write.
+        robot: the robot the waypoints belong to.
+        waypoints: m >= 2 joint positions, each (n,), rad.
+        obstacles: robointel.geometry shapes of the scene.
+        name: the program's name.
+        speed_scale: share of the robot's velocity and acceleration limits the program plans with.
+        steps: planning steps per segment.
+
+    Returns:
+        The path written.
 
     Raises:
         InvalidInput: fewer than 2 waypoints, or a waypoint of the wrong size / outside the limits.
@@ -81,10 +99,17 @@ def save_program(path, robot, waypoints: Sequence, *, obstacles: Sequence = (), 
     return path
 
 
-def load_program(path) -> dict:
-    """Read the waypoints of a program written by :func:`save_program` (or any planning scene whose
-    waypoints give ``q``): a dict with ``robot``, ``obstacles`` (dicts), ``waypoints`` (an (m, n)
-    array of joint positions) and ``names``. ``robointel.io.scene.load_scene`` reads the full scene.
+def load_program(path: str | Path) -> dict[str, Any]:
+    """Read the waypoints of a program written by :func:`save_program` (or of any scene whose waypoints give ``q``).
+
+    ``robointel.io.scene.load_scene`` reads the full scene.
+
+    Args:
+        path: the YAML file.
+
+    Returns:
+        A dict with ``robot``, ``obstacles`` (dicts), ``waypoints`` (an (m, n) array of joint
+        positions, rad) and ``names``.
 
     Raises:
         InvalidInput: not a program/scene file or malformed waypoints.
@@ -115,10 +140,10 @@ def _quat_wxyz(R: np.ndarray) -> np.ndarray:
     return np.array([w, x, y, z])
 
 
-def _matrix(wxyz) -> np.ndarray:
+def _matrix(wxyz: npt.ArrayLike) -> np.ndarray:
     from scipy.spatial.transform import Rotation
 
-    w, x, y, z = wxyz
+    w, x, y, z = np.asarray(wxyz, float)
     return Rotation.from_quat([x, y, z, w]).as_matrix()
 
 
@@ -136,8 +161,8 @@ class TeleopApp:
     """
 
     def __init__(self, controller: StreamingController, *, host: str = "127.0.0.1", port: int = 8080,
-                 obstacles: Sequence = (), program_path="teleop_program.yaml", stream_hz: float = 50.0,
-                 reach_tol: float = 2e-3, token: str | None = None) -> None:
+                 obstacles: Sequence[Any] = (), program_path: str | Path = "teleop_program.yaml",
+                 stream_hz: float = 50.0, reach_tol: float = 2e-3, token: str | None = None) -> None:
         check_bind(host, token)
         if not 0 <= int(port) <= 65535:
             raise InvalidInput(f"port must be in 0..65535, got {port}", value=port)
@@ -160,16 +185,28 @@ class TeleopApp:
         self._lock = threading.RLock()
         self._running = False
         self._threads: list[threading.Thread] = []
-        self.server = None
+        self.server: Any = None  # the viser.ViserServer once started
+        self._wp_handles: list[Any] = []
+        self._links: dict[str, Any] = {}
+        self._syncing = False
         self._authed = token is None
         self.client = "teleop-page"  # the page's client id at the controller (it acquires control to move)
         self.refused = 0
         self.last_error: str | None = None
 
     # ------------------------------------------------------------------ logic (no browser needed)
-    def move_hand(self, position, wxyz) -> bool:
+    def move_hand(self, position: npt.ArrayLike, wxyz: npt.ArrayLike) -> bool:
         """The operator's hand moved: IK closest to the current target; stream it when reachable.
-        Returns whether the pose is reachable (unreachable poses are never sent).
+
+        Args:
+            position: (3,) hand position, m, robot root frame.
+            wxyz: (4,) hand orientation quaternion [w, x, y, z].
+
+        Returns:
+            Whether the pose is reachable and was accepted (unreachable poses are never sent).
+
+        Raises:
+            ShapeError, NotFinite: bad position or quaternion.
         """
         p = as_array(position, "position", (3,))
         R = _matrix(as_array(wxyz, "wxyz", (4,)))
@@ -193,10 +230,11 @@ class TeleopApp:
         self._show_reachability(True)
         return True
 
-    def _send(self, q) -> bool:
-        """Stream a joint target through the controller's checks (control, latch, limits, table,
-        floor and self-collision); a refusal is shown on the page and nothing moves. Returns whether
-        the controller accepted it.
+    def _send(self, q: npt.ArrayLike) -> bool:
+        """Stream a joint target through the controller's checks; True when the controller accepted it.
+
+        The checks: control, latch, limits, table, floor and self-collision; a refusal is shown on
+        the page and nothing moves.
         """
         if not self._authed:
             return False
@@ -206,7 +244,8 @@ class TeleopApp:
                 self.last_error = reply["message"]
                 self._status(f"not sent: {reply['message']}")
                 return False
-        reply = self.controller.submit({"type": "joint_target", "q": [float(v) for v in q]}, client=self.client)
+        reply = self.controller.submit({"type": "joint_target", "q": [float(v) for v in np.asarray(q, float)]},
+                                       client=self.client)
         if reply is None:
             self.sent += 1
             return True
@@ -218,25 +257,37 @@ class TeleopApp:
     def record(self) -> int:
         """Record the current target (or the robot's pose) as a waypoint; returns the count."""
         with self._lock:
-            q = self.desired if self.desired is not None else self.controller.wc.q
+            q = self.desired if self.desired is not None else self.controller.measured()[1]
             self.waypoints.append(np.array(q, float))
             n = len(self.waypoints)
         self._refresh_gui()
         return n
 
     def clear(self) -> None:
+        """Forget the recorded waypoints."""
         with self._lock:
             self.waypoints.clear()
         self._refresh_gui()
 
-    def save(self, path=None) -> Path:
+    def save(self, path: str | Path | None = None) -> Path:
+        """Save the recorded program with :func:`save_program` (default: ``program_path``); returns the path.
+
+        Raises:
+            InvalidInput: fewer than 2 waypoints.
+        """
         p = save_program(path or self.program_path, self.robot, self.waypoints, obstacles=self.obstacles)
         self._status(f"saved {len(self.waypoints)} waypoints to {p} (robointel plan {p})")
         return p
 
     def replay(self, *, timeout_per_waypoint: float = 10.0, dwell: float = 0.2) -> list[float]:
         """Drive the robot through the recorded waypoints (streaming each until reached).
-        Returns the joint error [rad] at each waypoint when it was declared reached.
+
+        Args:
+            timeout_per_waypoint: the longest time spent streaming one waypoint, s.
+            dwell: time a waypoint must stay reached before the next, s.
+
+        Returns:
+            The joint error (max over joints), rad, at each waypoint when it was left.
         """
         with self._lock:
             program = [w.copy() for w in self.waypoints]
@@ -251,13 +302,13 @@ class TeleopApp:
                     with self._lock:
                         self.desired = w
                     self._send(w)
-                    err = float(np.max(np.abs(self.controller.wc.q - w)))
+                    err = float(np.max(np.abs(self.controller.measured()[1] - w)))
                     if err < self.reach_tol and reached_at is None:
                         reached_at = time.monotonic()
                     if reached_at is not None and time.monotonic() - reached_at >= dwell:
                         break
                     time.sleep(1.0 / self.stream_hz)
-                errors.append(float(np.max(np.abs(self.controller.wc.q - w))))
+                errors.append(float(np.max(np.abs(self.controller.measured()[1] - w))))
             self._status(f"replayed {len(program)} waypoints, max error {max(errors, default=0.0):.2e} rad")
         finally:
             with self._lock:
@@ -325,14 +376,14 @@ class TeleopApp:
                 x, y, z, w = rot.as_quat()
                 s.scene.add_cylinder(name, radius=d["radius"], height=L, color=(220, 60, 60),
                                      position=0.5 * (a + b), wxyz=(w, x, y, z), opacity=0.6)
-        T = self.robot.fk(self.controller.wc.q)
+        T = self.robot.fk(self.controller.measured()[1])
         self._hand = s.scene.add_transform_controls("/hand", scale=0.18, position=T[:3, 3], wxyz=_quat_wxyz(T[:3, :3]))
         self._bad = s.scene.add_icosphere("/hand/unreachable", radius=0.035, color=(255, 0, 0), opacity=0.7,
                                           visible=False)
-        self._wp_handles: list = []
+        self._wp_handles = []
 
         @self._hand.on_update
-        def _(_event) -> None:
+        def _on_hand(_event: Any) -> None:
             if self._syncing:
                 return
             self.move_hand(np.array(self._hand.position), np.array(self._hand.wxyz))
@@ -348,10 +399,10 @@ class TeleopApp:
             tok = g.add_text("Token", "")
 
             @tok.on_update
-            def _(_e) -> None:
+            def _on_token(_e: Any) -> None:
                 import hmac
 
-                self._authed = hmac.compare_digest(tok.value, self.token)
+                self._authed = self.token is not None and hmac.compare_digest(tok.value, self.token)
                 self._status("token accepted" if self._authed else "wrong token: nothing is sent")
         self._pos_in = g.add_vector3("Hand position [m]", tuple(np.round(T[:3, 3], 4)), step=0.001)
         self._reach_text = g.add_text("IK", "reachable", disabled=True)
@@ -363,7 +414,7 @@ class TeleopApp:
         b_save = g.add_button("Save program")
 
         @self._pos_in.on_update
-        def _(_event) -> None:
+        def _on_position(_event: Any) -> None:
             if self._syncing:
                 return
             p = np.array(self._pos_in.value, float)
@@ -375,22 +426,22 @@ class TeleopApp:
             self.move_hand(p, np.array(self._hand.wxyz))
 
         @b_rec.on_click
-        def _(_e) -> None:
+        def _on_record(_e: Any) -> None:
             n = self.record()
             self._status(f"recorded waypoint {n}")
 
         @b_play.on_click
-        def _(_e) -> None:
+        def _on_replay(_e: Any) -> None:
             if not self.replaying:
                 threading.Thread(target=self.replay, daemon=True).start()
 
         @b_clear.on_click
-        def _(_e) -> None:
+        def _on_clear(_e: Any) -> None:
             self.clear()
             self._status("cleared")
 
         @b_save.on_click
-        def _(_e) -> None:
+        def _on_save(_e: Any) -> None:
             try:
                 self.save()
             except InvalidInput as exc:
@@ -400,7 +451,7 @@ class TeleopApp:
 
     def _display_loop(self) -> None:
         while self._running:
-            q = self.controller.wc.q
+            q = self.controller.measured()[1]
             poses = self.robot.link_poses(q)
             with self.server.atomic():
                 for link, frame in self._links.items():
@@ -410,8 +461,10 @@ class TeleopApp:
             time.sleep(1 / 30)
 
     def _stream_loop(self) -> None:
-        """Keep the live target alive while a browser is connected: when the last page closes
-        (or its link dies) the stream stops and the controller's deadman brings the robot to rest.
+        """Keep the live target alive while a browser is connected.
+
+        When the last page closes (or its link dies) the stream stops and the controller's deadman
+        brings the robot to rest.
         """
         while self._running:
             with self._lock:
@@ -421,6 +474,7 @@ class TeleopApp:
             time.sleep(1.0 / self.stream_hz)
 
     def start(self) -> TeleopApp:
+        """Serve the page (viser), start the controller's control thread and the display and stream threads."""
         import viser
 
         self._syncing = False
@@ -437,9 +491,11 @@ class TeleopApp:
 
     @property
     def url(self) -> str:
+        """The page's address."""
         return f"http://{self.host}:{self.port}"
 
     def stop(self) -> None:
+        """Stop the display and stream threads (the controller and the page server keep running)."""
         self._running = False
         for t in self._threads:
             t.join(timeout=2.0)

@@ -30,8 +30,8 @@ from numpy.typing import ArrayLike
 from scipy.linalg import eigh
 
 from robointel._validate import as_array
+from robointel.control import JointController
 from robointel.errors import InvalidInput, SafetyStop
-from robointel.sim.controller import JointController
 
 if TYPE_CHECKING:  # pragma: no cover
     from robointel.robot import Robot

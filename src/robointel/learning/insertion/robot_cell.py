@@ -14,13 +14,14 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from robointel.control import JointController, model_with_payload
 from robointel.geometry.rotations import rotation_about, so3_exp
 from robointel.learning.hdd import Tool, ToolFT, add_tool_sensors
 from robointel.learning.insertion.impedance import CartesianImpedance, ImpedanceGains
 from robointel.learning.insertion.peg_hole import PegHole, tip_point, wall_geom_range, wall_penetration
 from robointel.outcome import Failure, TrialOutcome
 from robointel.robot import Robot
-from robointel.sim import JointController, Payload, build_spec, model_with_payload
+from robointel.sim import Payload, build_spec
 
 #: tool frame in the flange frame: the tool axis (z) is the flange's approach axis (x)
 R_FLANGE_TOOL = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])

@@ -1,14 +1,14 @@
 """Torque-feasible online reference (3.9).
 
-Acceleration bounds from the effort limits and M(q), b(q, qd), and a ruckig follower that keeps
-the reference within them.
+Acceleration bounds from the effort limits and M(q), b(q, qd), and the jerk-limited follower of
+:mod:`robointel.control` (ruckig) with those bounds, set every period, that keeps the reference within them.
 """
 from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
-from ruckig import ControlInterface, InputParameter, OutputParameter, Result, Ruckig, Synchronization
 
+from robointel.control import JerkLimitedFollower
 from robointel.errors import InvalidInput
 from robointel.robot import Robot
 
@@ -56,7 +56,7 @@ def accel_limits(robot: Robot, q: npt.ArrayLike, qd: npt.ArrayLike, *, margin: f
 
 
 class FeasibleReference:
-    """Torque-feasible online follower of a reference (``ruckig``).
+    """Torque-feasible online follower of a reference (:class:`~robointel.control.JerkLimitedFollower`).
 
     Each control period the state (q_s, qd_s, qdd_s) moves by one step of the time-optimal, jerk-limited
     trajectory to the target's current (q_r, qd_r), with acceleration bounds from the effort limits
@@ -93,9 +93,9 @@ class FeasibleReference:
             raise InvalidInput(f"FeasibleReference: mode must be 'position' or 'velocity', got {mode!r}")
         self.coupling, self.mode, self.gain = coupling, mode, float(gain)
         n = robot.nq
-        self.otg, self.inp, self.out = Ruckig(n, dt), InputParameter(n), OutputParameter(n)
-        self.inp.synchronization = Synchronization.No  # each joint as fast as it can
-        self.inp.max_velocity = np.asarray(robot.velocity_limit, float).tolist()
+        # the acceleration and jerk bounds are set every period from the effort limits (set_limits)
+        self.follower = JerkLimitedFollower(np.asarray(robot.velocity_limit, float), np.ones(n), np.ones(n), dt=dt,
+                                            gain=gain, brake_share=1.0, velocity_share=0.99, synchronize=False)
         self.q = self.qd = self.qdd = np.zeros(n)
         self.scaled = 0
 
@@ -106,8 +106,7 @@ class FeasibleReference:
         self.qd = np.zeros(n) if qd is None else np.array(qd, float)
         self.qdd = np.zeros(n)
         self.scaled = 0  # steps whose acceleration had to be scaled down (coupling)
-        self.inp.current_position, self.inp.current_velocity = self.q.tolist(), self.qd.tolist()
-        self.inp.current_acceleration = [0.0] * n
+        self.follower.reset(self.q, self.qd)
 
     def step(self, q_r: npt.ArrayLike, qd_r: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One period toward the target.
@@ -120,29 +119,15 @@ class FeasibleReference:
             The new state (q_s, qd_s, qdd_s), (n,) each [rad, rad/s, rad/s^2].
 
         Raises:
-            InvalidInput: ruckig rejected the step.
+            SolverFailure: ruckig rejected the step.
         """
-        rb = self.robot
+        rb, fol = self.robot, self.follower
         lo, hi = accel_limits(rb, self.q, self.qd, margin=self.margin, ratio=self.ratio,
                               qdd=self.qdd if self.coupling == "current" else None)
-        vmax = np.asarray(rb.velocity_limit, float)
-        self.inp.min_acceleration, self.inp.max_acceleration = lo.tolist(), hi.tolist()
-        self.inp.max_jerk = (np.maximum(-lo, hi) / self.jerk_time).tolist()
-        if self.mode == "velocity":
-            self.inp.control_interface = ControlInterface.Velocity
-            e = np.clip(q_r, rb.lower, rb.upper) - self.q
-            brake = np.where(e > 0, -lo, hi)  # deceleration available when arriving from e's side
-            fb = np.sign(e) * np.minimum(self.gain * np.abs(e), np.sqrt(2.0 * brake * np.abs(e)))
-            self.inp.target_velocity = np.clip(np.asarray(qd_r, float) + fb, -0.99 * vmax, 0.99 * vmax).tolist()
-        else:
-            self.inp.target_position = np.clip(q_r, rb.lower, rb.upper).tolist()
-            self.inp.target_velocity = np.clip(qd_r, -0.99 * vmax, 0.99 * vmax).tolist()
-        self.inp.target_acceleration = [0.0] * rb.nq
+        fol.set_limits(min_acceleration=lo, max_acceleration=hi, max_jerk=np.maximum(-lo, hi) / self.jerk_time)
         # the bounds change with q: a state beyond the new ones is brought back by ruckig itself
-        res = self.otg.update(self.inp, self.out)
-        if res not in (Result.Working, Result.Finished):
-            raise InvalidInput(f"ruckig failed ({res})", value=res)
-        a = np.array(self.out.new_acceleration)
+        target = np.clip(q_r, rb.lower, rb.upper)
+        q, qd, a = fol.step(target, qd_r) if self.mode == "velocity" else fol.step_position(target, qd_r)
         # the per-joint bounds hold the other joints' accelerations at their last values; when the joints
         # change together the coupling can still ask for more: scale the step's acceleration as a whole
         # (largest alpha in [0, 1] with |M alpha a + b| <= margin tau_max) and integrate it here instead
@@ -157,13 +142,9 @@ class FeasibleReference:
             a = alpha * a
             self.q = self.q + self.dt * self.qd + 0.5 * self.dt ** 2 * a
             self.qd = self.qd + self.dt * a
-            self.inp.current_position, self.inp.current_velocity = self.q.tolist(), self.qd.tolist()
-            self.inp.current_acceleration = a.tolist()
+            fol.reset(self.q, self.qd, a)
         else:
-            self.q, self.qd = np.array(self.out.new_position), np.array(self.out.new_velocity)
-            self.out.pass_to_input(self.inp)
+            self.q, self.qd = q, qd
         self.qdd = a
         self.scaled += alpha < 1.0
         return self.q, self.qd, self.qdd
-
-

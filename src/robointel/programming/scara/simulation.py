@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from robointel.control import JerkLimitedFollower
 from robointel.errors import InvalidInput
-from robointel.programming.imitation import LimitedFollower
 from robointel.programming.scara.angles import human_reference
 from robointel.programming.scara.crossfade import Transition
 from robointel.programming.scara.feasible import FeasibleReference
@@ -140,8 +140,8 @@ def simulate_scara(skel: Skeleton, settings: ScaraSettings | None = None, *, rob
         pred = HoldPredictor()
     pred.reset()
     acc = np.broadcast_to(np.asarray(cfg.max_accel, float), (2,))
-    follow = LimitedFollower(2, robot.velocity_limit, acc, cfg.jerk_factor * acc, dt=dt, gain=cfg.follow_gain,
-                             lower=robot.lower, upper=robot.upper)
+    follow = JerkLimitedFollower(robot.velocity_limit, acc, cfg.jerk_factor * acc, dt=dt, gain=cfg.follow_gain,
+                                 lower=robot.lower, upper=robot.upper)
     arrival = t_h + latency
     nxt = 0
     # the robot starts at rest at the first frame's pose (the operator is in view before start)
