@@ -240,14 +240,17 @@ class GraspPlanner:
                          gripper, [float(w) for w in widths], fallback)
 
     def _search(self, fulls, per_fit, cloud: np.ndarray, gripper: ParallelGripper) -> SearchResult:
-        """Refine (:func:`refine_position`) and search (6.21) every transferred grasp of each fit on
-        that fit's completed cloud with ``gripper`` (and the robot carrying it); the lowest cost wins."""
+        """Refine and search (6.21) the transferred grasps with ``gripper``; the lowest cost wins.
+
+        Each fit's grasps are refined (:func:`refine_position`) and searched on that fit's completed
+        cloud, the IK with the robot carrying ``gripper``.
+        """
         robot = self.robot_for(gripper)
-        best = None
+        best: SearchResult | None = None
         # contacts on perceived points only (off by default, see ``seen_contacts``)
         seen = cKDTree(cloud) if self.seen_contacts else None
         for (full, tree), gs in zip(fulls, per_fit):
-            cands = []
+            cands: list[Grasp] = []
             for g in gs:
                 cands += (refine_position(g, full, gripper=gripper, tree=tree, table_z=self.table_z,
                                           observed=cloud, edge_normals=self.edge_normals,
@@ -259,6 +262,8 @@ class GraspPlanner:
                                        edge_normals=self.edge_normals, pad_reach=self.pad_reach)
                 if best is None or r.cost < best.cost:
                     best = r
+        if best is None:
+            raise InvalidInput("the template has no taught grasps to transfer", value=len(per_fit))
         return best
 
 

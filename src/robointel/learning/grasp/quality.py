@@ -29,7 +29,8 @@ from robointel._validate import as_array
 from robointel.errors import InvalidInput
 from robointel.learning.grasp.transfer import Grasp
 
-__all__ = ["ParallelGripper", "NARROW_GRIPPER", "WIDE_GRIPPER", "choose_gripper", "GraspQuality", "grasp_quality", "estimate_normals", "grasp_map",
+__all__ = ["ParallelGripper", "NARROW_GRIPPER", "WIDE_GRIPPER", "choose_gripper",
+           "GraspQuality", "grasp_quality", "estimate_normals", "grasp_map",
            "isotropy"]
 
 OFF_AXIS, SPARSE, TOO_WIDE, SLIP, UNSEEN = -1.0, -2.0, -3.0, -4.0, -5.0
@@ -37,11 +38,11 @@ OFF_AXIS, SPARSE, TOO_WIDE, SLIP, UNSEEN = -1.0, -2.0, -3.0, -4.0, -5.0
 
 @dataclass(frozen=True)
 class ParallelGripper:
-    """A parallel-jaw gripper, in the grasp frame; the defaults are the SMC LEHF20K2-48 (48 mm
-    stroke), :data:`WIDE_GRIPPER` an 85 mm one (Robotiq 2F-85 class).
+    """A parallel-jaw gripper in the grasp frame (defaults: the 48 mm SMC LEHF20K2-48).
 
-    Grasp frame: origin between the finger pads, y = closing axis, z = approach. The fingertips reach
-    ``tip_depth`` past the centre along z. Sizes in metres, ``mass`` in kg, ``grip_force`` (N) the
+    :data:`WIDE_GRIPPER` is an 85 mm one (Robotiq 2F-85 class). Grasp frame: origin between the
+    finger pads, y = closing axis, z = approach. The fingertips reach ``tip_depth`` past the centre
+    along z. Sizes in metres, ``mass`` in kg, ``grip_force`` (N) the
     force limit of each finger's drive in the MuJoCo trials.
     """
 
@@ -104,10 +105,10 @@ WIDE_GRIPPER = ParallelGripper(max_width=0.085, finger_length=0.05, finger_bread
 
 
 def choose_gripper(widths: list[float], grippers: list[ParallelGripper], margin: float = 0.003) -> ParallelGripper:
-    """The gripper for a part whose transferred grasps span ``widths`` (m, contact distance along
-    each grasp's closing axis; NaN when unknown): the narrowest of ``grippers`` whose stroke exceeds the
-    smallest known width by ``margin`` (m); the narrowest when no width is known; the widest when
-    none fits.
+    """The gripper for a part, chosen by the contact widths of its transferred grasps.
+
+    The narrowest of ``grippers`` whose stroke exceeds the smallest known width by ``margin``; the
+    narrowest when no width is known; the widest when none fits.
 
     Args:
         widths: contact widths of the transferred grasps (m), any length, NaN allowed.

@@ -68,8 +68,7 @@ def _quat_yaw(yaw: float) -> str:
 
 def scene_xml(placements: list[Placement], *, dynamic: bool = False, gripper: ParallelGripper | None = None,
               timestep: float = 0.002, friction: float = 1.0, grip_force: float | None = None) -> str:
-    """MJCF text of the scene (see module docstring); ``grip_force`` (N per finger) defaults to the
-    gripper's."""
+    """MJCF text of the scene (see module docstring); ``grip_force`` (N per finger): the gripper's."""
     assets, bodies = [], []
     for i, p in enumerate(placements):
         o = p.obj
