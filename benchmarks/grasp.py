@@ -269,6 +269,8 @@ def trial_task(ci: int, cat: str, seed: int, per_category: int) -> dict:
         out["fallbacks"] += int(bool(r.plan is not None and r.plan.gripper_fallback))
         if not r.success:
             out["failures"].append(f"{o.name} [{name}]: {r.reason}")
+        print(f"[grasp-trial] {cat} {k + 1}/{per_category} {o.name} [{name}] success={r.success} "
+              f"classified={r.category} reason={r.reason}", file=sys.stderr, flush=True)
     return out
 
 
