@@ -2,6 +2,7 @@
 MuJoCo lift-and-shake grasp trials and the per-object transfer time.
 
     python benchmarks/grasp.py [--json] [--quick] [--skip-trials] [--only classification|CATEGORY,...] [--seed N]
+                               [--class-seeds 2019,2020] [--workers N] [--per-category N]
 
 * CPD exactness: our exact dense non-rigid/rigid/affine CPD against pycpd on fish and bunny with the
   same parameters (max |TY_ours - TY_pycpd|).
@@ -10,22 +11,29 @@ MuJoCo lift-and-shake grasp trials and the per-object transfer time.
   same number of iterations (tolerance 0 after that count; no looser stopping rule). Medians of repeats.
 * Large pairs: probreg's face pair (23,728 points each) and a 100k pair (two YCB scans sampled at
   100,000 points each); time and symmetric mean nearest-neighbour residual before/after.
-* Classification (6.17)-(6.19): one template per category (the first instance with >= 3 taught grasps;
-  ``--class-templates K``:
-  K classifying instances per category, 0 = every other instance, the nearest wins), 20 random placements
+* Classification (6.17)-(6.19): one template per category (the first instance with >= 3 taught
+  grasps; ``--class-templates K``: K classifying instances per category, 0 = every other instance,
+  the nearest wins), 20 random placements
   per category of the other instances (held out: no target is its own template), each perceived by
   the two simulated depth cameras (ray casting, noise, background removal, DBSCAN, 5 mm voxels).
 * Grasp trials (Table 6.2): 20 random placements per category, perceive -> classify -> register ->
   transfer -> score -> orientation search (LR Mate IK) -> approach, close, lift 10 cm, shake in MuJoCo,
   with the whole LR Mate in the scene (URDF links colliding, joint servos tracking the planned path,
   the gripper on its flange; ``grasp_trials_mode`` in the JSON).
-  Instances the 48 mm gripper cannot hold from above at all (no positive-quality, collision-free
-  top-down grasp among 400 sampled on the true model) are excluded (listed in the output).
+  The planner chooses per object the 48 mm gripper or the 85 mm one (Robotiq 2F-85 class) by the
+  transferred grasps' widths; the trial puts that gripper on the flange (``grasp_gripper_per_category``).
+  Instances neither gripper can hold from above at all (no positive-quality, collision-free top-down
+  grasp among 400 sampled on the true model) are excluded (listed in the output). A category's
+  placements come from ``default_rng((seed, category index))``.
+* Classification accuracy is reported on ``--seed`` and on each of ``--class-seeds`` (default 2019 and
+  2020, never used to choose parameters) in ``classification_accuracy_by_seed``; a category's
+  placements come from ``default_rng((seed, 1000 + category index))``.
 
 The machine is shared (2 cores, other jobs running): the load average is reported with the figures.
 
 Placements come from ``--seed`` (default 2018, the reported figures). Parameters of the pipeline were
-chosen on other seeds (7 and 11), never on 2018.
+chosen on other seeds (3, 5, 7 and 11), never on 2018, 2019 or 2020. ``--workers N`` runs the
+classification seeds and the trial categories as N forked processes (same results as one process).
 """
 from __future__ import annotations
 
@@ -129,18 +137,21 @@ def bench_cpd(quick: bool) -> dict:
     return out
 
 
-def _fits(obj, gripper) -> bool:
-    """Can the 48 mm gripper hold this instance from above at all? True when the grasp sampler finds a
-    positive-quality (6.20), collision-free top-down grasp on the true model."""
+def _fits(obj, grippers) -> bool:
+    """Can one of the grippers hold this instance from above at all? True when the grasp sampler finds
+    a positive-quality (6.20), collision-free top-down grasp on the true model for one of them."""
     from robointel.learning.grasp import sampled_grasps
 
-    return bool(sampled_grasps(obj, 1, gripper=gripper))
+    return any(sampled_grasps(obj, 1, gripper=g) for g in grippers)
 
 
 def grasp_setup():
     """The objects by category (template first) and the templates: one per category, the first
-    instance on which at least 3 distinct top-down grasps can be taught."""
+    instance on which at least 3 distinct top-down grasps can be taught with the 48 mm gripper (else
+    the first instance). Taught grasps: the sampler's with the 48 mm gripper, else with the 85 mm one
+    (cans, boxes, balls wider than 48 mm), else the hand-written ones."""
     from robointel.learning.grasp import Template, sample_points, sampled_grasps, taught_grasps, toy_arm, ycb_objects
+    from robointel.learning.grasp.quality import WIDE_GRIPPER
 
     objs = ycb_objects()
     objs["toy_arm"] = [toy_arm(robot="ur5", rng=100 + i, name=f"toy_ur5_{i}") for i in range(6)]
@@ -153,7 +164,8 @@ def grasp_setup():
         i = next((j for j, o in enumerate(lst) if cat == "toy_arm" or len(sampled_grasps(o)) >= 3), 0)
         lst.insert(0, lst.pop(i))
         o = lst[0]
-        grasps = (sampled_grasps(o) if cat != "toy_arm" else []) or taught_grasps(o)
+        grasps = ((sampled_grasps(o) or sampled_grasps(o, gripper=WIDE_GRIPPER)) if cat != "toy_arm" else []) \
+            or taught_grasps(o)
         templates.append(Template(o.name, cat, sample_points(o, 800, 0), grasps))
     return objs, templates
 
@@ -172,81 +184,167 @@ def classifying_templates(objs, templates, per_category: int):
     return out
 
 
-def bench_grasping(quick: bool, trials: bool, per_category: int, trial_categories=None, seed: int = 2018,
-                   class_templates: int = 1) -> dict:
+#: (objs, templates, classifiers), set by the parent before the worker processes fork.
+_SETUP: tuple | None = None
+_PLANNER = None
+
+
+def _planner():
+    global _PLANNER
+    from robointel.learning.grasp import GraspPlanner
+
+    if _PLANNER is None:
+        _, templates, classifiers = _SETUP
+        _PLANNER = GraspPlanner(templates, classifiers=classifiers)
+    return _PLANNER
+
+
+def classification_task(seed: int, ci: int, cat: str, per_category: int, full_plan: bool = True) -> dict:
+    """Classify ``per_category`` random placements of the held-out instances of category ``cat``
+    (index ``ci``; placements from ``default_rng((seed, 1000 + ci))``); true and predicted
+    categories, planning times (ms). ``full_plan``: the whole plan (classify, register, transfer,
+    score, search; timed), else the planner's classification step alone."""
     import mujoco
 
-    from robointel.learning.grasp import (
-        GraspPlanner,
-        confusion_matrix,
-        default_cameras,
-        depth_image,
-        grasp_trial,
-        perceive,
-        random_placements,
-        scene_xml,
-    )
+    from robointel.learning.grasp import classify, default_cameras, depth_image, perceive, random_placements, scene_xml
+    from robointel.learning.grasp.cpd import single_thread_blas
 
-    objs, templates = grasp_setup()
-    classifiers = classifying_templates(objs, templates, class_templates)
-    planner = GraspPlanner(templates, classifiers=classifiers)
+    objs = _SETUP[0]
+    planner = _planner()
     cams = default_cameras()
     m0 = mujoco.MjModel.from_xml_string(scene_xml([]))
     d0 = mujoco.MjData(m0)
     mujoco.mj_forward(m0, d0)
     bgs = [depth_image(m0, d0, c, 0) for c in cams]
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng((seed, 1000 + ci))
     true, pred, plan_ms = [], [], []
-    for cat, lst in objs.items():
-        held = lst[1:]
-        for k in range(per_category):
-            o = held[k % len(held)]
-            p = random_placements([o], rng)[0]
-            m = mujoco.MjModel.from_xml_string(scene_xml([p]))
-            d = mujoco.MjData(m)
-            mujoco.mj_forward(m, d)
-            clouds = perceive(m, d, cams, bgs, rng=rng)
-            true.append(cat)
-            if not clouds:
-                pred.append("none")
-                continue
-            t0 = time.perf_counter()
+    held = objs[cat][1:]
+    for k in range(per_category):
+        o = held[k % len(held)]
+        p = random_placements([o], rng)[0]
+        m = mujoco.MjModel.from_xml_string(scene_xml([p]))
+        d = mujoco.MjData(m)
+        mujoco.mj_forward(m, d)
+        clouds = perceive(m, d, cams, bgs, rng=rng)
+        true.append(cat)
+        if not clouds:
+            pred.append("none")
+            continue
+        t0 = time.perf_counter()
+        if full_plan:
             plan = planner.plan(clouds[0], exclude=(o.name,))
             plan_ms.append((time.perf_counter() - t0) * 1e3)
             pred.append(plan.classification.category)
-    cats = list(objs)
+        else:  # the planner's classification step alone (same templates, same fit)
+            with single_thread_blas():
+                cls = classify(clouds[0], [t for t in planner.classifiers if t.name != o.name],
+                               n_points=planner.n_points)
+            pred.append(cls.category)
+    return {"seed": seed, "true": true, "pred": pred, "plan_ms": plan_ms}
+
+
+def trial_task(ci: int, cat: str, seed: int, per_category: int) -> dict:
+    """``per_category`` lift-and-shake trials of category ``cat`` (index ``ci``), placements from
+    ``default_rng((seed, ci))`` (a category's trials do not depend on which others run)."""
+    from robointel.learning.grasp import grasp_trial, random_placements
+    from robointel.learning.grasp.quality import NARROW_GRIPPER, WIDE_GRIPPER
+
+    objs = _SETUP[0]
+    planner = _planner()
+    lst = objs[cat]
+    grippers = (NARROW_GRIPPER, WIDE_GRIPPER)
+    held = [o for o in lst[1:] if _fits(o, grippers)]
+    excluded = [o.name for o in lst[1:] if o not in held]
+    out = {"cat": cat, "excluded": excluded, "successes": 0, "trials": 0, "failures": [], "grippers": {},
+           "fallbacks": 0}
+    rng = np.random.default_rng((seed, ci))
+    for k in range(per_category if held else 0):
+        o = held[k % len(held)]
+        p = random_placements([o], rng)[0]
+        r = grasp_trial(o, p, planner, rng=rng)
+        out["trials"] += 1
+        out["successes"] += int(r.success)
+        name = r.gripper or "none"
+        out["grippers"][name] = out["grippers"].get(name, 0) + 1
+        out["fallbacks"] += int(bool(r.plan is not None and r.plan.gripper_fallback))
+        if not r.success:
+            out["failures"].append(f"{o.name} [{name}]: {r.reason}")
+        print(f"[grasp-trial] {cat} {k + 1}/{per_category} {o.name} [{name}] success={r.success} "
+              f"classified={r.category} reason={r.reason}", file=sys.stderr, flush=True)
+    return out
+
+
+def _accuracy(res: dict, cats: list) -> dict:
+    from robointel.learning.grasp import confusion_matrix
+
+    true, pred = res["true"], res["pred"]
     C, labels = confusion_matrix(true, pred, cats + (["none"] if "none" in pred else []))
-    out = {"categories": cats, "confusion_matrix": C.tolist(), "confusion_labels": labels,
-           "classification_accuracy": float(np.mean(np.array(true) == np.array(pred))),
-           "classification_targets": len(true), "classification_accuracy_paper": PAPER["classification_accuracy"],
-           "transfer_ms": median(plan_ms), "templates": [t.name for t in templates],
-           "classifying_templates": len(classifiers), "classifying_templates_per_category": class_templates}
-    if not trials:
-        return out
-    succ, n, per_cat, excluded, failures = 0, 0, {}, [], {}
-    for cat, lst in objs.items():
-        if trial_categories and cat not in trial_categories:
-            continue  # note: the placements of later categories then differ from a full run
-        held = [o for o in lst[1:] if _fits(o, planner.gripper)]
-        excluded += [o.name for o in lst[1:] if not _fits(o, planner.gripper)]
-        if not held:
-            continue
-        s = 0
-        for k in range(per_category):
-            o = held[k % len(held)]
-            p = random_placements([o], rng)[0]
-            r = grasp_trial(o, p, planner, rng=rng)
-            s += int(r.success)
-            if not r.success:
-                failures.setdefault(cat, []).append(f"{o.name}: {r.reason}")
-        per_cat[cat] = [s, per_category]
-        succ += s
-        n += per_category
-    out.update({"grasp_success": succ / max(n, 1), "grasp_trials": n, "grasp_successes": succ,
-                "grasp_success_per_category": per_cat, "grasp_excluded_too_wide": excluded,
-                "grasp_failures": failures, "grasp_trials_mode": "LR Mate arm in MuJoCo (joint servos)",
-                "placement_seed": seed,
-                "grasp_success_paper": PAPER["grasp_success"]})
+    return {"accuracy": float(np.mean(np.array(true) == np.array(pred))), "targets": len(true),
+            "confusion_matrix": C.tolist(), "confusion_labels": labels}
+
+
+def bench_grasping(quick: bool, trials: bool, per_category: int, trial_categories=None, seed: int = 2018,
+                   class_templates: int = 1, class_seeds=(), workers: int = 1, classification: bool = True) -> dict:
+    """Classification on ``seed`` (and each of ``class_seeds``) and the trials on ``seed``, run as
+    independent tasks on ``workers`` forked processes (the setup is made once, before the fork)."""
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    global _SETUP
+    t_start = time.perf_counter()
+    objs, templates = grasp_setup()
+    print(f"[grasp] setup {time.perf_counter() - t_start:.0f} s, {workers} workers", file=sys.stderr, flush=True)
+    classifiers = classifying_templates(objs, templates, class_templates)
+    _SETUP = (objs, templates, classifiers)
+    cats = list(objs)
+    tasks = []
+    if trials:  # first: the longest tasks
+        tasks += [(trial_task, (ci, cat, seed, per_category)) for ci, cat in enumerate(cats)
+                  if not trial_categories or cat in trial_categories]
+    if classification:
+        tasks += [(classification_task, (s, ci, cat, per_category, s == seed)) for s in (seed, *class_seeds)
+                  for ci, cat in enumerate(cats)]
+    if workers > 1:
+        with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as ex:
+            futs = [ex.submit(f, *a) for f, a in tasks]
+            results = []
+            for i, f_ in enumerate(futs):
+                results.append(f_.result())
+                print(f"[grasp] task {i + 1}/{len(tasks)} done at {time.perf_counter() - t_start:.0f} s: "
+                      f"{json.dumps(results[-1])}", file=sys.stderr, flush=True)
+    else:
+        results = [f(*a) for f, a in tasks]
+    out: dict = {"categories": cats, "templates": [t.name for t in templates],
+                 "classifying_templates": len(classifiers), "classifying_templates_per_category": class_templates,
+                 "placement_seed": seed}
+    cls_res = []
+    for s_ in (seed, *class_seeds):  # one result per seed, the categories' tasks joined
+        parts = [r for r in results if "pred" in r and r["seed"] == s_]
+        if parts:
+            cls_res.append({"seed": s_, "true": sum((r["true"] for r in parts), []),
+                            "pred": sum((r["pred"] for r in parts), []),
+                            "plan_ms": sum((r["plan_ms"] for r in parts), [])})
+    if cls_res:
+        main_ = _accuracy(cls_res[0], cats)
+        out.update({"classification_accuracy": main_["accuracy"], "classification_targets": main_["targets"],
+                    "confusion_matrix": main_["confusion_matrix"], "confusion_labels": main_["confusion_labels"],
+                    "classification_accuracy_paper": PAPER["classification_accuracy"],
+                    "transfer_ms": median(cls_res[0]["plan_ms"])})
+        out["classification_accuracy_by_seed"] = {str(r["seed"]): _accuracy(r, cats)["accuracy"] for r in cls_res}
+        out["confusion_matrix_by_seed"] = {str(r["seed"]): _accuracy(r, cats)["confusion_matrix"] for r in cls_res}
+    tr = [r for r in results if "successes" in r]
+    if tr:
+        succ = sum(r["successes"] for r in tr)
+        n = sum(r["trials"] for r in tr)
+        out.update({"grasp_success": succ / max(n, 1), "grasp_trials": n, "grasp_successes": succ,
+                    "grasp_trial_categories": sum(1 for r in tr if r["trials"]),
+                    "grasp_success_per_category": {r["cat"]: [r["successes"], r["trials"]] for r in tr},
+                    "grasp_gripper_per_category": {r["cat"]: r["grippers"] for r in tr},
+                    "grasp_wide_fallbacks": {r["cat"]: r["fallbacks"] for r in tr},
+                    "grasp_excluded_too_wide": [x for r in tr for x in r["excluded"]],
+                    "grasp_failures": {r["cat"]: r["failures"] for r in tr if r["failures"]},
+                    "grasp_trials_mode": "LR Mate arm in MuJoCo (joint servos), 48 mm or 85 mm gripper per object",
+                    "grasp_success_paper": PAPER["grasp_success"]})
     return out
 
 
@@ -261,9 +359,14 @@ def main() -> None:
                     help="placement seed (2018 = the reported benchmark; use another seed to choose parameters)")
     ap.add_argument("--class-templates", type=int, default=1,
                     help="classifying templates per category (K of (6.17)-(6.19); 0 = every other instance)")
+    ap.add_argument("--class-seeds", default="2019,2020",
+                    help="further placement seeds for the classification accuracy (comma list; '' = none)")
+    ap.add_argument("--workers", type=int, default=1,
+                    help="processes for the classification seeds and the trial categories (forked)")
+    ap.add_argument("--per-category", type=int, default=None, help="placements per category (default 20)")
     ap.add_argument("--only", default=None,
-                    help="comma list: 'classification' (no CPD, no trials) and/or trial categories "
-                         "(e.g. clamp,long_tool: CPD skipped, classification still run)")
+                    help="comma list: 'classification' and/or trial categories (e.g. can,box: CPD and "
+                         "classification skipped, those categories' trials only, on the same placements as a full run)")
     args = ap.parse_args()
     only = set(args.only.split(",")) if args.only else None
     if only:
@@ -272,12 +375,16 @@ def main() -> None:
             args.skip_trials = True
     out = {"load_average_start": os.getloadavg()[0]}
     t0 = time.perf_counter()
+    if not args.skip_grasping:  # before the CPD timing: the forked workers must not inherit numba's threads
+        trial_cats = (only - {"classification"}) or None if only else None
+        n = args.per_category or (4 if args.quick else 20)
+        out.update(bench_grasping(args.quick, not args.skip_trials, n, trial_categories=trial_cats,
+                                  seed=args.seed, class_templates=args.class_templates,
+                                  class_seeds=[int(v) for v in args.class_seeds.split(",") if v.strip()],
+                                  workers=args.workers,
+                                  classification=not only or "classification" in only))
     if not args.skip_cpd:
         out.update(bench_cpd(args.quick))
-    if not args.skip_grasping:
-        out.update(bench_grasping(args.quick, not args.skip_trials, 4 if args.quick else 20,
-                                   trial_categories=(only - {'classification'}) or None if only else None,
-                                   seed=args.seed, class_templates=args.class_templates))
     out["load_average_end"] = os.getloadavg()[0]
     out["wall_s"] = time.perf_counter() - t0
     if args.json:

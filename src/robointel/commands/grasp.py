@@ -257,19 +257,20 @@ def trial(category: str = typer.Option("all", help="a category or 'all'"), n: in
         rng = np.random.default_rng(seed)
         cats = list(objs) if category == "all" else [category]
         t = Table(title="lift-and-shake trials")
-        for c in ("category", "success", "classified right"):
+        for c in ("category", "success", "classified right", "gripper (48 mm / 85 mm)"):
             t.add_column(c, justify="right")
         tot = 0
         for cat in cats:
             held = objs[cat][1:]
-            ok = right = 0
+            ok = right = wide = 0
             for k in track(range(n), description=cat):
                 o = held[k % len(held)]
                 r = grasp_trial(o, random_placements([o], rng)[0], planner, rng=rng, arm=arm)
                 ok += int(r.success)
                 right += int(r.category == cat)
+                wide += int(r.plan is not None and r.plan.gripper != planner.gripper)
             tot += ok
-            t.add_row(cat, f"{ok}/{n}", f"{right}/{n}")
+            t.add_row(cat, f"{ok}/{n}", f"{right}/{n}", f"{n - wide} / {wide}")
         console.print(t)
         console.print(f"total {tot}/{n * len(cats)} (dissertation: 18.8/20)")
     except RobointelError as exc:
@@ -338,7 +339,7 @@ def demo_stage(ctx: StageContext) -> StageResult:
                    f"{100 * PAPER_ACCURACY:.2f}% (113/120)", f"{len(cats)} categories, held-out generated instances, "
                    "two simulated depth cameras"),
             Figure("lift-and-shake grasp success", f"{ok}/{total} ({20 * ok / total:.1f}/20)", "18.8/20",
-                   "MuJoCo, LR Mate IK + 48 mm parallel gripper, random placements"),
+                   "MuJoCo, LR Mate IK + 48 mm or 85 mm parallel gripper, random placements"),
             Figure("classify + register + transfer + score + search per object",
                    f"{np.median(plan_ms):.0f} ms" if plan_ms else "-", None, "")]
     return StageResult("Grasp transfer by non-rigid registration (Ch. 6)", figs, images,

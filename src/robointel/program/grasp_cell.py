@@ -138,7 +138,7 @@ class GraspCell:
         self.rest_z = [float(d.xpos[b][2]) for b in self._obj]
         templates = [Template(f"{c}_template", c, sample_points(o, 800, 0), taught_grasps(o))
                      for c, o in ((c, primitive_object(c, TEMPLATE_SEED + k)) for k, c in enumerate(OBJECT_CATEGORIES))]
-        self.planner = GraspPlanner(templates, gripper=self.gripper)
+        self.planner = GraspPlanner(templates, gripper=self.gripper, wide_gripper=None)  # the mounted gripper only
 
     # ------------------------------------------------------------------ the Cell protocol
     @property

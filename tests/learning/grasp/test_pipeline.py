@@ -108,14 +108,16 @@ def test_perceived_template_is_in_the_object_frame():
     assert np.all(np.percentile(P, 2, axis=0) > lo - 0.005) and np.all(np.percentile(P, 98, axis=0) < hi + 0.005)
 
 
-def test_arm_scene_matches_the_robot_core_and_servos_track(lrmate):
+@pytest.mark.parametrize("wide", [False, True])
+def test_arm_scene_matches_the_robot_core_and_servos_track(lrmate, wide):
     """The LR Mate in the grasp scene: MuJoCo's gripper frame equals the robot core's forward
-    kinematics (tool = grasp frame), and the joint servos hold a commanded pose under gravity."""
+    kinematics (tool = grasp frame), and the joint servos hold a commanded pose under gravity; with
+    the 48 mm and with the 85 mm gripper on the flange."""
     from robointel.learning.grasp.pipeline import lrmate_with_gripper
-    from robointel.learning.grasp.quality import ParallelGripper
+    from robointel.learning.grasp.quality import NARROW_GRIPPER, WIDE_GRIPPER
     from robointel.learning.grasp.scene import arm_scene
 
-    g = ParallelGripper()
+    g = WIDE_GRIPPER if wide else NARROW_GRIPPER
     robot = lrmate_with_gripper(g)
     m = arm_scene([], robot, g)
     d = mujoco.MjData(m)
@@ -131,6 +133,8 @@ def test_arm_scene_matches_the_robot_core_and_servos_track(lrmate):
     for _ in range(500):
         mujoco.mj_step(m, d)
     assert np.abs(d.qpos[adr] - q).max() < 2e-3
+    assert m.actuator("arm/afp").forcerange[1] == pytest.approx(g.grip_force)
+    assert m.jnt_range[m.joint("arm/fp").id][1] == pytest.approx(g.max_width / 2)
 
 
 def test_planner_classifies_with_k_templates_and_excludes_the_target():

@@ -23,7 +23,7 @@ from robointel.learning.grasp.classify import Classification, ComposedWarp, Temp
 from robointel.learning.grasp.cpd import cpd_rigid, single_thread_blas
 from robointel.learning.grasp.objects import ObjectModel
 from robointel.learning.grasp.perception import default_cameras, depth_image, perceive
-from robointel.learning.grasp.quality import ParallelGripper
+from robointel.learning.grasp.quality import WIDE_GRIPPER, ParallelGripper, choose_gripper, grasp_quality
 from robointel.learning.grasp.scene import ARM_KP, ARM_KV, Placement, arm_scene, scene_xml
 from robointel.learning.grasp.search import SearchResult, orientation_search, refine_position
 from robointel.learning.grasp.transfer import Grasp, transfer_grasp
@@ -72,14 +72,18 @@ def carve_above_seen(completion: np.ndarray, observed: np.ndarray, *, radius: fl
 
 @dataclass
 class GraspPlan:
-    """A planned grasp: the classification, the transferred grasps, the chosen search result and the
-    wall-clock time of each step (s).
-    """
+    """A planned grasp: the classification, the transferred grasps, the chosen search result, the
+    wall-clock time of each step (s), the ``gripper`` the grasp is planned for (its tool in the IK),
+    the contact ``widths`` (m) of the transferred grasps that chose it, and ``gripper_fallback``: True
+    when the width chose the narrow gripper, it had no feasible grasp and the wide one did."""
 
     classification: Classification
     transferred: list[Grasp]
     search: SearchResult
     timings: dict = field(default_factory=dict)
+    gripper: ParallelGripper = field(default_factory=ParallelGripper)
+    widths: list = field(default_factory=list)
+    gripper_fallback: bool = False
 
     @property
     def feasible(self) -> bool:
@@ -110,19 +114,30 @@ class GraspPlanner:
             None = the whole line-search cylinder, the earlier test).
         rest_height: re-heighted upright grasps also at mid-height of a part lying on the table
             (see :func:`refine_position`).
+        wide_gripper: a second, wider gripper (default the 85 mm :data:`WIDE_GRIPPER`; None: ``gripper``
+            only), chosen per object by the transferred grasps' widths (:func:`choose_gripper`: the
+            narrow ``gripper`` when the part fits it, else the wide one) and tried as well when the
+            narrow one finds no feasible grasp. Used only with ``robot="lrmate"`` or ``robot=None``
+            (the LR Mate is loaded with each gripper's tool).
     """
 
     def __init__(self, templates: list[Template], *, gripper: ParallelGripper = ParallelGripper(), robot="lrmate",
                  base_pose: np.ndarray | None = None, table_z: float = 0.0, n_points: int = 200,
                  q_ref=None, local_radius: float = 0.04, refine: bool = True, seen_contacts: bool = False,
                  classifiers: list[Template] | None = None, edge_normals: bool = True, carve: bool = True,
-                 pad_reach: float | None = 0.003, rest_height: bool = True) -> None:
+                 pad_reach: float | None = 0.003, rest_height: bool = True,
+                 wide_gripper: ParallelGripper | None = WIDE_GRIPPER) -> None:
         if not templates:
             raise InvalidInput("GraspPlanner needs at least one template", value=templates)
         self.templates = templates
         self.classifiers = list(classifiers) if classifiers else list(templates)
         self.gripper = gripper
         self.robot = lrmate_with_gripper(gripper) if robot == "lrmate" else robot
+        self.grippers = [gripper]
+        self._robots = {gripper: self.robot}
+        if wide_gripper is not None and wide_gripper != gripper and (robot == "lrmate" or robot is None):
+            self.grippers.append(wide_gripper)
+            self._robots[wide_gripper] = lrmate_with_gripper(wide_gripper) if robot == "lrmate" else None
         self.base_pose = np.eye(4) if base_pose is None else np.asarray(base_pose, float)
         self.table_z = table_z
         self.n_points = n_points
@@ -134,6 +149,12 @@ class GraspPlanner:
         self.pad_reach = pad_reach
         self.rest_height = rest_height
         self.q_ref = np.radians([0, 20, -10, 0, -70, 0]) if q_ref is None else q_ref
+
+    def robot_for(self, gripper: ParallelGripper):
+        """The robot whose tool is ``gripper``'s grasp frame (one of :attr:`grippers`)."""
+        if gripper not in self._robots:
+            raise InvalidInput(f"gripper {gripper.name!r} is not one of the planner's", value=gripper.name)
+        return self._robots[gripper]
 
     def _transfer(self, fit, g: Grasp, cloud: np.ndarray) -> Grasp:
         """(6.14)-(6.16) through the fitted warp, optionally followed by a local rigid CPD of the
@@ -196,31 +217,57 @@ class GraspPlanner:
         per_fit = [[self._transfer(fit, g, cloud) for g in fit.template.grasps] for fit in fits]
         grasps = per_fit[0]
         t2 = time.perf_counter()
-        best = None
-        # contacts on perceived points only (off by default, see ``seen_contacts``)
-        seen = cKDTree(cloud) if self.seen_contacts else None
-        for fit, gs in zip(fits, per_fit):
-            # the warped template completes the sides the cameras do not see
+        # the warped template completes the sides the cameras do not see
+        fulls = []
+        for fit in fits:
             W = fit.warp(fit.template.points)
             if self.carve:
                 W = carve_above_seen(W, cloud)
             full = np.vstack([cloud, W])
-            tree = cKDTree(full)
-            cands = []
+            fulls.append((full, cKDTree(full)))
+        # the transferred grasps' widths (line search of the widest gripper) choose the gripper
+        widest = max(self.grippers, key=lambda g_: g_.max_width)
+        widths = [grasp_quality(full, g, gripper=widest, tree=tree, pad_reach=self.pad_reach,
+                                table_z=self.table_z).width
+                  for (full, tree), gs in zip(fulls, per_fit) for g in gs]
+        gripper = choose_gripper(widths, self.grippers)
+        best = self._search(fulls, per_fit, cloud, gripper)
+        fallback = False
+        if not best.feasible and gripper != widest:
+            wide = self._search(fulls, per_fit, cloud, widest)
+            if wide.feasible:
+                best, gripper, fallback = wide, widest, True
+        t3 = time.perf_counter()
+        return GraspPlan(cls, grasps, best, {"classify_register": t1 - t0, "transfer": t2 - t1,
+                                             "score_search": t3 - t2, "total": t3 - t0},
+                         gripper, [float(w) for w in widths], fallback)
+
+    def _search(self, fulls, per_fit, cloud: np.ndarray, gripper: ParallelGripper) -> SearchResult:
+        """Refine and search (6.21) the transferred grasps with ``gripper``; the lowest cost wins.
+
+        Each fit's grasps are refined (:func:`refine_position`) and searched on that fit's completed
+        cloud, the IK with the robot carrying ``gripper``.
+        """
+        robot = self.robot_for(gripper)
+        best: SearchResult | None = None
+        # contacts on perceived points only (off by default, see ``seen_contacts``)
+        seen = cKDTree(cloud) if self.seen_contacts else None
+        for (full, tree), gs in zip(fulls, per_fit):
+            cands: list[Grasp] = []
             for g in gs:
-                cands += (refine_position(g, full, gripper=self.gripper, tree=tree, table_z=self.table_z,
+                cands += (refine_position(g, full, gripper=gripper, tree=tree, table_z=self.table_z,
                                           observed=cloud, edge_normals=self.edge_normals,
                                           pad_reach=self.pad_reach, rest_height=self.rest_height)
                           if self.refine else [g])
             for g in cands:
-                r = orientation_search(g, full, self.robot, gripper=self.gripper, table_z=self.table_z,
+                r = orientation_search(g, full, robot, gripper=gripper, table_z=self.table_z,
                                        base_pose=self.base_pose, q_ref=self.q_ref, tree=tree, observed=seen,
                                        edge_normals=self.edge_normals, pad_reach=self.pad_reach)
                 if best is None or r.cost < best.cost:
                     best = r
-        t3 = time.perf_counter()
-        return GraspPlan(cls, grasps, best, {"classify_register": t1 - t0, "transfer": t2 - t1,
-                                             "score_search": t3 - t2, "total": t3 - t0})
+        if best is None:
+            raise InvalidInput("the template has no taught grasps to transfer", value=len(per_fit))
+        return best
 
 
 @dataclass
@@ -237,6 +284,11 @@ class TrialResult:
     final_height: float = float("nan")
     cloud: np.ndarray | None = None
     log: list = field(default_factory=list)
+
+    @property
+    def gripper(self) -> str | None:
+        """Name of the gripper the trial used (None when nothing was planned)."""
+        return self.plan.gripper.name if self.plan is not None else None
 
 
 #: The phases of a trial's joint path, in order.
@@ -292,12 +344,21 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
     grasp -> close -> lift 10 cm -> shake with J1 and J6), its links collide with the table and the
     object, and the held object loads its joints. ``arm=False``: the earlier simplification, the
     gripper alone follows the forward kinematics of the same joint path (a mocap weld), no arm links.
-    """
+    The gripper on the flange is the one the plan chose (:class:`GraspPlanner`: the 48 mm one, or
+    the 85 mm one for wide parts), driven with its own ``grip_force``."""
     rng = np.random.default_rng(rng)
-    g = planner.gripper
     cams = cameras or default_cameras()
-    robot = planner.robot
     Tb = planner.base_pose
+    # the scene is built before the plan (the cameras look at it); the plan may choose the wide gripper
+    # (then the scene is rebuilt with it, the object and the noise draws as they were)
+    return _trial(obj, placement, planner, planner.gripper, rng, cams, shake_amplitude, settle, arm, Tb,
+                  rng.bit_generator.state)
+
+
+def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: ParallelGripper, rng, cams,
+           shake_amplitude: float, settle: float, arm: bool, Tb: np.ndarray, rng_state: dict,
+           plan: GraspPlan | None = None) -> TrialResult:
+    robot = planner.robot_for(g)
     if arm:
         if robot is None or not np.allclose(Tb, np.eye(4)):
             raise InvalidInput("grasp_trial(arm=True) needs the planner's robot at the world origin", value=Tb)
@@ -333,7 +394,12 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
     cloud = clouds[0]
     if len(cloud) < 20:
         return TrialResult(False, "cloud too small", cloud=cloud)
-    plan = planner.plan(cloud, exclude=(obj.name,))
+    if plan is None:
+        plan = planner.plan(cloud, exclude=(obj.name,))
+        if plan.gripper != g:  # the same placement and draws, the chosen gripper on the flange
+            rng.bit_generator.state = rng_state
+            return _trial(obj, placement, planner, plan.gripper, rng, cams, shake_amplitude, settle, arm, Tb,
+                          rng_state, plan)
     cat = plan.classification.category
     res = plan.search
     if not res.feasible or res.q is None:

@@ -29,7 +29,8 @@ from robointel._validate import as_array
 from robointel.errors import InvalidInput
 from robointel.learning.grasp.transfer import Grasp
 
-__all__ = ["ParallelGripper", "GraspQuality", "grasp_quality", "estimate_normals", "grasp_map",
+__all__ = ["ParallelGripper", "NARROW_GRIPPER", "WIDE_GRIPPER", "choose_gripper",
+           "GraspQuality", "grasp_quality", "estimate_normals", "grasp_map",
            "isotropy"]
 
 OFF_AXIS, SPARSE, TOO_WIDE, SLIP, UNSEEN = -1.0, -2.0, -3.0, -4.0, -5.0
@@ -37,10 +38,12 @@ OFF_AXIS, SPARSE, TOO_WIDE, SLIP, UNSEEN = -1.0, -2.0, -3.0, -4.0, -5.0
 
 @dataclass(frozen=True)
 class ParallelGripper:
-    """A parallel-jaw gripper like the SMC LEHF20K2-48 (48 mm stroke), in the grasp frame.
+    """A parallel-jaw gripper in the grasp frame (defaults: the 48 mm SMC LEHF20K2-48).
 
-    Grasp frame: origin between the finger pads, y = closing axis, z = approach. The fingertips reach
-    ``tip_depth`` past the centre along z. Sizes in metres.
+    :data:`WIDE_GRIPPER` is an 85 mm one (Robotiq 2F-85 class). Grasp frame: origin between the
+    finger pads, y = closing axis, z = approach. The fingertips reach ``tip_depth`` past the centre
+    along z. Sizes in metres, ``mass`` in kg, ``grip_force`` (N) the
+    force limit of each finger's drive in the MuJoCo trials.
     """
 
     max_width: float = 0.048
@@ -52,6 +55,8 @@ class ParallelGripper:
     palm_breadth: float = 0.04
     flange_offset: float = 0.07  # flange to palm face along the approach
     mass: float = 0.4
+    grip_force: float = 20.0
+    name: str = "narrow_48mm"
 
     def boxes(self, opening: float | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
         """(centre, full size) of the two fingers and the palm in the grasp frame at ``opening``."""
@@ -88,6 +93,43 @@ class ParallelGripper:
                 if world[:, 2].min() < table_z + margin:
                     return True
         return False
+
+
+#: The 48 mm gripper (SMC LEHF20K2-48 class), the default everywhere.
+NARROW_GRIPPER = ParallelGripper()
+#: An 85 mm stroke gripper (Robotiq 2F-85 class: 85 mm stroke, 22 mm wide pads, 20-235 N grip force,
+#: 0.9 kg); its body is longer and wider than the 48 mm one's. Grip force set to 40 N per finger (in
+#: the 2F-85's range): it holds the heavier wide parts (cans, boxes, balls up to ~0.6 kg) in the shake.
+WIDE_GRIPPER = ParallelGripper(max_width=0.085, finger_length=0.05, finger_breadth=0.022, finger_thickness=0.01,
+                               tip_depth=0.005, palm_height=0.04, palm_breadth=0.06, flange_offset=0.07, mass=0.9,
+                               grip_force=40.0, name="wide_85mm")
+
+
+def choose_gripper(widths: list[float], grippers: list[ParallelGripper], margin: float = 0.003) -> ParallelGripper:
+    """The gripper for a part, chosen by the contact widths of its transferred grasps.
+
+    The narrowest of ``grippers`` whose stroke exceeds the smallest known width by ``margin``; the
+    narrowest when no width is known; the widest when none fits.
+
+    Args:
+        widths: contact widths of the transferred grasps (m), any length, NaN allowed.
+        grippers: candidate grippers, at least one.
+        margin: stroke left beyond the width (m).
+
+    Returns:
+        The chosen gripper.
+
+    Raises:
+        InvalidInput: ``grippers`` is empty.
+    """
+    if not grippers:
+        raise InvalidInput("choose_gripper needs at least one gripper", value=grippers)
+    by_stroke = sorted(grippers, key=lambda g: g.max_width)
+    known = [float(w) for w in widths if np.isfinite(w)]
+    if not known:
+        return by_stroke[0]
+    w = min(known)
+    return next((g for g in by_stroke if w + margin <= g.max_width), by_stroke[-1])
 
 
 @dataclass

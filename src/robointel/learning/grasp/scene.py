@@ -67,8 +67,8 @@ def _quat_yaw(yaw: float) -> str:
 
 
 def scene_xml(placements: list[Placement], *, dynamic: bool = False, gripper: ParallelGripper | None = None,
-              timestep: float = 0.002, friction: float = 1.0, grip_force: float = 20.0) -> str:
-    """MJCF text of the scene (see module docstring)."""
+              timestep: float = 0.002, friction: float = 1.0, grip_force: float | None = None) -> str:
+    """MJCF text of the scene (see module docstring); ``grip_force`` (N per finger): the gripper's."""
     assets, bodies = [], []
     for i, p in enumerate(placements):
         o = p.obj
@@ -90,6 +90,7 @@ def scene_xml(placements: list[Placement], *, dynamic: bool = False, gripper: Pa
     act = ""
     if gripper is not None:
         g = gripper
+        grip_force = g.grip_force if grip_force is None else grip_force
         fb = np.array([g.finger_breadth, g.finger_thickness, g.finger_length]) / 2
         zc = g.tip_depth - g.finger_length / 2
         y0 = g.max_width / 2 + g.finger_thickness / 2
@@ -132,7 +133,7 @@ ARM_ARMATURE = (0.2, 0.2, 0.1, 0.02, 0.02, 0.01)
 
 
 def arm_scene(placements: list[Placement], robot, gripper: ParallelGripper, *, timestep: float = 0.002,
-              friction: float = 1.0, grip_force: float = 20.0, kp=ARM_KP, kv=ARM_KV, armature=ARM_ARMATURE,
+              friction: float = 1.0, grip_force: float | None = None, kp=ARM_KP, kv=ARM_KV, armature=ARM_ARMATURE,
               obstacles=()):
     """The grasp scene with the whole robot: the table and free objects of :func:`scene_xml`, and the
     arm built from its URDF by :func:`robointel.sim.mjcf.build_spec` (root at the world origin, its
@@ -141,9 +142,10 @@ def arm_scene(placements: list[Placement], robot, gripper: ParallelGripper, *, t
     (``kp``, ``kv``; torque limited to the URDF effort limits) with the arm's gravity compensated
     (MuJoCo ``gravcomp``, the controller's gravity feed-forward); the held object is a real payload.
     Actuators: ``arm/joint_1..6`` (joint angle, rad) then ``arm/afp``, ``arm/afn`` (finger travel, m;
-    0 = open). ``obstacles``: ``robointel.geometry`` shapes added as static bodies ``obstacle/<name>``
-    (fixtures the arm and the objects collide with). Returns the compiled ``MjModel``.
-    """
+    0 = open); each finger's drive force is limited to ``grip_force`` (N, default the gripper's
+    ``grip_force``). Any :class:`ParallelGripper` fits (the 48 mm or the 85 mm one). ``obstacles``:
+    ``robointel.geometry`` shapes added as static bodies ``obstacle/<name>`` (fixtures the arm and the
+    objects collide with). Returns the compiled ``MjModel``."""
     import mujoco
 
     from robointel.sim.mjcf import build_spec, shape_geoms, shape_name
@@ -166,6 +168,7 @@ def arm_scene(placements: list[Placement], robot, gripper: ParallelGripper, *, t
         a.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
         a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
     g = gripper
+    grip_force = g.grip_force if grip_force is None else grip_force
     T = g.tool_transform()
     q = np.empty(4)
     mujoco.mju_mat2Quat(q, T[:3, :3].ravel())

@@ -1,0 +1,72 @@
+"""The two parallel grippers (48 mm and 85 mm stroke): choice by grasp width, quality, MuJoCo trial."""
+import numpy as np
+import pytest
+import trimesh
+
+from robointel.errors import InvalidInput
+from robointel.learning.grasp import (
+    GraspPlanner,
+    ObjectModel,
+    Placement,
+    Template,
+    grasp_from_axis,
+    grasp_quality,
+    grasp_trial,
+    sample_points,
+    taught_grasps,
+)
+from robointel.learning.grasp.quality import NARROW_GRIPPER, TOO_WIDE, WIDE_GRIPPER, choose_gripper
+
+
+def _can(radius: float, height: float, name: str, mass: float = 0.3) -> ObjectModel:
+    mesh = trimesh.creation.cylinder(radius=radius, height=height, sections=48)
+    mesh.apply_translation([0, 0, height / 2])
+    return ObjectModel(name, "can", mesh, [mesh], mass)
+
+
+def test_wide_gripper_is_the_85mm_class():
+    g = WIDE_GRIPPER
+    assert g.max_width == pytest.approx(0.085) and g.finger_breadth == pytest.approx(0.022)
+    assert 20.0 <= g.grip_force <= 235.0 and g.mass == pytest.approx(0.9)
+    assert NARROW_GRIPPER.max_width == pytest.approx(0.048) and NARROW_GRIPPER.grip_force == pytest.approx(20.0)
+    assert g.name != NARROW_GRIPPER.name
+
+
+def test_choose_gripper_by_width():
+    both = [WIDE_GRIPPER, NARROW_GRIPPER]  # any order
+    assert choose_gripper([0.030, 0.070], both) is NARROW_GRIPPER  # the part fits the narrow one somewhere
+    assert choose_gripper([0.044, np.nan], both) is NARROW_GRIPPER
+    assert choose_gripper([0.047], both) is WIDE_GRIPPER  # within the 3 mm margin of the 48 mm stroke
+    assert choose_gripper([0.068, 0.070], both) is WIDE_GRIPPER
+    assert choose_gripper([0.120], both) is WIDE_GRIPPER  # none fits: the widest
+    assert choose_gripper([np.nan], both) is NARROW_GRIPPER  # unknown: the default
+    with pytest.raises(InvalidInput):
+        choose_gripper([0.03], [])
+
+
+def test_a_56mm_can_is_too_wide_for_the_narrow_gripper_only():
+    P = sample_points(_can(0.028, 0.10, "can56"), 3000, 0)
+    g = grasp_from_axis([0, 0, 0.06], [1, 0, 0], [0, 0, -1])
+    assert grasp_quality(P, g, gripper=NARROW_GRIPPER).quality == TOO_WIDE
+    q = grasp_quality(P, g, gripper=WIDE_GRIPPER)
+    assert q.quality > 0 and q.width == pytest.approx(0.056, abs=0.004)
+
+
+def test_planner_and_trial_put_the_wide_gripper_on_a_wide_can():
+    """A 66 mm can (template: a 70 mm can) is planned with the 85 mm gripper, whose tool the IK uses,
+    and held through the lift and shake with it on the LR Mate's flange in MuJoCo."""
+    tmpl_obj = _can(0.035, 0.11, "can_t")
+    tmpl = Template("can_t", "can", sample_points(tmpl_obj, 600, 0), taught_grasps(tmpl_obj))
+    planner = GraspPlanner([tmpl])
+    assert [g.name for g in planner.grippers] == [NARROW_GRIPPER.name, WIDE_GRIPPER.name]
+    assert planner.robot_for(WIDE_GRIPPER) is not planner.robot_for(NARROW_GRIPPER)
+    target = _can(0.033, 0.10, "can66")
+    res = grasp_trial(target, Placement(target, 0.5, -0.05, 0.4), planner, rng=0)
+    assert res.plan is not None and res.plan.gripper == WIDE_GRIPPER and res.gripper == WIDE_GRIPPER.name
+    assert min(w for w in res.plan.widths if np.isfinite(w)) > NARROW_GRIPPER.max_width
+    assert res.plan.search.feasible
+    q = res.plan.search.q
+    T = planner.robot_for(WIDE_GRIPPER).fk(q)
+    assert np.allclose(T[:3, 3], res.plan.search.grasp.centre, atol=1e-6)
+    assert res.success, res.reason
+    assert res.final_height > 0.08
