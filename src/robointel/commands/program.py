@@ -66,17 +66,38 @@ def register(app: typer.Typer) -> None:
 
 
 def demo_stage(ctx: StageContext) -> StageResult:
-    """The built-in example program on the simulated cell: checked, then run; its joint plot."""
+    """Run the demo's task-program stage: the built-in example and the pick-and-place program.
+
+    Args:
+        ctx: The demo stage context (output folder, quick flag, progress).
+
+    Returns:
+        The stage's figures (steps, pre-run check time, motion time, pick-and-place outcome) and plots.
+    """
     prog = load_program("example")
     q0 = prog.initial_configuration()
     ctx.advance(0.05, "check")
-    chk = check_program(prog, q0, progress=lambda f, s: ctx.advance(0.05 + 0.6 * f, s))
-    ctx.advance(0.7, "run")
+    chk = check_program(prog, q0, progress=lambda f, s: ctx.advance(0.05 + 0.2 * f, s))
+    ctx.advance(0.25, "run")
     res = run_program(prog, SimCell(prog, q0), check=chk)
     png = plot_run(prog, res, ctx.out / "program_joints.png")
     motion = sum(p.trajectory.duration for p in chk.plans if p.trajectory is not None)
-    figs = [Figure("task program", f"{len(res.steps)} steps, {'all ok' if res.success else res.outcome.detail}"),
+    figs = [Figure("task program 'example' (move, path, wait, set_io; Table 7.1 cell)",
+                   f"{len(res.steps)} steps, {'all ok' if res.success else res.outcome.detail}"),
             Figure("pre-run check (plan + dense check of every motion)", f"{chk.check_ms:.0f} ms"),
             Figure("motion time", f"{motion:.2f} s")]
-    return StageResult("Task program (move, path, wait, set_io on the Table 7.1 cell)", figs, [png],
-                       text="robointel run example: the whole program is checked before the robot moves.")
+    ctx.advance(0.3, "pick and place")
+    pp = load_program("pick_place")
+    q1 = pp.initial_configuration()
+    cell = GraspCell(pp, q1, seed=3)
+    t_sim = float(cell.data.time)
+    run = run_program(pp, cell, progress=lambda i, s: ctx.advance(0.3 + 0.65 * i / len(pp.steps), s))
+    images = [png, plot_run(pp, run, ctx.out / "pick_place_joints.png")]
+    place = run.steps[-2].outcome.figures.get("place_error_m") if len(run.steps) >= 3 else None
+    figs += [Figure("task program 'pick_place' (perceive, grasp, carry around fixtures, place, home)",
+                    "all steps ok" if run.success else run.outcome.detail,
+                    note=f"part placed {place * 1000:.1f} mm from its target" if place is not None else ""),
+             Figure("pick-and-place cycle (simulated time)", f"{float(cell.data.time) - t_sim:.1f} s")]
+    return StageResult("Task programs (robointel run)", figs, images,
+                       text="robointel run example / pick_place: the whole program is checked before the robot "
+                            "moves; a failed step stops the robot and is named.")

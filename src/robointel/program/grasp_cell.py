@@ -113,6 +113,7 @@ class GraspCell:
         self._obst_geoms = {g for g in range(m.ngeom) if m.geom(g).name.startswith("obstacle/")}
         self.observe_q = np.asarray(Q_PARK, float).copy()
         self.io: dict[str, float] = {}
+        self.trace: list[np.ndarray] = []  # measured joints of every motion since the last pop_trace
         self.held: int | None = None
         self._grip_in_hand: np.ndarray | None = None
         self.stopped: str | None = None
@@ -186,12 +187,22 @@ class GraspCell:
             err = max(err, float(np.max(np.abs(Q[k] - q))))
             hit = self._collision() if d.ncon else None
             if hit:
+                self.trace.append(Q[:k + 1])
                 self.retreat(dense.q[max(0, k - int(0.15 / dt))])
                 return TrialOutcome(False, Failure.COLLISION, hit, {"tracking_max_rad": err}), Q[:k + 1]
+        self.trace.append(Q[:k + 1])
         if err > TRACKING_LIMIT_RAD:
             self.stop("tracking")
             return TrialOutcome(False, Failure.TRACKING, f"tracking error {err:.3f} rad", {"tracking_max_rad": err}), Q
         return TrialOutcome(True, figures={"tracking_max_rad": err}), Q
+
+    def pop_trace(self) -> np.ndarray:
+        """Return the measured joints (M, n) of the motions since the last call, on a 1 ms grid, and clear them."""
+        if not self.trace:
+            return np.zeros((0, len(self.names)))
+        Q = np.vstack(self.trace)
+        self.trace = []
+        return np.repeat(Q, max(1, int(round(self.model.opt.timestep / 1e-3))), axis=0)
 
     def hold(self, seconds: float) -> None:
         """Keep the last command for ``seconds``."""

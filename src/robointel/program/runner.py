@@ -232,6 +232,8 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
                     cell.stop("not at the step's start")
                 else:
                     outcome, executed = cell.execute(traj)
+                    if hasattr(cell, "pop_trace"):
+                        executed = cell.pop_trace()  # on the 1 ms grid
         elif step.kind == "wait":
             cell.hold(step.args["seconds"])
             outcome = TrialOutcome(True)
@@ -246,6 +248,8 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
                     outcome = act(arg, plan_fn)
                 except RobointelError as exc:
                     outcome = TrialOutcome(False, Failure.INFEASIBLE, str(exc))
+                if hasattr(cell, "pop_trace"):
+                    executed = cell.pop_trace()
                 if not outcome.success:
                     cell.stop(step.kind)
         elif step.kind == "set_io":
