@@ -24,7 +24,7 @@ def _shared_data(*parts: str):
         pytest.skip(f"reference data missing: {exc}")
 
 
-@pytest.fixture
+@pytest.fixture(scope="session")
 def shared_data():
     """Call ``shared_data("kinect", "joints.csv")`` to get a Path (skip/fail when missing)."""
     return _shared_data

@@ -13,18 +13,8 @@ from _mbm_checker import MBMChecker  # noqa: E402
 
 
 @pytest.fixture(scope="module")
-def setup():
-    from robointel.errors import DataMissing
-    from robointel.io.reference import data_path
-
-    try:
-        root = data_path("mbm", "ur5")
-    except DataMissing as exc:
-        import os
-
-        if os.environ.get("ROBOINTEL_REQUIRE_DATA") == "1":
-            pytest.fail(str(exc))
-        pytest.skip(str(exc))
+def setup(shared_data):
+    root = shared_data("mbm", "ur5")
     checker = MBMChecker(root / "ur5.urdf", root / "ur5.srdf")
     raw = json.loads((root / "problems.json").read_text())["problems"]
     return checker, raw

@@ -21,16 +21,8 @@ PER_FAMILY = int(os.environ.get("ROBOINTEL_MBM_PER_FAMILY", "1"))  # CI: at most
 
 
 @pytest.fixture(scope="module")
-def root():
-    from robointel.errors import DataMissing
-    from robointel.io.reference import data_path
-
-    try:
-        return data_path("mbm", "ur5")
-    except DataMissing as exc:
-        if os.environ.get("ROBOINTEL_REQUIRE_DATA") == "1":
-            pytest.fail(str(exc))
-        pytest.skip(str(exc))
+def root(shared_data):
+    return shared_data("mbm", "ur5")
 
 
 @pytest.fixture(scope="module")

@@ -35,14 +35,8 @@ def _obstacles(p: dict) -> list:
 
 
 @pytest.fixture(scope="module")
-def mbm(request):
-    from robointel.errors import DataMissing
-    from robointel.io.reference import data_path
-
-    try:
-        root = data_path("mbm", "ur5")
-    except DataMissing as exc:
-        pytest.skip(f"reference data missing: {exc}")
+def mbm(shared_data):
+    root = shared_data("mbm", "ur5")
     robot = Robot.load(root / "ur5.urdf")
     problems = json.loads((root / "problems.json").read_text())["problems"]
     return root, robot, problems
