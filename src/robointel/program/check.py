@@ -9,6 +9,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -19,6 +20,7 @@ from robointel.planning.scene import Scene
 from robointel.planning.trajectory import TrajectoryPlanner
 from robointel.program.format import Program, Step, Target
 from robointel.programming.keypoints import blended_trajectory, joint_velocity_reference
+from robointel.robot import Robot
 from robointel.trajectory import Trajectory
 
 CLEARANCE_TOLERANCE = 0.001  # m below d_min that a dense 1 ms check still accepts
@@ -184,13 +186,22 @@ def plan_path(program: Program, step: Step, q0: np.ndarray) -> Trajectory:
     return Trajectory(t, Q, dQ, ddQ, list(robot.joint_names), {"step": step.name, "kind": "path"})
 
 
-def check_place_reachable(program: Program, at: tuple[float, float]) -> None:
+@lru_cache(maxsize=1)
+def _gripper_robot() -> Robot:
+    """The LR Mate with the 48 mm gripper's grasp frame as its tool (loaded once)."""
+    return lrmate_with_gripper()  # type: ignore[no-any-return]
+
+
+def check_place_reachable(at: tuple[float, float]) -> None:
     """Check that the gripper reaches down to the table at ``at`` (a top-down grasp 5 cm above it).
+
+    Args:
+        at: (x, y) place target on the table, m.
 
     Raises:
         IKFailure: It does not.
     """
-    gripper_robot = lrmate_with_gripper()
+    gripper_robot = _gripper_robot()
     T = np.eye(4)
     T[:3, :3] = np.diag([1.0, -1.0, -1.0])  # approach (grasp z) pointing down
     T[:3, 3] = [at[0], at[1], 0.05]
@@ -250,7 +261,7 @@ def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
                 plan.q_end = plan.trajectory.q[-1].copy()
             elif step.kind in ("grasp", "place"):
                 if step.kind == "place":
-                    check_place_reachable(program, step.args["at"])
+                    check_place_reachable(step.args["at"])
                 known = False
         except (IKFailure, CollisionAtStart, InfeasibleProblem, InvalidInput) as exc:
             raise _reject(step, i, str(exc)) from None
