@@ -159,9 +159,14 @@ def test_deadman_counts_from_the_last_send_after_a_flood(server):
             speeds.append(abs(ctrl.wc.qd[0]))
             time.sleep(0.005)
         last = json.loads(procs[0].stdout.readline())["last_send"]
-        q_rest = ctrl.wc.q.copy()
+        t_wait = time.monotonic()                # a loaded machine may start the flooder late:
+        while ctrl.mode != "stopped" and time.monotonic() - t_wait < 3.0:  # the stop after its last send
+            time.sleep(0.005)
+        time.sleep(0.2)                          # the servo settles on the held reference
+        q_ref, q_rest = ctrl.q_ref.copy(), ctrl.wc.q.copy()
         time.sleep(0.5)                          # the flood's backlog is never replayed
-        assert np.abs(ctrl.wc.q - q_rest).max() < 1e-3 and ctrl.mode == "stopped"
+        assert ctrl.mode == "stopped" and np.abs(ctrl.q_ref - q_ref).max() == 0.0
+        assert np.abs(ctrl.wc.q - q_rest).max() < 1e-3
     finally:
         _end(procs)
     assert max(speeds) > 0.5                     # the flood moved the robot
