@@ -9,6 +9,7 @@ import sys
 from collections import Counter
 from pathlib import Path
 
+import psutil
 import pyarrow.parquet as pq
 import ray
 
@@ -35,6 +36,17 @@ def main(root: Path) -> None:
     out = {}
     start_ray(workers=2, address=None)
     out["node_ip"] = ray.util.get_node_ip_address()
+
+    # 0. a task past its budget is interrupted inside its worker and stored as a timeout; the workers run
+    #    at niceness 0, not Ray's 15
+    slow = [TaskSpec("synthetic", s, {"work_s": 30.0 if s == 1 else 0.0, "p_success": 1.0}) for s in range(3)]
+    rt = run_batch(slow, root / "timeout", engine="ray", workers=2, progress=False, timeout_s=1.0)
+    rows_t = {r["seed"]: r for r in ResultStore(root / "timeout").rows()}
+    out["timeout"] = {"reasons": [rows_t[s]["reason"] for s in range(3)], "wall_s": rt.wall_s,
+                      "slow_wall_s": rows_t[1]["wall_s"]}
+    out["worker_nice"] = sorted({p.nice() for p in psutil.process_iter(["cmdline"])
+                                 if any("default_worker.py" in a or a.startswith("ray::IDLE")
+                                        for a in (p.info["cmdline"] or []))})
 
     # 1. a worker killed mid-task: Ray re-runs the task, every result is stored exactly once
     specs = [TaskSpec("synthetic", s, {"work_s": 0.4}) for s in range(8)]

@@ -94,3 +94,14 @@ def test_custom_kind_by_import_path(tmp_path):
     assert row["detail"].startswith("u = ") and row["category"] == "synthetic"
     with pytest.raises(UnknownTaskKind, match="cannot import"):
         run_batch([TaskSpec("robointel.nothing:here", 0)], tmp_path, progress=False)
+
+
+def test_a_task_past_its_budget_is_stored_as_a_timeout_and_the_sweep_goes_on(tmp_path):
+    specs = [TaskSpec("synthetic", s, {"work_s": 30.0 if s == 1 else 0.0, "p_success": 1.0}) for s in range(3)]
+    run = run_batch(specs, tmp_path / "r", progress=False, timeout_s=0.5)
+    rows = {r["seed"]: r for r in ResultStore(tmp_path / "r").rows()}
+    assert [rows[s]["reason"] for s in range(3)] == ["none", "timeout", "none"]
+    assert run.counts.failed == 1 and "0.5 s" in rows[1]["detail"] and "TaskTimeout" in rows[1]["traceback"]
+    assert 0.4 <= rows[1]["wall_s"] < 10.0
+    with pytest.raises(InvalidInput, match="timeout_s"):
+        run_batch(specs, tmp_path / "bad", progress=False, timeout_s=0.0)

@@ -51,6 +51,16 @@ def test_ray_ran_on_loopback_only(ray_results):
     assert ray_results["node_ip"] == "127.0.0.1"
 
 
+def test_a_task_past_its_budget_is_a_timeout_row_on_ray(ray_results):
+    t = ray_results["timeout"]
+    assert t["reasons"] == ["none", "timeout", "none"]
+    assert 0.9 <= t["slow_wall_s"] < 10.0  # interrupted at its 1 s budget, not after its 30 s of work
+
+
+def test_local_ray_workers_run_at_niceness_zero(ray_results):
+    assert ray_results["worker_nice"] == [0]
+
+
 def test_killed_worker_task_is_retried_and_stored_once(ray_results):
     k = ray_results["kill"]
     assert sorted(k["raw_counts"]) == k["expected_keys"]  # nothing lost

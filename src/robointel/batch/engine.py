@@ -88,7 +88,8 @@ class _Sink:
 def run_batch(specs: Sequence[TaskSpec], results: str | Path, *, engine: str = "inprocess", workers: int = 1,
               address: str | None = None, cpus_per_task: float = 1.0, max_retries: int = 3, flush_rows: int = 8,
               flush_s: float = 2.0, progress: bool = True, console: Console | None = None,
-              on_row: RowCallback | None = None, fault: Fault | None = None) -> BatchRun:
+              on_row: RowCallback | None = None, fault: Fault | None = None, timeout_s: float | None = None,
+              worker_niceness: int = 0) -> BatchRun:
     """Run every spec not yet in the result store ``results`` and store one row per (spec hash, seed).
 
     Interrupting (Ctrl-C, or ``on_row`` raising) flushes what finished and re-raises; running the
@@ -108,6 +109,10 @@ def run_batch(specs: Sequence[TaskSpec], results: str | Path, *, engine: str = "
         console: Console of the bar.
         on_row: Called with each finished row after it is stored (may raise to stop the run).
         fault: Ray only: kill the worker of chosen tasks once (tests, benchmark).
+        timeout_s: Time budget per task (s): a trial still running after it is interrupted and stored
+            as a ``timeout`` failure (both engines). ``None``: no budget.
+        worker_niceness: Ray, local cluster only: the scheduling niceness of the worker processes
+            (Ray's own default is 15, which lets any other process on the machine slow the trials).
 
     Returns:
         The counts and timing of this run.
@@ -119,6 +124,8 @@ def run_batch(specs: Sequence[TaskSpec], results: str | Path, *, engine: str = "
     """
     if engine not in ENGINES:
         raise InvalidInput(f"engine must be one of {ENGINES}, got {engine!r}", value=engine)
+    if timeout_s is not None and not timeout_s > 0:
+        raise InvalidInput(f"timeout_s must be > 0 seconds, got {timeout_s!r}", value=timeout_s)
     if workers < 1 or cpus_per_task <= 0 or max_retries < 0 or flush_rows < 1:
         raise InvalidInput("workers >= 1, cpus_per_task > 0, max_retries >= 0 and flush_rows >= 1 are required",
                            value={"workers": workers, "cpus_per_task": cpus_per_task, "max_retries": max_retries,
@@ -140,7 +147,7 @@ def run_batch(specs: Sequence[TaskSpec], results: str | Path, *, engine: str = "
             if engine == "inprocess":
                 for s in todo:
                     sink.running(1)
-                    sink(execute(s.to_dict(), engine="inprocess"))
+                    sink(execute(s.to_dict(), engine="inprocess", timeout_s=timeout_s))
                 sink.running(0)
             else:
                 try:  # the optional dependency (robointel[cluster]) loads only here
@@ -149,7 +156,7 @@ def run_batch(specs: Sequence[TaskSpec], results: str | Path, *, engine: str = "
                     raise EngineUnavailable(f"the Ray engine needs Ray ({exc}): pip install 'robointel[cluster]'",
                                             value=engine) from None
                 run_on_ray(todo, sink, sink.running, workers=workers, address=address, cpus_per_task=cpus_per_task,
-                           max_retries=max_retries, fault=fault)
+                           max_retries=max_retries, fault=fault, timeout_s=timeout_s, worker_niceness=worker_niceness)
         finally:
             sink.flush()
     return BatchRun(counts, time.perf_counter() - t0, engine, n_workers, store.root)

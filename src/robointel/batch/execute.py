@@ -15,6 +15,8 @@ import socket
 import threading
 import time
 import traceback
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -28,7 +30,7 @@ from robointel.batch.spec import TaskSpec
 from robointel.errors import CollisionAtStart, IKFailure, InfeasibleProblem, LimitViolation, SafetyStop
 from robointel.outcome import Failure, TrialOutcome
 
-__all__ = ["Fault", "THREAD_ENV", "execute", "failure_row"]
+__all__ = ["THREAD_ENV", "Fault", "TaskTimeout", "execute", "failure_row"]
 
 #: Environment of a worker process: one thread for every numerical library (set before they load).
 THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
@@ -102,13 +104,45 @@ def failure_row(spec: TaskSpec, reason: Failure, detail: str, tb: str = "", *, e
     return row
 
 
-def execute(spec_dict: dict[str, Any], fault: Fault | None = None, engine: str = "inprocess") -> dict[str, Any]:
+class TaskTimeout(Exception):  # noqa: N818 - raised by the alarm, recorded as Failure.TIMEOUT
+    """The task ran past its time budget (raised inside the trial by the interval timer)."""
+
+
+def _on_alarm(signum: int, frame: object) -> None:
+    raise TaskTimeout
+
+
+@contextmanager
+def _deadline(timeout_s: float | None) -> Iterator[None]:
+    """Raise :class:`TaskTimeout` in this (main) thread once ``timeout_s`` seconds have passed.
+
+    The timer is the process's real-time interval timer (``SIGALRM``): a trial stuck in Python code,
+    or in a C call that returns (a MuJoCo step, a solver iteration), is interrupted at the next
+    bytecode. Off the main thread (no signals there) the budget is not enforced.
+    """
+    if timeout_s is None or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGALRM, _on_alarm)
+    signal.setitimer(signal.ITIMER_REAL, timeout_s)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def execute(spec_dict: dict[str, Any], fault: Fault | None = None, engine: str = "inprocess",
+            timeout_s: float | None = None) -> dict[str, Any]:
     """Run one task (a :meth:`TaskSpec.to_dict`) with one thread per numerical library.
 
     Args:
         spec_dict: The task spec as plain data.
         fault: Optional fault injection (tests and benchmarks only).
         engine: Name recorded in the row.
+        timeout_s: Time budget of the trial (s); past it the trial is interrupted and the row is a
+            ``Failure.TIMEOUT`` failure. ``None``: no budget. Enforced when the task runs on the
+            process's main thread (the in-process engine's driver, a Ray worker).
 
     Returns:
         The result row: ``spec_hash``, ``seed``, ``kind``, ``category``, ``spec``, the outcome record
@@ -127,12 +161,15 @@ def execute(spec_dict: dict[str, Any], fault: Fault | None = None, engine: str =
         numba_threads = numba.get_num_threads()
         numba.set_num_threads(1)
         try:
-            with _pools(spec.kind).limit(limits=1):
+            with _pools(spec.kind).limit(limits=1), _deadline(timeout_s):
                 outcome = kind.run(spec)
         finally:
             numba.set_num_threads(numba_threads)
         if not isinstance(outcome, TrialOutcome):
             raise TypeError(f"trial kind {spec.kind!r} returned {type(outcome).__name__}, not a TrialOutcome")
+    except TaskTimeout:
+        tb = traceback.format_exc()
+        outcome = TrialOutcome(False, Failure.TIMEOUT, f"no result within the task's budget of {timeout_s:g} s")
     except Exception as exc:
         tb = traceback.format_exc()
         reason = next((f for cls, f in _ERRORS if isinstance(exc, cls)), Failure.ERROR)

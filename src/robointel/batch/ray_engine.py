@@ -31,8 +31,12 @@ __all__ = ["run_on_ray", "start_ray"]
 JOIN_ATTEMPTS = 3  # tries to join a cluster through Ray Client (ray://) before giving up
 
 
-def start_ray(*, workers: int, address: str | None) -> bool:
+def start_ray(*, workers: int, address: str | None, worker_niceness: int = 0) -> bool:
     """Start a local Ray with ``workers`` CPUs, or join ``address``; return True if this call started it.
+
+    A local Ray's worker processes run at ``worker_niceness`` (Ray's default, 15, lets any other
+    process on the machine, the driver included, take the CPU from the trials). A joined cluster
+    keeps its own setting.
 
     Raises:
         EngineUnavailable: joining the cluster or starting Ray failed.
@@ -41,6 +45,8 @@ def start_ray(*, workers: int, address: str | None) -> bool:
         return False
     env = {"env_vars": dict(THREAD_ENV)}
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    if not address:  # read by the raylet this call starts
+        os.environ["RAY_worker_niceness"] = str(int(worker_niceness))
     attempts = JOIN_ATTEMPTS if address and address.startswith("ray://") else 1
     for attempt in range(attempts):
         try:
@@ -62,7 +68,8 @@ def start_ray(*, workers: int, address: str | None) -> bool:
 
 def run_on_ray(todo: Sequence[TaskSpec], on_row: Callable[[dict[str, Any]], None],
                on_running: Callable[[int], None], *, workers: int, address: str | None, cpus_per_task: float,
-               max_retries: int, fault: Fault | None = None) -> None:
+               max_retries: int, fault: Fault | None = None, timeout_s: float | None = None,
+               worker_niceness: int = 0) -> None:
     """Run ``todo`` as Ray tasks and hand each finished row to ``on_row`` (in completion order).
 
     At most twice the cluster's task slots are in flight, so a sweep of any size streams.
@@ -73,7 +80,7 @@ def run_on_ray(todo: Sequence[TaskSpec], on_row: Callable[[dict[str, Any]], None
         EngineUnavailable: see :func:`start_ray`.
         InvalidInput: ``cpus_per_task`` exceeds the cluster's CPUs.
     """
-    started = start_ray(workers=workers, address=address)
+    started = start_ray(workers=workers, address=address, worker_niceness=worker_niceness)
     try:
         cpus = float(ray.cluster_resources().get("CPU", 0.0))
         if cpus_per_task > cpus:
@@ -88,7 +95,7 @@ def run_on_ray(todo: Sequence[TaskSpec], on_row: Callable[[dict[str, Any]], None
             while queue or pending:
                 while queue and len(pending) < 2 * slots:
                     s = queue.pop()
-                    pending[remote.remote(s.to_dict(), fault, "ray")] = s
+                    pending[remote.remote(s.to_dict(), fault, "ray", timeout_s)] = s
                 on_running(min(len(pending), slots))
                 ready, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
                 for ref in ready:

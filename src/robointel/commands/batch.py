@@ -32,6 +32,10 @@ def run(spec: Annotated[Path, typer.Argument(help="sweep YAML (tasks: [{kind, se
         cpus_per_task: Annotated[float, typer.Option(help="Ray: CPUs reserved per task")] = 1.0,
         max_retries: Annotated[int, typer.Option(help="Ray: re-runs of a task whose worker died")] = 3,
         flush_rows: Annotated[int, typer.Option(help="write a Parquet file every this many rows (or 2 s)")] = 8,
+        timeout: Annotated[float | None, typer.Option(
+            help="time budget per task, s: a trial past it is stored as a 'timeout' failure")] = None,
+        worker_niceness: Annotated[int, typer.Option(
+            help="local Ray: niceness of the worker processes (Ray's own default is 15)")] = 0,
         ) -> None:
     """Run a sweep; already stored (spec hash, seed) rows are skipped, so running it again resumes."""
     try:
@@ -39,7 +43,8 @@ def run(spec: Annotated[Path, typer.Argument(help="sweep YAML (tasks: [{kind, se
         eng = engine or ("ray" if workers > 1 or address else "inprocess")
         folder = out or spec.with_name(spec.stem + "-results")
         r = run_batch(specs, folder, engine=eng, workers=workers, address=address, cpus_per_task=cpus_per_task,
-                      max_retries=max_retries, flush_rows=flush_rows, console=console)
+                      max_retries=max_retries, flush_rows=flush_rows, console=console, timeout_s=timeout,
+                      worker_niceness=worker_niceness)
     except RobointelError as exc:
         console.print(f"[red]error:[/red] {exc}")
         raise typer.Exit(2) from None
