@@ -8,6 +8,7 @@ from typing import Any
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
@@ -120,7 +121,7 @@ class WorkcellModel:
         return float(self.data.time)
 
     @property
-    def qpos_index(self):
+    def qpos_index(self) -> slice | np.ndarray:
         """Where the robot's joints sit in MuJoCo's ``qpos`` (a slice or an index array)."""
         return self._qadr
 
@@ -153,7 +154,7 @@ class WorkcellModel:
         return list(self.info["obstacles"])
 
 
-    def set_obstacle_pose(self, name: str, position, rotation=None) -> None:
+    def set_obstacle_pose(self, name: str, position: npt.ArrayLike, rotation: npt.ArrayLike | None = None) -> None:
         """Move an obstacle's reference point (centre / axis midpoint) to ``position`` (3,), world frame.
 
         ``rotation`` is an optional 3x3 rotation. Takes effect immediately (moving obstacles).
