@@ -11,7 +11,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robointel._validate import as_array
-from robointel.errors import InvalidInput
+from robointel.errors import DescriptionError, InvalidInput
 from robointel.sim.mjcf import FT_SITE, OBJECT_PREFIX, OBSTACLE_PREFIX, TOOL_BODY, build_spec
 
 CONTROL_DT = 0.001  # 1 kHz joint controller
@@ -56,8 +56,6 @@ class WorkcellModel:
         try:
             self.model = self.spec.compile()
         except Exception as exc:
-            from robointel.errors import DescriptionError
-
             raise DescriptionError(f"MuJoCo could not compile the workcell: {exc}") from None
         self.data = mujoco.MjData(self.model)
         m = self.model
