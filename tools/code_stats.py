@@ -2,7 +2,8 @@
 
 Figures: ``modules`` (count of .py files), ``max_module_lines``, ``modules_over_500`` (paths),
 ``functions`` and ``typed_fraction`` (the fraction of functions and methods whose parameters, except
-``self``/``cls``, and return are all annotated).
+``self``/``cls``, and return are all annotated), ``inner_imports`` (imports of the package's own modules
+inside a function body, the lazy ones) and ``inner_import_sites`` (``path:line`` of each).
 
 Usage: ``python tools/code_stats.py [ROOT] [--exclude PART ...]`` (ROOT defaults to ``src/robointel``;
 files whose path contains an excluded PART are left out).
@@ -29,6 +30,19 @@ def _fully_typed(fn: ast.FunctionDef | ast.AsyncFunctionDef) -> bool:
     return fn.returns is not None and all(p.annotation is not None for p in params)
 
 
+def _inner_imports(tree: ast.AST, package: str) -> list[int]:
+    """Return the line numbers of imports of ``package`` (absolute or relative) inside function bodies."""
+    lines: set[int] = set()
+    for fn in ast.walk(tree):
+        if isinstance(fn, ast.FunctionDef | ast.AsyncFunctionDef):
+            for node in ast.walk(fn):
+                if isinstance(node, ast.ImportFrom) and (node.level or (node.module or "").split(".")[0] == package):
+                    lines.add(node.lineno)
+                elif isinstance(node, ast.Import) and any(a.name.split(".")[0] == package for a in node.names):
+                    lines.add(node.lineno)
+    return sorted(lines)
+
+
 def code_stats(root: Path, exclude: tuple[str, ...] = ()) -> dict[str, object]:
     """Measure the modules under ``root``.
 
@@ -38,13 +52,16 @@ def code_stats(root: Path, exclude: tuple[str, ...] = ()) -> dict[str, object]:
 
     Returns:
         A JSON-ready dict with ``modules``, ``max_module_lines``, ``modules_over_500``, ``functions``,
-        ``typed_functions`` and ``typed_fraction``.
+        ``typed_functions``, ``typed_fraction``, ``inner_imports`` and ``inner_import_sites``.
     """
     files = sorted(f for f in root.rglob("*.py") if not any(x in str(f) for x in exclude))
     lines = {str(f): len(f.read_text().splitlines()) for f in files}
     n_fn = n_typed = 0
+    inner: list[str] = []
     for f in files:
-        for node in ast.walk(ast.parse(f.read_text())):
+        tree = ast.parse(f.read_text())
+        inner += [f"{f}:{line}" for line in _inner_imports(tree, root.name)]
+        for node in ast.walk(tree):
             if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
                 n_fn += 1
                 n_typed += _fully_typed(node)
@@ -55,6 +72,8 @@ def code_stats(root: Path, exclude: tuple[str, ...] = ()) -> dict[str, object]:
         "functions": n_fn,
         "typed_functions": n_typed,
         "typed_fraction": round(n_typed / n_fn, 4) if n_fn else 1.0,
+        "inner_imports": len(inner),
+        "inner_import_sites": inner,
     }
 
 

@@ -9,6 +9,7 @@ import importlib
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import typer
 from rich.console import Console
 from rich.table import Table
@@ -16,6 +17,8 @@ from typer.core import TyperGroup
 
 from robointel.commands.failure import fail
 from robointel.errors import RobointelError
+from robointel.report.demo import run_demo
+from robointel.robot import Robot
 
 
 class _Commands(TyperGroup):
@@ -58,10 +61,6 @@ def _load_commands() -> list:
 @app.command()
 def info(robot: str = typer.Argument("lrmate200id7l", help="built-in name, 'ur5', 'panda' or a URDF path")) -> None:
     """Print the robot's joints, limits and collision-sphere model."""
-    import numpy as np
-
-    from robointel.robot import Robot
-
     try:
         r = Robot.load(robot)
     except RobointelError as exc:
@@ -88,8 +87,6 @@ def info(robot: str = typer.Argument("lrmate200id7l", help="built-in name, 'ur5'
 def demo(out: Path = typer.Option(Path("robointel-report"), help="report folder"),
          quick: bool = typer.Option(False, help="smaller problems (for tests)")) -> None:
     """Run the main job on the built-in simulated workcell and write an HTML report."""
-    from robointel.report.demo import run_demo
-
     mods = _load_commands()
     stages = [m.demo_stage for m in mods if hasattr(m, "demo_stage")]
     try:

@@ -6,9 +6,8 @@ from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 from robointel.cli import app
-from robointel.io.demonstrations import load_demonstrations, save_demonstrations
 from robointel.io.lerobot import read_lerobot
-from robointel.learning.demonstration import Demonstration
+from robointel.learning.demonstration import Demonstration, load_demonstrations, save_demonstrations
 from robointel.programming.teleop import save_program
 
 runner = CliRunner()

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from robointel.errors import InvalidInput
-from robointel.io.demonstrations import load_demonstrations, save_demonstrations
 from robointel.io.episode import Episode
 from robointel.io.lerobot import read_lerobot, write_lerobot
 from robointel.io.robomimic import read_robomimic, write_robomimic
 from robointel.learning import insertion
+from robointel.learning.demonstration import load_demonstrations, save_demonstrations
 from robointel.learning.demonstration_episode import demonstration_to_episode, episode_to_demonstration
 
 

@@ -1,8 +1,11 @@
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from robointel.learning.grinding import GrindingSkill, Plate, demonstrate_grinding, reproduce_grinding
 from robointel.learning.insertion import HDDScene
+from robointel.outcome import Failure
 
 
 @pytest.fixture(scope="module")
@@ -33,6 +36,12 @@ def test_force_controlled_reproduction_tracks_setpoint(setup):
     far = sk.predict(np.array([[0.3, 0.3], [-0.3, 0.3], [0.0, -0.5]]))  # off the demonstrated area
     assert np.all((far >= sk.Y_.min()) & (far <= sk.Y_.max()))
     assert np.all(np.isfinite(res.force))
+    # the shared trial outcome: success exactly when the error is within the bound, the figures are the result's
+    out = res.outcome
+    assert out.success == (res.rms_rel <= 0.25) and out.figures["rms_rel"] == res.rms_rel
+    assert out.figures["max_force_n"] == pytest.approx(float(res.force.max()))
+    strict = replace(res, max_rms_rel=0.5 * res.rms_rel).outcome
+    assert not strict.success and strict.reason is Failure.TRACKING
 
 
 def test_default_strokes_cover_the_plate():

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import copy
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -9,6 +10,7 @@ import yaml
 
 from robointel.errors import CollisionAtStart, InvalidInput, LimitViolation, NotFinite
 from robointel.io.trajectory import load_trajectory, save_trajectory
+from robointel.outcome import Failure
 from robointel.planning.frmp import check_trajectory, execute, plan_scene
 from robointel.planning.scene import SCENES, load_scene, scene_from_dict
 
@@ -53,6 +55,13 @@ def test_frmp_plan_is_collision_free_within_limits_and_faster(scene, result):
     # independent re-check with a denser grid
     chk = check_trajectory(tr, scene.robot, scene.obstacles, scene.vmax, scene.amax, dt=0.0005)
     assert chk.limit_violations == 0 and chk.min_clearance >= scene.d_min - 1e-3
+    out = result.outcome
+    assert out.success and out.figures["min_clearance_m"] == result.check.min_clearance
+    assert out.figures["duration_s"] == pytest.approx(result.operational_time_frmp)
+    hit = replace(result, check=replace(result.check, min_clearance=-0.001)).outcome
+    assert not hit.success and hit.reason is Failure.COLLISION
+    fast = replace(result, check=replace(result.check, limit_violations=3)).outcome
+    assert not fast.success and fast.reason is Failure.LIMIT
 
 
 def test_frmp_executes_in_mujoco_without_touching_obstacles(result):
@@ -60,6 +69,8 @@ def test_frmp_executes_in_mujoco_without_touching_obstacles(result):
     assert not ex.collided and ex.obstacle_contacts == 0
     assert ex.min_distance_m > 0.0
     assert ex.max_error_rad < 0.01 and ex.max_tcp_error_m < 0.005
+    assert ex.outcome.success and ex.outcome.figures["obstacle_contacts"] == 0
+    assert replace(ex, collided=True, obstacle_contacts=4).outcome.reason is Failure.COLLISION
 
 
 def test_trajectory_file_round_trip(result, tmp_path):

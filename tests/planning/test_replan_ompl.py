@@ -34,6 +34,8 @@ def test_replanning_keeps_clear_of_a_moving_hand(scene):
         d = sphere_distances_batch(scene.robot, x[None], [hand.moved(c)] + list(scene.obstacles), movable_only=True)
         assert d.d.min() >= st.d_min - 1e-6
     assert res.hz > 0
+    assert res.outcome.success and res.outcome.figures["ticks"] == 14
+    assert res.outcome.figures["min_distance_m"] == float(res.min_distance.min())
 
 
 def test_ompl_rrtconnect_finds_clear_path(scene):

@@ -1,12 +1,14 @@
 """Table 4.1 scenarios: obstacles, the simulated operator, a MuJoCo run with the F/T sensor in the
 loop, the Fig. 4.6b plot, the ``robointel guide`` command and the demo stage."""
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from robointel.errors import InvalidInput
+from robointel.outcome import Failure
 from robointel.programming.scenarios import (
     BASE_HEIGHT,
     SimulatedOperator,
@@ -74,6 +76,8 @@ def test_scenario_ii_in_mujoco_operator_cannot_push_in(tmp_path, lrmate):
     m = res.metrics()
     assert m["max_penetration_m"] == 0.0 and m["robot_obstacle_contacts"] == 0
     assert 0.0 < m["min_distance_m"] < 0.15
+    assert res.outcome.success and res.outcome.figures["min_distance_m"] == m["min_distance_m"]
+    assert replace(res, contacts=3).outcome.reason is Failure.COLLISION
     assert m["held_steps"] == 0
     assert abs(res.extra["identified_mass"] - 0.6) / 0.6 < 0.01
     assert m["active_fraction"] > 0.3

@@ -72,6 +72,8 @@ def test_imitation_synthetic_in_mujoco(lrmate):
     run = simulate_imitation(plan, lrmate)
     assert run.tracking_rms.max() < 0.005       # the 1 kHz controller follows the reference
     assert run.tcp_rms < 0.15 and not run.log.collided
+    assert run.outcome.success and run.outcome.figures["unreachable_fraction"] == 0.0
+    assert run.outcome.figures["max_tracking_rms_rad"] == float(run.tracking_rms.max())
 
 
 def test_imitation_recording_in_mujoco(lrmate, shared_data):

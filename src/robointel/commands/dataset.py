@@ -22,10 +22,11 @@ from rich.table import Table
 
 from robointel.commands.teach import resolve_recording
 from robointel.errors import InvalidInput, RobointelError
-from robointel.io.demonstrations import DemonstrationFile, load_demonstrations
+from robointel.io.demonstrations import DemonstrationFile
 from robointel.io.episode import Episode
 from robointel.io.lerobot import read_lerobot, write_lerobot
 from robointel.io.robomimic import read_robomimic, write_robomimic
+from robointel.learning.demonstration import load_demonstrations
 from robointel.learning.demonstration_episode import demonstration_to_episode, episode_to_demonstration
 from robointel.programming.imitation import kinematic_imitation, simulate_imitation
 from robointel.programming.recording_episodes import (

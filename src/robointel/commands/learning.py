@@ -21,10 +21,10 @@ from rich.table import Table
 
 from robointel.commands.failure import fail
 from robointel.errors import RobointelError
-from robointel.io.demonstrations import DemonstrationFile, save_demonstrations
+from robointel.io.demonstrations import DemonstrationFile
 from robointel.learning import grinding as G
 from robointel.learning import insertion as I
-from robointel.learning.demonstration import Demonstration
+from robointel.learning.demonstration import Demonstration, save_demonstrations
 from robointel.learning.insertion import PHASES, POLICY, HDDScene, InsertionSkill, InsertionTrial, tool_velocities
 from robointel.learning.peer_checks import dtw_speed, gmr_agreement
 from robointel.learning.rltt import LearnedInsertion, learn_insertion

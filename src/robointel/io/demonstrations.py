@@ -194,13 +194,3 @@ class DemonstrationFile:
         """All demonstrations in insertion order."""
         return [self.load(n) for n in self.names()]
 
-
-# Transitional: commands/learning.py (another branch this session) imports save_demonstrations from
-# here; resolved lazily so that io imports no phase. The lead removes this after merging.
-def __getattr__(name: str) -> Any:
-    """Old import path of ``save_demonstrations`` / ``load_demonstrations`` (now in learning.demonstration)."""
-    if name in ("save_demonstrations", "load_demonstrations"):
-        import robointel.learning.demonstration as moved
-
-        return getattr(moved, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

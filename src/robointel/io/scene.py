@@ -52,16 +52,3 @@ def write_scene_file(data: dict[str, Any], path: str | Path) -> Path:
     p.write_text(yaml.safe_dump(data, sort_keys=False))
     return p
 
-
-# Transitional: commands/planning.py and tests on other branches import the scene API from here.
-# Resolved lazily so that io imports no phase; the lead removes this after merging.
-_MOVED = {"Scene", "SCENES", "builtin_scenes", "load_scene", "scene_from_dict"}
-
-
-def __getattr__(name: str) -> Any:
-    """Old import path ``robointel.io.scene.<name>`` of the names now in :mod:`robointel.planning.scene`."""
-    if name in _MOVED:
-        import robointel.planning.scene as moved
-
-        return getattr(moved, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -22,6 +22,7 @@ from robointel.learning.demonstration import Demonstration
 from robointel.learning.gmr import GaussianMixtureRegression
 from robointel.learning.hdd import Contact, Tool
 from robointel.learning.insertion import R_DOWN, HDDScene, RobotCell, tip_point
+from robointel.outcome import Failure, TrialOutcome
 
 
 @dataclass(frozen=True)
@@ -263,7 +264,8 @@ class GrindingResult:
     Fields: ``t`` (n,) s, plate coordinates ``xy`` (n, 2) m, measured force (n,) N, the skill's
     set-point (n,) N, the demonstrator's intended profile (n,) N and
     ``rms_rel`` = RMS(measured - intended) / peak intended force (``rms_rel_setpoint``: against
-    the skill's set-point, i.e. the force controller alone).
+    the skill's set-point, i.e. the force controller alone); ``max_rms_rel``, the success bound on
+    ``rms_rel`` used by :attr:`outcome`.
     """
 
     t: np.ndarray
@@ -273,11 +275,24 @@ class GrindingResult:
     intended: np.ndarray
     rms_rel: float
     rms_rel_setpoint: float
+    max_rms_rel: float = 0.25
+
+    @property
+    def outcome(self) -> TrialOutcome:
+        """The reproduction as a trial: success when ``rms_rel <= max_rms_rel``, else ``Failure.TRACKING``.
+
+        Figures: ``rms_rel``, ``rms_rel_setpoint`` and ``max_force_n`` (largest measured force, N).
+        """
+        figures = {"rms_rel": float(self.rms_rel), "rms_rel_setpoint": float(self.rms_rel_setpoint),
+                   "max_force_n": float(np.max(self.force)) if len(self.force) else float("nan")}
+        ok = bool(np.isfinite(self.rms_rel) and self.rms_rel <= self.max_rms_rel)
+        detail = f"force RMS error {100 * self.rms_rel:.1f}% of peak (limit {100 * self.max_rms_rel:.0f}%)"
+        return TrialOutcome(ok, Failure.NONE if ok else Failure.TRACKING, detail, figures)
 
 
 def reproduce_grinding(plate: Plate, skill: GrindingSkill, *, cell: RobotCell | None = None,
                        speed: float = 0.03, k_force: float = 1.0 / 1500.0, filter_hz: float = 5.0,
-                       t_touch: float = 1.0, seed: int = 0) -> GrindingResult:
+                       t_touch: float = 1.0, seed: int = 0, max_rms_rel: float = 0.25) -> GrindingResult:
     """Reproduce the grinding skill: the LR Mate follows the plate's diagonal (Fig. 5.13).
 
     Lateral motion is position controlled, the tool axis is force controlled by an admittance
@@ -294,9 +309,11 @@ def reproduce_grinding(plate: Plate, skill: GrindingSkill, *, cell: RobotCell | 
         filter_hz: Cut-off of the F/T low-pass filter, Hz.
         t_touch: Time pressing at the start point before moving, s.
         seed: Seed of the sensor noise.
+        max_rms_rel: Success bound of the result's :attr:`GrindingResult.outcome` on ``rms_rel``.
 
     Returns:
-        The measured, set-point and intended forces along the path and their relative RMS errors.
+        The measured, set-point and intended forces along the path, their relative RMS errors and
+        the trial outcome.
 
     Raises:
         IKFailure: The start pose is out of reach.
@@ -359,4 +376,4 @@ def reproduce_grinding(plate: Plate, skill: GrindingSkill, *, cell: RobotCell | 
     peak = float(intended.max())
     return GrindingResult(np.array(ts), xys, fs, sp, intended,
                           float(np.sqrt(np.mean((fs - intended) ** 2)) / peak),
-                          float(np.sqrt(np.mean((fs - sp) ** 2)) / peak))
+                          float(np.sqrt(np.mean((fs - sp) ** 2)) / peak), float(max_rms_rel))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -32,7 +33,7 @@ def dtw_speed(*, length: int = 1000, dims: int = 6, window: int = 100, reps: int
     a = np.cumsum(rng.normal(size=(length, dims)), 0)
     b = np.cumsum(rng.normal(size=(length, dims)), 0)
 
-    def med(fn):
+    def med(fn: Callable[[], object]) -> float:
         fn()
         ts = []
         for _ in range(reps):

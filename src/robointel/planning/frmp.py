@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike
 
 from robointel.errors import InvalidInput
 from robointel.geometry.table import ENVIRONMENT_NAMES
+from robointel.outcome import Failure, TrialOutcome
 from robointel.planning.scene import Scene
 from robointel.planning.temporal import TemporalResult, concatenate_segments, fixed_dt_segment, temporal_optimize
 from robointel.planning.trajectory import PlannerSettings, SegmentPlan, TrajectoryPlanner, sphere_clearances
@@ -131,6 +132,22 @@ class FRMPResult:
                 "min_clearance_m": self.check.min_clearance, "limit_violations": self.check.limit_violations,
                 "status": [s.status for s in self.segments]}
 
+    @property
+    def outcome(self) -> TrialOutcome:
+        """The plan as a trial: success when the dense check finds positive clearance and no limit violation.
+
+        Failures: ``Failure.COLLISION`` (clearance <= 0), else ``Failure.LIMIT``. Figures: ``min_clearance_m``,
+        ``limit_violations``, ``duration_s`` (cycle time) and ``plan_ms``.
+        """
+        c = self.check
+        figures = {"min_clearance_m": float(c.min_clearance), "limit_violations": float(c.limit_violations),
+                   "duration_s": float(self.trajectory.t[-1] - self.trajectory.t[0]), "plan_ms": self.plan_ms}
+        if c.min_clearance <= 0.0:
+            return TrialOutcome(False, Failure.COLLISION, f"clearance {c.min_clearance:.4f} m", figures)
+        if c.limit_violations:
+            return TrialOutcome(False, Failure.LIMIT, f"{c.limit_violations} limit violations", figures)
+        return TrialOutcome(True, Failure.NONE, f"clearance {1000 * c.min_clearance:.1f} mm", figures)
+
 
 def planner_settings(scene: Scene) -> PlannerSettings:
     """:class:`PlannerSettings` of a scene (its d_min, weights and planner block)."""
@@ -217,6 +234,20 @@ class Execution:
     min_distance_m: float
     collided: bool
     log: object
+
+    @property
+    def outcome(self) -> TrialOutcome:
+        """The execution as a trial: ``Failure.COLLISION`` when the robot touched an obstacle, else a success.
+
+        Figures: ``rms_error_rad``, ``max_error_rad``, ``max_tcp_error_m``, ``obstacle_contacts``, ``min_distance_m``.
+        """
+        figures = {"rms_error_rad": self.rms_error_rad, "max_error_rad": self.max_error_rad,
+                   "max_tcp_error_m": self.max_tcp_error_m, "obstacle_contacts": float(self.obstacle_contacts),
+                   "min_distance_m": self.min_distance_m}
+        if self.collided:
+            return TrialOutcome(False, Failure.COLLISION, f"{self.obstacle_contacts} control periods in contact, "
+                                f"min distance {1000 * self.min_distance_m:.1f} mm", figures)
+        return TrialOutcome(True, Failure.NONE, f"max TCP error {1000 * self.max_tcp_error_m:.1f} mm", figures)
 
 
 def execute(result: FRMPResult, *, workcell: Workcell | None = None) -> Execution:

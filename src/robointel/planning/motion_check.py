@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from robointel.outcome import Failure
 from robointel.planning import _collision_kernels as K
 from robointel.planning.environment import Environment
 from robointel.trajectory import Trajectory
@@ -39,6 +40,11 @@ class DenseCheck:
     kind: str
     min_clearance_m: float
     samples: int
+
+    @property
+    def failure(self) -> Failure:
+        """The shared failure reason: ``COLLISION``, ``LIMIT``, or ``NONE`` when ok."""
+        return {"collision": Failure.COLLISION, "limit": Failure.LIMIT}.get(self.kind, Failure.NONE)
 
 
 def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.ArrayLike,

@@ -17,6 +17,7 @@ from numpy.typing import ArrayLike
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
+from robointel.outcome import Failure, TrialOutcome
 from robointel.planning.trajectory import PlannerSettings, TrajectoryPlanner
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -43,6 +44,25 @@ class ReplanResult:
     def hz(self) -> float:
         """Replanning rate from the median re-plan time."""
         return float(1000.0 / np.median(self.times_ms))
+
+    @property
+    def outcome(self) -> TrialOutcome:
+        """The run as a trial: success when every re-plan was clear (feasible).
+
+        Failures: ``Failure.COLLISION`` when a re-plan ran into the obstacle (negative distance), else
+        ``Failure.INFEASIBLE``. Figures: ``ticks``, ``infeasible_ticks``, ``min_distance_m``,
+        ``max_iterations``; timing: ``replan_median_s``.
+        """
+        bad = int(np.count_nonzero(~np.asarray(self.feasible, bool)))
+        dmin = float(np.min(self.min_distance)) if len(self.min_distance) else float("nan")
+        figures = {"ticks": float(len(self.times_ms)), "infeasible_ticks": float(bad), "min_distance_m": dmin,
+                   "max_iterations": float(np.max(self.iterations)) if len(self.iterations) else 0.0}
+        timings = {"replan_median_s": float(np.median(self.times_ms)) / 1e3} if len(self.times_ms) else {}
+        if bad == 0:
+            return TrialOutcome(True, Failure.NONE, f"{len(self.times_ms)} clear re-plans", figures, timings)
+        reason = Failure.COLLISION if dmin < 0 else Failure.INFEASIBLE
+        return TrialOutcome(False, reason, f"{bad} of {len(self.times_ms)} re-plans not clear, min distance "
+                            f"{1000 * dmin:.1f} mm", figures, timings)
 
 
 def shifted(plan: np.ndarray) -> np.ndarray:

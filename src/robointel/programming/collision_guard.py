@@ -20,6 +20,7 @@ import numpy.typing as npt
 
 from robointel.errors import TargetInCollision
 from robointel.geometry.table import table_obstacles
+from robointel.robot import Robot
 
 
 class CollisionGuard:
@@ -37,8 +38,6 @@ class CollisionGuard:
 
     def __init__(self, robot: Any, obstacles: Sequence[Any] | None = None, *, clearance: float = 0.0,
                  self_clearance: float = 0.0, step: float = 0.05) -> None:
-        from robointel.robot import Robot
-
         self.robot = Robot(robot.urdf, name=robot.name, urdf_path=robot.urdf_path, flange_frame=robot.flange_frame,
                            tool=robot.tool)
         self.obstacles = list(table_obstacles() if obstacles is None else obstacles)

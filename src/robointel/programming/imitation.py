@@ -25,6 +25,7 @@ from scipy.interpolate import CubicSpline
 from robointel._validate import as_array
 from robointel.control import JerkLimitedFollower
 from robointel.errors import IKFailure, InvalidInput
+from robointel.outcome import Failure, TrialOutcome
 from robointel.programming.skeleton import Skeleton, clean
 from robointel.sim import TrackingLog, Workcell
 from robointel.trajectory import Trajectory
@@ -235,6 +236,21 @@ class ImitationRun:
     tracking_rms: np.ndarray
     tcp_rms: float
     tcp: np.ndarray
+
+    @property
+    def outcome(self) -> TrialOutcome:
+        """The run as a trial: ``Failure.COLLISION`` when the simulated robot touched its environment, else a success.
+
+        Figures: ``tcp_rms_m``, ``max_joint_rms_rad`` (imitation error), ``max_tracking_rms_rad`` (controller
+        error), ``unreachable_fraction`` (hand targets outside the arm's reach) and ``duration_s``.
+        """
+        figures = {"tcp_rms_m": float(self.tcp_rms), "max_joint_rms_rad": float(np.max(self.rms)),
+                   "max_tracking_rms_rad": float(np.max(self.tracking_rms)),
+                   "unreachable_fraction": float(1.0 - np.mean(self.plan.reachable)), "duration_s": self.log.duration}
+        if self.log.collided:
+            return TrialOutcome(False, Failure.COLLISION, f"contact in {int(np.count_nonzero(self.log.contacts))} "
+                                f"control periods, min distance {1000 * self.log.min_distance:.1f} mm", figures)
+        return TrialOutcome(True, Failure.NONE, f"TCP RMS error {1000 * self.tcp_rms:.1f} mm", figures)
 
 
 def simulate_imitation(plan: ImitationPlan, robot: Robot, workcell: Workcell | None = None) -> ImitationRun:

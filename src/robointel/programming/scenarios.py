@@ -37,6 +37,7 @@ from numpy.typing import ArrayLike
 from robointel.control import PayloadCompensation, shift_wrench, wrench_to_world
 from robointel.errors import InvalidInput, TargetInCollision
 from robointel.geometry import Cylinder
+from robointel.outcome import Failure, TrialOutcome
 from robointel.programming.collision_guard import CollisionGuard
 from robointel.programming.ft_identification import calibrate_in_workcell
 from robointel.programming.guidance import GuidanceConfig, GuidanceController
@@ -46,13 +47,16 @@ from robointel.sim import Workcell
 from robointel.sim.mjcf import Payload
 from robointel.sim.workcell import FTSensor
 
-__all__ = ["BASE_HEIGHT", "OBSTACLE_RADIUS", "SCENARIOS", "Scenario", "ScenarioResult", "SimulatedOperator",
-           "plot_scenario", "run_scenario", "scenario", "table_4_1_obstacles"]
+__all__ = ["BASE_HEIGHT", "OBSTACLE_RADIUS", "OUTCOME_FIGURES", "SCENARIOS", "Scenario", "ScenarioResult",
+           "SimulatedOperator", "plot_scenario", "run_scenario", "scenario", "table_4_1_obstacles"]
 
 BASE_HEIGHT = 0.330  # FANUC world frame ("base") above the mounting plane (base_link), m
 OBSTACLE_RADIUS = 0.035  # 70 mm diameter
 #: how far ahead (s) each guidance command is checked against the table, the floor and self-collision
 GUARD_LOOKAHEAD = 0.02
+#: the figures of :attr:`ScenarioResult.outcome` (keys of :meth:`ScenarioResult.metrics`)
+OUTCOME_FIGURES = ("min_distance_m", "max_penetration_m", "robot_obstacle_contacts", "mean_velocity_deviation",
+                   "held_steps", "duration_s")
 _TABLE_4_1_MM = {1: ((480, -500, 13), (480, 500, 13)),
                  2: ((710, -500, 546), (710, 500, 546)),
                  3: ((230, 430, -330), (230, 430, 670))}
@@ -246,6 +250,18 @@ class ScenarioResult:
             "step_cpu_us_p99": float(np.percentile(cpu, 99)) if cpu is not None else float("nan"),
             "duration_s": float(self.t[-1] - self.t[0]) if len(self.t) else 0.0,
         }
+
+    @property
+    def outcome(self) -> TrialOutcome:
+        """The scenario as a trial: success when the robot never touched or penetrated the obstacle.
+
+        A failure is ``Failure.COLLISION``. Figures: :data:`OUTCOME_FIGURES` of :meth:`metrics`.
+        """
+        m = self.metrics()
+        ok = m["robot_obstacle_contacts"] == 0 and m["max_penetration_m"] <= 0.0
+        detail = f"min distance {1000 * m['min_distance_m']:.1f} mm, {m['robot_obstacle_contacts']} contacts"
+        return TrialOutcome(ok, Failure.NONE if ok else Failure.COLLISION, detail,
+                            {k: float(m[k]) for k in OUTCOME_FIGURES})
 
 
 def _start_configuration(robot: Robot, p0: np.ndarray) -> np.ndarray:

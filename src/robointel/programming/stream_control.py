@@ -35,6 +35,8 @@ from robointel.control import JerkLimitedFollower
 from robointel.errors import IKFailure, InvalidInput, RobointelError, SafetyStop, SolverFailure, TargetInCollision
 from robointel.programming.collision_guard import CollisionGuard
 from robointel.programming.stream_protocol import Rejected, flag, numbers, pose, sequence
+from robointel.robot import Robot
+from robointel.sim import Workcell
 
 if TYPE_CHECKING:  # pragma: no cover
     from robointel.interface.protocol import RobotInterface
@@ -100,8 +102,6 @@ class StreamingController:
     def __init__(self, robot: Any = None, workcell: Any = None, *, deadman: float = 0.1,
                  q0: npt.ArrayLike | None = None, jerk_factor: float = 20.0, realtime: bool = True,
                  guard: CollisionGuard | None = None, interface: RobotInterface | None = None) -> None:
-        from robointel.robot import Robot
-
         if not (0.0 < deadman <= 5.0):
             raise InvalidInput(f"deadman must be in (0, 5] s, got {deadman}", value=deadman)
         self.robot = robot or Robot.load("lrmate200id7l")
@@ -125,8 +125,6 @@ class StreamingController:
             st = interface.state()
             q0 = st.q_cmd if st.q_cmd is not None else st.q
         elif workcell is None:
-            from robointel.sim import Workcell
-
             workcell = Workcell(self.robot, ft_sensor=False)
         self.wc = workcell
         self.deadman = float(deadman)

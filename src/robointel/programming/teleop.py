@@ -18,7 +18,7 @@ import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -26,16 +26,13 @@ import numpy.typing as npt
 from robointel._validate import as_array
 from robointel.errors import IKFailure, InvalidInput
 from robointel.programming.streaming import StreamingController, check_bind
-
-if TYPE_CHECKING:  # pragma: no cover
-    pass
-
 from robointel.programming.teleop_program import (  # noqa: F401 (the page's file API)
     PROGRAM_FORMAT,
     load_program,
     save_program,
     shape_to_dict,
 )
+from robointel.robot import Robot
 
 
 # ----------------------------------------------------------------------------- the page
@@ -72,8 +69,6 @@ class TeleopApp:
         check_bind(host, token)
         if not 0 <= int(port) <= 65535:
             raise InvalidInput(f"port must be in 0..65535, got {port}", value=port)
-        from robointel.robot import Robot
-
         self.controller = controller
         r = controller.robot
         self.robot = Robot(r.urdf, name=r.name, urdf_path=r.urdf_path, flange_frame=r.flange_frame, tool=r.tool)

@@ -5,6 +5,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
@@ -37,7 +38,8 @@ class FTSensor:
 class FTSensing(WorkcellModel):
     """Read the F/T sensor; apply and clear an external wrench."""
 
-    def ft_reading(self, noise=None, bias=None, *, frame: str = "sensor") -> np.ndarray:
+    def ft_reading(self, noise: float | npt.ArrayLike | None = None, bias: npt.ArrayLike | None = None, *,
+                   frame: str = "sensor") -> np.ndarray:
         """The F/T wrench [f (N); m (N m)] exerted by the tool on the sensor, (6,).
 
         ``frame="sensor"`` (the flange frame) or ``"world"`` (same wrench, axes of the world
@@ -70,7 +72,8 @@ class FTSensing(WorkcellModel):
         T[:3, 3] = self.data.site_xpos[self._site_id]
         return T
 
-    def apply_wrench(self, force, torque=(0.0, 0.0, 0.0), point=None, body: str | None = None) -> None:
+    def apply_wrench(self, force: npt.ArrayLike, torque: npt.ArrayLike = (0.0, 0.0, 0.0),
+                     point: npt.ArrayLike | None = None, body: str | None = None) -> None:
         """Apply a persistent external wrench (the human's hand) until :meth:`clear_wrench`.
 
         Args:

@@ -9,11 +9,13 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from collections.abc import Sequence
 from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from robointel.errors import InvalidInput, RobointelError
 
@@ -74,8 +76,9 @@ def render(workcell: Workcell, path: str | Path | None = None, *, width: int = 6
                          camera=camera, columns=1)
 
 
-def render_frames(workcell: Workcell, qpos: np.ndarray, path: str | Path | None = None, *, width: int = 480,
-                  height: int = 360, camera: dict | None = None, columns: int | None = None) -> np.ndarray:
+def render_frames(workcell: Workcell, qpos: Sequence[npt.ArrayLike] | np.ndarray, path: str | Path | None = None, *,
+                  width: int = 480, height: int = 360, camera: dict | None = None,
+                  columns: int | None = None) -> np.ndarray:
     """Render several states of ``workcell`` into one montage image.
 
     Render several states of ``workcell`` (full MuJoCo ``qpos`` vectors, or robot joint vectors (n,) with everything

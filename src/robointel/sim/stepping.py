@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 
 from robointel._validate import as_array
 from robointel.errors import NotFinite, SafetyStop, ShapeError
@@ -15,7 +16,7 @@ from robointel.sim.workcell_model import WorkcellModel
 class Stepping(WorkcellModel):
     """Reset and step the simulation under the joint controller."""
 
-    def reset(self, q=None, qd=None) -> None:
+    def reset(self, q: npt.ArrayLike | None = None, qd: npt.ArrayLike | None = None) -> None:
         """Reset time, objects and obstacles to their initial poses and the robot to ``q`` at ``qd``.
 
         ``q`` defaults to ``q0``, else zeros clipped into the limits; ``qd`` to 0. Clears the
@@ -26,19 +27,19 @@ class Stepping(WorkcellModel):
         """
         if q is None:
             q = self._q0 if self._q0 is not None else np.clip(np.zeros(self.n), self.robot.lower, self.robot.upper)
-        q = self.robot.check_q(q, "q", limits=True)
-        qd = np.zeros(self.n) if qd is None else self.robot.check_q(qd, "qd")
+        q0 = self.robot.check_q(q, "q", limits=True)
+        qd0 = np.zeros(self.n) if qd is None else self.robot.check_q(qd, "qd")
         mujoco.mj_resetData(self.model, self.data)
-        self.data.qpos[self._qadr] = q
-        self.data.qvel[self._vadr] = qd
+        self.data.qpos[self._qadr] = q0
+        self.data.qvel[self._vadr] = qd0
         self.controller.reset()
         # start with the holding (feed-forward) torque so that sensors read a robot at rest
-        self.data.ctrl[self._aid] = self.controller.feedforward_torque(q, qd, np.zeros(self.n))
+        self.data.ctrl[self._aid] = self.controller.feedforward_torque(q0, qd0, np.zeros(self.n))
         mujoco.mj_forward(self.model, self.data)
         self._wrench = None
         self.data.xfrc_applied[:] = 0
-        self._hold = (q.copy(), np.zeros(self.n), np.zeros(self.n))
-        self._q_safe, self._t_safe = q.copy(), 0.0
+        self._hold = (q0.copy(), np.zeros(self.n), np.zeros(self.n))
+        self._q_safe, self._t_safe = q0.copy(), 0.0
         self._warn0 = self._bad_count()
 
 
@@ -48,7 +49,7 @@ class Stepping(WorkcellModel):
         return self._hold[0].copy()
 
 
-    def step(self, tau) -> None:
+    def step(self, tau: npt.ArrayLike) -> None:
         """One physics step with joint torques ``tau`` (n,) N m (clipped to the effort limits).
 
         Bypasses the joint controller (for your own torque controller); :meth:`hold` afterwards
@@ -97,7 +98,8 @@ class Stepping(WorkcellModel):
                          "it last was, the external wrench cleared, and it holds there. Lower the torques, wrenches "
                          "or the timestep", value=self._q_safe.copy())
 
-    def track(self, q_ref, qd_ref=None, qdd_ref=None) -> np.ndarray:
+    def track(self, q_ref: npt.ArrayLike, qd_ref: npt.ArrayLike | None = None,
+              qdd_ref: npt.ArrayLike | None = None) -> np.ndarray:
         """One 1 kHz control period tracking (q_ref, qd_ref, qdd_ref); returns the applied torques (n,) N m.
 
         Each is (n,); velocities and accelerations default to 0 (a position command).
@@ -116,7 +118,7 @@ class Stepping(WorkcellModel):
         self._hold = (q_ref, np.zeros(self.n), np.zeros(self.n))
         return self._control(q_ref, qd_ref, qdd_ref)
 
-    def _vec(self, x, name: str) -> np.ndarray:
+    def _vec(self, x: npt.ArrayLike, name: str) -> np.ndarray:
         """as_array(x, name, (n,)) with a fast path for finite float64 (n,) arrays (a copy)."""
         if type(x) is np.ndarray and x.shape == (self.n,) and x.dtype == np.float64:
             s = float(x.sum())
@@ -124,7 +126,7 @@ class Stepping(WorkcellModel):
                 return x.copy()
         return as_array(x, name, (self.n,))
 
-    def _control(self, q_ref, qd_ref, qdd_ref) -> np.ndarray:
+    def _control(self, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref: np.ndarray) -> np.ndarray:
         d = self.data
         q = d.qpos[self._qadr].copy()
         self._q_safe, self._t_safe = q, d.time
@@ -140,7 +142,7 @@ class Stepping(WorkcellModel):
         for _ in range(steps):
             self._control(q, z, z)
 
-    def command_velocity(self, qd_cmd) -> np.ndarray:
+    def command_velocity(self, qd_cmd: npt.ArrayLike) -> np.ndarray:
         """Velocity command mode: track the held reference advanced by ``qd_cmd`` for one period.
 
         ``qd_cmd`` (n,) rad/s is integrated into the held reference (clipped to the joint limits). Returns torques.

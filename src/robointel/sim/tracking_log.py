@@ -1,9 +1,14 @@
 """The log of a trajectory tracked in the workcell at the control rate."""
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from robointel.robot import Robot
 
 
 @dataclass
@@ -61,7 +66,7 @@ class TrackingLog:
             return np.zeros(self.q.shape[1])
         return self.saturated.mean(axis=0)
 
-    def velocity_ratio(self, robot) -> np.ndarray:
+    def velocity_ratio(self, robot: Robot) -> np.ndarray:
         """max_t |qd_ref| / velocity limit per joint, (n,): > 1 means the reference was too fast."""
         return np.max(np.abs(self.qd_ref), axis=0) / robot.velocity_limit
 
@@ -70,7 +75,7 @@ class TrackingLog:
         """Time span of the log, s."""
         return float(self.t[-1] - self.t[0]) if len(self.t) else 0.0
 
-    def tcp_error(self, robot) -> np.ndarray:
+    def tcp_error(self, robot: Robot) -> np.ndarray:
         """TCP position error |p(q_ref) - p(q)| per sample, (N,) m."""
         return np.array([np.linalg.norm(robot.fk(a)[:3, 3] - robot.fk(b)[:3, 3]) for a, b in zip(self.q_ref, self.q)])
 
@@ -84,12 +89,12 @@ class TrackingLog:
         out["joint_names"] = np.array(self.joint_names)
         return out
 
-    def save(self, path) -> None:
+    def save(self, path: str | os.PathLike[str]) -> None:
         """Write the log as a compressed ``.npz``."""
         np.savez_compressed(path, **self.to_dict())
 
     @classmethod
-    def load(cls, path) -> TrackingLog:
+    def load(cls, path: str | os.PathLike[str]) -> TrackingLog:
         """Read a log written by :meth:`save`."""
         with np.load(path) as z:
             d = {k: z[k] for k in z.files}

@@ -22,18 +22,22 @@ is raised.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 
 from robointel._validate import as_array, check_limits
 from robointel.control.servo import JointController, PIDGains, model_with_payload
 from robointel.errors import InvalidInput
+from robointel.robot import Robot
 from robointel.sim.contacts import Contact, ContactSensing
 from robointel.sim.ft_sensing import FTSensing, FTSensor
 from robointel.sim.grasp_welds import GraspWelds
 from robointel.sim.mjcf import Payload, SimObject, shape_geoms
+from robointel.sim.render import render, render_frames
 from robointel.sim.snapshots import Snapshots
 from robointel.sim.stepping import Stepping
 from robointel.sim.tracking_log import TrackingLog
@@ -65,14 +69,15 @@ class Workcell(Stepping, FTSensing, ContactSensing, GraspWelds, Snapshots):
             the limits).
     """
 
-    def __init__(self, robot=None, obstacles: Sequence[Any] = (), objects: Sequence[SimObject] = (),
-                 table: bool = True, ft_sensor: bool | FTSensor = True, payload: Payload | None = None,
-                 timestep: float = 0.001, *, gains: PIDGains | None = None, bandwidth_hz=None,
+    def __init__(self, robot: Robot | str | None = None, obstacles: Sequence[Any] = (),
+                 objects: Sequence[SimObject] = (), table: bool = True, ft_sensor: bool | FTSensor = True,
+                 payload: Payload | None = None,
+                 timestep: float = 0.001, *, gains: PIDGains | None = None,
+                 bandwidth_hz: float | npt.ArrayLike | None = None,
                  compensate_payload: bool = True,
-                 armature=None, self_collision: bool = False, q0=None) -> None:
+                 armature: npt.ArrayLike | None = None, self_collision: bool = False,
+                 q0: npt.ArrayLike | None = None) -> None:
         if robot is None or isinstance(robot, str):
-            from robointel.robot import Robot
-
             robot = Robot.load(robot or "lrmate200id7l")
         self.robot = robot
         self.n = robot.nq
@@ -107,8 +112,9 @@ class Workcell(Stepping, FTSensing, ContactSensing, GraspWelds, Snapshots):
         self.reset()
 
 
-    def run_trajectory(self, t, q=None, qd=None, qdd=None, *, reset: bool = True, record_ft: bool = True,
-                       distance_every: int = 10, stop_on_contact: bool = False) -> TrackingLog:
+    def run_trajectory(self, t: npt.ArrayLike | Trajectory, q: npt.ArrayLike | None = None,
+                       qd: npt.ArrayLike | None = None, qdd: npt.ArrayLike | None = None, *, reset: bool = True,
+                       record_ft: bool = True, distance_every: int = 10, stop_on_contact: bool = False) -> TrackingLog:
         """Track a joint trajectory with the controller at 1 kHz and log the result.
 
         Args:
@@ -129,11 +135,12 @@ class Workcell(Stepping, FTSensing, ContactSensing, GraspWelds, Snapshots):
         Raises:
             ShapeError, NotFinite, LimitViolation, InvalidInput: bad trajectory (nothing runs).
         """
-        if q is None and hasattr(t, "t") and hasattr(t, "q"):
-            t, q, qd, qdd = t.t, t.q, getattr(t, "qd", None), getattr(t, "qdd", None)
+        src: Any = t
+        if q is None and hasattr(src, "t") and hasattr(src, "q"):
+            src, q, qd, qdd = src.t, src.q, getattr(src, "qd", None), getattr(src, "qdd", None)
         if q is None:
-            raise InvalidInput("run_trajectory needs q (N, n) or a trajectory object", value=t)
-        t = as_array(t, "t", (None,))
+            raise InvalidInput("run_trajectory needs q (N, n) or a trajectory object", value=src)
+        t = as_array(src, "t", (None,))
         N = len(t)
         if N < 2:
             raise InvalidInput("a trajectory needs at least 2 samples", value=t)
@@ -193,7 +200,7 @@ class Workcell(Stepping, FTSensing, ContactSensing, GraspWelds, Snapshots):
 
 
     # ------------------------------------------------------------------ scene edits
-    def add_obstacle(self, shape) -> str:
+    def add_obstacle(self, shape: Any) -> str:
         """Add a ``robointel.geometry`` shape (recompiles the model, keeps the state); return its name."""
         shape_geoms(shape)  # validate first
         state = self._save_state()
@@ -213,24 +220,22 @@ class Workcell(Stepping, FTSensing, ContactSensing, GraspWelds, Snapshots):
 
 
     # ------------------------------------------------------------------ rendering
-    def render(self, path=None, *, width: int = 640, height: int = 480, camera: dict | None = None):
+    def render(self, path: str | Path | None = None, *, width: int = 640, height: int = 480,
+               camera: dict | None = None) -> np.ndarray:
         """Render the scene offscreen to an (h, w, 3) uint8 image, saved as PNG when ``path``.
 
         Raises:
             RobointelError: no offscreen OpenGL (EGL/OSMesa) available, with the reason.
         """
-        from robointel.sim.render import render
-
         return render(self, path, width=width, height=height, camera=camera)
 
-    def render_frames(self, qs, path=None, *, width: int = 480, height: int = 360, camera: dict | None = None,
-                      columns: int | None = None):
+    def render_frames(self, qs: Sequence[npt.ArrayLike] | np.ndarray, path: str | Path | None = None,
+                      *, width: int = 480, height: int = 360, camera: dict | None = None,
+                      columns: int | None = None) -> np.ndarray:
         """Render robot configurations ``qs`` ((k, n) or full qpos vectors) into one montage image.
 
         See :func:`robointel.sim.render.render_frames`.
         """
-        from robointel.sim.render import render_frames
-
         return render_frames(self, qs, path, width=width, height=height, camera=camera, columns=columns)
 
     def __repr__(self) -> str:

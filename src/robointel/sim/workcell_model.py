@@ -8,9 +8,10 @@ from typing import Any
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 
 from robointel._validate import as_array
-from robointel.errors import InvalidInput
+from robointel.errors import DescriptionError, InvalidInput
 from robointel.sim.mjcf import FT_SITE, OBJECT_PREFIX, OBSTACLE_PREFIX, TOOL_BODY, build_spec
 
 CONTROL_DT = 0.001  # 1 kHz joint controller
@@ -55,8 +56,6 @@ class WorkcellModel:
         try:
             self.model = self.spec.compile()
         except Exception as exc:
-            from robointel.errors import DescriptionError
-
             raise DescriptionError(f"MuJoCo could not compile the workcell: {exc}") from None
         self.data = mujoco.MjData(self.model)
         m = self.model
@@ -120,7 +119,7 @@ class WorkcellModel:
         return float(self.data.time)
 
     @property
-    def qpos_index(self):
+    def qpos_index(self) -> slice | np.ndarray:
         """Where the robot's joints sit in MuJoCo's ``qpos`` (a slice or an index array)."""
         return self._qadr
 
@@ -153,7 +152,7 @@ class WorkcellModel:
         return list(self.info["obstacles"])
 
 
-    def set_obstacle_pose(self, name: str, position, rotation=None) -> None:
+    def set_obstacle_pose(self, name: str, position: npt.ArrayLike, rotation: npt.ArrayLike | None = None) -> None:
         """Move an obstacle's reference point (centre / axis midpoint) to ``position`` (3,), world frame.
 
         ``rotation`` is an optional 3x3 rotation. Takes effect immediately (moving obstacles).
