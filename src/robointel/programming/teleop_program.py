@@ -101,7 +101,7 @@ def save_program(path: str | Path, robot: Robot, waypoints: Sequence[npt.ArrayLi
 def load_program(path: str | Path) -> dict[str, Any]:
     """Read the waypoints of a program written by :func:`save_program` (or of any scene whose waypoints give ``q``).
 
-    ``robointel.io.scene.load_scene`` reads the full scene.
+    ``robointel.planning.scene.load_scene`` reads the full scene.
 
     Args:
         path: the YAML file.
