@@ -8,6 +8,7 @@ when the RMS force error against the intended profile is at most this fraction o
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -16,7 +17,7 @@ from robointel.batch.registry import TrialKind
 from robointel.batch.spec import TaskSpec
 from robointel.learning.grinding import GrindingSkill, Plate, demonstrate_grinding, reproduce_grinding
 from robointel.learning.insertion import HDDScene
-from robointel.outcome import Failure, TrialOutcome
+from robointel.outcome import TrialOutcome
 
 
 def grinding(spec: TaskSpec) -> TrialOutcome:
@@ -35,13 +36,9 @@ def grinding(spec: TaskSpec) -> TrialOutcome:
                                   speed=param(spec, "demo_speed", 0.1, float)) for _ in range(n)]
     skill = GrindingSkill(plate, param(spec, "components", 6, int)).fit(demos)
     t1 = time.perf_counter()
-    res = reproduce_grinding(plate, skill, speed=param(spec, "speed", 0.05, float), seed=spec.seed)
-    figures = {"rms_rel": float(res.rms_rel), "rms_rel_setpoint": float(res.rms_rel_setpoint),
-               "max_force_n": float(np.max(res.force))}
-    timings = {"learn_s": t1 - t0, "trial_s": time.perf_counter() - t1}
-    ok = bool(np.isfinite(res.rms_rel) and res.rms_rel <= limit)
-    detail = f"force RMS error {100 * res.rms_rel:.1f}% of peak (limit {100 * limit:.0f}%)"
-    return TrialOutcome(ok, Failure.NONE if ok else Failure.TRACKING, detail, figures, timings)
+    res = reproduce_grinding(plate, skill, speed=param(spec, "speed", 0.05, float), seed=spec.seed,
+                             max_rms_rel=limit)
+    return replace(res.outcome, timings={"learn_s": t1 - t0, "trial_s": time.perf_counter() - t1})
 
 
 KIND = TrialKind("grinding", grinding, lambda s: "grinding", "learned grinding force reproduction (Fig. 5.13)")

@@ -8,11 +8,12 @@ drawn from the seed. Success: the robot never touched the obstacle.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 from robointel.batch.kinds.params import param
 from robointel.batch.registry import TrialKind
 from robointel.batch.spec import TaskSpec
-from robointel.outcome import Failure, TrialOutcome
+from robointel.outcome import TrialOutcome
 from robointel.programming.scenarios import run_scenario
 
 TIMINGS = ("step_us_median", "step_us_p99", "step_cpu_us_median", "step_cpu_us_p99")  # wall clock, not outcome
@@ -35,11 +36,7 @@ def guidance(spec: TaskSpec) -> TrialOutcome:
     m = r.metrics()
     figures = {k: float(v) for k, v in m.items() if k not in TIMINGS}
     timings = {k: float(m[k]) for k in TIMINGS if k in m}
-    ok = m["robot_obstacle_contacts"] == 0 and m["max_penetration_m"] <= 0.0
-    detail = f"min distance {1000 * m['min_distance_m']:.1f} mm, {m['robot_obstacle_contacts']} contacts"
-    return TrialOutcome(ok, Failure.NONE if ok else Failure.COLLISION, detail, figures,
-                        {**timings, "trial_s": time.perf_counter() - t0})
-
+    return replace(r.outcome, figures=figures, timings={**timings, "trial_s": time.perf_counter() - t0})
 
 KIND = TrialKind("guidance", guidance, lambda s: f"scenario {s.params.get('scenario', 1)}",
                  "guidance scenario with a simulated operator (Table 4.1)")
