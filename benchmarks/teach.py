@@ -92,6 +92,7 @@ def scara(recordings: list[str]) -> dict[str, Any]:
                   "scara_rms_delay_aligned_frames_held_rad", "scara_rms_delay_aligned_buffered_rad",
                   "scara_rms_best_lag_buffered_rad", "scara_rms_delay_aligned_offline_rad",
                   "scara_controller_rms_delayed_rad", "scara_recorded_torque_rms_nm",
+                  "scara_rms_delay_aligned_smoothed_rad",
                   "scara_received_delay_aligned_rad", "scara_rms_compensated_rad",
                   "scara_rms_compensated_kalman_rad",
                   "scara_rms_delayed_copy_rad", "scara_prediction_rms_delayed_frames_rad",
@@ -105,7 +106,8 @@ def scara(recordings: list[str]) -> dict[str, Any]:
                   "scara_prediction_rms_insample_rad")
     lag_keys = ("scara_lag_s", "scara_lag_received_s", "scara_lag_frames_held_s", "scara_lag_buffered_s",
                 "scara_recorded_torque_over_limit", "scara_recorded_rate_over_limit")
-    out: dict[str, Any] = {"scara_torque_saturation": {}, "scara_torque_saturation_unshaped": {},
+    out: dict[str, Any] = {"scara_delayed_stages": {}, "scara_torque_saturation": {},
+                           "scara_torque_saturation_unshaped": {},
                            "scara_torque_saturation_delayed": {}, "scara_predictor_ridge_alpha": {},
                            **{k: {} for k in lag_keys}, **{k: {} for k in scara_keys}}
     # optimistic bound for this predictor family: the ridge fitted on all seven recordings, INCLUDING the
@@ -137,6 +139,12 @@ def scara(recordings: list[str]) -> dict[str, Any]:
         u1 = simulate_scara(sk, robot=sc, latency=0.1, compensate=True, predictor=ar, blend_time=2 / sk.rate,
                             feasible=False)
         ins = simulate_scara(sk, robot=sc, latency=0.1, compensate=True, predictor=ar_all).prediction_rms
+        # the 0.1 s system stage by stage against the recorded angles 0.1 s earlier: the estimate of the angles at
+        # t - 0.1 s (no robot), after the crossfade, after the torque-feasible follower (the LQ's reference), robot
+        for stage, q_stage in (("estimate", rd.q_pred), ("crossfade", rd.q_target), ("follower", rd.q_ref),
+                               ("robot", rd.q)):
+            lag_s, _, at_s = _lag(replace(rd, q=q_stage), sk, sc)
+            out["scara_delayed_stages"].setdefault(stage, {})[name] = [*np.round(at_s, 4).tolist(), lag_s]
         lag_d, best_d, at_d = _lag(rd, sk, sc)
         lag_0, best_0, at_0 = _lag(r0, sk, sc)
         lag_f, _, at_f = _lag(rf, sk, sc)
@@ -150,12 +158,15 @@ def scara(recordings: list[str]) -> dict[str, Any]:
             np.abs(tau) > sc.effort_limit, axis=1))), 4)
         out["scara_recorded_rate_over_limit"][name] = round(float(np.mean(np.any(
             np.abs(qd) > sc.velocity_limit, axis=1))), 4)
+        ok = rd.t >= 0.1
         vals = {"scara_rms_rad": r0.rms, "scara_rms_delay_aligned_rad": at_d, "scara_rms_best_lag_rad": best_d,
                 "scara_rms_delay_aligned_received_rad": at_0, "scara_rms_best_lag_received_rad": best_0,
                 "scara_rms_delay_aligned_frames_held_rad": at_f, "scara_rms_delay_aligned_buffered_rad": at_b,
                 "scara_rms_best_lag_buffered_rad": best_b,
                 "scara_rms_delay_aligned_offline_rad": delay_aligned_rms(r2, sk, delay=0.0, robot=sc),
                 "scara_controller_rms_delayed_rad": rd.tracking_rms,
+                "scara_rms_delay_aligned_smoothed_rad": np.sqrt(np.mean((rd.q[ok] - np.stack(
+                    [np.interp(rd.t[ok] - 0.1, rd.t, rd.q_human[:, j]) for j in range(2)], axis=1)) ** 2, axis=0)),
                 "scara_recorded_torque_rms_nm": np.sqrt(np.mean(tau ** 2, axis=0)),
                 "scara_received_delay_aligned_rad": delay_aligned_rms(replace(r0, q=r0.q_delayed), sk, delay=0.1,
                                                                       robot=sc),
@@ -187,6 +198,8 @@ def scara(recordings: list[str]) -> dict[str, Any]:
         out[k]["mean"] = np.round(np.mean([v for n, v in out[k].items() if n != "mean"], axis=0), 4).tolist()
     for k in (*lag_keys, "scara_torque_saturation_delayed"):
         out[k]["mean"] = round(float(np.mean(list(out[k].values()))), 4)
+    for per in out["scara_delayed_stages"].values():
+        per["mean"] = np.round(np.mean(list(per.values()), axis=0), 4).tolist()
     pred = {"delayed frames (no prediction)": "scara_prediction_rms_delayed_frames_rad",
             "constant-rate Kalman": "scara_prediction_rms_kalman_rad", "ridge AR (LORO)": "scara_prediction_rms_rad"}
     out["scara_predictor_choice"] = min(pred, key=lambda p: sum(out[pred[p]]["mean"]))
@@ -223,6 +236,11 @@ def scara(recordings: list[str]) -> dict[str, Any]:
         "frame crossfaded with no age bridging (resampling and low-pass taken out, nothing else); *_buffered: "
         "NOT a 0.1 s measurement latency - a sensor one frame period (33 ms) faster, that period spent "
         "interpolating between the two newest frames (LinePredictor), 0.1 s in all. "
+        "scara_delayed_stages: that 0.1 s system stage by stage, [q1 rad, q2 rad, best shift s] against the recorded "
+        "angles 0.1 s earlier: estimate (the Kalman filter's angles at t - 0.1 s from the frames received, no "
+        "robot), crossfade, follower (the reference the LQ gets), robot. "
+        "scara_rms_delay_aligned_smoothed_rad: the 0.1 s system against the smoothed (zero-phase 6 Hz) angles "
+        "0.1 s earlier instead of the recorded ones (not the issue's reading; shows what the Kinect noise costs). "
         "scara_rms_delay_aligned_offline_rad: the offline replay (the smoothed recording known in advance, no "
         "latency) vs the recorded angles at the same instant: the Kinect noise a robot following the arm's "
         "motion perfectly would still be scored for. scara_recorded_torque_*: following the recorded angles "
