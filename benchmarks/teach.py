@@ -4,10 +4,14 @@ streaming interface's latency and sustained rate on loopback.
 
     python benchmarks/teach.py            # tables
     python benchmarks/teach.py --json     # one JSON object
+    python benchmarks/teach.py --json --scara   # the SCARA figures only
 
-SCARA fields (see ``scara_note`` in the output): ``scara_rms_delay_aligned_rad`` is the live
-uncompensated run against the recorded human angles 0.1 s earlier (the delay taken out of the
-comparison, the dissertation's reading); ``scara_rms_compensated_rad`` is the honest live predicted
+SCARA fields (see ``scara_note`` in the output): ``scara_rms_delay_aligned_rad`` is the
+dissertation's system (the whole loop 0.1 s late: frames on their own clock measured 0.1 s after
+capture, the reference aimed at the angles 0.1 s ago, computed-torque LQ with feed-forward) against
+the recorded human angles 0.1 s earlier (the delay taken out of the comparison, the dissertation's
+reading); ``*_received`` is the same reading of the live uncompensated run (the previous figure);
+``scara_rms_compensated_rad`` is the honest live predicted
 figure (robot vs the true, undelayed human angles, a predictor fitted leave-one-recording-out);
 ``scara_rms_offline_compensated_rad`` (recording known in advance, shifted by the latency) and
 ``scara_controller_rms_*`` (robot vs its own reference) are separate, named as such; ``*_unshaped``
