@@ -6,14 +6,20 @@ predictor (:mod:`.predictors`, :mod:`.ar_predictor`), the predicted signal is cr
 (:mod:`.crossfade`) and made torque-feasible (:mod:`.feasible`) before the LQ; :mod:`.simulation`
 runs it all in MuJoCo with the settings of :mod:`.settings`; :mod:`.plot` draws Fig. 3.8.
 """
-from robointel.programming.scara.angles import arm_angles, arm_plane, human_reference, recorded_angles
+from robointel.programming.scara.angles import (
+    arm_angles,
+    arm_plane,
+    human_reference,
+    received_frames,
+    recorded_angles,
+)
 from robointel.programming.scara.ar_predictor import ARPredictor, fit_predictor, training_predictor
 from robointel.programming.scara.crossfade import Transition, smoothstep
 from robointel.programming.scara.feasible import FeasibleReference, accel_limits
 from robointel.programming.scara.lq import ComputedTorqueLQ, double_integrator, lq_gain
-from robointel.programming.scara.metrics import delay_aligned_rms, delayed_copy_rms
+from robointel.programming.scara.metrics import delay_aligned_rms, delayed_copy_rms, required_torques
 from robointel.programming.scara.plot import plot_scara
-from robointel.programming.scara.predictors import HoldPredictor, KalmanPredictor, Predictor
+from robointel.programming.scara.predictors import HoldPredictor, KalmanPredictor, LinePredictor, Predictor
 from robointel.programming.scara.settings import (
     BLEND_FRAMES,
     LIVE_CUTOFF_HZ,
@@ -26,9 +32,11 @@ from robointel.programming.scara.simulation import ScaraResult, simulate_scara
 
 __all__ = [
     "BLEND_FRAMES", "LIVE_CUTOFF_HZ", "PAPER_RMS", "PAPER_RMS_COMPENSATED", "SMOOTH_HZ",
-    "ARPredictor", "ComputedTorqueLQ", "FeasibleReference", "HoldPredictor", "KalmanPredictor", "Predictor",
+    "ARPredictor", "ComputedTorqueLQ", "FeasibleReference", "HoldPredictor", "KalmanPredictor", "LinePredictor",
+    "Predictor",
     "ScaraResult", "ScaraSettings", "Transition",
     "accel_limits", "arm_angles", "arm_plane", "delay_aligned_rms", "delayed_copy_rms", "double_integrator",
-    "fit_predictor", "human_reference", "lq_gain", "plot_scara", "recorded_angles", "simulate_scara", "smoothstep",
+    "fit_predictor", "human_reference", "lq_gain", "plot_scara", "received_frames", "recorded_angles",
+    "required_torques", "simulate_scara", "smoothstep",
     "training_predictor",
 ]

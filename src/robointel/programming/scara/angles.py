@@ -13,7 +13,7 @@ import numpy.typing as npt
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
 from robointel.programming.scara.settings import LIVE_CUTOFF_HZ
-from robointel.programming.skeleton import Skeleton, clean
+from robointel.programming.skeleton import Skeleton, clean, detect_bad
 
 
 def arm_plane(skel: Skeleton, side: str) -> np.ndarray:
@@ -142,3 +142,41 @@ def recorded_angles(skel: Skeleton, side: str | None = None, *,
     if np.median(q_true[:, 1]) * np.median(q_raw[:, 1]) < 0:  # same bending sign (flexion)
         q_raw[:, 1] *= -1.0
     return raw.t, q_raw - np.array([np.mean(q_true[:, 0]), 0.0])
+
+
+def received_frames(skel: Skeleton, side: str | None = None, *,
+                    elbow: str = "flexion") -> tuple[np.ndarray, np.ndarray]:
+    """The human angles of the frames as a live system receives them, on the sensor's own clock.
+
+    No resampling and no low-pass: each frame keeps its capture time and its angles. A frame in
+    which one of the arm's joints is not to be trusted by what a live system can tell from the
+    frames before it (``detect_bad(causal=True)``: not tracked, or a jump faster than a hand
+    moves) is dropped, so a dropout is a gap between frames. The arm plane, elbow sign and J1
+    offset are those of :func:`human_reference`.
+
+    Args:
+        skel: raw skeleton.
+        side: "left" or "right" (default: the more active arm).
+        elbow: "flexion" or "planar".
+
+    Returns:
+        t (K,) capture times [s] (increasing), angles (K, 2) [rad].
+
+    Raises:
+        InvalidInput: fewer than 2 usable frames.
+    """
+    side = side or skel.active_side()
+    joints = _arm_joints(side)
+    truth = clean(skel, joints=joints)
+    normal = arm_plane(truth, side)
+    q_true = arm_angles(truth, side, normal=normal, elbow=elbow)
+    cols = [skel.index(j) for j in joints]
+    good = ~detect_bad(skel, causal=True)[:, cols].any(axis=1)
+    if good.sum() < 2:
+        raise InvalidInput(f"{skel.source!r}: fewer than 2 usable frames", value=int(good.sum()))
+    frames = Skeleton(skel.t[good], skel.positions[good][:, cols], skel.state[good][:, cols], joints,
+                      source=skel.source + " (received frames)")
+    q = arm_angles(frames, side, normal=normal, elbow=elbow)
+    if np.median(q_true[:, 1]) * np.median(q[:, 1]) < 0:  # same bending sign (flexion)
+        q[:, 1] *= -1.0
+    return frames.t, q - np.array([np.mean(q_true[:, 0]), 0.0])

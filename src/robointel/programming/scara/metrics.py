@@ -1,11 +1,12 @@
 """Figures against the human motion delayed by a known time.
 
-The ideal delayed signal (no robot), and the robot measured against the recorded motion shifted by
-the known delay.
+The ideal delayed signal (no robot), the robot measured against the recorded motion shifted by
+the known delay, and the torques that following a motion exactly would take.
 """
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 
 from robointel.errors import InvalidInput
@@ -75,3 +76,35 @@ def delay_aligned_rms(result: ScaraResult, skel: Skeleton, *, delay: float = 0.1
         raise InvalidInput(f"the run ({result.t[-1]:.3g} s) is shorter than the delay {delay} s", value=delay)
     q_h = np.stack([np.interp(ts[ok], t_h, q_rec[:, j]) for j in range(q_rec.shape[1])], axis=1)
     return np.sqrt(np.mean((result.q[ok] - q_h) ** 2, axis=0))
+
+
+def required_torques(t: npt.ArrayLike, q: npt.ArrayLike, robot: Robot, *,
+                     dt: float = 0.001) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Torques and rates it takes to follow the cubic spline through (t, q) exactly (3.9).
+
+    tau = M(q) qdd + C(q, qd) qd + G(q) + F_v qd on the 1/dt grid, qd and qdd the spline's
+    derivatives (what a perfect follower of the motion would have to apply).
+
+    Args:
+        t: (N,) sample times [s], increasing.
+        q: (N, n) joint angles [rad] (clipped to the robot's range).
+        robot: the robot (dynamics, joint range).
+        dt: grid period [s].
+
+    Returns:
+        grid times (M,) [s], torques (M, n) [N m], rates (M, n) [rad/s].
+
+    Raises:
+        InvalidInput: shapes that do not match the robot, or fewer than 2 samples.
+    """
+    t = np.asarray(t, float)
+    q = np.asarray(q, float)
+    if q.ndim != 2 or q.shape[1] != robot.nq or len(t) != len(q) or len(t) < 2:
+        raise InvalidInput(f"required_torques: t (N,) and q (N, {robot.nq}) with N >= 2, got {t.shape} and "
+                           f"{q.shape}", value=q.shape)
+    spline = CubicSpline(t, np.clip(q, robot.lower, robot.upper), axis=0)
+    tg = t[0] + np.arange(int(np.floor((t[-1] - t[0]) / dt)) + 1) * dt
+    qg, qd, qdd = spline(tg), spline(tg, 1), spline(tg, 2)
+    tau = np.array([robot.mass_matrix(a) @ c + robot.nonlinear_effects(a, b) + robot.viscous * b
+                    for a, b, c in zip(qg, qd, qdd, strict=True)])
+    return tg, tau, qd

@@ -97,3 +97,34 @@ class HoldPredictor:
         """(the newest frame (n,) [rad], zeros (n,))."""
         assert self.z is not None, "predict() before the first update()"
         return self.z.copy(), np.zeros_like(self.z)
+
+
+class LinePredictor:
+    """The line through the two newest frames: q(t) = q_k + (t - t_k) (q_k - q_{k-1}) / (t_k - t_{k-1}).
+
+    Between the two frames it interpolates; past the newest it extrapolates at their rate (the first
+    frame alone: held). No smoothing: a frame's noise passes through as it is.
+    """
+
+    def __init__(self) -> None:
+        self.z: np.ndarray | None = None
+        self.v: np.ndarray | None = None
+        self.t: float | None = None
+
+    def reset(self) -> None:
+        """Forget all frames."""
+        self.z = self.v = self.t = None
+
+    def update(self, t: float, z: npt.ArrayLike) -> None:
+        """Take the frame (n,) [rad] captured at time ``t`` [s] (after the previous one)."""
+        z = np.asarray(z, float).copy()
+        if self.z is None or self.t is None or t <= self.t:
+            self.v = np.zeros_like(z)
+        else:
+            self.v = (z - self.z) / (t - self.t)
+        self.z, self.t = z, t
+
+    def predict(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(angle (n,) [rad], rate (n,) [rad/s]) on the line at time ``t`` [s]."""
+        assert self.z is not None and self.v is not None and self.t is not None, "predict() before update()"
+        return self.z + (t - self.t) * self.v, self.v.copy()

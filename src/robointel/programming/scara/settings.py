@@ -21,6 +21,7 @@ BLEND_FRAMES = 1.0
 LIVE_CUTOFF_HZ = 12.0
 
 SHAPINGS = ("blend", "model", "follower", "none")
+CLOCKS = ("grid", "frames")
 
 
 @dataclass(frozen=True)
@@ -28,7 +29,9 @@ class ScaraSettings:
     """How a recording is imitated on the SCARA (see :func:`~robointel.programming.scara.simulate_scara`).
 
     Frames captured at t_k reach the controller at t_k + ``latency``. Without compensation the
-    reference is the newest received frame; with it, a predictor's estimate of the angles now.
+    reference is the newest received frame; with it, a predictor's estimate of the angles now;
+    with ``delay`` set, the predictor's estimate of the angles at t - ``delay`` (the delayed
+    tracking of the dissertation's system: its whole delay is ``delay``).
 
     Shaping of that estimate into (q_r, qd_r, qdd_r) for the LQ (3.7)-(3.9):
 
@@ -61,6 +64,12 @@ class ScaraSettings:
         follow_gain: position feedback gain of the follower [1/s].
         elbow: the human elbow angle, "planar" or "flexion" (see ``arm_angles``).
         live_cutoff_hz: causal low-pass on the live frames [Hz].
+        clock: "grid": the frames resampled to the recording's median rate and cleaned live
+            (:func:`human_reference`); "frames": the frames as received, each at its own capture
+            time, untrusted ones dropped, no low-pass (:func:`received_frames`).
+        delay: aim the reference at the human angles at t - ``delay`` [s] (None: the newest
+            frame as received, or now with ``compensate``); ``delay`` >= ``latency`` makes it an
+            interpolation where the frames allow, and bridges the frame's age otherwise.
         feasible: pass the shaped reference through a torque-feasible ruckig follower
             (``FeasibleReference``) before the LQ: True, False, or a dict of its keyword arguments.
             None: on for live ``"blend"`` runs, off offline and for the other shapings.
@@ -85,6 +94,8 @@ class ScaraSettings:
     elbow: str = "flexion"
     live_cutoff_hz: float = LIVE_CUTOFF_HZ
     feasible: bool | dict | None = None
+    clock: str = "grid"
+    delay: float | None = None
 
     def __post_init__(self) -> None:
         if not (0.0 <= self.latency < 2.0):
@@ -95,6 +106,34 @@ class ScaraSettings:
         if self.shaping not in SHAPINGS:
             raise InvalidInput(f"shaping must be 'blend', 'follower' or 'none', got {self.shaping!r}",
                                value=self.shaping)
+        if self.clock not in CLOCKS:
+            raise InvalidInput(f"clock must be 'grid' or 'frames', got {self.clock!r}", value=self.clock)
+        if self.delay is not None and not (0.0 <= self.delay < 2.0):
+            raise InvalidInput(f"delay must be in [0, 2) s or None, got {self.delay}", value=self.delay)
+        if self.delay is not None and self.compensate:
+            raise InvalidInput("delay and compensate exclude each other: aim at t - delay, or predict t",
+                               value=self.delay)
+
+    @classmethod
+    def delayed_tracking(cls, delay: float = 0.1, **fields: object) -> ScaraSettings:
+        """The dissertation's system: the whole loop (vision + robot) is ``delay`` late.
+
+        The frames as received (``clock="frames"``: their own capture times, no resampling, no
+        low-pass), each usable ``delay`` after its capture; the reference is aimed at the human
+        angles at t - ``delay`` (the frame's age, 0 to one frame period, bridged by the predictor,
+        by default the constant-rate Kalman filter), crossfaded, made torque-feasible and tracked
+        by the computed-torque LQ with the reference's own rate and acceleration as feed-forward.
+
+        Args:
+            delay: the system's delay [s] (measurement latency = aimed delay).
+            **fields: other fields of :class:`ScaraSettings` (e.g. ``latency`` below ``delay``: a
+                faster sensor, the rest of the delay spent interpolating between frames).
+
+        Returns:
+            The settings.
+        """
+        kw: dict = {"latency": delay, "delay": delay, "clock": "frames", **fields}
+        return cls(**kw)
 
     @property
     def effective_shaping(self) -> str:

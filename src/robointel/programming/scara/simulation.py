@@ -20,7 +20,7 @@ from scipy.interpolate import CubicSpline
 
 from robointel.control import JerkLimitedFollower
 from robointel.errors import InvalidInput
-from robointel.programming.scara.angles import human_reference
+from robointel.programming.scara.angles import human_reference, received_frames
 from robointel.programming.scara.crossfade import Transition
 from robointel.programming.scara.feasible import FeasibleReference
 from robointel.programming.scara.lq import ComputedTorqueLQ
@@ -86,8 +86,9 @@ def simulate_scara(skel: Skeleton, settings: ScaraSettings | None = None, *, rob
                    predictor: Predictor | None = None, **overrides: Any) -> ScaraResult:
     """Simulate dynamic imitation of a recording on the SCARA in MuJoCo at 1/dt Hz (3.2)-(3.9).
 
-    Frames captured at t_k reach the controller at t_k + latency (live-filtered, see
-    :func:`human_reference`); each control period the shaped reference is tracked by computed
+    Frames captured at t_k reach the controller at t_k + latency (live-filtered on the recording's
+    uniform clock, see :func:`human_reference`, or as received on their own clock, see
+    :func:`received_frames`); each control period the shaped reference is tracked by computed
     torque + LQ, tau = M(q) u + C(q, qd) qd + G(q) + F_v qd, u = qdd_r - K (x - r) (3.9).
 
     Args:
@@ -99,8 +100,9 @@ def simulate_scara(skel: Skeleton, settings: ScaraSettings | None = None, *, rob
         predictor: an object with ``update(t, q)``, ``predict(t) -> (q, qd)``, ``t`` (capture time
             of the last frame) and ``reset()``, e.g. an ``ARPredictor`` from ``fit_predictor``
             (fitted on *other* recordings); default a :class:`KalmanPredictor`
-            (``settings.predictor_psd``). Used only with ``compensate`` (and by the legacy
-            follower / reference-model shaping).
+            (``settings.predictor_psd``). Used with ``compensate`` (the angles now), with
+            ``delay`` (the angles at t - delay: it bridges the newest frame's age) and by the
+            legacy follower / reference-model shaping.
         **overrides: fields of :class:`ScaraSettings` replacing those of ``settings``.
 
     Returns:
@@ -121,8 +123,11 @@ def simulate_scara(skel: Skeleton, settings: ScaraSettings | None = None, *, rob
         raise InvalidInput(f"simulate_scara needs a 2-joint robot, got {robot.nq}", value=robot.name)
     t_h, q_true, q_meas = human_reference(skel, cfg.side, elbow=cfg.elbow, live_cutoff_hz=cfg.live_cutoff_hz)
     q_true = np.clip(q_true, robot.lower, robot.upper)
+    t_f = t_h  # capture times of the frames the controller receives
+    if cfg.clock == "frames" and not offline:
+        t_f, q_meas = received_frames(skel, cfg.side, elbow=cfg.elbow)
     q_meas = np.clip(q_meas, robot.lower, robot.upper)
-    T = float(np.median(np.diff(t_h)))
+    T = float(np.median(np.diff(t_f)))
     tb = BLEND_FRAMES * T if cfg.blend_time is None else float(cfg.blend_time)
     if not (dt <= tb <= 1.0):
         raise InvalidInput(f"blend_time must be in [dt, 1] s, got {tb}", value=tb)
@@ -134,7 +139,8 @@ def simulate_scara(skel: Skeleton, settings: ScaraSettings | None = None, *, rob
     spline = CubicSpline(t_h, q_true, axis=0)
     truth, truth_d, truth_dd = spline(t), spline(t, 1), spline(t, 2)
     pred: Predictor
-    if shaping in ("model", "follower") or compensate:
+    aim = cfg.delay if cfg.delay is not None and not offline else None
+    if shaping in ("model", "follower") or compensate or aim is not None:
         pred = KalmanPredictor(2, accel_psd=cfg.predictor_psd) if predictor is None else predictor
     else:
         pred = HoldPredictor()
@@ -142,10 +148,10 @@ def simulate_scara(skel: Skeleton, settings: ScaraSettings | None = None, *, rob
     acc = np.broadcast_to(np.asarray(cfg.max_accel, float), (2,))
     follow = JerkLimitedFollower(robot.velocity_limit, acc, cfg.jerk_factor * acc, dt=dt, gain=cfg.follow_gain,
                                  lower=robot.lower, upper=robot.upper)
-    arrival = t_h + latency
+    arrival = t_f + latency
     nxt = 0
     # the robot starts at rest at the first frame's pose (the operator is in view before start)
-    pred.update(t_h[0], q_meas[0])
+    pred.update(t_f[0], q_meas[0])
     follow.reset(q_meas[0])
     shaper = None
     feasible = cfg.feasible
@@ -163,13 +169,15 @@ def simulate_scara(skel: Skeleton, settings: ScaraSettings | None = None, *, rob
 
     def horizon(p: Predictor) -> float:  # the time to estimate for, at most 0.5 s past the newest frame
         assert p.t is not None
-        return min(t[k] if compensate else max(t[k] - latency, t_h[0]), p.t + 0.5)
+        if compensate:
+            return min(t[k], p.t + 0.5)
+        return min(max(t[k] - (latency if aim is None else aim), t_f[0]), p.t + 0.5)
 
     blend = Transition(copy.deepcopy(pred), -np.inf, np.full(2, tb), None, horizon)
     for k in range(M):
-        while nxt < len(t_h) and arrival[nxt] <= t[k] + 1e-12:
+        while nxt < len(t_f) and arrival[nxt] <= t[k] + 1e-12:
             if nxt > 0:
-                pred.update(t_h[nxt], q_meas[nxt])
+                pred.update(t_f[nxt], q_meas[nxt])
                 if shaping == "blend" and not offline:
                     blend = Transition(copy.deepcopy(pred), arrival[nxt], np.full(2, tb), blend, horizon)
             nxt += 1
