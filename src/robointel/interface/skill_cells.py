@@ -17,7 +17,7 @@ from robointel.geometry.obstacles import Box, Capsule
 from robointel.geometry.rotations import rotation_about
 from robointel.robot import Robot
 from robointel.sim import Workcell
-from robointel.sim.mjcf import Payload
+from robointel.sim.mjcf import OBSTACLE_PREFIX, Payload
 
 R_FLANGE_TOOL = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
 """Tool axes in the flange frame: the tool's z (insertion axis) is the flange's x (the J6 axis)."""
@@ -146,11 +146,21 @@ def stylus() -> PegTool:
     return PegTool(radius=0.006, length=0.04, offset=0.03, mass=0.2)
 
 
+PAD_SOLREF = (0.01, 1.0)
+PAD_SOLIMP = (0.5, 0.99, 0.0002, 0.5, 2.0)
+"""The grinding pad's contact (MuJoCo solref, solimp): 10 ms time constant, impedance rising from 0.5 at first
+touch to 0.99 at 0.2 mm compression, as the plate of the grinding demonstrations."""
+
+
 def plate_workcell(plate: PlateTask | None = None, tool: PegTool | None = None) -> tuple[Workcell, Robot]:
-    """The workcell with the stylus on the flange over the plate, and the robot with the stylus TCP."""
+    """The workcell with the stylus on the flange over the plate (a compliant pad), and the robot with the stylus TCP."""
     plate = plate or PlateTask()
     tool = tool or stylus()
-    return Workcell(Robot.load("lrmate200id7l"), obstacles=plate.obstacles(), payload=tool.payload()), tool.robot()
+    wc = Workcell(Robot.load("lrmate200id7l"), obstacles=plate.obstacles(), payload=tool.payload())
+    g = wc.model.geom(OBSTACLE_PREFIX + "plate").id
+    wc.model.geom_solref[g] = PAD_SOLREF
+    wc.model.geom_solimp[g] = PAD_SOLIMP
+    return wc, tool.robot()
 
 
 def ik_near(robot: Robot, T: npt.NDArray[np.float64], q_ref: npt.ArrayLike = Q_REF) -> npt.NDArray[np.float64]:
