@@ -29,7 +29,7 @@ from robointel.sim import Workcell
 from robointel.sim.mjcf import Payload, SimObject
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def insertion_skill():
     """The GMR insertion skill learned from two HDD demonstrations (Sec. 5.5)."""
     from robointel.learning import insertion as ins
