@@ -17,7 +17,7 @@ import numpy.typing as npt
 from robointel.control.follower import JerkLimitedFollower
 from robointel.errors import IKFailure, InvalidInput
 from robointel.interface.backend import Backend, ExecutionResult
-from robointel.interface.gripper import GripResult, Gripper
+from robointel.interface.gripper import Gripper, GripResult
 from robointel.interface.protocol import CycleCallback
 from robointel.outcome import Failure, TrialOutcome
 from robointel.trajectory import Trajectory
@@ -86,7 +86,8 @@ def joint_move(robot: Any, q0: npt.ArrayLike, q1: npt.ArrayLike, dt: float, *, s
 
     Args:
         robot: :class:`robointel.robot.Robot` (velocity and acceleration limits, joint names).
-        q0: (n,) start, rad. q1: (n,) goal, rad.
+        q0: (n,) start, rad.
+        q1: (n,) goal, rad.
         dt: sample period, s (the controller's).
         speed: share of the joint velocity and acceleration limits used, in (0, 1].
 
@@ -112,7 +113,7 @@ def joint_move(robot: Any, q0: npt.ArrayLike, q1: npt.ArrayLike, dt: float, *, s
         if f.at_rest and np.allclose(q, b, atol=1e-9):
             break
     qs[-1] = b
-    return Trajectory(np.arange(len(qs)) * dt, np.array(qs), np.array(vs), np.array(accs),
+    return Trajectory(np.arange(len(qs), dtype=np.float64) * dt, np.array(qs), np.array(vs), np.array(accs),
                       list(robot.joint_names))
 
 

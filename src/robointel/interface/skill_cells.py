@@ -153,7 +153,7 @@ touch to 0.99 at 0.2 mm compression, as the plate of the grinding demonstrations
 
 
 def plate_workcell(plate: PlateTask | None = None, tool: PegTool | None = None) -> tuple[Workcell, Robot]:
-    """The workcell with the stylus on the flange over the plate (a compliant pad), and the robot with the stylus TCP."""
+    """The workcell with the stylus on the flange over the plate (a compliant pad); the robot with the stylus TCP."""
     plate = plate or PlateTask()
     tool = tool or stylus()
     wc = Workcell(Robot.load("lrmate200id7l"), obstacles=plate.obstacles(), payload=tool.payload())
