@@ -17,10 +17,13 @@ from typing import Any, Protocol
 import mujoco
 import numpy as np
 import numpy.typing as npt
+import trimesh
 
 from robointel.errors import ControllerFault, InvalidInput
 from robointel.sim.mjcf import OBJECT_PREFIX
 
+SURFACE_SAMPLES = 4000
+"""Points sampled on an object mesh's surface for the between-the-jaws test."""
 OPEN_BUCKETS_M = {0: 0.085, 1: 0.060, 2: 0.035}
 """The Robotiq 2F-85 dispatcher's open buckets (``airo_fanuc.gripper.OPEN_FULL/MID/NARROW``) -> opening, m."""
 
@@ -87,6 +90,7 @@ class SimGripper:
         self.max_width = jaws.max_width
         self.width = jaws.max_width
         self.held = ""
+        self._samples: dict[int, npt.NDArray[np.float64]] = {}
 
     def open(self, width: float | None = None) -> GripResult:
         """Open to ``width`` (default fully) and release what the jaws hold.
@@ -103,6 +107,17 @@ class SimGripper:
         self.held, self.width = "", w
         return GripResult(True, w, "", f"opened to {w * 1e3:.0f} mm")
 
+    def _surface(self, mesh: int) -> npt.NDArray[np.float64]:
+        """(k, 3) points sampled on MuJoCo mesh ``mesh``'s surface (mesh frame), cached."""
+        if mesh not in self._samples:
+            m = self.arm.workcell.model
+            v = m.mesh_vert[m.mesh_vertadr[mesh]:m.mesh_vertadr[mesh] + m.mesh_vertnum[mesh]]
+            f = m.mesh_face[m.mesh_faceadr[mesh]:m.mesh_faceadr[mesh] + m.mesh_facenum[mesh]]
+            tm = trimesh.Trimesh(np.asarray(v, dtype=float), np.asarray(f), process=False)
+            pts, _ = trimesh.sample.sample_surface_even(tm, SURFACE_SAMPLES, seed=0)
+            self._samples[mesh] = np.vstack([np.asarray(pts), tm.vertices])
+        return self._samples[mesh]
+
     def _points_in_grasp(self, name: str, T_grasp: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """(k, 3) points of object ``name`` in the grasp frame: mesh vertices, or a grid filling a primitive's box."""
         wc = self.arm.workcell
@@ -115,8 +130,7 @@ class SimGripper:
             if m.geom_bodyid[g] != body:
                 continue
             if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
-                i = m.geom_dataid[g]
-                local = m.mesh_vert[m.mesh_vertadr[i]:m.mesh_vertadr[i] + m.mesh_vertnum[i]]
+                local = self._surface(int(m.geom_dataid[g]))
             else:
                 local = m.geom_aabb[g, :3] + grid * m.geom_aabb[g, 3:]
             world = local @ d.geom_xmat[g].reshape(3, 3).T + d.geom_xpos[g]
