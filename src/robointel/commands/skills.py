@@ -49,6 +49,12 @@ RECORD_HELP = "record the run as a ROS 2 bag (.mcap)"
 WRENCH_HELP = "'sensor' (the robot's F/T reading) or 'virtual' (a simulated contact, for the controller emulator)"
 
 
+def _check_url(robot: str) -> None:
+    """Refuse a robot URL that :func:`~robointel.interface.open_robot` cannot open, before any learning."""
+    if robot != "sim" and not robot.startswith("fanuc://"):
+        fail(f"unknown robot {robot!r}: use 'sim' or 'fanuc://HOST[:RMI_PORT][?sm_port=N]'")
+
+
 @contextmanager
 def _progress(label: str, total: int) -> Iterator[Callable[[int, RobotState], None]]:
     with Progress(TextColumn(label), BarColumn(), TimeRemainingColumn(), console=console) as bar:
@@ -90,6 +96,7 @@ def insert(robot: str = typer.Option("sim", help=ROBOT_HELP), record: Path = typ
     """
     from robointel.learning import insertion as ins
 
+    _check_url(robot)
     try:
         peg, hole = PegTool(), HoleTask(clearance=clearance)
         task = ins.PegHole()
@@ -153,6 +160,7 @@ def grind(robot: str = typer.Option("sim", help=ROBOT_HELP), record: Path = type
     """
     from robointel.learning import grinding as gr
 
+    _check_url(robot)
     try:
         plate = gr.Plate()
         rng = np.random.default_rng(seed)
@@ -214,6 +222,7 @@ def grasp_execute(category: str = typer.Option("box", help="category of the rand
     from robointel.sim import Workcell
     from robointel.sim.mjcf import Payload, SimObject
 
+    _check_url(robot)
     try:
         with Progress(TextColumn("{task.description}"), BarColumn(), console=console) as bar:
             step = bar.add_task("perceive and plan", total=2)
