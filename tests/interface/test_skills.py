@@ -37,7 +37,8 @@ def insertion_skill():
     task = ins.PegHole()
     scene = ins.HDDScene(task)
     rng = np.random.default_rng(0)
-    return ins.InsertionSkill(4).fit([ins.demonstrate(task, rng, scene=scene) for _ in range(2)])
+    demos = [ins.demonstrate(task, rng, scene=scene) for _ in range(2)]
+    return ins.InsertionSkill(4, centre=PegTool().centre).fit(demos)  # the twist moves the tip sphere's centre
 
 
 def _peg_arm(peg, hole, lateral=(0.0, 0.0), tilt=(0.0, 0.0)):
