@@ -84,7 +84,7 @@ def _source(wrench: str, robot: Any, tool: PegTool, wall: tuple[np.ndarray, floa
 
 @skill_app.command("insert")
 def insert(robot: str = typer.Option("sim", help=ROBOT_HELP), record: Path = typer.Option(None, help=RECORD_HELP),
-           demos: int = typer.Option(2, min=1, help="HDD demonstrations to learn from"),
+           demos: int = typer.Option(4, min=1, help="HDD demonstrations to learn from"),
            trials: int = typer.Option(3, min=1, help="insertions (sim: from random start errors)"),
            clearance: float = typer.Option(0.5e-3, help="diametral clearance of the pocket, m (sim)"),
            wrench: str = typer.Option("sensor", help=WRENCH_HELP), seed: int = typer.Option(0),
