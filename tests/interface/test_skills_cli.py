@@ -23,7 +23,7 @@ def test_skill_insert_on_the_emulator_with_a_virtual_contact_records_the_run(tmp
     q0 = ik_near(robot, HoleTask().start_tcp(peg))  # the emulated arm waits over the pocket
     with running_fake(q0) as fake:
         out = CliRunner().invoke(app, ["skill", "insert", "--robot", fanuc_url(fake), "--wrench", "virtual",
-                                       "--demos", "1", "--trials", "1", "--time-limit", "8",
+                                       "--demos", "1", "--trials", "1", "--time-limit", "8", "--stall-ms", "400",
                                        "--record", str(tmp_path / "run.mcap")])
         violations = fake.violations
     assert out.exit_code == 0, out.output

@@ -46,6 +46,7 @@ skill_app = typer.Typer(no_args_is_help=True, help="Learned skills on a robot (-
 
 ROBOT_HELP = "'sim' (the MuJoCo workcell) or 'fanuc://HOST[:RMI_PORT][?sm_port=N]'"
 RECORD_HELP = "record the run as a ROS 2 bag (.mcap)"
+STALL_HELP = "fanuc: stop the robot when the skill gives no target for this long, ms"
 WRENCH_HELP = "'sensor' (the robot's F/T reading) or 'virtual' (a simulated contact, for the controller emulator)"
 
 
@@ -70,6 +71,13 @@ def _go_to(arm: Backend, robot: Any, q: np.ndarray) -> None:
         arm.execute(joint_move(robot, q_now, q, arm.period, speed=0.2))
 
 
+def _open(robot: str, rec: McapRecorder | None, stall_ms: float, **kw: Any) -> Backend:
+    """Open a FANUC robot whose stall watchdog allows ``stall_ms`` without a target."""
+    if not (np.isfinite(stall_ms) and stall_ms >= 8.0):
+        raise typer.BadParameter(f"--stall-ms must be >= 8 (one period), got {stall_ms}")
+    return open_robot(robot, recorder=rec, stall_periods=int(np.ceil(stall_ms / 8.0)), **kw)
+
+
 def _recorder(record: Path | None, robot: Any) -> McapRecorder | None:
     return McapRecorder(record, list(robot.joint_names)) if record is not None else None
 
@@ -88,7 +96,8 @@ def insert(robot: str = typer.Option("sim", help=ROBOT_HELP), record: Path = typ
            trials: int = typer.Option(3, min=1, help="insertions (sim: from random start errors)"),
            clearance: float = typer.Option(0.5e-3, help="diametral clearance of the pocket, m (sim)"),
            wrench: str = typer.Option("sensor", help=WRENCH_HELP), seed: int = typer.Option(0),
-           time_limit: float = typer.Option(8.0, help="s per insertion")) -> None:
+           time_limit: float = typer.Option(8.0, help="s per insertion"),
+           stall_ms: float = typer.Option(80.0, help=STALL_HELP)) -> None:
     """Learn the insertion skill from HDD demonstrations, then insert the peg on the robot.
 
     Admittance over streamed positions: the skill's corrective twist from the felt wrench, (5.14)-(5.17),
@@ -127,7 +136,7 @@ def insert(robot: str = typer.Option("sim", help=ROBOT_HELP), record: Path = typ
                     wc.hold(0.2)
                     arm: Backend = SimRobot(wc, recorder=rec)
                 else:
-                    arm = open_robot(robot, recorder=rec)
+                    arm = _open(robot, rec, stall_ms)
                 with arm:
                     _go_to(arm, arm_robot, q0)
                     bottom = arm_robot.fk(q0)[:3, 3] - [0.0, 0.0, hole.advance()]
@@ -153,7 +162,8 @@ def insert(robot: str = typer.Option("sim", help=ROBOT_HELP), record: Path = typ
 def grind(robot: str = typer.Option("sim", help=ROBOT_HELP), record: Path = typer.Option(None, help=RECORD_HELP),
           demos: int = typer.Option(2, min=1, help="HDD grinding demonstrations"),
           wrench: str = typer.Option("sensor", help=WRENCH_HELP), seed: int = typer.Option(0),
-          speed: float = typer.Option(0.03, help="path speed, m/s")) -> None:
+          speed: float = typer.Option(0.03, help="path speed, m/s"),
+          stall_ms: float = typer.Option(80.0, help=STALL_HELP)) -> None:
     """Learn where to press hard from grinding demonstrations, then grind the plate's diagonal on the robot.
 
     The learned force map (Fig. 5.13) is the set-point of an axial admittance over streamed positions.
@@ -187,7 +197,7 @@ def grind(robot: str = typer.Option("sim", help=ROBOT_HELP), record: Path = type
                 wc.hold(0.2)
                 arm: Backend = SimRobot(wc, recorder=rec)
             else:
-                arm = open_robot(robot, recorder=rec)
+                arm = _open(robot, rec, stall_ms)
             with arm:
                 _go_to(arm, arm_robot, q0)
                 surface = np.r_[c, plate.top + tool.radius]
