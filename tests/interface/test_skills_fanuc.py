@@ -14,7 +14,8 @@ from robointel.errors import ControllerFault, InvalidInput, SafetyStop
 from robointel.interface import RobotMode, open_robot
 from robointel.interface.grasp_execute import GraspMotion, execute_grasp
 from robointel.interface.gripper import FanucGripper
-from robointel.interface.skill_cells import HoleTask, PegTool, ik_near
+from robointel.interface.skill_cells import R_DOWN, HoleTask, PegTool, ik_near, stylus
+from robointel.interface.skill_grinding import run_grinding
 from robointel.interface.skill_insertion import run_insertion
 from robointel.interface.wrench_source import VirtualWall
 from robointel.io.mcap_log import COMMAND, JOINT_STATES, McapRecorder
@@ -83,6 +84,29 @@ def test_an_estop_during_the_skill_stops_the_commands_at_once(insertion_skill): 
     assert len(late) <= 2, f"{len(late)} commands after the e-stop"
     assert st.mode is RobotMode.FAULTED and "e_stop" in st.faults and "e-stop" in st.why_stopped
     assert err.value.reason == st.why_stopped
+
+
+def test_grinding_presses_with_the_set_point_on_the_emulator():
+    tool = stylus()
+    robot = tool.robot()
+    a, b = np.array([0.59, -0.01, 0.1265]), np.array([0.61, 0.01, 0.126])
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R_DOWN, a
+    q0 = ik_near(robot, T)
+    wall = VirtualWall(robot, [0.6, 0.0, 0.126], (0.0, 0.0, 1.0), stiffness=3000.0, damping=30.0, noise=0.05)
+    with running_fake(q0) as fake:
+        with open_robot(fanuc_url(fake), stall_periods=STALL) as arm:
+            res = run_grinding(arm, robot, lambda p: 8.0, a, b, source=wall, t_touch=1.5)
+            deadline = time.monotonic() + 10.0  # the emulated plant lags the commands by ~125 ms
+            while time.monotonic() < deadline and np.linalg.norm(robot.fk(arm.state().q)[:2, 3] - b[:2]) > 1e-3:
+                time.sleep(0.05)
+            p_end = robot.fk(arm.state().q)[:3, 3]
+        violations = fake.violations
+    assert violations == []
+    assert res.outcome.success
+    late = res.t > res.t[-1] - 0.5
+    assert abs(res.force[late].mean() - 8.0) < 1.5, res.force[late].mean()  # pressing with the set-point
+    assert np.linalg.norm(p_end[:2] - b[:2]) < 1e-3  # the emulated arm got to the end of the path
 
 
 def test_a_skill_without_a_wrench_holds_the_robot(fanuc):
