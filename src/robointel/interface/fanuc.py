@@ -50,6 +50,8 @@ class FanucRobot(Backend):
             busy interpreter must not stop it, a dead one must).
         sched_fifo: run the driver's 125 Hz real-time thread under ``SCHED_FIFO`` (ignored without
             the privilege, ``CAP_SYS_NICE``), so a loaded machine does not delay its packets.
+        gripper: bring the gripper dispatcher up too (``driver.gripper``; see
+            :class:`~robointel.interface.gripper.FanucGripper`).
 
     Raises:
         ConnectionLost: bring-up failed (the controller is unreachable or refuses motion).
@@ -58,7 +60,8 @@ class FanucRobot(Backend):
     def __init__(self, host: str, *, rmi_port: int = DEFAULT_RMI_PORT, sm_port: int = DEFAULT_SM_PORT,
                  profile: RobotProfile | None = None, robot: Any = None, stall_periods: int | None = 10,
                  recorder: Recorder | None = None, connect_timeout: float = 5.0,
-                 lock_path: str | None = None, deadman_s: float = 0.5, sched_fifo: bool = True) -> None:
+                 lock_path: str | None = None, deadman_s: float = 0.5, sched_fifo: bool = True,
+                 gripper: bool = False) -> None:
         if robot is None:
             from robointel.robot import Robot
 
@@ -71,7 +74,7 @@ class FanucRobot(Backend):
         kw: dict[str, Any] = {"enable_ownership": lock_path is not None}
         if lock_path is not None:
             kw["lock_path"] = lock_path
-        self.policy = DriverPolicy(config=config, enable_gripper=False, auto_recover=False, connect_retries=2,
+        self.policy = DriverPolicy(config=config, enable_gripper=bool(gripper), auto_recover=False, connect_retries=2,
                                    bringup_settle_s=0.2, hold_wait_s=2.0, recovery_delay_s=0.0,
                                    recovery_motion_probe_s=2.0, ready_wait_s=5.0, **kw)
         super().__init__(robot.joint_names, profile.position_limits_lower, profile.position_limits_upper,
