@@ -12,10 +12,8 @@ measured in the same run.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import math
-import sys
 import threading
 import time
 
@@ -61,7 +59,7 @@ def _stream(send, targets, robot=None):
     and the rest of the path is shifted to start where the robot stopped.
     """
     from robointel.errors import ControllerFault
-    from robointel.interface.backend import sleep_until
+    from robointel.interface.realtime import sleep_until
 
     K = len(targets)
     cyc, late, missed, stalls = np.zeros(K), np.zeros(K), 0, []
@@ -115,24 +113,14 @@ def _streaming_run(make_robot, seconds, planner=True):
 FIFO = [True]
 
 
-@contextlib.contextmanager
 def _fifo():
-    """Run the calling (streaming) thread under SCHED_FIFO where allowed (--no-fifo: normal priority)."""
-    import os
+    """The streaming thread's real-time section (SCHED_FIFO 40 unless --no-fifo, gc.freeze, 0.5 ms switch)."""
+    from robointel.interface.realtime import realtime_thread
 
-    old = os.sched_getscheduler(0), os.sched_getparam(0)
-    try:
-        if FIFO[0]:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(40))
-    except (PermissionError, OSError):
-        pass
-    try:
-        yield
-    finally:
-        try:
-            os.sched_setscheduler(0, old[0], old[1])
-        except (PermissionError, OSError):
-            pass
+    return realtime_thread(40, fifo=FIFO[0], switch_interval=SWITCH[0])
+
+
+SWITCH = [0.0005]
 
 
 def _stats(us):
@@ -168,7 +156,7 @@ def _peer_run(url_fake, seconds):
 def _estop_run(fake):
     from robointel.errors import ControllerFault
     from robointel.interface import open_robot
-    from robointel.interface.backend import sleep_until
+    from robointel.interface.realtime import sleep_until
 
     robot = open_robot(fake.url)
     try:
@@ -233,13 +221,17 @@ def main() -> None:
     ap.add_argument("--fifo", action=argparse.BooleanOptionalAction, default=True,
                     help="stream from a SCHED_FIFO thread (needs CAP_SYS_NICE; else normal priority)")
     args = ap.parse_args()
-    sys.setswitchinterval(args.switch_interval)
-    FIFO[0] = args.fifo
+    FIFO[0], SWITCH[0] = args.fifo, args.switch_interval
+    import os
+
     from robointel.interface import open_robot
     from robointel.interface.sim import SimRobot
 
     out: dict = {"seconds": args.seconds, "streaming_thread_fifo": args.fifo, "period_ms": PERIOD * 1e3,
-                 "switch_interval_s": sys.getswitchinterval()}
+                 "switch_interval_s": args.switch_interval,
+                 "process_policy": {os.SCHED_OTHER: "SCHED_OTHER", os.SCHED_RR: "SCHED_RR",
+                                    os.SCHED_FIFO: "SCHED_FIFO"}.get(os.sched_getscheduler(0), "other"),
+                 "process_nice": os.nice(0), "load_avg_1min_at_start": os.getloadavg()[0]}
     fake = EmulatorProcess()
     try:
         fan = _streaming_run(lambda: open_robot(fake.url), args.seconds)

@@ -19,8 +19,14 @@ import numpy.typing as npt
 from robointel.errors import ConnectionLost, ControllerFault, InvalidInput, UnsafeCommand
 from robointel.interface.gate import SafetyGate
 from robointel.interface.protocol import CycleCallback
+from robointel.interface.realtime import sleep_until
 from robointel.interface.state import RobotMode, RobotState
 from robointel.trajectory import Trajectory
+
+MONITOR_PERIODS = 5
+"""Without a stall watchdog, a backend that must be polled for faults is polled every this many periods."""
+
+__all__ = ["Backend", "ExecutionResult", "Recorder", "MONITOR_PERIODS", "sleep_until"]
 
 
 class Recorder(Protocol):
@@ -316,19 +322,31 @@ class Backend:
         return False
 
     def _watch_loop(self) -> None:
-        """Stop a stalled stream; poll the backend for faults while streaming.
+        """Stop a stalled stream (checking the backend for a fault first, to report the right cause).
 
-        Without fault polling the thread sleeps until the stall deadline (few wake-ups, little
-        contention with the streaming thread); with polling (``fanuc``) it wakes every period.
+        The thread sleeps until the stall deadline of the last command, so while targets arrive on
+        time it does not run at all: a watchdog woken every period would take the interpreter
+        lock (and the interface lock) every period, and when the scheduler preempts it while it
+        holds them, the streaming thread waits a whole scheduling latency. Each target's own
+        fault check (:meth:`stream`) covers faults while streaming; backends that must be polled
+        between commands (``fanuc``) are polled at the stall deadline, or every
+        :data:`MONITOR_PERIODS` periods without a stall watchdog.
         """
         period = self.period
-        timeout = period
+        limit = self.stall_periods * period if self.stall_periods is not None else MONITOR_PERIODS * period
+        timeout = limit
         while not self._watch_stop.wait(timeout):
-            timeout = period if self._needs_monitor() or self.stall_periods is None else self.stall_periods * period
-            with self._lock:
+            timeout = limit
+            if not self._lock.acquire(timeout=period):
+                continue  # a command (with its own fault check) is going out right now
+            try:
                 if self._closed:
                     return
                 if self._mode is not RobotMode.STREAMING:
+                    continue
+                gap = time.perf_counter() - self._last_cmd_wall
+                if gap < limit and self._stall_check:
+                    timeout = max(0.001, limit - gap + 0.1 * period)
                     continue
                 if self._needs_monitor():
                     fault = self._fault_of(self._read())
@@ -336,26 +354,11 @@ class Backend:
                         self._latch_fault(*fault)
                         continue
                 if self.stall_periods is not None and self._stall_check:
-                    gap = time.perf_counter() - self._last_cmd_wall
-                    if gap > self.stall_periods * period:
-                        self._halt()
-                        self._mode = RobotMode.STOPPED
-                        self._faults = ("stream_stalled",)
-                        self._why = (f"command stream stalled: no target for {gap * 1e3:.0f} ms "
-                                     f"(> {self.stall_periods} periods)")
-                        self._last_cmd = None
-                    elif not self._needs_monitor():
-                        timeout = max(0.001, self._last_cmd_wall + self.stall_periods * period - time.perf_counter()
-                                      + 0.1 * period)
-
-
-def sleep_until(deadline: float) -> None:
-    """Sleep until ``time.perf_counter() >= deadline`` (coarse sleep, then a short spin)."""
-    while True:
-        rem = deadline - time.perf_counter()
-        if rem <= 0:
-            return
-        if rem > 0.002:
-            time.sleep(rem - 0.0015)
-        else:
-            time.sleep(0)
+                    self._halt()
+                    self._mode = RobotMode.STOPPED
+                    self._faults = ("stream_stalled",)
+                    self._why = (f"command stream stalled: no target for {gap * 1e3:.0f} ms "
+                                 f"(> {self.stall_periods} periods)")
+                    self._last_cmd = None
+            finally:
+                self._lock.release()
