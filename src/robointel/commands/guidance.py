@@ -45,6 +45,8 @@ def register(app: typer.Typer) -> None:
               physics: bool = typer.Option(True, help="MuJoCo with the F/T sensor in the loop (else kinematic)"),
               robot: str = typer.Option("sim", help="'sim' (the scenario) or 'fanuc://HOST': guide the arm by hand"),
               record: Path = typer.Option(None, help="with --robot fanuc://...: record the run as a ROS 2 bag (.mcap)"),
+              ft: str = typer.Option(None, "--ft", help="with --robot fanuc://...: the wrist F/T sensor, "
+                                                        "netft://HOST[:PORT][?cpf=COUNTS&cpt=COUNTS] (ATI RDT)"),
               ) -> None:
         """Run a guidance scenario with a simulated operator and write Fig. 4.6b-style plots."""
         console = Console()
@@ -54,7 +56,7 @@ def register(app: typer.Typer) -> None:
             fail(f"--duration must be a positive number of simulated seconds, got {duration}")
         if robot != "sim":  # lead-through on a real arm through the robot interface (issue 14)
             try:
-                guide_on_robot(robot, record, duration or 30.0, method, console)
+                guide_on_robot(robot, record, duration or 30.0, method, console, ft=ft)
             except RobointelError as exc:
                 fail(exc)
             return

@@ -57,7 +57,8 @@ def run_on_robot(trajectory: Trajectory, url: str, record: Path | None, console:
     return res
 
 
-def guide_on_robot(url: str, record: Path | None, duration: float, method: str, console: Console) -> None:
+def guide_on_robot(url: str, record: Path | None, duration: float, method: str, console: Console, *,
+                   ft: str | None = None) -> None:
     """Lead-through on the robot at ``url`` for ``duration`` s (guidance ``method``), with a progress bar.
 
     Args:
@@ -66,6 +67,8 @@ def guide_on_robot(url: str, record: Path | None, duration: float, method: str, 
         duration: How long to guide, s.
         method: Guidance method (``qp``, ``equality``, ``repulsive`` or ``nullspace``).
         console: Where the progress bar and the summary are printed.
+        ft: ``netft://HOST[:PORT]``: the wrist F/T sensor of a ``fanuc`` robot (None: the
+            controller's own force telemetry, if any).
 
     Raises:
         RobointelError: no F/T wrench from the robot, a fault, a bad URL or method.
@@ -74,7 +77,7 @@ def guide_on_robot(url: str, record: Path | None, duration: float, method: str, 
     cfg = GuidanceConfig(method=method)
     rec = McapRecorder(record, list(robot.joint_names)) if record is not None else None
     try:
-        with open_robot(url, recorder=rec) as arm:
+        with open_robot(url, recorder=rec, **({"ft_sensor": ft} if ft is not None else {})) as arm:
             cycles = int(round(duration / arm.period))
             with Progress(TextColumn("guiding " + url.split("?")[0]), BarColumn(), TimeRemainingColumn(),
                           console=console) as bar:

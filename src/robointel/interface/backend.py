@@ -6,6 +6,7 @@ a command may go out lives here, once.
 """
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from collections.abc import Sequence
@@ -19,7 +20,7 @@ import numpy.typing as npt
 from robointel.errors import ConnectionLost, ControllerFault, InvalidInput, UnsafeCommand
 from robointel.interface.gate import SafetyGate
 from robointel.interface.protocol import CycleCallback
-from robointel.interface.realtime import sleep_until
+from robointel.interface.realtime import realtime_thread, sleep_until
 from robointel.interface.state import RobotMode, RobotState
 from robointel.trajectory import Trajectory
 
@@ -149,6 +150,11 @@ class Backend:
         """The controller period, s."""
         return self.gate.period
 
+    @property
+    def has_wrench(self) -> bool:
+        """True when :meth:`state` carries the F/T wrench (an F/T sensor on the wrist)."""
+        return False
+
     def state(self) -> RobotState:
         """The latest state (never raises)."""
         return self._read()
@@ -233,28 +239,29 @@ class Backend:
         K = len(path)
         ts, qs, cyc = np.zeros(K), np.zeros((K, self.n)), np.zeros(K)
         missed, done = 0, 0
-        t0 = time.perf_counter()
-        try:
-            for k in range(K):
-                if self.paced:
-                    sleep_until(t0 + k * self.period)
-                c0 = time.perf_counter()
-                st = self.stream(path[k])
-                c1 = time.perf_counter()
-                cyc[k] = (c1 - c0) * 1e6
-                if self.paced and c1 > t0 + (k + 1) * self.period:
-                    missed += 1
-                ts[k], qs[k] = st.t, st.q
-                done = k + 1
-                if on_cycle is not None:
-                    on_cycle(k, st)
-        except ControllerFault as exc:
-            res = ExecutionResult(ts[:done], path[:done], qs[:done], cyc[:done], missed, False)
-            exc.value = (exc.value, res)
-            raise
-        except BaseException:
-            self.hold()
-            raise
+        with realtime_thread() if self.paced else contextlib.nullcontext():  # paced: a real-time section
+            t0 = time.perf_counter()
+            try:
+                for k in range(K):
+                    if self.paced:
+                        sleep_until(t0 + k * self.period)
+                    c0 = time.perf_counter()
+                    st = self.stream(path[k])
+                    c1 = time.perf_counter()
+                    cyc[k] = (c1 - c0) * 1e6
+                    if self.paced and c1 > t0 + (k + 1) * self.period:
+                        missed += 1
+                    ts[k], qs[k] = st.t, st.q
+                    done = k + 1
+                    if on_cycle is not None:
+                        on_cycle(k, st)
+            except ControllerFault as exc:
+                res = ExecutionResult(ts[:done], path[:done], qs[:done], cyc[:done], missed, False)
+                exc.value = (exc.value, res)
+                raise
+            except BaseException:
+                self.hold()
+                raise
         self.hold()
         # the state after each target is the one read before it went out: shift by one cycle
         return ExecutionResult(ts, path, np.vstack([qs[1:], self._read().q[None]]), cyc, missed, True)

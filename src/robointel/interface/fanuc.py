@@ -20,8 +20,10 @@ from airo_fanuc.exceptions import FanucConnectionError, FanucError, RobotFaulted
 
 from robointel.errors import ConnectionLost, ControllerFault, InvalidInput, UnsafeCommand
 from robointel.interface.backend import Backend, ExecutionResult, Recorder, sleep_until
+from robointel.interface.ft_sensor import WrenchSource, open_ft_sensor
 from robointel.interface.profile import lrmate_profile
 from robointel.interface.protocol import CycleCallback
+from robointel.interface.realtime import realtime_thread
 from robointel.interface.state import RobotMode, RobotState
 from robointel.trajectory import Trajectory
 
@@ -50,6 +52,9 @@ class FanucRobot(Backend):
             busy interpreter must not stop it, a dead one must).
         sched_fifo: run the driver's 125 Hz real-time thread under ``SCHED_FIFO`` (ignored without
             the privilege, ``CAP_SYS_NICE``), so a loaded machine does not delay its packets.
+        ft_sensor: the wrist F/T sensor whose wrench the state reports when Stream Motion carries
+            none (a :class:`~robointel.interface.ft_sensor.WrenchSource`, or a ``netft://HOST[:PORT]``
+            URL opened here and closed with the robot); None: no wrench (lead-through is refused).
 
     Raises:
         ConnectionLost: bring-up failed (the controller is unreachable or refuses motion).
@@ -58,7 +63,8 @@ class FanucRobot(Backend):
     def __init__(self, host: str, *, rmi_port: int = DEFAULT_RMI_PORT, sm_port: int = DEFAULT_SM_PORT,
                  profile: RobotProfile | None = None, robot: Any = None, stall_periods: int | None = 10,
                  recorder: Recorder | None = None, connect_timeout: float = 5.0,
-                 lock_path: str | None = None, deadman_s: float = 0.5, sched_fifo: bool = True) -> None:
+                 lock_path: str | None = None, deadman_s: float = 0.5, sched_fifo: bool = True,
+                 ft_sensor: WrenchSource | str | None = None) -> None:
         if robot is None:
             from robointel.robot import Robot
 
@@ -81,6 +87,11 @@ class FanucRobot(Backend):
         if not (np.isfinite(deadman_s) and deadman_s > 0):
             raise InvalidInput(f"deadman_s must be > 0 s, got {deadman_s}", value=deadman_s)
         self.deadman_s = float(deadman_s)
+        self._owns_ft = isinstance(ft_sensor, str)
+        self.ft_sensor: WrenchSource | None = (open_ft_sensor(ft_sensor) if isinstance(ft_sensor, str)
+                                               else ft_sensor)
+        if self.ft_sensor is not None and not isinstance(self.ft_sensor, WrenchSource):
+            raise InvalidInput("ft_sensor must have a read() method returning a (6,) wrench", value=ft_sensor)
         self._snap: dict[str, Any] = {}
         self._last_state: RobotState | None = None
         try:
@@ -101,12 +112,27 @@ class FanucRobot(Backend):
         s = core.get_snapshot()
         self._snap = s  # type: ignore[assignment]
         wrench = (np.array([s["fx"], s["fy"], s["fz"], s["mx"], s["my"], s["mz"]], dtype=float)
-                  if s.get("wrench_valid") else None)
+                  if s.get("wrench_valid") else self._ft_wrench())
         st = self._make_state(int(s["rx_mono_ns"]) * 1e-9, np.array(s["q_meas"], dtype=float),  # type: ignore
                               np.array(s["qd_est"], dtype=float), wrench,  # type: ignore[arg-type]
                               np.array(s["q_cmd"], dtype=float))  # type: ignore[arg-type]
         self._last_state = st
         return st
+
+    def _ft_wrench(self) -> npt.NDArray[np.float64] | None:
+        """The wrist sensor's (6,) wrench, or None (no sensor, no fresh reading, not six finite numbers)."""
+        if self.ft_sensor is None:
+            return None
+        w = self.ft_sensor.read()
+        if w is None:
+            return None
+        w = np.asarray(w, dtype=float).reshape(-1)
+        return w if w.shape == (6,) and np.all(np.isfinite(w)) else None
+
+    @property
+    def has_wrench(self) -> bool:
+        """True when the state carries a wrench: a force block on Stream Motion or a wrist F/T sensor."""
+        return self.ft_sensor is not None or bool(self._snap.get("wrench_valid", False))
 
     def _fault_of(self, state: RobotState) -> tuple[RobotMode, str, tuple[str, ...]] | None:
         s = self._snap
@@ -166,7 +192,11 @@ class FanucRobot(Backend):
             raise ControllerFault(f"recovery failed: {why}", value=self._read(), reason=why)
 
     def _close(self) -> None:
-        self.driver.close()
+        try:
+            self.driver.close()
+        finally:
+            if self._owns_ft and self.ft_sensor is not None:
+                self.ft_sensor.close()  # type: ignore[attr-defined]
 
     def _commanded(self) -> npt.NDArray[np.float64] | None:
         self._read()
@@ -215,7 +245,8 @@ class FanucRobot(Backend):
             self._stall_check = False  # the core's deadman supervises this process during playback
             self._ensure_watchdog()
         try:
-            return self._supervise(handle, rs, on_cycle)
+            with realtime_thread():
+                return self._supervise(handle, rs, on_cycle)
         except ControllerFault:
             raise
         except BaseException as exc:  # on_cycle raised or the caller interrupted: the core must not play on

@@ -62,7 +62,7 @@ class RealtimeStatus:
         priority: the FIFO priority (0 when not granted).
         process_policy: the scheduling policy of the process's other threads (``"SCHED_RR"`` under
             ``chrt -r``), as found on entry.
-        gc_frozen: objects moved to the permanent generation at entry (``gc.get_freeze_count()``).
+        gc_frozen: objects this section moved to the permanent generation (0 when nested).
     """
 
     policy: str
@@ -83,7 +83,8 @@ def realtime_thread(priority: int = 40, *, fifo: bool = True, freeze_gc: bool = 
     On entry: ``SCHED_FIFO`` at ``priority`` for the calling thread (when the process has
     ``CAP_SYS_NICE``; otherwise it stays as it was and the status says so), ``gc.freeze()``, and the
     interpreter-lock switch interval set to ``switch_interval``. Everything is restored on exit
-    (the frozen objects are released with ``gc.unfreeze()``).
+    (the frozen objects are released with ``gc.unfreeze()``). Sections nest: an inner one leaves
+    the heap to the outer one.
 
     Args:
         priority: ``SCHED_FIFO`` priority, 1..98 (the airo-fanuc core thread runs at 80, above it).
@@ -112,6 +113,7 @@ def realtime_thread(priority: int = 40, *, fifo: bool = True, freeze_gc: bool = 
     old_switch = sys.getswitchinterval()
     sys.setswitchinterval(switch_interval)
     frozen = 0
+    freeze_gc = freeze_gc and gc.get_freeze_count() == 0  # an enclosing section already froze the heap
     if freeze_gc:
         gc.collect()
         gc.freeze()
