@@ -68,3 +68,36 @@ def test_teleop_streams_to_the_fanuc_emulator_and_records(tmp_path):
     topics = _topics(tmp_path / "teleop.mcap")
     assert topics[COMMAND] > 100 and topics[JOINT_STATES] == topics[COMMAND]
     assert WRENCH not in topics  # Stream Motion v3 carries no wrench and no F/T sensor was given
+
+
+def _run_on_fake(args, tmp_path, q0=READY):
+    with running_fake(q0) as fake:
+        out = CliRunner().invoke(app, [*args, "--robot", fanuc_url(fake), "--record", str(tmp_path / "run.mcap")])
+        time.sleep(1.0)  # 8 time constants of the emulated plant's lag
+        q_end = np.radians(fake.q_meas_deg[:6])
+        assert fake.violations == []
+    assert out.exit_code == 0, out.output
+    return out.output, q_end, _topics(tmp_path / "run.mcap")
+
+
+def test_imitation_executes_on_the_fanuc_emulator(tmp_path):
+    from robointel.programming.imitation import kinematic_imitation
+    from robointel.programming.skeleton import synthetic_wave
+    from robointel.robot import Robot
+
+    plan = kinematic_imitation(synthetic_wave(), Robot.load("lrmate200id7l"))
+    output, q_end, topics = _run_on_fake(["imitate", "synthetic", "--out", str(tmp_path)], tmp_path)
+    assert "moving to the trajectory's start" in output or "at the start" in output
+    assert "missed cycles" in output
+    # the human's arm is still moving at the end (up to 1.1 rad/s): the controller brakes to rest just past it
+    assert np.max(np.abs(plan.trajectory.qd[-1])) > 0.5
+    np.testing.assert_allclose(q_end, plan.trajectory.q[-1], atol=0.03)
+    assert topics[COMMAND] > plan.trajectory.duration / 0.008 and "/planned_trajectory" in topics
+
+
+def test_keypoint_reproduction_executes_on_the_fanuc_emulator(tmp_path):
+    output, q_end, topics = _run_on_fake(["keypoints", "--scenario", "2", "--duration", "3", "--out", str(tmp_path)],
+                                         tmp_path)
+    assert "key points from" in output and "missed cycles" in output
+    assert (tmp_path / "keypoints_s2.png").exists()
+    assert topics[COMMAND] > 100 and topics[JOINT_STATES] == topics[COMMAND]

@@ -17,16 +17,18 @@ from robointel.trajectory import Trajectory
 
 
 def run_on_robot(trajectory: Trajectory, url: str, record: Path | None, console: Console, *,
-                 sim_kwargs: dict[str, Any] | None = None) -> ExecutionResult:
+                 sim_kwargs: dict[str, Any] | None = None, approach: bool = True) -> ExecutionResult:
     """Execute ``trajectory`` on the robot at ``url`` with a progress bar, recording to ``record``.
 
     Args:
-        trajectory: the trajectory (rad); the robot must already be at its start (``fanuc``), the
-            simulation is reset there (``sim``).
+        trajectory: the trajectory (rad); the simulation is reset at its start (``sim``), a real
+            robot is first brought there (``approach``).
         url: ``"sim"`` or ``"fanuc://HOST[:RMI_PORT][?sm_port=N]"``.
         record: ``.mcap`` file to record the run to, or None.
         console: rich console for the progress bar and the summary.
         sim_kwargs: extra arguments of :class:`~robointel.interface.sim.SimRobot` (e.g. a workcell).
+        approach: a robot away from the start moves there first (a quintic joint move at 20 % of its
+            limits, :meth:`~robointel.interface.Backend.move_to`); False: such a trajectory is refused.
 
     Returns:
         The :class:`~robointel.interface.ExecutionResult`.
@@ -38,6 +40,13 @@ def run_on_robot(trajectory: Trajectory, url: str, record: Path | None, console:
     kw: dict[str, Any] = dict(sim_kwargs or {}, q0=trajectory.q[0]) if url == "sim" else {}
     try:
         with open_robot(url, recorder=rec, **kw) as robot:
+            st = robot.state()
+            here = st.q_cmd if st.q_cmd is not None else st.q
+            gap = float(np.max(np.abs(here - trajectory.q[0])))
+            if approach and gap > 1e-6:
+                with console.status(f"moving to the trajectory's start ({np.degrees(gap):.1f} deg away)"):
+                    move = robot.move_to(trajectory.q[0])
+                console.print(f"at the start after {len(move.q_cmd) * robot.period:.1f} s")
             cycles = int(np.ceil(trajectory.duration / robot.period)) + 1
             with Progress(TextColumn("executing on " + url.split("?")[0]), BarColumn(), TimeRemainingColumn(),
                           console=console) as bar:

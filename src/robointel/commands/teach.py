@@ -14,6 +14,7 @@ from rich.console import Console
 from rich.table import Table
 
 from robointel.commands.failure import fail
+from robointel.commands.robot_run import run_on_robot
 from robointel.errors import RobointelError
 from robointel.interface import Backend, open_robot
 from robointel.io.mcap_log import McapRecorder
@@ -72,8 +73,14 @@ def register(app: typer.Typer) -> None:
                                                           "(e.g. Ges01_wavehand) or 'synthetic'"),
                 scara: bool = typer.Option(False, "--scara", help="also run dynamic imitation on the 2-link SCARA"),
                 out: Path = typer.Option(Path("imitation"), help="folder for the plots"),
-                latency: float = typer.Option(0.1, help="Kinect latency for the SCARA run [s]")) -> None:
+                latency: float = typer.Option(0.1, help="Kinect latency for the SCARA run [s]"),
+                robot_url: str = typer.Option("sim", "--robot", help="also execute the imitation on this robot: "
+                                              "'sim' (with --record) or 'fanuc://HOST[:RMI_PORT][?sm_port=N]'"),
+                record: Path = typer.Option(None, help="record the execution as a ROS 2 bag (.mcap)")) -> None:
         """Imitate a recorded human arm: LR Mate kinematic imitation (3.1) in MuJoCo, optionally the SCARA.
+
+        With ``--robot fanuc://...`` (or ``--record``) the jerk-limited joint reference is then
+        executed through the robot interface (the arm first moves to its start).
 
         The SCARA runs computed-torque LQ tracking (3.7)-(3.9): live with the Kinect latency, with and
         without delay compensation, and offline replay of the recording; writes plots.
@@ -97,6 +104,8 @@ def register(app: typer.Typer) -> None:
             console.print(f"TCP RMS to the scaled hand path: {run.tcp_rms * 1000:.1f} mm; "
                           f"unreachable frames: {int((~run.plan.reachable).sum())}; "
                           f"plot: {out / 'lrmate_imitation.png'}")
+            if robot_url != "sim" or record is not None:
+                run_on_robot(run.plan.trajectory, robot_url, record, console)
             if scara:
                 with console.status("SCARA LQ tracking in MuJoCo"):
                     ar, fitted_on = training_predictor(skel.source, latency=latency)

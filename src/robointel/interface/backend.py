@@ -18,6 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robointel.errors import ConnectionLost, ControllerFault, InvalidInput, UnsafeCommand
+from robointel.interface.approach import approach_trajectory
 from robointel.interface.gate import SafetyGate
 from robointel.interface.protocol import CycleCallback
 from robointel.interface.realtime import realtime_thread, sleep_until
@@ -265,6 +266,27 @@ class Backend:
         self.hold()
         # the state after each target is the one read before it went out: shift by one cycle
         return ExecutionResult(ts, path, np.vstack([qs[1:], self._read().q[None]]), cyc, missed, True)
+
+    def move_to(self, q_goal: npt.ArrayLike, *, fraction: float = 0.2) -> ExecutionResult:
+        """Bring the robot to ``q_goal`` (n,) rad by a quintic joint move at ``fraction`` of its limits.
+
+        The acceleration limit is the robot core's (3 x the speed limit per second).
+
+        Returns:
+            The :class:`ExecutionResult` of the move (an empty move when already there).
+
+        Raises:
+            InvalidInput: a bad goal or fraction. UnsafeCommand: the goal is outside the limits.
+            ControllerFault, ConnectionLost: as :meth:`execute`.
+        """
+        with self._lock:
+            self._refuse_if_stopped()
+            ref = self._last_cmd if self._last_cmd is not None else self._commanded()
+            here = self._read().q if ref is None else ref
+        self.gate.check(q_goal, None)  # inside the limits and finite
+        move = approach_trajectory(here, q_goal, self.gate.velocity_limit, 3.0 * self.gate.velocity_limit,
+                                   fraction=fraction, period=self.period, joint_names=self.joint_names)
+        return self.execute(move)
 
     def hold(self) -> None:
         """Hold the last commanded position; the stall watchdog disarms."""
