@@ -101,3 +101,18 @@ def test_keypoint_reproduction_executes_on_the_fanuc_emulator(tmp_path):
     assert "key points from" in output and "missed cycles" in output
     assert (tmp_path / "keypoints_s2.png").exists()
     assert topics[COMMAND] > 100 and topics[JOINT_STATES] == topics[COMMAND]
+
+
+def test_guide_on_fanuc_with_a_wrist_sensor_records_the_wrench(tmp_path):
+    from .test_ft_sensor import SimulatedNetFT
+
+    box = SimulatedNetFT(lambda t: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0])  # nobody pushes: the arm holds still
+    try:
+        output, q_end, topics = _run_on_fake(["guide", "--duration", "1", "--ft", f"netft://127.0.0.1:{box.port}"],
+                                             tmp_path, q0=np.array([0.0, 0.2, -0.3, 0.0, -0.8, 0.0]))
+    finally:
+        box.close()
+    assert "guided 125 cycles" in output
+    np.testing.assert_allclose(q_end, [0.0, 0.2, -0.3, 0.0, -0.8, 0.0], atol=1e-3)
+    assert topics[JOINT_STATES] == topics[COMMAND] == 125
+    assert 100 < topics[WRENCH] <= 125  # one per state with a fresh sensor reading
