@@ -235,15 +235,19 @@ def main() -> None:
     fake = EmulatorProcess()
     try:
         fan = _streaming_run(lambda: open_robot(fake.url), args.seconds)
+        n_fan = len(fake.call("violations"))
         peer = _peer_run(fake, args.seconds)
+        n_peer = len(fake.call("violations")) - n_fan
         est = _estop_run(fake)
     finally:
         violations = fake.close()
+    peer_violations = violations[n_fan:n_fan + n_peer]  # the bare driver's session (its close included)
+    violations = violations[:n_fan] + violations[n_fan + n_peer:]
     frmp, v2 = _frmp_run()
     sim = _streaming_run(lambda: SimRobot(paced=True, stall_periods=10), args.seconds)
     out.update({
         "fanuc_cycles": fan["cycles"], "fanuc_missed_cycles": fan["missed_cycles"],
-        "conformance_violations": len(violations) + len(v2),
+        "conformance_violations": len(violations) + len(v2), "peer_conformance_violations": len(peer_violations),
         "estop_to_last_command_ms": est["estop_to_last_command_ms"],
         "per_cycle_us": fan["per_cycle_us"],
         "peer_servo_j_per_cycle_us": peer["per_cycle_us"], "peer_missed_cycles": peer["missed_cycles"],
@@ -258,7 +262,7 @@ def main() -> None:
         "fanuc_core_timing": {k: fan["core"].get(k) for k in ("tx_count", "tick_count", "skipped_tick_windows",
                                                                "missed_rx_ticks", "tx_interval_p99_ms",
                                                                "tx_interval_max_ms", "double_send_guard")},
-        "violations": violations + v2,
+        "violations": violations + v2, "peer_violations": peer_violations,
     })
     print(json.dumps(out, indent=None if args.json else 1))
 
