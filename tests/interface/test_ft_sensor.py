@@ -24,7 +24,7 @@ class SimulatedNetFT:
     def __init__(self, wrench_of, status=0):
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
-        self.sock.settimeout(0.05)
+        self.sock.settimeout(0.002)  # the record rate: one per receive timeout
         self.port = self.sock.getsockname()[1]
         self.wrench_of, self.status = wrench_of, status
         self.started = threading.Event()
@@ -33,31 +33,22 @@ class SimulatedNetFT:
         self._th.start()
 
     def _run(self):
-        peer, seq, t0 = None, 0, None
+        peer, seq, t0 = None, 0, 0.0
         while not self._stop.is_set():
             try:
                 data, addr = self.sock.recvfrom(64)
                 header, cmd, _ = struct.unpack(">HHI", data[:8])
-                if header == 0x1234 and cmd == 2:
+                if header == 0x1234 and cmd == 2:  # start real-time streaming
                     peer, t0 = addr, time.perf_counter()
                     self.started.set()
-                elif cmd == 0:
+                elif header == 0x1234 and cmd == 0:  # stop streaming
                     peer = None
-            except TimeoutError:
+            except (TimeoutError, OSError):
                 pass
-            while peer is not None and not self._stop.is_set():
-                w = np.asarray(self.wrench_of(time.perf_counter() - t0), float)
-                counts = np.round(w * CPF).astype(int).tolist()
+            if peer is not None:
+                counts = np.round(np.asarray(self.wrench_of(time.perf_counter() - t0), float) * CPF).astype(int)
                 seq += 1
-                self.sock.sendto(RDT_RECORD.pack(seq, seq, self.status, *counts), peer)
-                time.sleep(0.002)
-                try:
-                    data, _ = self.sock.recvfrom(64)
-                    if struct.unpack(">HHI", data[:8])[1] == 0:
-                        peer = None
-                except (TimeoutError, BlockingIOError):
-                    pass
-                self.sock.settimeout(0.0) if peer is not None else self.sock.settimeout(0.05)
+                self.sock.sendto(RDT_RECORD.pack(seq, seq, self.status, *counts.tolist()), peer)
 
     def close(self):
         self._stop.set()
