@@ -253,6 +253,11 @@ class FanucRobot(Backend):
         """
         if not isinstance(trajectory, Trajectory) or trajectory.q.shape[1] != self.n:
             raise InvalidInput(f"execute needs a Trajectory with {self.n} joints", value=trajectory)
+        with realtime_thread():  # entered (heap frozen) before the core starts playing
+            return self._play(trajectory, on_cycle)
+
+    def _play(self, trajectory: Trajectory, on_cycle: CycleCallback | None) -> ExecutionResult:
+        """Submit the checked knots to the core and supervise the playback (see :meth:`execute`)."""
         rs = trajectory.resample(self.period)
         times_ns = np.round((rs.t - rs.t[0]) * 1e9).astype(np.int64)
         with self._lock:
@@ -278,8 +283,7 @@ class FanucRobot(Backend):
             self._stall_check = False  # the core's deadman supervises this process during playback
             self._ensure_watchdog()
         try:
-            with realtime_thread():
-                return self._supervise(handle, rs, on_cycle)
+            return self._supervise(handle, rs, on_cycle)
         except ControllerFault:
             raise
         except BaseException as exc:  # on_cycle raised or the caller interrupted: the core must not play on
