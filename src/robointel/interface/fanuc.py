@@ -253,7 +253,7 @@ class FanucRobot(Backend):
         """
         if not isinstance(trajectory, Trajectory) or trajectory.q.shape[1] != self.n:
             raise InvalidInput(f"execute needs a Trajectory with {self.n} joints", value=trajectory)
-        with realtime_thread():  # entered (heap frozen) before the core starts playing
+        with realtime_thread():  # entered before the core starts playing
             return self._play(trajectory, on_cycle)
 
     def _play(self, trajectory: Trajectory, on_cycle: CycleCallback | None) -> ExecutionResult:
