@@ -12,10 +12,8 @@ measured in the same run.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import math
-import sys
 import threading
 import time
 
@@ -61,7 +59,7 @@ def _stream(send, targets, robot=None):
     and the rest of the path is shifted to start where the robot stopped.
     """
     from robointel.errors import ControllerFault
-    from robointel.interface.backend import sleep_until
+    from robointel.interface.realtime import sleep_until
 
     K = len(targets)
     cyc, late, missed, stalls = np.zeros(K), np.zeros(K), 0, []
@@ -115,24 +113,14 @@ def _streaming_run(make_robot, seconds, planner=True):
 FIFO = [True]
 
 
-@contextlib.contextmanager
 def _fifo():
-    """Run the calling (streaming) thread under SCHED_FIFO where allowed (--no-fifo: normal priority)."""
-    import os
+    """The streaming thread's real-time section (SCHED_FIFO 40 unless --no-fifo, gc.freeze, 0.5 ms switch)."""
+    from robointel.interface.realtime import realtime_thread
 
-    old = os.sched_getscheduler(0), os.sched_getparam(0)
-    try:
-        if FIFO[0]:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(40))
-    except (PermissionError, OSError):
-        pass
-    try:
-        yield
-    finally:
-        try:
-            os.sched_setscheduler(0, old[0], old[1])
-        except (PermissionError, OSError):
-            pass
+    return realtime_thread(40, fifo=FIFO[0], switch_interval=SWITCH[0])
+
+
+SWITCH = [0.0005]
 
 
 def _stats(us):
@@ -168,7 +156,7 @@ def _peer_run(url_fake, seconds):
 def _estop_run(fake):
     from robointel.errors import ControllerFault
     from robointel.interface import open_robot
-    from robointel.interface.backend import sleep_until
+    from robointel.interface.realtime import sleep_until
 
     robot = open_robot(fake.url)
     try:
@@ -233,25 +221,33 @@ def main() -> None:
     ap.add_argument("--fifo", action=argparse.BooleanOptionalAction, default=True,
                     help="stream from a SCHED_FIFO thread (needs CAP_SYS_NICE; else normal priority)")
     args = ap.parse_args()
-    sys.setswitchinterval(args.switch_interval)
-    FIFO[0] = args.fifo
+    FIFO[0], SWITCH[0] = args.fifo, args.switch_interval
+    import os
+
     from robointel.interface import open_robot
     from robointel.interface.sim import SimRobot
 
     out: dict = {"seconds": args.seconds, "streaming_thread_fifo": args.fifo, "period_ms": PERIOD * 1e3,
-                 "switch_interval_s": sys.getswitchinterval()}
+                 "switch_interval_s": args.switch_interval,
+                 "process_policy": {os.SCHED_OTHER: "SCHED_OTHER", os.SCHED_RR: "SCHED_RR",
+                                    os.SCHED_FIFO: "SCHED_FIFO"}.get(os.sched_getscheduler(0), "other"),
+                 "process_nice": os.nice(0), "load_avg_1min_at_start": os.getloadavg()[0]}
     fake = EmulatorProcess()
     try:
         fan = _streaming_run(lambda: open_robot(fake.url), args.seconds)
+        n_fan = len(fake.call("violations"))
         peer = _peer_run(fake, args.seconds)
+        n_peer = len(fake.call("violations")) - n_fan
         est = _estop_run(fake)
     finally:
         violations = fake.close()
+    peer_violations = violations[n_fan:n_fan + n_peer]  # the bare driver's session (its close included)
+    violations = violations[:n_fan] + violations[n_fan + n_peer:]
     frmp, v2 = _frmp_run()
     sim = _streaming_run(lambda: SimRobot(paced=True, stall_periods=10), args.seconds)
     out.update({
         "fanuc_cycles": fan["cycles"], "fanuc_missed_cycles": fan["missed_cycles"],
-        "conformance_violations": len(violations) + len(v2),
+        "conformance_violations": len(violations) + len(v2), "peer_conformance_violations": len(peer_violations),
         "estop_to_last_command_ms": est["estop_to_last_command_ms"],
         "per_cycle_us": fan["per_cycle_us"],
         "peer_servo_j_per_cycle_us": peer["per_cycle_us"], "peer_missed_cycles": peer["missed_cycles"],
@@ -266,7 +262,7 @@ def main() -> None:
         "fanuc_core_timing": {k: fan["core"].get(k) for k in ("tx_count", "tick_count", "skipped_tick_windows",
                                                                "missed_rx_ticks", "tx_interval_p99_ms",
                                                                "tx_interval_max_ms", "double_send_guard")},
-        "violations": violations + v2,
+        "violations": violations + v2, "peer_violations": peer_violations,
     })
     print(json.dumps(out, indent=None if args.json else 1))
 

@@ -17,7 +17,7 @@ from rich.progress import Progress
 from rich.table import Table
 
 from robointel.commands.failure import fail
-from robointel.commands.robot_run import guide_on_robot
+from robointel.commands.robot_run import guide_on_robot, run_on_robot
 from robointel.errors import RobointelError
 from robointel.programming.guidance import METHODS
 from robointel.programming.keypoints import plot_reproduction, reproduce_path
@@ -31,7 +31,7 @@ METHOD_HELP = ("qp: relaxed QP (4.11); equality: (4.10); repulsive: repulsive ve
 
 
 def register(app: typer.Typer) -> None:
-    """Add the ``guide`` command to ``app``.
+    """Add the ``guide`` and ``keypoints`` commands to ``app``.
 
     Args:
         app: The top-level typer application.
@@ -45,6 +45,8 @@ def register(app: typer.Typer) -> None:
               physics: bool = typer.Option(True, help="MuJoCo with the F/T sensor in the loop (else kinematic)"),
               robot: str = typer.Option("sim", help="'sim' (the scenario) or 'fanuc://HOST': guide the arm by hand"),
               record: Path = typer.Option(None, help="with --robot fanuc://...: record the run as a ROS 2 bag (.mcap)"),
+              ft: str = typer.Option(None, "--ft", help="with --robot fanuc://...: the wrist F/T sensor, "
+                                                        "netft://HOST[:PORT][?cpf=COUNTS&cpt=COUNTS] (ATI RDT)"),
               ) -> None:
         """Run a guidance scenario with a simulated operator and write Fig. 4.6b-style plots."""
         console = Console()
@@ -54,7 +56,7 @@ def register(app: typer.Typer) -> None:
             fail(f"--duration must be a positive number of simulated seconds, got {duration}")
         if robot != "sim":  # lead-through on a real arm through the robot interface (issue 14)
             try:
-                guide_on_robot(robot, record, duration or 30.0, method, console)
+                guide_on_robot(robot, record, duration or 30.0, method, console, ft=ft)
             except RobointelError as exc:
                 fail(exc)
             return
@@ -82,6 +84,48 @@ def register(app: typer.Typer) -> None:
             t.add_row(k, f"{m[k]:.4g}")
         console.print(t)
         console.print(f"plot: [bold]{png}[/bold]")
+
+    @app.command()
+    def keypoints(scenario_id: int = typer.Option(2, "--scenario", "-s", help="Table 4.1 scenario whose guided path "
+                                                                               "is reproduced: 1, 2 or 3"),
+                  method: str = typer.Option("qp", "--method", "-m", help=METHOD_HELP),
+                  duration: float = typer.Option(None, help="guide for this many seconds (default: the whole path)"),
+                  tolerance: float = typer.Option(0.01, help="key-point (RDP) tolerance, m"),
+                  speed: float = typer.Option(0.15, help="TCP speed of the reproduction, m/s"),
+                  out: Path = typer.Option(Path("robointel-keypoints"), help="output folder for the plot"),
+                  robot: str = typer.Option("sim", help="execute on 'sim' or 'fanuc://HOST[:RMI_PORT][?sm_port=N]'"),
+                  record: Path = typer.Option(None, help="record the execution as a ROS 2 bag (.mcap)")) -> None:
+        """Reproduce a guided path from its key points (Figs. 3.11-3.12) and execute it on the robot.
+
+        The path is guided kinematically (the scenario's simulated operator, guidance ``method``),
+        reduced to key points, blended into a joint trajectory and executed through the robot
+        interface (the arm first moves to the path's start).
+        """
+        console = Console()
+        if scenario_id not in (1, 2, 3):
+            fail(f"--scenario must be 1, 2 or 3 (Table 4.1), got {scenario_id}")
+        if method not in METHODS:
+            fail(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
+        for name, v in (("--tolerance", tolerance), ("--speed", speed)) + ((("--duration", duration),)
+                                                                          if duration is not None else ()):
+            if not (np.isfinite(v) and v > 0):
+                fail(f"{name} must be a positive number, got {v}")
+        try:
+            with console.status(f"guiding scenario {scenario_id} ({method}, kinematic)"):
+                res = run_scenario(scenario_id, method, duration=duration, physics=False)
+            lr = Robot.load("lrmate200id7l")
+            rot = np.array([lr.fk(q)[:3, :3] for q in res.q])
+            rep = reproduce_path(lr, res.t, res.tcp, res.q[0], rotations=rot, tolerance=tolerance, speed=speed)
+            console.print(f"{len(rep.keypoints)} key points from {len(res.t)} samples; reproduced path within "
+                          f"{rep.path_error * 1e3:.1f} mm of the guided one; {rep.trajectory.duration:.2f} s")
+            wc = {"workcell": Workcell(lr, obstacles=[scenario(scenario_id).obstacle], ft_sensor=False)}
+            ex = run_on_robot(rep.trajectory, robot, record, console, sim_kwargs=wc)
+        except RobointelError as exc:
+            fail(exc)
+        out.mkdir(parents=True, exist_ok=True)
+        tcp = np.array([lr.fk(q)[:3, 3] for q in ex.q])
+        img = plot_reproduction(res.tcp, rep, out / f"keypoints_s{scenario_id}.png", executed=tcp)
+        console.print(f"plot: [bold]{img}[/bold]")
 
 
 def _reproduce(res: ScenarioResult, out: Path) -> tuple[list[Figure], Path]:

@@ -17,16 +17,18 @@ from robointel.trajectory import Trajectory
 
 
 def run_on_robot(trajectory: Trajectory, url: str, record: Path | None, console: Console, *,
-                 sim_kwargs: dict[str, Any] | None = None) -> ExecutionResult:
+                 sim_kwargs: dict[str, Any] | None = None, approach: bool = True) -> ExecutionResult:
     """Execute ``trajectory`` on the robot at ``url`` with a progress bar, recording to ``record``.
 
     Args:
-        trajectory: the trajectory (rad); the robot must already be at its start (``fanuc``), the
-            simulation is reset there (``sim``).
+        trajectory: the trajectory (rad); the simulation is reset at its start (``sim``), a real
+            robot is first brought there (``approach``).
         url: ``"sim"`` or ``"fanuc://HOST[:RMI_PORT][?sm_port=N]"``.
         record: ``.mcap`` file to record the run to, or None.
         console: rich console for the progress bar and the summary.
         sim_kwargs: extra arguments of :class:`~robointel.interface.sim.SimRobot` (e.g. a workcell).
+        approach: a robot away from the start moves there first (a quintic joint move at 20 % of its
+            limits, :meth:`~robointel.interface.Backend.move_to`); False: such a trajectory is refused.
 
     Returns:
         The :class:`~robointel.interface.ExecutionResult`.
@@ -38,6 +40,13 @@ def run_on_robot(trajectory: Trajectory, url: str, record: Path | None, console:
     kw: dict[str, Any] = dict(sim_kwargs or {}, q0=trajectory.q[0]) if url == "sim" else {}
     try:
         with open_robot(url, recorder=rec, **kw) as robot:
+            st = robot.state()
+            here = st.q_cmd if st.q_cmd is not None else st.q
+            gap = float(np.max(np.abs(here - trajectory.q[0])))
+            if approach and gap > 1e-6:
+                with console.status(f"moving to the trajectory's start ({np.degrees(gap):.1f} deg away)"):
+                    move = robot.move_to(trajectory.q[0])
+                console.print(f"at the start after {len(move.q_cmd) * robot.period:.1f} s")
             cycles = int(np.ceil(trajectory.duration / robot.period)) + 1
             with Progress(TextColumn("executing on " + url.split("?")[0]), BarColumn(), TimeRemainingColumn(),
                           console=console) as bar:
@@ -57,7 +66,8 @@ def run_on_robot(trajectory: Trajectory, url: str, record: Path | None, console:
     return res
 
 
-def guide_on_robot(url: str, record: Path | None, duration: float, method: str, console: Console) -> None:
+def guide_on_robot(url: str, record: Path | None, duration: float, method: str, console: Console, *,
+                   ft: str | None = None) -> None:
     """Lead-through on the robot at ``url`` for ``duration`` s (guidance ``method``), with a progress bar.
 
     Args:
@@ -66,6 +76,8 @@ def guide_on_robot(url: str, record: Path | None, duration: float, method: str, 
         duration: How long to guide, s.
         method: Guidance method (``qp``, ``equality``, ``repulsive`` or ``nullspace``).
         console: Where the progress bar and the summary are printed.
+        ft: ``netft://HOST[:PORT]``: the wrist F/T sensor of a ``fanuc`` robot (None: the
+            controller's own force telemetry, if any).
 
     Raises:
         RobointelError: no F/T wrench from the robot, a fault, a bad URL or method.
@@ -74,7 +86,7 @@ def guide_on_robot(url: str, record: Path | None, duration: float, method: str, 
     cfg = GuidanceConfig(method=method)
     rec = McapRecorder(record, list(robot.joint_names)) if record is not None else None
     try:
-        with open_robot(url, recorder=rec) as arm:
+        with open_robot(url, recorder=rec, **({"ft_sensor": ft} if ft is not None else {})) as arm:
             cycles = int(round(duration / arm.period))
             with Progress(TextColumn("guiding " + url.split("?")[0]), BarColumn(), TimeRemainingColumn(),
                           console=console) as bar:

@@ -14,7 +14,10 @@ from rich.console import Console
 from rich.table import Table
 
 from robointel.commands.failure import fail
+from robointel.commands.robot_run import run_on_robot
 from robointel.errors import RobointelError
+from robointel.interface import Backend, open_robot
+from robointel.io.mcap_log import McapRecorder
 from robointel.io.reference import data_path
 from robointel.programming.imitation import kinematic_imitation, plot_imitation, simulate_imitation
 from robointel.programming.scara import (
@@ -71,8 +74,14 @@ def register(app: typer.Typer) -> None:
                                                           "(e.g. Ges01_wavehand) or 'synthetic'"),
                 scara: bool = typer.Option(False, "--scara", help="also run dynamic imitation on the 2-link SCARA"),
                 out: Path = typer.Option(Path("imitation"), help="folder for the plots"),
-                latency: float = typer.Option(0.1, help="Kinect latency for the SCARA run [s]")) -> None:
+                latency: float = typer.Option(0.1, help="Kinect latency for the SCARA run [s]"),
+                robot_url: str = typer.Option("sim", "--robot", help="also execute the imitation on this robot: "
+                                              "'sim' (with --record) or 'fanuc://HOST[:RMI_PORT][?sm_port=N]'"),
+                record: Path = typer.Option(None, help="record the execution as a ROS 2 bag (.mcap)")) -> None:
         """Imitate a recorded human arm: LR Mate kinematic imitation (3.1) in MuJoCo, optionally the SCARA.
+
+        With ``--robot fanuc://...`` (or ``--record``) the jerk-limited joint reference is then
+        executed through the robot interface (the arm first moves to its start).
 
         The SCARA runs computed-torque LQ tracking (3.7)-(3.9): live with the Kinect latency, with and
         without delay compensation, and offline replay of the recording; writes plots.
@@ -96,6 +105,8 @@ def register(app: typer.Typer) -> None:
             console.print(f"TCP RMS to the scaled hand path: {run.tcp_rms * 1000:.1f} mm; "
                           f"unreachable frames: {int((~run.plan.reachable).sum())}; "
                           f"plot: {out / 'lrmate_imitation.png'}")
+            if robot_url != "sim" or record is not None:
+                run_on_robot(run.plan.trajectory, robot_url, record, console)
             if scara:
                 with console.status("SCARA LQ tracking in MuJoCo"):
                     ar, fitted_on = training_predictor(skel.source, latency=latency)
@@ -140,10 +151,15 @@ def register(app: typer.Typer) -> None:
                stream_port: int = typer.Option(8765, help="port of the WebSocket streaming interface"),
                token: str = typer.Option(None, help="shared secret, required for non-loopback binds"),
                program: Path = typer.Option(Path("teleop_program.yaml"), help="where 'Save program' writes"),
-               duration: float = typer.Option(0.0, help="stop after this many seconds (0: until Ctrl-C)")) -> None:
+               duration: float = typer.Option(0.0, help="stop after this many seconds (0: until Ctrl-C)"),
+               robot: str = typer.Option("sim", help="'sim' or 'fanuc://HOST[:RMI_PORT][?sm_port=N]': the robot "
+                                                     "the stream drives (through the robot interface)"),
+               record: Path = typer.Option(None, help="record the run as a ROS 2 bag (.mcap)")) -> None:
         """Serve the teleoperation page (viser) and the robot streaming interface (WebSocket).
 
-        Both drive the simulated LR Mate; programs saved from the page load with `robointel plan`.
+        Both drive the LR Mate: the 1 kHz simulated cell by default, or with ``--robot`` (or
+        ``--record``) the robot interface at its controller period (``sim`` or a FANUC controller).
+        Programs saved from the page load with `robointel plan`.
         """
         for opt, p in (("--port", port), ("--stream-port", stream_port)):
             if not 1 <= p <= 65535:
@@ -152,13 +168,22 @@ def register(app: typer.Typer) -> None:
             fail(f"--port and --stream-port must differ, both are {port}")
         if not np.isfinite(duration) or duration < 0:
             fail(f"--duration must be >= 0 s (0: until Ctrl-C), got {duration}")
+        iface, rec = None, None
         try:
-            ctrl = StreamingController()
+            if robot != "sim" or record is not None:
+                lr = Robot.load("lrmate200id7l")
+                rec = McapRecorder(record, list(lr.joint_names)) if record is not None else None
+                kw = {"q0": TELEOP_START} if robot == "sim" else {}
+                iface = open_robot(robot, recorder=rec, **kw)
+                ctrl = StreamingController(lr, interface=iface)
+            else:
+                ctrl = StreamingController()
             srv = StreamingServer(ctrl, host=host, port=stream_port, token=token)
             page = TeleopApp(ctrl, host=host, port=port, program_path=program, token=token)
             srv.start()
             page.start()
         except RobointelError as exc:
+            _close_robot(iface, rec)
             fail(exc)
         console.print(f"teleoperation page: [bold]{page.url}[/bold]   streaming interface: [bold]{srv.url}[/bold]")
         try:
@@ -170,7 +195,24 @@ def register(app: typer.Typer) -> None:
         finally:
             page.stop()
             srv.stop()
-            console.print("stopped")
+            fault = ctrl.fault
+            _close_robot(iface, rec)
+            console.print("stopped" + (f" (the robot faulted: {fault})" if fault else "")
+                          + (f"; recorded to {record}" if record is not None else ""))
+
+
+TELEOP_START = np.array([0.0, 0.0, 0.0, 0.0, -np.pi / 2, 0.0])
+"""Where the simulated LR Mate starts for teleoperation, rad (the streaming controller's ready pose)."""
+
+
+def _close_robot(iface: Backend | None, rec: McapRecorder | None) -> None:
+    """Release the robot interface and write the recording (either may be None)."""
+    try:
+        if iface is not None:
+            iface.close()
+    finally:
+        if rec is not None:
+            rec.close()
 
 
 def demo_stage(ctx: StageContext) -> StageResult:

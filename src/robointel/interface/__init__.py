@@ -5,12 +5,19 @@
 - :func:`open_robot` -- ``open_robot("sim")`` or ``open_robot("fanuc://HOST")``.
 - :class:`SafetyGate` -- the one check every command passes (limits, NaN, per-period jump).
 - :class:`RobotState`, :class:`RobotMode`, :class:`ExecutionResult`.
+- :func:`realtime_thread`, :func:`sleep_until` -- the streaming thread's real-time section and wait.
+- :class:`NetFTSensor`, :class:`WrenchSource` -- a wrist F/T sensor beside a FANUC controller.
+- :func:`approach_trajectory` -- the quintic move to a trajectory's start (``Backend.move_to``).
 """
+from robointel.interface.approach import approach_trajectory
 from robointel.interface.backend import Backend, ExecutionResult, Recorder
+from robointel.interface.ft_sensor import NetFTSensor, WrenchSource
 from robointel.interface.gate import SafetyGate
 from robointel.interface.open import open_robot
 from robointel.interface.protocol import CycleCallback, RobotInterface
+from robointel.interface.realtime import realtime_thread, sleep_until
 from robointel.interface.state import RobotMode, RobotState
 
 __all__ = ["RobotInterface", "RobotState", "RobotMode", "SafetyGate", "Backend", "ExecutionResult", "Recorder",
-           "CycleCallback", "open_robot"]
+           "CycleCallback", "open_robot", "realtime_thread", "sleep_until", "NetFTSensor", "WrenchSource",
+           "approach_trajectory"]

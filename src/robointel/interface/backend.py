@@ -6,6 +6,7 @@ a command may go out lives here, once.
 """
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from collections.abc import Sequence
@@ -17,10 +18,17 @@ import numpy as np
 import numpy.typing as npt
 
 from robointel.errors import ConnectionLost, ControllerFault, InvalidInput, UnsafeCommand
+from robointel.interface.approach import approach_trajectory
 from robointel.interface.gate import SafetyGate
 from robointel.interface.protocol import CycleCallback
+from robointel.interface.realtime import realtime_thread, sleep_until
 from robointel.interface.state import RobotMode, RobotState
 from robointel.trajectory import Trajectory
+
+MONITOR_PERIODS = 5
+"""Without a stall watchdog, a backend that must be polled for faults is polled every this many periods."""
+
+__all__ = ["Backend", "ExecutionResult", "Recorder", "MONITOR_PERIODS", "sleep_until"]
 
 
 class Recorder(Protocol):
@@ -143,6 +151,11 @@ class Backend:
         """The controller period, s."""
         return self.gate.period
 
+    @property
+    def has_wrench(self) -> bool:
+        """True when :meth:`state` carries the F/T wrench (an F/T sensor on the wrist)."""
+        return False
+
     def state(self) -> RobotState:
         """The latest state (never raises)."""
         return self._read()
@@ -227,31 +240,53 @@ class Backend:
         K = len(path)
         ts, qs, cyc = np.zeros(K), np.zeros((K, self.n)), np.zeros(K)
         missed, done = 0, 0
-        t0 = time.perf_counter()
-        try:
-            for k in range(K):
-                if self.paced:
-                    sleep_until(t0 + k * self.period)
-                c0 = time.perf_counter()
-                st = self.stream(path[k])
-                c1 = time.perf_counter()
-                cyc[k] = (c1 - c0) * 1e6
-                if self.paced and c1 > t0 + (k + 1) * self.period:
-                    missed += 1
-                ts[k], qs[k] = st.t, st.q
-                done = k + 1
-                if on_cycle is not None:
-                    on_cycle(k, st)
-        except ControllerFault as exc:
-            res = ExecutionResult(ts[:done], path[:done], qs[:done], cyc[:done], missed, False)
-            exc.value = (exc.value, res)
-            raise
-        except BaseException:
-            self.hold()
-            raise
+        with realtime_thread() if self.paced else contextlib.nullcontext():  # paced: a real-time section
+            t0 = time.perf_counter()
+            try:
+                for k in range(K):
+                    if self.paced:
+                        sleep_until(t0 + k * self.period)
+                    c0 = time.perf_counter()
+                    st = self.stream(path[k])
+                    c1 = time.perf_counter()
+                    cyc[k] = (c1 - c0) * 1e6
+                    if self.paced and c1 > t0 + (k + 1) * self.period:
+                        missed += 1
+                    ts[k], qs[k] = st.t, st.q
+                    done = k + 1
+                    if on_cycle is not None:
+                        on_cycle(k, st)
+            except ControllerFault as exc:
+                res = ExecutionResult(ts[:done], path[:done], qs[:done], cyc[:done], missed, False)
+                exc.value = (exc.value, res)
+                raise
+            except BaseException:
+                self.hold()
+                raise
         self.hold()
         # the state after each target is the one read before it went out: shift by one cycle
         return ExecutionResult(ts, path, np.vstack([qs[1:], self._read().q[None]]), cyc, missed, True)
+
+    def move_to(self, q_goal: npt.ArrayLike, *, fraction: float = 0.2) -> ExecutionResult:
+        """Bring the robot to ``q_goal`` (n,) rad by a quintic joint move at ``fraction`` of its limits.
+
+        The acceleration limit is the robot core's (3 x the speed limit per second).
+
+        Returns:
+            The :class:`ExecutionResult` of the move (an empty move when already there).
+
+        Raises:
+            InvalidInput: a bad goal or fraction. UnsafeCommand: the goal is outside the limits.
+            ControllerFault, ConnectionLost: as :meth:`execute`.
+        """
+        with self._lock:
+            self._refuse_if_stopped()
+            ref = self._last_cmd if self._last_cmd is not None else self._commanded()
+            here = self._read().q if ref is None else ref
+        self.gate.check(q_goal, None)  # inside the limits and finite
+        move = approach_trajectory(here, q_goal, self.gate.velocity_limit, 3.0 * self.gate.velocity_limit,
+                                   fraction=fraction, period=self.period, joint_names=self.joint_names)
+        return self.execute(move)
 
     def hold(self) -> None:
         """Hold the last commanded position; the stall watchdog disarms."""
@@ -316,19 +351,31 @@ class Backend:
         return False
 
     def _watch_loop(self) -> None:
-        """Stop a stalled stream; poll the backend for faults while streaming.
+        """Stop a stalled stream (checking the backend for a fault first, to report the right cause).
 
-        Without fault polling the thread sleeps until the stall deadline (few wake-ups, little
-        contention with the streaming thread); with polling (``fanuc``) it wakes every period.
+        The thread sleeps until the stall deadline of the last command, so while targets arrive on
+        time it does not run at all: a watchdog woken every period would take the interpreter
+        lock (and the interface lock) every period, and when the scheduler preempts it while it
+        holds them, the streaming thread waits a whole scheduling latency. Each target's own
+        fault check (:meth:`stream`) covers faults while streaming; backends that must be polled
+        between commands (``fanuc``) are polled at the stall deadline, or every
+        :data:`MONITOR_PERIODS` periods without a stall watchdog.
         """
         period = self.period
-        timeout = period
+        limit = self.stall_periods * period if self.stall_periods is not None else MONITOR_PERIODS * period
+        timeout = limit
         while not self._watch_stop.wait(timeout):
-            timeout = period if self._needs_monitor() or self.stall_periods is None else self.stall_periods * period
-            with self._lock:
+            timeout = limit
+            if not self._lock.acquire(timeout=period):
+                continue  # a command (with its own fault check) is going out right now
+            try:
                 if self._closed:
                     return
                 if self._mode is not RobotMode.STREAMING:
+                    continue
+                gap = time.perf_counter() - self._last_cmd_wall
+                if gap < limit and self._stall_check:
+                    timeout = max(0.001, limit - gap + 0.1 * period)
                     continue
                 if self._needs_monitor():
                     fault = self._fault_of(self._read())
@@ -336,26 +383,11 @@ class Backend:
                         self._latch_fault(*fault)
                         continue
                 if self.stall_periods is not None and self._stall_check:
-                    gap = time.perf_counter() - self._last_cmd_wall
-                    if gap > self.stall_periods * period:
-                        self._halt()
-                        self._mode = RobotMode.STOPPED
-                        self._faults = ("stream_stalled",)
-                        self._why = (f"command stream stalled: no target for {gap * 1e3:.0f} ms "
-                                     f"(> {self.stall_periods} periods)")
-                        self._last_cmd = None
-                    elif not self._needs_monitor():
-                        timeout = max(0.001, self._last_cmd_wall + self.stall_periods * period - time.perf_counter()
-                                      + 0.1 * period)
-
-
-def sleep_until(deadline: float) -> None:
-    """Sleep until ``time.perf_counter() >= deadline`` (coarse sleep, then a short spin)."""
-    while True:
-        rem = deadline - time.perf_counter()
-        if rem <= 0:
-            return
-        if rem > 0.002:
-            time.sleep(rem - 0.0015)
-        else:
-            time.sleep(0)
+                    self._halt()
+                    self._mode = RobotMode.STOPPED
+                    self._faults = ("stream_stalled",)
+                    self._why = (f"command stream stalled: no target for {gap * 1e3:.0f} ms "
+                                 f"(> {self.stall_periods} periods)")
+                    self._last_cmd = None
+            finally:
+                self._lock.release()

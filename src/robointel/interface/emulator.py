@@ -3,12 +3,15 @@
 The emulator's status stream paces the driver's transmissions, so it must not share an interpreter
 lock with the process that streams to it: a delayed status burst makes the driver send twice in one
 window (a strict-conformance violation that is the test rig's, not the driver's). The child runs at
-``SCHED_FIFO`` where allowed, like the dedicated computer a controller is.
+``SCHED_FIFO`` where allowed, like the dedicated computer a controller is, with its start-up heap frozen
+(``gc.freeze``) and a 0.5 ms interpreter-lock switch interval.
 """
 from __future__ import annotations
 
+import gc
 import multiprocessing as mp
 import os
+import sys
 import time
 from multiprocessing.connection import Connection
 from types import TracebackType
@@ -29,6 +32,9 @@ def _serve(conn: Connection, q0_deg: list[float] | None) -> None:
         pass
     fake = FakeCRXController(FakeCRXConfig(strict=True), host="127.0.0.1", clock=WallClock(),
                              initial_q_deg=None if q0_deg is None else q0_deg + [0.0] * 3).start()
+    gc.collect()
+    gc.freeze()  # the emulator's status loop must not stall in a full collection of its start-up heap
+    sys.setswitchinterval(0.0005)
     fake.start_realtime()
     conn.send((fake.rmi_port, fake.sm_port))
     while True:

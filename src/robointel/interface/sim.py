@@ -54,6 +54,11 @@ class SimRobot(Backend):
         self._target = wc.hold_reference
         self._has_ft = getattr(wc, "_has_ft", False)
 
+    @property
+    def has_wrench(self) -> bool:
+        """True when the workcell has its wrist F/T sensor."""
+        return bool(self._has_ft)
+
     # ------------------------------------------------------------------ backend hooks
     def _send(self, q: npt.NDArray[np.float64]) -> None:
         prev = self._target

@@ -8,6 +8,7 @@ interface's safety gate to the robot (``sim`` or ``fanuc``).
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import time
 from collections.abc import Callable, Sequence
@@ -19,7 +20,8 @@ import numpy.typing as npt
 
 from robointel.control.payload import PayloadCompensation
 from robointel.errors import InvalidInput
-from robointel.interface.backend import Backend, sleep_until
+from robointel.interface.backend import Backend
+from robointel.interface.realtime import realtime_thread, sleep_until
 from robointel.programming.guidance import GuidanceConfig, GuidanceController, GuidanceStep
 
 
@@ -70,8 +72,8 @@ def lead_through(arm: Backend, robot: Any, duration: float, *, obstacles: Sequen
     """Guide ``arm`` by hand for ``duration`` seconds, one position target per controller period.
 
     Args:
-        arm: a robot interface whose state carries the F/T wrench (``sim``; a ``fanuc`` controller
-            with force telemetry).
+        arm: a robot interface whose state carries the F/T wrench (``sim``; ``fanuc`` with a wrist
+            F/T sensor, ``FanucRobot(ft_sensor=...)``); a missing reading holds the arm that period.
         robot: the :class:`robointel.robot.Robot` of the arm (kinematics, limits, collision spheres).
         duration: s.
         obstacles: :mod:`robointel.geometry` obstacles to avoid (world frame).
@@ -90,9 +92,10 @@ def lead_through(arm: Backend, robot: Any, duration: float, *, obstacles: Sequen
     if not (np.isfinite(duration) and duration > 0):
         raise InvalidInput(f"duration must be > 0 s, got {duration}", value=duration)
     st = arm.state()
-    if st.wrench is None:
+    if not arm.has_wrench:
         raise InvalidInput("this robot reports no F/T wrench (no sensor, or a controller without force telemetry, "
-                           "such as Stream Motion v3); lead-through needs one", value=st)
+                           "such as Stream Motion v3); lead-through needs one: give the wrist F/T sensor "
+                           "(FanucRobot(ft_sensor=...), or --ft netft://HOST on the command line)", value=st)
     cfg = dataclasses.replace(config or GuidanceConfig(), dt=arm.period)
     ctl = GuidanceController(robot, obstacles, cfg)
     K = int(round(duration / arm.period))
@@ -100,26 +103,27 @@ def lead_through(arm: Backend, robot: Any, duration: float, *, obstacles: Sequen
     out = LeadThroughResult(np.zeros(K), np.zeros((K, n)), np.zeros((K, n)), np.zeros((K, 6)), np.zeros(K),
                             np.zeros(K, dtype=bool))
     q_cmd = (st.q_cmd if st.q_cmd is not None else st.q).copy()
-    t0 = time.perf_counter()
-    try:
-        for k in range(K):
-            if arm.paced:
-                sleep_until(t0 + k * arm.period)
-            if step_world is not None:
-                step_world(k)
-            st = arm.state()
-            w = st.wrench if st.wrench is not None else np.full(6, np.nan)  # a lost reading holds
-            if payload is not None and st.wrench is not None:
-                R = robot.frame_pose(st.q, robot.flange_frame)[:3, :3]
-                w = payload.compensate(w, R)
-            ww = tcp_wrench(robot, st.q, w)
-            s = ctl.step(st.q, ww)
-            q_cmd = np.clip(q_cmd + s.qd * arm.period, robot.lower, robot.upper)
-            arm.stream(q_cmd)
-            out.t[k], out.q[k], out.q_cmd[k], out.wrench[k] = st.t, st.q, q_cmd, ww
-            out.distance[k], out.held[k] = s.distance, s.held
-            if on_cycle is not None:
-                on_cycle(k, s)
-    finally:
-        arm.hold()
+    with realtime_thread() if arm.paced else contextlib.nullcontext():  # paced: a real-time section
+        t0 = time.perf_counter()
+        try:
+            for k in range(K):
+                if arm.paced:
+                    sleep_until(t0 + k * arm.period)
+                if step_world is not None:
+                    step_world(k)
+                st = arm.state()
+                w = st.wrench if st.wrench is not None else np.full(6, np.nan)  # a lost reading holds
+                if payload is not None and st.wrench is not None:
+                    R = robot.frame_pose(st.q, robot.flange_frame)[:3, :3]
+                    w = payload.compensate(w, R)
+                ww = tcp_wrench(robot, st.q, w)
+                s = ctl.step(st.q, ww)
+                q_cmd = np.clip(q_cmd + s.qd * arm.period, robot.lower, robot.upper)
+                arm.stream(q_cmd)
+                out.t[k], out.q[k], out.q_cmd[k], out.wrench[k] = st.t, st.q, q_cmd, ww
+                out.distance[k], out.held[k] = s.distance, s.held
+                if on_cycle is not None:
+                    on_cycle(k, s)
+        finally:
+            arm.hold()
     return out

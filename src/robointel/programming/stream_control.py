@@ -33,6 +33,7 @@ import numpy.typing as npt
 
 from robointel.control import JerkLimitedFollower
 from robointel.errors import IKFailure, InvalidInput, RobointelError, SafetyStop, SolverFailure, TargetInCollision
+from robointel.interface.realtime import realtime_thread
 from robointel.programming.collision_guard import CollisionGuard
 from robointel.programming.stream_protocol import Rejected, flag, numbers, pose, sequence
 from robointel.robot import Robot
@@ -430,6 +431,10 @@ class StreamingController:
         self.stop_began, self.rest_at = time.perf_counter(), None
 
     def _loop(self) -> None:
+        with realtime_thread() if self.interface is not None else contextlib.nullcontext():
+            self._run_loop()
+
+    def _run_loop(self) -> None:
         t0 = time.perf_counter()
         done = 0
         while self._running:

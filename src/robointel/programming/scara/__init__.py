@@ -1,11 +1,12 @@
 """Dynamic imitation on a 2-link SCARA (Ch. 3.2, (3.2)-(3.9)).
 
 A human arm seen by the Kinect (:mod:`.angles`) drives the SCARA (``Robot.load("scara2")``) by
-computed torque around discrete LQ tracking (:mod:`.lq`); the Kinect's latency is compensated by a
+computed torque around discrete LQ tracking (:mod:`robointel.control.lq`); the Kinect's latency is compensated by a
 predictor (:mod:`.predictors`, :mod:`.ar_predictor`), the predicted signal is crossfaded
 (:mod:`.crossfade`) and made torque-feasible (:mod:`.feasible`) before the LQ; :mod:`.simulation`
 runs it all in MuJoCo with the settings of :mod:`.settings`; :mod:`.plot` draws Fig. 3.8.
 """
+from robointel.control.lq import ComputedTorqueLQ, double_integrator, lq_gain
 from robointel.programming.scara.angles import (
     arm_angles,
     arm_plane,
@@ -16,7 +17,6 @@ from robointel.programming.scara.angles import (
 from robointel.programming.scara.ar_predictor import ARPredictor, fit_predictor, training_predictor
 from robointel.programming.scara.crossfade import Transition, smoothstep
 from robointel.programming.scara.feasible import FeasibleReference, accel_limits
-from robointel.programming.scara.lq import ComputedTorqueLQ, double_integrator, lq_gain
 from robointel.programming.scara.metrics import delay_aligned_rms, delayed_copy_rms, required_torques
 from robointel.programming.scara.plot import plot_scara
 from robointel.programming.scara.predictors import HoldPredictor, KalmanPredictor, LinePredictor, Predictor

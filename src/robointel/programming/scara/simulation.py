@@ -18,12 +18,11 @@ from typing import Any
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from robointel.control import JerkLimitedFollower
+from robointel.control import ComputedTorqueLQ, JerkLimitedFollower
 from robointel.errors import InvalidInput
 from robointel.programming.scara.angles import human_reference, received_frames
 from robointel.programming.scara.crossfade import Transition
 from robointel.programming.scara.feasible import FeasibleReference
-from robointel.programming.scara.lq import ComputedTorqueLQ
 from robointel.programming.scara.predictors import HoldPredictor, KalmanPredictor, Predictor
 from robointel.programming.scara.settings import BLEND_FRAMES, ScaraSettings
 from robointel.programming.skeleton import Skeleton
