@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
+import tempfile
 import time
 import warnings
 from collections import Counter
@@ -26,13 +28,15 @@ from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
+from robointel.batch import ResultStore, TaskSpec, run_batch
+from robointel.batch.kinds.insertion import learned_skill
 from robointel.learning import grinding as G
 from robointel.learning import insertion as I
 from robointel.learning.datasets import lasa_names, load_ft, load_lasa
 from robointel.learning.ft_features import ft_episode_features
 from robointel.learning.gmr import GaussianMixtureRegression
 from robointel.learning.peer_checks import dtw_speed, gmr_agreement
-from robointel.learning.rltt import learn_insertion
+from robointel.outcome import TrialOutcome
 
 
 def lasa_rmse(*, n_components: int = 8, samples: int = 100, names: Sequence[str] | None = None) -> dict[str, Any]:
@@ -95,16 +99,15 @@ def main() -> None:
     task = I.PegHole()
     out["clearance_um"] = task.clearance * 1e6
     rng = np.random.default_rng(args.seed)
-    scene = I.HDDScene(task)
     t0 = time.perf_counter()
-    demos = [I.demonstrate(task, rng, scene=scene, name=f"demo_{i:02d}") for i in range(args.demos)]
+    # the batch kind's cache: the trials below (run_batch, in-process) use this very skill
+    demos, learned = learned_skill(args.demos, args.labelled, args.seed, rng=rng)
     out["demonstrations"] = len(demos)
     out["demonstrations_seated"] = int(sum(d.meta["seated"] for d in demos))
     out["demonstrations_used"] = out["demonstrations_seated"]  # the skill learns from the seated ones
     out["demonstration_recoveries"] = int(sum(d.meta["recoveries"] for d in demos))
-    out["demonstration_sim_s"] = time.perf_counter() - t0
+    out["demonstration_sim_s"] = time.perf_counter() - t0 - learned.timings["total"]
 
-    learned = learn_insertion(demos, n_labelled=args.labelled, centre=scene.tool.tip - scene.tool.radius)
     out["pipeline_s"] = learned.timings["total"]
     out["pipeline_timings_s"] = learned.timings
     e = learned.boundary_errors[np.isfinite(learned.boundary_errors)] * 1e3
@@ -114,8 +117,8 @@ def main() -> None:
     Xt = (Xs - learned.skill.x_mean_) / learned.skill.x_scale_
     out["gmr_max_abs_diff_vs_gmr"] = gmr_agreement(learned.skill.gmr, Xt[:: max(1, len(Xt) // 500)])
 
-    cell = I.RobotCell(task)
-    gains = I.ImpedanceGains(**json.loads(args.insertion_gains))
+    gains_json = json.loads(args.insertion_gains)
+    gains = I.ImpedanceGains(**gains_json)
     out["insertion_controller"] = ("torque-level Cartesian impedance (tau = J^T W + h(q, qd) + friction), no probe "
                                    "and no hole axis: the policy (GMR wrench -> tool twist, translation and rotation) "
                                    "moves the equilibrium and sets the axial speed")
@@ -124,24 +127,28 @@ def main() -> None:
     out["insertion_tuning_seeds"] = {"starts": [100], "demonstrations": [0]}
     starts = I.random_start_errors(np.random.default_rng(args.start_seed), args.trials)
     out["insertion_start_errors"] = {"lateral_mm": 2.0, "tilt_deg": 5.0}
-    policies = {"": learned.skill.predict, "_constant_push": I.ConstantPush(),
-                "_hand_tuned": I.HandTunedAdmittance(centre=cell.tool.tip - cell.tool.radius)}
-    res: dict[str, list] = {k: [] for k in [*policies, "_position_only"]}
-    for k, (lat, tilt) in enumerate(starts):
-        T0 = cell.start_pose(lat, tilt)
-        for name, pol in policies.items():
-            res[name].append(cell.insert(pol, T0, seed=k, gains=gains, time_limit=args.time_limit))
-        res["_position_only"].append(cell.insert_position_only(T0, seed=k, time_limit=args.time_limit))
+    common = {"start_seed": args.start_seed, "time_limit": args.time_limit}
+    skill = {"demos": args.demos, "labelled": args.labelled, "demo_seed": args.seed}
+    groups = {"": {"policy": "skill", **skill, "gains": gains_json}, "_constant_push": {"policy": "constant_push",
+              "gains": gains_json}, "_hand_tuned": {"policy": "hand_tuned", "gains": gains_json},
+              "_position_only": {"controller": "position"}}
+    specs = [TaskSpec("insertion", k, {"controller": "impedance", **common, **params}, category=name or "_skill")
+             for k in range(len(starts)) for name, params in groups.items()]
+    with tempfile.TemporaryDirectory() as folder:
+        run_batch(specs, folder, progress=sys.stderr.isatty() and not args.json)
+        rows = sorted(ResultStore(folder).rows(), key=lambda r: int(r["seed"]))
+    res: dict[str, list[TrialOutcome]] = {name: [TrialOutcome.from_record(r) for r in rows
+                                                 if r["category"] == (name or "_skill")] for name in groups}
     out["insertion_trials"] = len(starts)
     for name, rs in res.items():
         out[f"insertion_success{name}"] = int(sum(r.success for r in rs))
-        out[f"insertion_failures{name}"] = dict(Counter(r.outcome.reason.value for r in rs if not r.success))
+        out[f"insertion_failures{name}"] = dict(Counter(r.reason.value for r in rs if not r.success))
     ok = [r for r in res[""] if r.success]
-    out["insertion_time_s_median"] = float(np.median([r.time for r in ok])) if ok else None
-    out["insertion_max_penetration_um"] = float(max(r.max_penetration for r in res[""]) * 1e6)
+    out["insertion_time_s_median"] = float(np.median([r.figures["time_s"] for r in ok])) if ok else None
+    out["insertion_max_penetration_um"] = float(max(r.figures["max_penetration_m"] for r in res[""]) * 1e6)
     tilts = np.degrees([s[1][1] for s in starts])
 
-    def by_tilt(rs: list) -> dict:
+    def by_tilt(rs: list[TrialOutcome]) -> dict:
         bins = ((0, 1), (1, 2), (2, 3), (3, 4), (4, 5.01))
         return {f"{lo:.0f}-{hi:.0f}deg": f"{sum(r.success for r, t in zip(rs, tilts) if lo <= t < hi)}/"
                                          f"{sum(1 for t in tilts if lo <= t < hi)}" for lo, hi in bins}
@@ -153,7 +160,7 @@ def main() -> None:
     bad = I.RobotCell(task, interference=20e-6)
     inserted = 0
     for k, (lat, tilt) in enumerate(starts[: args.interference_trials]):
-        inserted += bool(bad.insert(learned.skill.predict, bad.start_pose(lat, tilt), seed=k, gains=gains,
+        inserted += bool(bad.insert(learned.skill.policy(), bad.start_pose(lat, tilt), seed=k, gains=gains,
                                     time_limit=args.time_limit).seated)
     for force in (50.0, 150.0, 300.0):
         inserted += bool(I.press_test(task, interference=20e-6, force=force).inserted)

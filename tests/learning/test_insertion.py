@@ -62,3 +62,11 @@ def test_demonstration_phases_and_skill_with_rotation(task):
     # the skill outputs rotation as well as translation: its outputs vary with the wrench in wx, wy
     W = d.wrench[ins][:: 20]
     assert np.ptp(skill.predict(W)[:, 3:5], axis=0).min() > 0
+
+
+def test_steel_contact_has_a_hertz_patch_torsional_friction(task):
+    # MuJoCo's default torsional friction (5 mm) would resist spinning a 400 N wedge contact with 2 N m
+    scene = HDDScene(task)
+    m = scene.model
+    peg = m.geom("peg/peg").id
+    assert 1e-5 <= m.geom_friction[peg, 1] <= 1e-4 and m.geom_condim[peg] == 4

@@ -31,20 +31,22 @@ class Contact:
     """Stiff contact settings for tight fits (Sec.
 
     5.5): MuJoCo ``solref`` (time constant, damping ratio), ``solimp`` (dmin, dmax, width (m), midpoint, power),
-    friction coefficient, zero margin. The impedance width must stay below the radial clearance so that the peg
-    cannot sink into the wall by more than a fraction of the gap.
+    friction coefficient, torsional friction (m: torque per unit normal force), zero margin. The impedance width
+    must stay below the radial clearance so that the peg cannot sink into the wall by more than a fraction of the
+    gap.
     """
 
     solref: tuple[float, float] = (0.002, 1.0)
     solimp: tuple[float, float, float, float, float] = (0.9999, 0.99999, 5e-6, 0.5, 2.0)
     friction: float = 0.2
     margin: float = 0.0
+    torsional: float = 0.005
 
     def apply(self, geom: Any) -> None:
         """Set these parameters on an ``MjsGeom``."""
         geom.solref = list(self.solref)
         geom.solimp = list(self.solimp)
-        geom.friction = [self.friction, 0.005, 0.0001]
+        geom.friction = [self.friction, self.torsional, 0.0001]
         geom.margin = self.margin
         geom.gap = 0.0
         geom.condim = 4  # sliding + torsional friction (elliptic cone)

@@ -7,7 +7,10 @@ the stiff joint servo along the tool axis, :meth:`RobotCell.insert_position_only
 ``skill``: the GMR skill learned from ``demos`` [20] seeded demonstrations, ``labelled`` [10] of them
 labelled, demonstration seed ``demo_seed`` [0]), ``gains`` [{}] (:class:`ImpedanceGains` fields),
 ``interference`` [0] (m), ``time_limit`` [10] (s), ``lateral`` [0.002] (m) and ``max_tilt_deg`` [5]:
-the start error is drawn from the task seed by :func:`random_start_errors`.
+the start error is drawn from the task seed by :func:`random_start_errors`. With ``start_seed`` the
+start is instead the ``seed``-th of ``random_start_errors(default_rng(start_seed), seed + 1)``: the
+start list of ``benchmarks/rltt.py`` (one generator for all trials), with the sensor noise seeded by
+``seed`` as there.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import numpy as np
 from robointel.batch.registry import TrialKind
 from robointel.batch.spec import TaskSpec
 from robointel.errors import InvalidInput
+from robointel.learning.demonstration import Demonstration
 from robointel.learning.insertion import (
     ConstantPush,
     HandTunedAdmittance,
@@ -31,10 +35,10 @@ from robointel.learning.insertion import (
     demonstrate,
     random_start_errors,
 )
-from robointel.learning.rltt import learn_insertion
+from robointel.learning.rltt import LearnedInsertion, learn_insertion
 from robointel.outcome import TrialOutcome
 
-__all__ = ["insertion_category", "insertion_trial"]
+__all__ = ["insertion_category", "insertion_trial", "learned_skill"]
 
 CONTROLLERS = ("impedance", "position")
 POLICIES = ("constant_push", "hand_tuned", "skill")
@@ -46,15 +50,39 @@ def _cell(interference: float) -> RobotCell:
     return RobotCell(PegHole(), interference=interference)
 
 
-@lru_cache(maxsize=2)
+_LEARNED: dict[tuple[int, int, int], tuple[list[Demonstration], LearnedInsertion]] = {}
+
+
+def learned_skill(demos: int, labelled: int, demo_seed: int, *,
+                  rng: np.random.Generator | None = None) -> tuple[list[Demonstration], LearnedInsertion]:
+    """The demonstrations and the skill learned from them, made once per process for these arguments.
+
+    The benchmark calls this too, so its figures and the batch trials share one skill.
+
+    Args:
+        demos: Number of demonstrations by the scripted person.
+        labelled: How many of the first ones carry hand labels.
+        demo_seed: Seed of the demonstrations' generator.
+        rng: The generator to draw them from (default ``default_rng(demo_seed)``); a caller that goes on
+            drawing from it passes a fresh ``default_rng(demo_seed)`` (used only when nothing is cached yet).
+
+    Returns:
+        The demonstrations and the learned insertion (skill, segmenter, timings).
+    """
+    key = (demos, labelled, demo_seed)
+    if key not in _LEARNED:
+        task = PegHole()
+        gen = rng if rng is not None else np.random.default_rng(demo_seed)
+        scene = HDDScene(task)
+        ds = [demonstrate(task, gen, scene=scene, name=f"demo_{i:02d}") for i in range(demos)]
+        _LEARNED.clear()  # one skill per process at a time
+        _LEARNED[key] = ds, learn_insertion(ds, n_labelled=labelled, centre=scene.tool.tip - scene.tool.radius)
+    return _LEARNED[key]
+
+
 def _skill(demos: int, labelled: int, demo_seed: int) -> Policy:
-    """The insertion skill learned from ``demos`` seeded demonstrations (once per process)."""
-    task = PegHole()
-    rng = np.random.default_rng(demo_seed)
-    scene = HDDScene(task)
-    ds = [demonstrate(task, rng, scene=scene, name=f"demo_{i:02d}") for i in range(demos)]
-    learned = learn_insertion(ds, n_labelled=labelled, centre=scene.tool.tip - scene.tool.radius)
-    return learned.skill.predict  # type: ignore[no-any-return]
+    """The learned skill's policy (wrench -> tool twist)."""
+    return learned_skill(demos, labelled, demo_seed)[1].skill.policy()
 
 
 def insertion_category(spec: TaskSpec) -> str:
@@ -94,8 +122,12 @@ def insertion_trial(spec: TaskSpec) -> TrialOutcome:
         pol = HandTunedAdmittance(centre=cell.tool.tip - cell.tool.radius)
     else:
         pol = ConstantPush()
-    lateral, tilt = random_start_errors(np.random.default_rng(spec.seed), 1, lateral=float(p.get("lateral", 2e-3)),
-                                        max_tilt=np.radians(float(p.get("max_tilt_deg", 5.0))))[0]
+    bounds = {"lateral": float(p.get("lateral", 2e-3)), "max_tilt": np.radians(float(p.get("max_tilt_deg", 5.0)))}
+    if "start_seed" in p:
+        rng = np.random.default_rng(int(p["start_seed"]))
+        lateral, tilt = random_start_errors(rng, spec.seed + 1, **bounds)[spec.seed]
+    else:
+        lateral, tilt = random_start_errors(np.random.default_rng(spec.seed), 1, **bounds)[0]
     T0 = cell.start_pose(lateral, tilt)
     t1 = time.perf_counter()
     limit = float(p.get("time_limit", 10.0))

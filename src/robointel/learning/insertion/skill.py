@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -125,3 +125,7 @@ class InsertionSkill:
         y = np.clip(y, self.y_lo_, self.y_hi_)
         return y[0] if one else y
 
+
+    def policy(self) -> Callable[[npt.NDArray[np.float64]], npt.NDArray[np.float64]]:
+        """A policy for one trial (wrench (6,) -> twist (5,)): :meth:`predict` on one wrench."""
+        return self.predict  # type: ignore[return-value]
