@@ -14,11 +14,13 @@ from functools import lru_cache
 import numpy as np
 
 from robointel.errors import CollisionAtStart, IKFailure, InfeasibleProblem, InvalidInput, RobointelError
+from robointel.learning.grasp import ParallelGripper
 from robointel.learning.grasp.pipeline import lrmate_with_gripper
 from robointel.planning.frmp import check_trajectory, plan_scene, planner_settings
 from robointel.planning.scene import Scene
 from robointel.planning.trajectory import TrajectoryPlanner
 from robointel.program.format import Program, Step, Target
+from robointel.program.motion import CellPlanner, gripper_geometry
 from robointel.programming.keypoints import blended_trajectory, joint_velocity_reference
 from robointel.robot import Robot
 from robointel.trajectory import Trajectory
@@ -237,6 +239,9 @@ def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
     planners = _Planners(scene)
     checker = planners.checker()
     plans: list[StepPlan] = [StepPlan(q, q) for _ in range(start)]
+    # a program with objects runs on the gripper cell: its moves are planned with the gripper on the flange
+    tool = gripper_geometry(ParallelGripper()) if program.objects else []
+    cell_planner = CellPlanner(scene) if tool else None
     known = True  # the configuration at the step's start is known (no grasp/place before it)
     for i in range(start, len(program.steps)):
         step = program.steps[i]
@@ -248,8 +253,12 @@ def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
             if step.kind == "move":
                 q1 = resolve_target(program, step.args["target"], q)
                 checker.check_waypoints(np.array([q1]), [f"the target of step {i} ({step.name!r})"])
+                if cell_planner is not None and cell_planner.clearance(q1, tool) < scene.d_min:
+                    raise InvalidInput(f"the gripper comes within {scene.d_min * 1000:.0f} mm of an obstacle at the "
+                                       "target")
                 if known:
-                    plan.trajectory = plan_move(scene, planners, q, q1)
+                    plan.trajectory = (cell_planner.plan(q, q1, tool) if cell_planner is not None
+                                       else plan_move(scene, planners, q, q1))
                 else:
                     plan.deferred = True
                 plan.q_end = q1

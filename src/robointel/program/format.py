@@ -24,10 +24,14 @@ A program joins what robointel teaches, learns and plans into one job. The forma
       - {category: cup, seed: 3}                        # at a random placement (the run's seed) ...
       - {category: ball, seed: 1, at: [0.5, 0.1], yaw_deg: 30}   # ... or at a given one (m, deg)
 
+      - insert: {skill: peg.skill.h5, time_limit: 10}   # a learned insertion skill (skill file, s)
+      - grind: {skill: grind.skill.h5, tolerance: 0.25}  # a learned grinding skill (force RMS / peak allowed)
+      - guide: {timeout: 60}      # lead-through with collision avoidance until the operator presses continue
+
 Unknown step kinds, unknown keys and ill-typed values raise :class:`robointel.errors.InvalidInput`
-naming the step. Steps the format reserves but this version does not run yet (``insert``, ``grind``,
-``guide``) are refused at load time with a clear message. ``grasp`` and ``place`` need a cell with the
-gripper and the objects (:class:`robointel.program.GraspCell`).
+naming the step. Skill files are resolved against the program file's folder. ``grasp`` and ``place``
+need a cell with the gripper and the objects (:class:`robointel.program.GraspCell`); ``guide`` a cell
+with an F/T sensor (:class:`robointel.program.SimCell`).
 """
 
 from __future__ import annotations
@@ -47,8 +51,8 @@ from robointel.robot import Robot
 
 FORMAT = "robointel.program/1"
 EXAMPLES = Path(__file__).resolve().parent / "examples"
-STEP_KINDS = ("move", "path", "wait", "set_io", "grasp", "place")
-RESERVED_KINDS = ("insert", "grind", "guide")
+STEP_KINDS = ("move", "path", "wait", "set_io", "grasp", "place", "insert", "grind", "guide")
+SKILL_KINDS = {"insert": "insertion", "grind": "grinding"}  # step kind -> the skill file's kind
 OBJECT_CATEGORIES = ("cup", "can", "box", "ball", "long_tool")
 
 
@@ -103,6 +107,10 @@ class Step:
             body = {"category": self.args["category"]}
         elif self.kind == "place":
             body = {"at": list(self.args["at"])}
+        elif self.kind in SKILL_KINDS:
+            body = {k: (str(v) if k == "skill" else v) for k, v in self.args.items()}
+        elif self.kind == "guide":
+            body = {"timeout": self.args["timeout"]}
         else:
             body = dict(self.args["outputs"])
         return {self.kind: body, "name": self.name}
@@ -334,9 +342,25 @@ def parse_step(d: Any, i: int, n: int) -> Step:
     name = str(d.get("name", f"{i}:{kind}"))
     where = f"step {i} ({name!r})"
     v = d[kind]
-    if kind in RESERVED_KINDS:
-        raise InvalidInput(f"{where}: step kind {kind!r} is reserved by the format but not runnable in this "
-                           f"version of robointel (runnable: {', '.join(STEP_KINDS)})", value=kind)
+    if kind in SKILL_KINDS:
+        opt = {"insert": {"time_limit": 10.0}, "grind": {"tolerance": 0.25, "speed": 0.03}}[kind]
+        if not isinstance(v, Mapping) or "skill" not in v or not isinstance(v["skill"], str):
+            raise InvalidInput(f"{where}: {kind} needs {{skill: FILE}} (a skill file written by `robointel learn "
+                               f"{SKILL_KINDS[kind]} --skill-out FILE`)", value=v)
+        unknown = set(v) - {"skill", *opt}
+        if unknown:
+            raise InvalidInput(f"{where}: unknown {kind} keys {sorted(map(str, unknown))}", value=v)
+        args: dict[str, Any] = {"skill": str(v["skill"])}
+        for k, default in opt.items():
+            args[k] = _number(v.get(k, default), f"{where}: {kind} {k}", strict=True)
+        return Step(kind, name, args)
+    if kind == "guide":
+        if v is None:
+            v = {}
+        if not isinstance(v, Mapping) or set(v) - {"timeout"}:
+            raise InvalidInput(f"{where}: guide takes {{timeout: SECONDS}} (how long the operator may guide)", value=v)
+        return Step("guide", name, {"timeout": _number(v.get("timeout", 60.0), f"{where}: guide timeout",
+                                                       strict=True)})
     if kind == "move":
         return Step("move", name, {"target": parse_target(v, n, where)})
     if kind == "path":

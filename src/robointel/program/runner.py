@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -17,7 +17,6 @@ from robointel.sim import Workcell
 from robointel.trajectory import Trajectory
 
 TRACKING_LIMIT_RAD = 0.05  # largest joint tracking error a step may show before it counts as failed
-CARRY_SPEED = 0.5  # fraction of the velocity limits (its square of the acceleration limits) while holding an object
 BACKOFF_STEPS = 150  # control periods (1 ms) of the path the robot backs off along after a contact
 
 
@@ -190,19 +189,12 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
     results: list[StepResult] = []
     planners = _Planners(program.scene)
 
+    cell_plan = getattr(cell, "plan_move", None)  # a cell with a tool plans with its tool and held object
+
     def plan_fn(a: np.ndarray, b: np.ndarray) -> Trajectory | None:
-        held = getattr(cell, "held_sphere", lambda: None)()
-        if held is None:
-            return plan_move(program.scene, planners, a, b)
-        # carrying: the held object is a sphere on the last link while this motion is planned
-        spheres = program.robot.spheres
-        spheres.add(*held)
-        sc = program.scene
-        carry = replace(sc, vmax=sc.vmax * CARRY_SPEED, amax=sc.amax * CARRY_SPEED ** 2)
-        try:
-            return plan_move(carry, _Planners(carry), a, b)
-        finally:
-            spheres.remove(len(spheres) - 1)
+        if cell_plan is not None:
+            return cell_plan(a, b)  # type: ignore[no-any-return]
+        return plan_move(program.scene, planners, a, b)
 
     for i in range(i0, len(program.steps)):
         step = program.steps[i]
@@ -216,7 +208,7 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
             traj = plan.trajectory
             try:
                 if step.kind == "move" and (plan.deferred or scene_key(program.scene) != chk.scene_key):
-                    traj = plan_move(program.scene, planners, cell.q, plan.q_end)
+                    traj = plan_fn(cell.q, plan.q_end)
                     replanned = not plan.deferred
             except RobointelError as exc:
                 traj = None
