@@ -10,6 +10,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
@@ -19,8 +20,9 @@ from robointel.learning.grasp.pipeline import lrmate_with_gripper
 from robointel.planning.frmp import check_trajectory, plan_scene, planner_settings
 from robointel.planning.scene import Scene
 from robointel.planning.trajectory import TrajectoryPlanner
-from robointel.program.format import Program, Step, Target
+from robointel.program.format import SKILL_KINDS, Program, Step, Target
 from robointel.program.motion import CellPlanner, gripper_geometry
+from robointel.program.skill_file import load_skill, skill_kind
 from robointel.programming.keypoints import blended_trajectory, joint_velocity_reference
 from robointel.robot import Robot
 from robointel.trajectory import Trajectory
@@ -211,6 +213,14 @@ def check_place_reachable(at: tuple[float, float]) -> None:
         raise IKFailure(f"the gripper cannot reach down to the table at {list(at)} m", value=at)
 
 
+def skill_path(program: Program, step: Step) -> Path:
+    """The skill file of an ``insert`` or ``grind`` step, relative paths resolved against the program's folder."""
+    p = Path(step.args["skill"])
+    if not p.is_absolute() and program.source is not None and not p.exists():
+        p = program.source.parent / p
+    return p
+
+
 def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
                   progress: Callable[[float, str], None] | None = None) -> ProgramCheck:
     """Check a whole program before the robot moves (and plan its motions).
@@ -268,10 +278,15 @@ def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
                     raise InvalidInput("a path step must follow a move (it starts where the robot is)")
                 plan.trajectory = plan_path(program, step, q)
                 plan.q_end = plan.trajectory.q[-1].copy()
-            elif step.kind in ("grasp", "place"):
+            elif step.kind in ("grasp", "place", "guide"):
                 if step.kind == "place":
                     check_place_reachable(step.args["at"])
                 known = False
+            elif step.kind in SKILL_KINDS:
+                skill = load_skill(skill_path(program, step))
+                if skill_kind(skill) != SKILL_KINDS[step.kind]:
+                    raise InvalidInput(f"skill file {step.args['skill']!r} holds a {skill_kind(skill)} skill, not "
+                                       f"{SKILL_KINDS[step.kind]}")
         except (IKFailure, CollisionAtStart, InfeasibleProblem, InvalidInput) as exc:
             raise _reject(step, i, str(exc)) from None
         except RobointelError as exc:

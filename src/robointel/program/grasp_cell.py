@@ -37,6 +37,7 @@ from robointel.learning.grasp.pipeline import Q_PARK, lrmate_with_gripper
 from robointel.learning.grasp.scene import ARM_KP, ARM_KV, arm_scene
 from robointel.outcome import Failure, TrialOutcome
 from robointel.program.format import OBJECT_CATEGORIES, Program
+from robointel.program.guide_step import GuideResult, PushOperator, guide_with_hand
 from robointel.program.motion import CellPlanner, gripper_geometry, held_box
 from robointel.trajectory import Trajectory
 
@@ -125,6 +126,9 @@ class GraspCell:
         self._held_box: Obstacle | None = None
         self._flange = m.body("arm/tool").id
         self.motion = CellPlanner(program.scene, seed=seed)
+        self.seed = int(seed)
+        self.operator: PushOperator | None = None  # the scripted operator of guide steps
+        self.stations: dict[str, object] = {}  # insert/grind stations (default: the skills' own cells)
         self.tool = gripper_geometry(self.gripper)
         self.stopped: str | None = None
         d = self.data
@@ -381,6 +385,34 @@ class GraspCell:
                     **out.figures, "extra_lift_m": float(dz)})
         return TrialOutcome(False, Failure.INFEASIBLE, f"the held object cannot be raised {d_min * 1000:.0f} mm clear "
                             "of the fixtures to start the carry")
+
+    def guide(self, timeout: float) -> GuideResult:
+        """Lead-through until the operator presses continue (``guide`` step): the hand pushes the gripper.
+
+        The operator is :attr:`operator` (default: a :class:`PushOperator`, 20 N along +y for 0.5 s); its
+        force acts on the gripper body in MuJoCo and is the (ideal) F/T reading the guidance controller gets.
+        """
+        op = self.operator or PushOperator()
+        period = op.period
+        obstacles = [o for o in self.motion.scene.obstacles if getattr(o, "name", None) != "floor"]
+        frc = self.data.xfrc_applied
+
+        def step(q_cmd: np.ndarray, f: np.ndarray) -> str | None:
+            frc[self._gripper, :3] = f
+            self._ctrl = q_cmd.copy()
+            self.data.ctrl[:6] = q_cmd
+            for _ in range(max(1, int(round(period / self.model.opt.timestep)))):
+                mujoco.mj_step(self.model, self.data)
+                hit = self._collision() if self.data.ncon else None
+                if hit:
+                    return hit
+            return None
+
+        try:
+            return guide_with_hand(self.robot, op, timeout=timeout, period=period, read_q=lambda: self.q, step=step,
+                                   obstacles=obstacles)
+        finally:
+            frc[self._gripper, :3] = 0.0
 
     def attached(self) -> list[Obstacle]:
         """The gripper and the held object (its bounding box) in the flange frame, for planning."""
