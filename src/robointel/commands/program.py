@@ -116,7 +116,7 @@ def demo_stage(ctx: StageContext) -> StageResult:
     Returns:
         The stage's figures (steps, pre-run check time, motion time, pick-and-place outcome) and plots.
     """
-    prog = load_program("example")
+    prog = load_program("moves")
     q0 = prog.initial_configuration()
     ctx.advance(0.05, "check")
     chk = check_program(prog, q0, progress=lambda f, s: ctx.advance(0.05 + 0.2 * f, s))
@@ -124,7 +124,7 @@ def demo_stage(ctx: StageContext) -> StageResult:
     res = run_program(prog, SimCell(prog, q0), check=chk)
     png = plot_run(prog, res, ctx.out / "program_joints.png")
     motion = sum(p.trajectory.duration for p in chk.plans if p.trajectory is not None)
-    figs = [Figure("task program 'example' (move, path, wait, set_io; Table 7.1 cell)",
+    figs = [Figure("task program 'moves' (move, path, wait, set_io; Table 7.1 cell)",
                    f"{len(res.steps)} steps, {'all ok' if res.success else res.outcome.detail}"),
             Figure("pre-run check (plan + dense check of every motion)", f"{chk.check_ms:.0f} ms"),
             Figure("motion time", f"{motion:.2f} s")]
@@ -141,5 +141,5 @@ def demo_stage(ctx: StageContext) -> StageResult:
                     note=f"part placed {place * 1000:.1f} mm from its target" if place is not None else ""),
              Figure("pick-and-place cycle (simulated time)", f"{float(cell.data.time) - t_sim:.1f} s")]
     return StageResult("Task programs (robointel run)", figs, images,
-                       text="robointel run example / pick_place: the whole program is checked before the robot "
+                       text="robointel run moves / pick_place: the whole program is checked before the robot "
                             "moves; a failed step stops the robot and is named.")
