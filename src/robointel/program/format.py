@@ -25,7 +25,7 @@ A program joins what robointel teaches, learns and plans into one job. The forma
       - {category: ball, seed: 1, at: [0.5, 0.1], yaw_deg: 30}   # ... or at a given one (m, deg)
 
       - insert: {skill: peg.skill.h5, time_limit: 10}   # a learned insertion skill (skill file, s)
-      - grind: {skill: grind.skill.h5, tolerance: 0.25}  # a learned grinding skill (force RMS / peak allowed)
+      - grind: {skill: grind.skill.h5, tolerance: 0.15}  # a learned grinding skill (force RMS / peak allowed)
       - guide: {timeout: 60}      # lead-through with collision avoidance until the operator presses continue
 
 Unknown step kinds, unknown keys and ill-typed values raise :class:`robointel.errors.InvalidInput`

@@ -217,7 +217,7 @@ def parse_step(d: Any, i: int, n: int) -> Step:
     where = f"step {i} ({name!r})"
     v = d[kind]
     if kind in SKILL_KINDS:
-        opt = {"insert": {"time_limit": 10.0}, "grind": {"tolerance": 0.25, "speed": 0.03}}[kind]
+        opt = {"insert": {"time_limit": 10.0}, "grind": {"tolerance": 0.15, "speed": 0.03}}[kind]
         if not isinstance(v, Mapping) or "skill" not in v or not isinstance(v["skill"], str):
             raise InvalidInput(f"{where}: {kind} needs {{skill: FILE}} (a skill file written by `robointel learn "
                                f"{SKILL_KINDS[kind]} --skill-out FILE`)", value=v)
