@@ -148,9 +148,14 @@ def test_from_step_resumes_and_bad_step_name_errors():
 
 def test_cli_run_and_refusal(tmp_path):
     runner = CliRunner()
-    res = runner.invoke(app, ["run", "moves", "--report", str(tmp_path / "rep")])
+    res = runner.invoke(app, ["run", "moves", "--report", str(tmp_path / "rep"), "--record", str(tmp_path / "r.mcap")])
     assert res.exit_code == 0, res.output
     assert (tmp_path / "rep" / "index.html").exists() and "home_again" in res.output
+    from mcap.reader import make_reader
+
+    with open(tmp_path / "r.mcap", "rb") as f:
+        topics = [c.topic for _, c, _ in make_reader(f).iter_messages()]
+    assert topics.count("/joint_states") > 500 and "/planned_trajectory" in topics
     bad = tmp_path / "bad.yaml"
     bad.write_text(yaml.safe_dump({"scene": "table71", "steps": [{"move": "home"},
                                                                  {"move": {"pose": {"xyz": [3, 0, 0]}}}]}))
