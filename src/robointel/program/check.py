@@ -263,7 +263,7 @@ def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
             if step.kind == "move":
                 q1 = resolve_target(program, step.args["target"], q)
                 checker.check_waypoints(np.array([q1]), [f"the target of step {i} ({step.name!r})"])
-                if cell_planner is not None and cell_planner.clearance(q1, tool) < scene.d_min:
+                if cell_planner is not None and cell_planner.clearance(q1, tool, self_collision=False) < scene.d_min:
                     raise InvalidInput(f"the gripper comes within {scene.d_min * 1000:.0f} mm of an obstacle at the "
                                        "target")
                 if known:

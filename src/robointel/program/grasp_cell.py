@@ -46,8 +46,9 @@ TEMPLATE_SEED = 900  # generated template instances: seeds never used for the ob
 LIFT_M = 0.15
 MAX_LIFT_M = 0.35  # highest the part is raised (straight up) to start the carry clear of the fixtures
 TRACKING_LIMIT_RAD = 0.08
-CARRY_SPEED = 0.5  # fraction of the velocity limits (its square of the accelerations) while holding an object
-SLIP_M = 0.02  # the held object moved this far in the hand: it slips
+CARRY_SPEED = 0.3  # fraction of the velocity limits (its square of the accelerations) while holding an object
+SLIP_M = 0.02  # the object moved this far in the hand while lifted: the grasp is not firm (regrasp)
+CARRY_SLIP_M = 0.05  # ... while carried: it slips out (the arm stops)
 GRASP_ATTEMPTS = 2  # grasps tried (re-perceiving between them) before the step fails
 
 
@@ -221,7 +222,7 @@ class GraspCell:
         assert self.held is not None and self._grip_in_hand is not None
         in_hand = np.linalg.inv(self._pose(self._gripper)) @ self._pose(self._obj[self.held])
         moved = float(np.linalg.norm(in_hand[:3, 3] - self._grip_in_hand[:3, 3]))
-        if moved > SLIP_M:
+        if moved > CARRY_SLIP_M:
             return f"the held object slipped {moved * 100:.1f} cm in the hand"
         return None
 
@@ -369,7 +370,7 @@ class GraspCell:
         """Raise the held object straight up until the carry can start ``d_min`` clear of the fixtures."""
         d_min = self.motion.scene.d_min
         q = self.q
-        if self.motion.clearance(q, self.attached()) >= d_min:
+        if self.motion.clearance(q, self.attached(), self_collision=False) >= d_min:
             return out
         T = self.robot.fk(q)
         for dz in np.arange(0.05, MAX_LIFT_M - LIFT_M + 1e-9, 0.05):
@@ -379,7 +380,7 @@ class GraspCell:
             if not len(sols):
                 break
             q_hi = np.asarray(sols[0], float)
-            if self.motion.clearance(q_hi, self.attached()) >= d_min:
+            if self.motion.clearance(q_hi, self.attached(), self_collision=False) >= d_min:
                 moved = self._run(straight(self.q, q_hi, 0.5 + 4 * dz, self.names))
                 return moved if not moved.success else TrialOutcome(True, detail=out.detail, figures={
                     **out.figures, "extra_lift_m": float(dz)})

@@ -9,7 +9,9 @@ the flange frame, so the planned clearance ``d_min`` holds for the arm, the tool
 
 from __future__ import annotations
 
+import tempfile
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
@@ -25,7 +27,7 @@ from robointel.trajectory import Trajectory
 #: wall-time budget of one move's global search, s (the planner repeats with another seed once)
 TIME_BUDGET_S = 2.0
 #: smallest clearance between two links of the arm a move may start or end with, m
-SELF_MIN_M = 0.01
+SELF_MIN_M = 0.005
 
 
 def gripper_geometry(gripper: ParallelGripper) -> list[Obstacle]:
@@ -75,38 +77,63 @@ class CellPlanner:
         self.scene = scene
         self.seed = int(seed)
         self._envs: dict[str, Environment] = {}
-        self._key = ""
+        self._srdf: Path | None = None
+        self._tmp: tempfile.TemporaryDirectory[str] | None = None
 
-    def environment(self, attached: Sequence[Obstacle]) -> Environment:
-        """The planning environment with ``attached`` (flange frame) on the tool (cached per attachment)."""
-        key = repr([o.to_dict() for o in attached]) + repr([o.to_dict() for o in self.scene.obstacles])
+    def environment(self, attached: Sequence[Obstacle], *, self_collision: bool = True) -> Environment:
+        """The planning environment with ``attached`` (flange frame) on the tool (cached per attachment).
+
+        Args:
+            attached: Objects on the tool, in the flange frame.
+            self_collision: False: an environment that checks the obstacles only (every link pair disabled).
+        """
+        key = (repr([o.to_dict() for o in attached]) + repr([o.to_dict() for o in self.scene.obstacles])
+               + str(self_collision))
         if key not in self._envs:
-            if len(self._envs) > 4:
+            if len(self._envs) > 6:
                 self._envs.clear()
-            self._envs[key] = Environment(self.scene.robot, self.scene.obstacles, attached=list(attached))
+            srdf = None if self_collision else self._no_self_srdf()
+            self._envs[key] = Environment(self.scene.robot, self.scene.obstacles, attached=list(attached), srdf=srdf)
         return self._envs[key]
 
-    def clearance(self, q: npt.ArrayLike, attached: Sequence[Obstacle] = ()) -> float:
-        """Smallest clearance (m) of the arm and its attachments to the obstacles (and between links) at ``q``."""
-        env = self.environment(attached)
+    def _no_self_srdf(self) -> Path:
+        """An SRDF disabling every link pair (obstacle-only clearance), written once per planner."""
+        if self._srdf is None:
+            links = list(self.scene.robot.link_names)
+            pairs = "".join(f'<disable_collisions link1="{a}" link2="{b}" reason="obstacles only"/>'
+                            for i, a in enumerate(links) for b in links[i + 1:])
+            self._tmp = tempfile.TemporaryDirectory(prefix="robointel-cell-")
+            self._srdf = Path(self._tmp.name) / "no_self.srdf"
+            self._srdf.write_text(f'<robot name="{self.scene.robot.name}">{pairs}</robot>')
+        return self._srdf
+
+    def clearance(self, q: npt.ArrayLike, attached: Sequence[Obstacle] = (), *, self_collision: bool = True) -> float:
+        """Smallest clearance (m) of the arm and its attachments to the obstacles (and between links) at ``q``.
+
+        Args:
+            q: (n,) configuration, rad.
+            attached: Objects on the tool, in the flange frame.
+            self_collision: False: the obstacles only.
+        """
+        env = self.environment(attached, self_collision=self_collision)
         env.use("cover")
         return float(env.clearance(np.asarray(q, float), cap=1.0))
 
-    def d_min_between(self, env: Environment, a: np.ndarray, b: np.ndarray) -> float:
+    def d_min_between(self, a: np.ndarray, b: np.ndarray, attached: Sequence[Obstacle] = ()) -> float:
         """The clearance a move from ``a`` to ``b`` is planned with: the scene's ``d_min``, or less for link pairs.
 
         The planner holds one ``d_min`` for obstacles and between the robot's own links. When the start
         or the goal (a grasp the grasp search chose) brings two links of the arm closer than ``d_min``
-        (but at least ``SELF_MIN_M`` apart), the move is planned with that smaller clearance: the
-        endpoints themselves are given, and the obstacles keep at least that much.
+        (but at least ``SELF_MIN_M`` apart) while the obstacles keep ``d_min``, the move is planned with
+        that smaller clearance (minus 2 mm).
         """
         d_min = float(self.scene.d_min)
-        env.use("cover")
+        out = d_min
         for q in (a, b):
-            c = env.contact(q, cap=d_min + 1.0)
-            if c.self_collision and SELF_MIN_M <= c.distance < d_min:
-                d_min = max(SELF_MIN_M, c.distance - 0.002)
-        return d_min
+            full = self.clearance(q, attached)
+            if full < d_min and self.clearance(q, attached, self_collision=False) >= d_min and full >= SELF_MIN_M:
+                out = min(out, max(SELF_MIN_M, full - 0.002))
+        return out
 
     def plan(self, q0: npt.ArrayLike, q1: npt.ArrayLike, attached: Sequence[Obstacle] = (), *,
              speed: float = 1.0) -> Trajectory | None:
@@ -136,7 +163,7 @@ class CellPlanner:
         vscale = float(np.min(np.asarray(sc.vmax) / robot.velocity_limit)) * speed
         amax = tuple(float(x) for x in np.asarray(sc.amax) * speed ** 2)
         env = self.environment(attached)
-        d_min = self.d_min_between(env, a, b)
+        d_min = self.d_min_between(a, b, attached)
         last = None
         for attempt in range(2):
             st = MotionSettings(d_min=d_min, velocity_scale=min(1.0, vscale), acceleration_limit=amax,
