@@ -109,9 +109,14 @@ def batch_runs(program: str, runs: int, seed: int, workers: int) -> dict:
     succ = [r for r in rows if r["success"]]
     prog = load_program(program)
     before = [f"step_{i}_{st.name}_ok" for i, st in enumerate(prog.steps) if st.kind not in ("insert", "grind")]
-    pp = sum(all((r["figures"] or {}).get(k, 0.0) == 1.0 for k in before) for r in rows)
+    pp_rows = [r for r in rows if all((r["figures"] or {}).get(k, 0.0) == 1.0 for k in before)]
+    pp = len(pp_rows)
     return {"runs": len(rows), "success": ok, "success_rate": ok / max(1, len(rows)),
             "pick_place_success": pp, "pick_place_success_rate": pp / max(1, len(rows)),
+            "pick_place_cycle_time_s": (float(np.median([r["figures"]["cell_time_s"] for r in pp_rows]))
+                                        if pp_rows else None),
+            "failures_before_skill": [f"seed {r['seed']}: {r['reason']}: {r['detail']}" for r in rows
+                                      if r not in pp_rows],
             "per_step_success": {k: f"{int(sum(v))}/{len(v)}" for k, v in steps.items()},
             "per_step_median_ms": {k: round(1e3 * float(np.median(v)), 1) for k, v in times.items()},
             "cycle_time_s": float(np.median([r["figures"]["cycle_time_s"] for r in succ])) if succ else None,
