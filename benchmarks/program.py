@@ -1,16 +1,23 @@
-"""Task programs end to end, through the batch runner (``robointel.batch``, in-process).
+"""Task programs end to end, through the batch runner (``robointel.batch``: in-process, or Ray with ``--workers``).
 
-``pick_place`` (default): the LR Mate with its gripper perceives a generated long part at a random
-placement (the seed), classifies it, transfers a taught grasp, picks it, carries it around two fixtures
-on a planned motion, sets it down at the target and goes home: success when every step succeeded (the part
-rests within 3 cm of the target). ``example``: move/path/wait/set_io on the Table 7.1 cell, over cells
+``example`` (default, the built-in example cell): the LR Mate with its gripper perceives a generated long
+part at a random placement (the seed), classifies it, transfers a taught grasp, picks it, carries it around
+two fixtures on a planned motion, sets it down at the target, goes home, then inserts a peg with the learned
+skill (``peg.skill.h5``) at the insertion station. ``pick_place``: the same without the insertion.
+``pick_place_success`` counts the runs whose steps up to the insertion all succeeded (the part rests within
+3 cm of the target and the arm is home). ``moves``: move/path/wait/set_io on the Table 7.1 cell, over cells
 randomised by the seed (fixtures moved by up to +/-2 cm, waypoints turned by up to +/-2 deg).
 
-    python benchmarks/program.py [--json] [--program pick_place|example] [--runs 50] [--seed 1000]
+    python benchmarks/program.py [--json] [--program example|pick_place|moves] [--runs 50] [--seed 4000]
+                                 [--workers 2]
 
 Prints ``runs``, ``success``, per-step success and median step time, ``cycle_time_s`` (median planned
-motion time of a successful run for ``example``; simulated time of a successful run otherwise),
-``check_ms`` (median pre-run check). Seeds 1000.. were never used while writing the program module.
+motion time of a successful run for ``moves``; simulated time of a successful run otherwise),
+``check_ms`` (median pre-run check). Seeds 4000.. were never used while writing or tuning the program module
+(seeds 1000-1049: the previous session's benchmark, 3000-3049: a first run of this one, both studied;
+2000-2099: development).
+With ``--workers N`` > 1 the trials run on a local Ray inside a loopback-only network namespace
+(``unshare --net``, root).
 """
 
 from __future__ import annotations
@@ -19,6 +26,8 @@ import argparse
 import json
 import os
 import re
+import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -32,8 +41,8 @@ from robointel.geometry import obstacle_from_dict
 from robointel.program import ProgramRejected, SimCell, check_program, load_program, run_program
 
 
-def randomised_example(seed: int):
-    prog = load_program("example")
+def randomised_moves(seed: int):
+    prog = load_program("moves")
     rng = np.random.default_rng(seed)
     obs = []
     for o in prog.scene.obstacles:
@@ -48,12 +57,12 @@ def randomised_example(seed: int):
     return prog
 
 
-def example_runs(runs: int, seed: int) -> dict:
+def moves_runs(runs: int, seed: int) -> dict:
     ok, refused, check_ms, cycle, reasons = 0, 0, [], [], []
     step_ok: dict[str, list[bool]] = defaultdict(list)
     step_s: dict[str, list[float]] = defaultdict(list)
     for s in range(seed, seed + runs):
-        prog = randomised_example(s)
+        prog = randomised_moves(s)
         q0 = prog.initial_configuration()
         try:
             chk = check_program(prog, q0)
@@ -77,10 +86,13 @@ def example_runs(runs: int, seed: int) -> dict:
             "check_ms": float(np.median(check_ms)) if check_ms else None, "failures": reasons[:10]}
 
 
-def batch_runs(program: str, runs: int, seed: int) -> dict:
+def batch_runs(program: str, runs: int, seed: int, workers: int) -> dict:
     specs = [TaskSpec("program", s, {"program": program}) for s in range(seed, seed + runs)]
     with tempfile.TemporaryDirectory() as d:
-        run_batch(specs, d, progress=sys.stderr.isatty())
+        if workers > 1:
+            run_batch(specs, d, engine="ray", workers=workers, progress=sys.stderr.isatty())
+        else:
+            run_batch(specs, d, progress=sys.stderr.isatty())
         rows = ResultStore(d).rows()
     ok = sum(bool(r["success"]) for r in rows)
     steps: dict[str, list[float]] = defaultdict(list)
@@ -95,7 +107,16 @@ def batch_runs(program: str, runs: int, seed: int) -> dict:
             if m:
                 times[m.group(2)].append(v)
     succ = [r for r in rows if r["success"]]
+    prog = load_program(program)
+    before = [f"step_{i}_{st.name}_ok" for i, st in enumerate(prog.steps) if st.kind not in ("insert", "grind")]
+    pp_rows = [r for r in rows if all((r["figures"] or {}).get(k, 0.0) == 1.0 for k in before)]
+    pp = len(pp_rows)
     return {"runs": len(rows), "success": ok, "success_rate": ok / max(1, len(rows)),
+            "pick_place_success": pp, "pick_place_success_rate": pp / max(1, len(rows)),
+            "pick_place_cycle_time_s": (float(np.median([r["figures"]["cell_time_s"] for r in pp_rows]))
+                                        if pp_rows else None),
+            "failures_before_skill": [f"seed {r['seed']}: {r['reason']}: {r['detail']}" for r in rows
+                                      if r not in pp_rows],
             "per_step_success": {k: f"{int(sum(v))}/{len(v)}" for k, v in steps.items()},
             "per_step_median_ms": {k: round(1e3 * float(np.median(v)), 1) for k, v in times.items()},
             "cycle_time_s": float(np.median([r["figures"]["cycle_time_s"] for r in succ])) if succ else None,
@@ -106,17 +127,27 @@ def batch_runs(program: str, runs: int, seed: int) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--json", action="store_true")
-    ap.add_argument("--program", default="pick_place", choices=["pick_place", "example"])
+    ap.add_argument("--program", default="example", choices=["example", "pick_place", "moves"])
     ap.add_argument("--runs", type=int, default=50)
-    ap.add_argument("--seed", type=int, default=1000)
+    ap.add_argument("--seed", type=int, default=4000)
+    ap.add_argument("--workers", type=int, default=1, help="> 1: Ray workers (in a loopback-only namespace)")
     a = ap.parse_args()
+    if a.workers > 1 and os.environ.get("ROBOINTEL_NETNS") != "1":
+        if shutil.which("unshare") is None:
+            sys.exit("unshare not found: run as root on Linux, or use --workers 1")
+        env = {**os.environ, "ROBOINTEL_NETNS": "1", "RAY_USAGE_STATS_ENABLED": "0"}
+        cmd = "ip link set lo up && exec " + " ".join([sys.executable, *map(str, sys.argv)])
+        sys.exit(subprocess.call(["unshare", "--net", "sh", "-c", cmd], env=env))
     load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
     out = {"program": a.program}
-    out.update(example_runs(a.runs, a.seed) if a.program == "example" else batch_runs(a.program, a.runs, a.seed))
+    out.update(moves_runs(a.runs, a.seed) if a.program == "moves"
+               else batch_runs(a.program, a.runs, a.seed, a.workers))
     out.update({"seeds": [a.seed, a.seed + a.runs - 1], "wall_s": time.perf_counter() - t0, "load_avg_start": load0,
-                "cycle_time_note": "median over successful runs; example: planned motion time; pick_place: "
-                                   "simulated time of the whole run (perception, grasp, carry, place, home)"})
+                "workers": a.workers,
+                "cycle_time_note": "median over successful runs; moves: planned motion time; example/pick_place: "
+                                   "simulated time of the whole run (perception, grasp, carry, place, home, "
+                                   "insertion)"})
     if a.json:
         json.dump(out, sys.stdout, indent=1)
         print()

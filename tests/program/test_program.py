@@ -8,6 +8,7 @@ from robointel.errors import InvalidInput
 from robointel.geometry import obstacle_from_dict
 from robointel.outcome import Failure
 from robointel.program import (
+    STEP_KINDS,
     GraspCell,
     ProgramRejected,
     SimCell,
@@ -33,7 +34,7 @@ def small_program(steps, obstacles=(BOX,)):
 
 @pytest.fixture(scope="module")
 def example_run():
-    prog = load_program("example")
+    prog = load_program("moves")
     q0 = prog.initial_configuration()
     cell = SimCell(prog, q0)
     return prog, cell, run_program(prog, cell)
@@ -85,11 +86,13 @@ def test_target_inside_an_obstacle_is_refused_naming_the_step_link_and_obstacle(
     assert err.value.value["step"] == 1
 
 
-def test_unknown_waypoint_and_reserved_kinds_are_refused():
+def test_unknown_waypoint_and_bad_steps_are_refused():
     with pytest.raises(ProgramRejected, match="nowhere"):
         check_program(small_program([{"move": "nowhere"}]), np.radians(HOME))
-    with pytest.raises(InvalidInput, match="insert"):
-        small_program([{"insert": {"skill": "peg.h5"}}])
+    with pytest.raises(InvalidInput, match="unknown step kind"):
+        small_program([{"weld": {"seam": 1}}])
+    with pytest.raises(InvalidInput, match="unknown insert keys"):
+        small_program([{"insert": {"skill": "peg.h5", "force": 3}}])
     with pytest.raises(InvalidInput, match="exactly one kind"):
         small_program([{"move": "home", "wait": 1}])
     with pytest.raises(InvalidInput, match="wait seconds"):
@@ -129,7 +132,7 @@ def test_changed_scene_replans_the_motion(example_run):
 
 
 def test_program_file_round_trip(tmp_path):
-    prog = load_program("example")
+    prog = load_program("moves")
     path = prog.save(tmp_path / "p.yaml")
     back = load_program(path)
     assert [s.to_dict() for s in back.steps] == [s.to_dict() for s in prog.steps]
@@ -137,7 +140,7 @@ def test_program_file_round_trip(tmp_path):
 
 
 def test_from_step_resumes_and_bad_step_name_errors():
-    prog = load_program("example")
+    prog = load_program("moves")
     assert prog.index("lift") == 4
     with pytest.raises(InvalidInput, match="no step named"):
         prog.index("fly")
@@ -145,9 +148,14 @@ def test_from_step_resumes_and_bad_step_name_errors():
 
 def test_cli_run_and_refusal(tmp_path):
     runner = CliRunner()
-    res = runner.invoke(app, ["run", "example", "--report", str(tmp_path / "rep")])
+    res = runner.invoke(app, ["run", "moves", "--report", str(tmp_path / "rep"), "--record", str(tmp_path / "r.mcap")])
     assert res.exit_code == 0, res.output
     assert (tmp_path / "rep" / "index.html").exists() and "home_again" in res.output
+    from mcap.reader import make_reader
+
+    with open(tmp_path / "r.mcap", "rb") as f:
+        topics = [c.topic for _, c, _ in make_reader(f).iter_messages()]
+    assert topics.count("/joint_states") > 500 and "/planned_trajectory" in topics
     bad = tmp_path / "bad.yaml"
     bad.write_text(yaml.safe_dump({"scene": "table71", "steps": [{"move": "home"},
                                                                  {"move": {"pose": {"xyz": [3, 0, 0]}}}]}))
@@ -158,16 +166,32 @@ def test_cli_run_and_refusal(tmp_path):
     assert res.exit_code == 2 and "not found" in " ".join(res.output.split())
 
 
-def test_pick_and_place_program_moves_the_part_to_its_target():
-    prog = load_program("pick_place")
+def test_a_program_with_every_step_kind_runs_in_the_simulated_cell(skill_files):
+    d = yaml.safe_load(open(load_program("pick_place").source))
+    d["steps"] += [{"path": {"points": [[0.45, 0.0, 0.50], [0.45, 0.08, 0.50]], "speed": 0.1}, "name": "scan"},
+                   {"wait": 0.1, "name": "settle"}, {"set_io": {"lamp": 1}, "name": "lamp_on"},
+                   {"guide": {"timeout": 5.0}, "name": "teach"},
+                   {"grind": {"skill": str(skill_files["grind"])}, "name": "grind_plate"},
+                   {"insert": {"skill": str(skill_files["insert"]), "time_limit": 3.0}, "name": "insert_peg"}]
+    prog = program_from_dict(d)
+    assert {s.kind for s in prog.steps} == set(STEP_KINDS)
     q0 = prog.initial_configuration()
     cell = GraspCell(prog, q0, seed=2)
     run = run_program(prog, cell)
-    assert run.success, run.outcome
+    names = [r.name for r in run.steps]
+    assert names == [s.name for s in prog.steps], run.outcome  # every step ran
+    assert all(r.outcome.success for r in run.steps[:-1]), run.outcome
+    # the part was picked, carried around the fixtures and set down at its target
     at = prog.steps[prog.index("place_part")].args["at"]
     p = cell.object_position(0)
     assert np.hypot(p[0] - at[0], p[1] - at[1]) < 0.03 and p[2] < 0.02  # resting on the table at the target
-    assert cell.held is None and cell.io["gripper"] == 0.0
+    assert cell.held is None and cell.io["gripper"] == 0.0 and cell.io["lamp"] == 1.0
+    guided = run.steps[prog.index("teach")]
+    assert guided.outcome.figures["guided_s"] > 0.5 and len(guided.executed) > 50
+    assert run.steps[prog.index("grind_plate")].outcome.figures["rms_rel_setpoint"] < 0.15
+    ins = run.steps[-1].outcome  # a real trial of the learned skill: seated, or stopped with the reason named
+    assert ins.success or (ins.reason.value in ("wedged", "force_limit", "timeout") and "insert_peg" in
+                           run.outcome.detail and ins.figures["held_speed_rad_s"] < 0.05)
 
 
 def test_a_part_lost_mid_run_fails_the_place_step_and_stops():

@@ -28,6 +28,7 @@ from robointel.learning.demonstration import Demonstration, save_demonstrations
 from robointel.learning.insertion import PHASES, POLICY, HDDScene, InsertionSkill, InsertionTrial, tool_velocities
 from robointel.learning.peer_checks import dtw_speed, gmr_agreement
 from robointel.learning.rltt import LearnedInsertion, learn_insertion
+from robointel.program.skill_file import save_skill
 from robointel.report.demo import Figure, StageContext, StageResult
 
 PHASE_COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red")
@@ -309,7 +310,10 @@ def register(app: typer.Typer) -> None:
                   labelled: int = typer.Option(4, min=1, help="hand-labelled demonstrations (the rest decomposed)"),
                   trials: int = typer.Option(5, min=1, help="robot insertion trials"),
                   seed: int = typer.Option(0),
-                  save: Path = typer.Option(None, help="append the demonstrations to this HDF5 file")) -> None:
+                  save: Path = typer.Option(None, help="append the demonstrations to this HDF5 file"),
+                  skill_out: Path = typer.Option(None, "--skill-out",
+                                                 help="write the learned skill to this skill file (for programs)")
+                  ) -> None:
         """Tight peg-in-hole: demonstrate, synchronise, decompose, learn the GMR skill, insert with the LR Mate."""
         if labelled >= demos:
             fail("--labelled must be smaller than --demos")
@@ -325,6 +329,9 @@ def register(app: typer.Typer) -> None:
                                   progress=lambda f, m: prog.update(task_id, completed=f, description=m))
         except RobointelError as exc:
             fail(exc)
+        if skill_out is not None:
+            save_skill(skill_out, r["learned"].skill, meta={"task": "insertion", "demos": demos, "seed": seed})
+            console.print(f"skill file: {skill_out}")
         t = Table(title=f"insertion, clearance {r['task'].clearance * 1e6:.0f} um")
         for c in ("trial", "skill", "reason", "time [s]", "max force [N]", "penetration [um]", "position-only"):
             t.add_column(c, justify="right")
@@ -338,13 +345,19 @@ def register(app: typer.Typer) -> None:
 
     @learn.command("grinding")
     def grinding(out: Path = typer.Option(Path("robointel-learn"), help="folder for the plots"),
-                 demos: int = typer.Option(3, min=1), seed: int = typer.Option(0)) -> None:
+                 demos: int = typer.Option(3, min=1), seed: int = typer.Option(0),
+                 skill_out: Path = typer.Option(None, "--skill-out",
+                                                help="write the learned skill to this skill file (for programs)")
+                 ) -> None:
         """Grinding: learn position -> pressing force from demonstrations, reproduce it under force control."""
         with Progress(console=console) as prog:
             task_id = prog.add_task("grinding", total=1.0)
             r = run_grinding(out, demos=demos, seed=seed,
                              progress=lambda f, m: prog.update(task_id, completed=f, description=m))
         res = r["result"]
+        if skill_out is not None:
+            save_skill(skill_out, r["skill"], meta={"task": "grinding", "demos": demos, "seed": seed})
+            console.print(f"skill file: {skill_out}")
         console.print(f"force RMS error along the diagonal {100 * res.rms_rel:.1f} % of the peak "
                       f"({100 * res.rms_rel_setpoint:.1f} % against the skill's set-point); plot {r['images'][0]}")
 

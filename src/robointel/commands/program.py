@@ -2,67 +2,109 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
+import numpy as np
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-from robointel.errors import InvalidInput, RobointelError
-from robointel.program import GraspCell, ProgramRejected, SimCell, check_program, load_program, run_program
+from robointel.errors import RobointelError
+from robointel.interface import open_robot
+from robointel.io.mcap_log import McapRecorder
+from robointel.program import Cell, GraspCell, ProgramRejected, SimCell, check_program, load_program, run_program
+from robointel.program.interface_cell import InterfaceCell, interface_refusal
+from robointel.program.teaching import program_from_teleop
 from robointel.report.demo import Figure, StageContext, StageResult
-from robointel.report.program import plot_run, write_program_report
+from robointel.report.program import plot_run, record_run, write_program_report
 
 console = Console()
 
 
-def run(program: str = typer.Argument(..., help="program YAML file, or a built-in program: example, pick_place"),
-        robot: str = typer.Option("sim", "--robot", help="'sim' (the MuJoCo workcell)"),
+def run(program: str = typer.Argument(..., help="program YAML file, or a built-in program: example, pick_place, moves"),
+        robot: str = typer.Option("sim", "--robot", help="'sim' (the simulated cell) or fanuc://HOST[:PORT][?sm_port=N]"),
         start: str = typer.Option("0", "--from", help="first step to run (index or name)"),
+        record: Path = typer.Option(None, "--record", help="record the run as a ROS 2 bag (.mcap)"),
         report: Path = typer.Option(Path("robointel-program-report"), help="report folder"),
         seed: int = typer.Option(0, help="seed of the simulated cell (object placements, sensor noise)"),
         check_only: bool = typer.Option(False, "--check", help="only check the program, do not run it")) -> None:
     """Check a task program as a whole, then run it step by step and write an HTML report."""
+    rec = None
     try:
-        if robot != "sim":
-            raise InvalidInput(f"--robot {robot!r}: this version runs programs on 'sim' only", value=robot)
         prog = load_program(program)
         i0 = prog.index(start)
-        cell_q = prog.initial_configuration(i0)
-        with Progress(TextColumn("{task.description:<32}"), BarColumn(), TextColumn("{task.fields[status]}"),
-                      TimeElapsedColumn(), console=console) as bar:
-            task = bar.add_task("check", total=1.0, status="")
-            chk = check_program(prog, cell_q, start=i0,
-                                progress=lambda f, s: bar.update(task, completed=f, status=s))
-            bar.update(task, completed=1.0, status=f"{chk.check_ms:.0f} ms")
-            if check_only:
-                console.print(f"program {prog.name!r}: {len(prog.steps) - i0} steps checked in {chk.check_ms:.0f} ms")
-                return
-            task2 = bar.add_task("run", total=len(prog.steps) - i0, status="")
-            cell = GraspCell(prog, cell_q, seed=seed) if prog.objects else SimCell(prog, cell_q)
-            res = run_program(prog, cell, start=i0, check=chk,
-                              progress=lambda i, s: bar.update(task2, completed=i - i0, status=s))
-            bar.update(task2, completed=len(res.steps), status="done" if res.success else "failed")
+        if record is not None:
+            rec = McapRecorder(record, list(prog.robot.joint_names))
+        with contextlib.ExitStack() as stack:
+            if robot == "sim":
+                cell_q = prog.initial_configuration(i0)
+                arm = None
+            else:
+                interface_refusal(prog, i0)
+                arm = stack.enter_context(open_robot(robot, recorder=rec))
+                cell_q = np.asarray(arm.state().q, float)
+            with Progress(TextColumn("{task.description:<32}"), BarColumn(), TextColumn("{task.fields[status]}"),
+                          TimeElapsedColumn(), console=console) as bar:
+                task = bar.add_task("check", total=1.0, status="")
+                chk = check_program(prog, cell_q, start=i0,
+                                    progress=lambda f, s: bar.update(task, completed=f, status=s))
+                bar.update(task, completed=1.0, status=f"{chk.check_ms:.0f} ms")
+                if check_only:
+                    console.print(f"program {prog.name!r}: {len(prog.steps) - i0} steps checked in "
+                                  f"{chk.check_ms:.0f} ms")
+                    return
+                task2 = bar.add_task("run", total=len(prog.steps) - i0, status="")
+                cell: Cell
+                if arm is not None:
+                    cell = InterfaceCell(arm)
+                elif prog.objects:
+                    cell = GraspCell(prog, cell_q, seed=seed)
+                else:
+                    cell = SimCell(prog, cell_q, seed=seed)
+                res = run_program(prog, cell, start=i0, check=chk,
+                                  progress=lambda i, s: bar.update(task2, completed=i - i0, status=s))
+                bar.update(task2, completed=len(res.steps), status="done" if res.success else "failed")
+            if rec is not None and arm is None:
+                record_run(rec, prog, res)
     except ProgramRejected as exc:
         console.print(f"[red]refused before moving:[/red] {exc}")
         raise typer.Exit(2) from None
     except RobointelError as exc:
         console.print(f"[red]error:[/red] {exc}")
         raise typer.Exit(2) from None
+    finally:
+        if rec is not None:
+            rec.close()
     index = write_program_report(prog, res, report)
     for r in res.steps:
         mark = "ok" if r.outcome.success else f"[red]{r.outcome.reason.value}[/red] {r.outcome.detail}"
         console.print(f"{r.index:>3} {r.name:<24} {r.kind:<7} {r.seconds * 1e3:8.1f} ms  {mark}")
-    console.print(f"report: [bold]{index}[/bold]")
+    console.print(f"report: [bold]{index}[/bold]" + (f"; recorded: [bold]{record}[/bold]" if record else ""))
     if not res.success:
         console.print(f"[red]step {res.failed_step} ({res.steps[-1].name!r}) failed:[/red] {res.outcome.detail}; "
                       "the robot holds where it stopped")
         raise typer.Exit(1)
 
 
+def from_teleop(teleop: Path = typer.Argument(..., help="the program file the teleoperation page saved"),
+                out: Path = typer.Argument(..., help="the task program (YAML) to write"),
+                name: str = typer.Option(None, help="program name (default: the file's stem)")) -> None:
+    """Turn a teleoperated program (recorded waypoints) into a task program: one move step per waypoint."""
+    try:
+        prog = program_from_teleop(teleop, name=name)
+    except RobointelError as exc:
+        console.print(f"[red]error:[/red] {exc}")
+        raise typer.Exit(2) from None
+    prog.save(out)
+    console.print(f"wrote {out}: {len(prog.steps)} move steps over {len(prog.waypoints)} waypoints; "
+                  f"run it with `robointel run {out}`")
+
+
 def register(app: typer.Typer) -> None:
-    """Add ``robointel run`` to the CLI."""
+    """Add ``robointel run`` and ``robointel program-from-teleop`` to the CLI."""
     app.command("run")(run)
+    app.command("program-from-teleop")(from_teleop)
 
 
 def demo_stage(ctx: StageContext) -> StageResult:
@@ -74,7 +116,7 @@ def demo_stage(ctx: StageContext) -> StageResult:
     Returns:
         The stage's figures (steps, pre-run check time, motion time, pick-and-place outcome) and plots.
     """
-    prog = load_program("example")
+    prog = load_program("moves")
     q0 = prog.initial_configuration()
     ctx.advance(0.05, "check")
     chk = check_program(prog, q0, progress=lambda f, s: ctx.advance(0.05 + 0.2 * f, s))
@@ -82,7 +124,7 @@ def demo_stage(ctx: StageContext) -> StageResult:
     res = run_program(prog, SimCell(prog, q0), check=chk)
     png = plot_run(prog, res, ctx.out / "program_joints.png")
     motion = sum(p.trajectory.duration for p in chk.plans if p.trajectory is not None)
-    figs = [Figure("task program 'example' (move, path, wait, set_io; Table 7.1 cell)",
+    figs = [Figure("task program 'moves' (move, path, wait, set_io; Table 7.1 cell)",
                    f"{len(res.steps)} steps, {'all ok' if res.success else res.outcome.detail}"),
             Figure("pre-run check (plan + dense check of every motion)", f"{chk.check_ms:.0f} ms"),
             Figure("motion time", f"{motion:.2f} s")]
@@ -99,5 +141,5 @@ def demo_stage(ctx: StageContext) -> StageResult:
                     note=f"part placed {place * 1000:.1f} mm from its target" if place is not None else ""),
              Figure("pick-and-place cycle (simulated time)", f"{float(cell.data.time) - t_sim:.1f} s")]
     return StageResult("Task programs (robointel run)", figs, images,
-                       text="robointel run example / pick_place: the whole program is checked before the robot "
+                       text="robointel run moves / pick_place: the whole program is checked before the robot "
                             "moves; a failed step stops the robot and is named.")

@@ -10,15 +10,19 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
 from robointel.errors import CollisionAtStart, IKFailure, InfeasibleProblem, InvalidInput, RobointelError
+from robointel.learning.grasp import ParallelGripper
 from robointel.learning.grasp.pipeline import lrmate_with_gripper
 from robointel.planning.frmp import check_trajectory, plan_scene, planner_settings
 from robointel.planning.scene import Scene
 from robointel.planning.trajectory import TrajectoryPlanner
-from robointel.program.format import Program, Step, Target
+from robointel.program.format import SKILL_KINDS, Program, Step, Target
+from robointel.program.motion import CellPlanner, gripper_geometry
+from robointel.program.skill_file import load_skill, skill_kind
 from robointel.programming.keypoints import blended_trajectory, joint_velocity_reference
 from robointel.robot import Robot
 from robointel.trajectory import Trajectory
@@ -209,6 +213,14 @@ def check_place_reachable(at: tuple[float, float]) -> None:
         raise IKFailure(f"the gripper cannot reach down to the table at {list(at)} m", value=at)
 
 
+def skill_path(program: Program, step: Step) -> Path:
+    """The skill file of an ``insert`` or ``grind`` step, relative paths resolved against the program's folder."""
+    p = Path(step.args["skill"])
+    if not p.is_absolute() and program.source is not None and not p.exists():
+        p = program.source.parent / p
+    return p
+
+
 def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
                   progress: Callable[[float, str], None] | None = None) -> ProgramCheck:
     """Check a whole program before the robot moves (and plan its motions).
@@ -237,6 +249,9 @@ def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
     planners = _Planners(scene)
     checker = planners.checker()
     plans: list[StepPlan] = [StepPlan(q, q) for _ in range(start)]
+    # a program with objects runs on the gripper cell: its moves are planned with the gripper on the flange
+    tool = gripper_geometry(ParallelGripper()) if program.objects else []
+    cell_planner = CellPlanner(scene) if tool else None
     known = True  # the configuration at the step's start is known (no grasp/place before it)
     for i in range(start, len(program.steps)):
         step = program.steps[i]
@@ -248,8 +263,12 @@ def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
             if step.kind == "move":
                 q1 = resolve_target(program, step.args["target"], q)
                 checker.check_waypoints(np.array([q1]), [f"the target of step {i} ({step.name!r})"])
+                if cell_planner is not None and cell_planner.clearance(q1, tool, self_collision=False) < scene.d_min:
+                    raise InvalidInput(f"the gripper comes within {scene.d_min * 1000:.0f} mm of an obstacle at the "
+                                       "target")
                 if known:
-                    plan.trajectory = plan_move(scene, planners, q, q1)
+                    plan.trajectory = (cell_planner.plan(q, q1, tool) if cell_planner is not None
+                                       else plan_move(scene, planners, q, q1))
                 else:
                     plan.deferred = True
                 plan.q_end = q1
@@ -259,10 +278,15 @@ def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
                     raise InvalidInput("a path step must follow a move (it starts where the robot is)")
                 plan.trajectory = plan_path(program, step, q)
                 plan.q_end = plan.trajectory.q[-1].copy()
-            elif step.kind in ("grasp", "place"):
+            elif step.kind in ("grasp", "place", "guide"):
                 if step.kind == "place":
                     check_place_reachable(step.args["at"])
                 known = False
+            elif step.kind in SKILL_KINDS:
+                skill = load_skill(skill_path(program, step))
+                if skill_kind(skill) != SKILL_KINDS[step.kind]:
+                    raise InvalidInput(f"skill file {step.args['skill']!r} holds a {skill_kind(skill)} skill, not "
+                                       f"{SKILL_KINDS[step.kind]}")
         except (IKFailure, CollisionAtStart, InfeasibleProblem, InvalidInput) as exc:
             raise _reject(step, i, str(exc)) from None
         except RobointelError as exc:

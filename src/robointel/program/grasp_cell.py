@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from robointel.errors import IKFailure, InvalidInput
+from robointel.geometry.obstacles import Obstacle
 from robointel.geometry.table import ENVIRONMENT_NAMES
 from robointel.learning.grasp import (
     GraspPlanner,
@@ -36,12 +37,19 @@ from robointel.learning.grasp.pipeline import Q_PARK, lrmate_with_gripper
 from robointel.learning.grasp.scene import ARM_KP, ARM_KV, arm_scene
 from robointel.outcome import Failure, TrialOutcome
 from robointel.program.format import OBJECT_CATEGORIES, Program
+from robointel.program.guide_step import GuideResult, PushOperator, guide_with_hand
+from robointel.program.motion import CellPlanner, gripper_geometry, held_box
 from robointel.trajectory import Trajectory
 
 Planner = Callable[[np.ndarray, np.ndarray], "Trajectory | None"]
 TEMPLATE_SEED = 900  # generated template instances: seeds never used for the objects placed in examples
 LIFT_M = 0.15
+MAX_LIFT_M = 0.35  # highest the part is raised (straight up) to start the carry clear of the fixtures
 TRACKING_LIMIT_RAD = 0.08
+CARRY_SPEED = 0.3  # fraction of the velocity limits (its square of the accelerations) while holding an object
+SLIP_M = 0.02  # the object moved this far in the hand while lifted: the grasp is not firm (regrasp)
+CARRY_SLIP_M = 0.05  # ... while carried: it slips out (the arm stops)
+GRASP_ATTEMPTS = 2  # grasps tried (re-perceiving between them) before the step fails
 
 
 def straight(q0: np.ndarray, q1: np.ndarray, duration: float, names: list[str]) -> Trajectory:
@@ -116,6 +124,13 @@ class GraspCell:
         self.trace: list[np.ndarray] = []  # measured joints of every motion since the last pop_trace
         self.held: int | None = None
         self._grip_in_hand: np.ndarray | None = None
+        self._held_box: Obstacle | None = None
+        self._flange = m.body("arm/tool").id
+        self.motion = CellPlanner(program.scene, seed=seed)
+        self.seed = int(seed)
+        self.operator: PushOperator | None = None  # the scripted operator of guide steps
+        self.stations: dict[str, object] = {}  # insert/grind stations (default: the skills' own cells)
+        self.tool = gripper_geometry(self.gripper)
         self.stopped: str | None = None
         d = self.data
         d.qpos[self._jadr] = q0
@@ -186,6 +201,12 @@ class GraspCell:
             Q[k] = d.qpos[self._jadr]
             err = max(err, float(np.max(np.abs(Q[k] - q))))
             hit = self._collision() if d.ncon else None
+            if hit is None and self.held is not None and k % 10 == 0:
+                slip = self._slip()
+                if slip is not None:
+                    self.trace.append(Q[:k + 1])
+                    self.stop("slip")
+                    return TrialOutcome(False, Failure.SLIP, slip, {"tracking_max_rad": err}), Q[:k + 1]
             if hit:
                 self.trace.append(Q[:k + 1])
                 self.retreat(dense.q[max(0, k - int(0.15 / dt))])
@@ -195,6 +216,15 @@ class GraspCell:
             self.stop("tracking")
             return TrialOutcome(False, Failure.TRACKING, f"tracking error {err:.3f} rad", {"tracking_max_rad": err}), Q
         return TrialOutcome(True, figures={"tracking_max_rad": err}), Q
+
+    def _slip(self) -> str | None:
+        """Why the held object no longer sits where it was grasped in the hand (None while it does)."""
+        assert self.held is not None and self._grip_in_hand is not None
+        in_hand = np.linalg.inv(self._pose(self._gripper)) @ self._pose(self._obj[self.held])
+        moved = float(np.linalg.norm(in_hand[:3, 3] - self._grip_in_hand[:3, 3]))
+        if moved > CARRY_SLIP_M:
+            return f"the held object slipped {moved * 100:.1f} cm in the hand"
+        return None
 
     def pop_trace(self) -> np.ndarray:
         """Return the measured joints (M, n) of the motions since the last call, on a 1 ms grid, and clear them."""
@@ -239,16 +269,39 @@ class GraspCell:
     def grasp(self, category: str, plan: Planner) -> TrialOutcome:
         """Perceive, find a cluster of ``category``, plan a grasp, approach, close, lift and verify.
 
+        A grasp that does not lift the object, or lets it move in the hand while lifting, is released and
+        retried from a new perception (``GRASP_ATTEMPTS`` in all). Before the carry the object is raised
+        straight up (up to ``MAX_LIFT_M``) until the arm, gripper and object keep ``d_min`` from the fixtures.
+
         Args:
             category: The object category to pick.
             plan: The program's motion planner (start, goal) -> trajectory around the fixtures.
 
         Returns:
-            The outcome: success when an object rose with the gripper; else NO_GRASP (nothing of the
-            category perceived or no feasible grasp), IK, COLLISION or SLIP.
+            The outcome: success when an object rose with the gripper and sits still in it; else NO_GRASP
+            (nothing of the category perceived or no feasible grasp), IK, COLLISION or SLIP.
         """
         if self.held is not None:
             return TrialOutcome(False, Failure.ERROR, "the gripper already holds an object")
+        out = TrialOutcome(False, Failure.NO_GRASP, "no attempt")
+        for _ in range(GRASP_ATTEMPTS):
+            out = self._grasp_once(category, plan)
+            if out.success or out.reason is not Failure.SLIP:
+                break
+            self.set_io("gripper", 0)  # let go of what was not held and back off straight up
+            self.held = None
+            T = self.robot.fk(self.q)
+            T[2, 3] += 0.08
+            sols = self.robot.ik(T, q_ref=self.q)
+            if len(sols):
+                back = self._run(straight(self.q, np.asarray(sols[0], float), 0.8, self.names))
+                if not back.success:
+                    return back
+        if not out.success:
+            return out
+        return self._clear_for_carry(out)
+
+    def _grasp_once(self, category: str, plan: Planner) -> TrialOutcome:
         if float(np.max(np.abs(self.q - self.observe_q))) > 0.02:  # look from where the arm hides nothing
             out = self._run(plan(self.q, self.observe_q))
             if not out.success:
@@ -288,38 +341,94 @@ class GraspCell:
                 return out
             self.set_io("gripper", 1)
             z0 = [float(self.data.xpos[b][2]) for b in self._obj]
+            in_hand0 = [np.linalg.inv(self._pose(self._gripper)) @ self._pose(b) for b in self._obj]
             out = self._run(straight(self.q, q_up, 1.0, self.names))
         finally:
             self._env_geoms.add(self.model.geom("table").id)
         if not out.success:
             return out
+        self._step_for(0.2)  # let a loose grasp show itself before it is carried
         gpos = self.data.xpos[self._gripper]
         rose = [i for i, b in enumerate(self._obj) if self.data.xpos[b][2] - z0[i] > 0.5 * LIFT_M
                 and np.linalg.norm(self.data.xpos[b] - gpos) < 0.15]
         if not rose:
             return TrialOutcome(False, Failure.SLIP, f"the {category} did not rise with the gripper")
-        self.held = rose[0]
-        Tg = self._pose(self._gripper)
-        self._grip_in_hand = np.linalg.inv(Tg) @ self._pose(self._obj[self.held])
-        return TrialOutcome(True, detail=f"holding object {self.held} ({self.categories[self.held]})",
+        i = rose[0]
+        in_hand = np.linalg.inv(self._pose(self._gripper)) @ self._pose(self._obj[i])
+        moved = float(np.linalg.norm(in_hand[:3, 3] - in_hand0[i][:3, 3]))
+        if moved > SLIP_M:
+            return TrialOutcome(False, Failure.SLIP, f"the {category} moved {moved * 100:.1f} cm in the hand while "
+                                "lifted")
+        self.held = i
+        self._grip_in_hand = in_hand
+        self._held_box = held_box(self._pose(self._flange), self._pose(self._obj[i]),
+                                  self.placements[i].obj.mesh.bounds)
+        return TrialOutcome(True, detail=f"holding object {i} ({self.categories[i]})",
                             figures={"grasp_width_m": self.gripper.max_width - 2 * float(self.data.qpos[self._fp])})
 
-    def held_sphere(self) -> tuple[str, np.ndarray, float] | None:
-        """The held object as one bounding sphere on the robot's last link, for planning the carry.
+    def _clear_for_carry(self, out: TrialOutcome) -> TrialOutcome:
+        """Raise the held object straight up until the carry can start ``d_min`` clear of the fixtures."""
+        d_min = self.motion.scene.d_min
+        q = self.q
+        if self.motion.clearance(q, self.attached(), self_collision=False) >= d_min:
+            return out
+        T = self.robot.fk(q)
+        for dz in np.arange(0.05, MAX_LIFT_M - LIFT_M + 1e-9, 0.05):
+            Tz = T.copy()
+            Tz[2, 3] += dz
+            sols = self.robot.ik(Tz, q_ref=q)
+            if not len(sols):
+                break
+            q_hi = np.asarray(sols[0], float)
+            if self.motion.clearance(q_hi, self.attached(), self_collision=False) >= d_min:
+                moved = self._run(straight(self.q, q_hi, 0.5 + 4 * dz, self.names))
+                return moved if not moved.success else TrialOutcome(True, detail=out.detail, figures={
+                    **out.figures, "extra_lift_m": float(dz)})
+        return TrialOutcome(False, Failure.INFEASIBLE, f"the held object cannot be raised {d_min * 1000:.0f} mm clear "
+                            "of the fixtures to start the carry")
 
-        Returns:
-            (link name, centre (3,) in the link frame in m, radius in m), or None when nothing is held.
+    def guide(self, timeout: float) -> GuideResult:
+        """Lead-through until the operator presses continue (``guide`` step): the hand pushes the gripper.
+
+        The operator is :attr:`operator` (default: a :class:`PushOperator`, 20 N along +y for 0.5 s); its
+        force acts on the gripper body in MuJoCo and is the (ideal) F/T reading the guidance controller gets.
         """
-        if self.held is None:
+        op = self.operator or PushOperator()
+        period = op.period
+        obstacles = [o for o in self.motion.scene.obstacles if getattr(o, "name", None) != "floor"]
+        frc = self.data.xfrc_applied
+
+        def step(q_cmd: np.ndarray, f: np.ndarray) -> str | None:
+            frc[self._gripper, :3] = f
+            self._ctrl = q_cmd.copy()
+            self.data.ctrl[:6] = q_cmd
+            for _ in range(max(1, int(round(period / self.model.opt.timestep)))):
+                mujoco.mj_step(self.model, self.data)
+                hit = self._collision() if self.data.ncon else None
+                if hit:
+                    return hit
             return None
-        sm = self.robot.spheres
-        link = sm.links[int(np.argmax(sm.joints))]
-        T_link = self._pose(self.model.body("arm/" + link).id)
-        mesh = self.placements[self.held].obj.mesh
-        T_obj = self._pose(self._obj[self.held])
-        centre = T_obj[:3, :3] @ mesh.bounds.mean(axis=0) + T_obj[:3, 3]
-        local = np.linalg.inv(T_link) @ np.r_[centre, 1.0]
-        return link, local[:3], 0.5 * float(np.linalg.norm(mesh.extents))
+
+        try:
+            return guide_with_hand(self.robot, op, timeout=timeout, period=period, read_q=lambda: self.q, step=step,
+                                   obstacles=obstacles)
+        finally:
+            frc[self._gripper, :3] = 0.0
+
+    def attached(self) -> list[Obstacle]:
+        """The gripper and the held object (its bounding box) in the flange frame, for planning."""
+        return self.tool + ([self._held_box] if self.held is not None and self._held_box is not None else [])
+
+    def plan_move(self, q0: np.ndarray, q1: np.ndarray) -> Trajectory | None:
+        """Plan a move of the arm with its gripper and held object around the fixtures (:class:`CellPlanner`).
+
+        Carrying an object, it moves at ``CARRY_SPEED`` of the velocity limits.
+
+        Raises:
+            CollisionAtStart: The start or the goal is closer than ``d_min``.
+            InfeasibleProblem: No checked motion was found.
+        """
+        return self.motion.plan(q0, q1, self.attached(), speed=CARRY_SPEED if self.held is not None else 1.0)
 
     def _pose(self, body: int) -> np.ndarray:
         T = np.eye(4)

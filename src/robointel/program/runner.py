@@ -10,14 +10,19 @@ from typing import Protocol
 import numpy as np
 
 from robointel.errors import RobointelError
+from robointel.interface.sim import SimRobot
+from robointel.learning.grinding import GrindingSkill
+from robointel.learning.insertion import InsertionSkill
 from robointel.outcome import Failure, TrialOutcome
-from robointel.program.check import ProgramCheck, _Planners, check_program, plan_move, scene_key
-from robointel.program.format import Program
+from robointel.program.check import ProgramCheck, _Planners, check_program, plan_move, scene_key, skill_path
+from robointel.program.format import SKILL_KINDS, Program, Step
+from robointel.program.guide_step import GuideResult, Operator, PushOperator, run_guide
+from robointel.program.skill_file import load_skill
+from robointel.program.skill_steps import run_grind, run_insert
 from robointel.sim import Workcell
 from robointel.trajectory import Trajectory
 
 TRACKING_LIMIT_RAD = 0.05  # largest joint tracking error a step may show before it counts as failed
-CARRY_SPEED = 0.5  # fraction of the velocity limits (its square of the acceleration limits) while holding an object
 BACKOFF_STEPS = 150  # control periods (1 ms) of the path the robot backs off along after a contact
 
 
@@ -56,12 +61,35 @@ class SimCell:
             the program's scene knows).
     """
 
-    def __init__(self, program: Program, q0: np.ndarray, *, workcell: Workcell | None = None) -> None:
-        self.workcell = workcell or Workcell(program.robot, obstacles=program.scene.obstacles, ft_sensor=False, q0=q0)
+    def __init__(self, program: Program, q0: np.ndarray, *, workcell: Workcell | None = None,
+                 operator: Operator | None = None, seed: int = 0) -> None:
+        guided = any(s.kind == "guide" for s in program.steps)
+        self.workcell = workcell or Workcell(program.robot, obstacles=program.scene.obstacles, ft_sensor=guided,
+                                             q0=q0)
         if workcell is not None:
             self.workcell.reset(q0)
+        self.program = program
+        self.operator = operator
+        self.seed = int(seed)
         self.io: dict[str, float] = {}
         self.stopped: str | None = None
+        self.stations: dict[str, object] = {}  # insert/grind stations (default: the skills' own cells)
+        self.guided: list[GuideResult] = []
+
+    def guide(self, timeout: float) -> GuideResult:
+        """Lead-through on the workcell (F/T sensor) until the operator presses continue (``guide`` step).
+
+        The operator is the one given to the cell, else a :class:`PushOperator` (20 N along +y for 0.5 s).
+        """
+        arm = SimRobot(self.workcell)
+        op = self.operator or PushOperator(self.workcell, period=arm.period)
+        if isinstance(op, PushOperator) and op.workcell is None:
+            op = replace(op, workcell=self.workcell, period=arm.period)
+        obstacles = [o for o in self.program.scene.obstacles if getattr(o, "name", None) != "floor"]
+        res = run_guide(arm, self.program.robot, op, timeout=timeout, obstacles=obstacles)
+        self.workcell.clear_wrench()
+        self.guided.append(res)
+        return res
 
     @property
     def q(self) -> np.ndarray:
@@ -190,19 +218,12 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
     results: list[StepResult] = []
     planners = _Planners(program.scene)
 
+    cell_plan = getattr(cell, "plan_move", None)  # a cell with a tool plans with its tool and held object
+
     def plan_fn(a: np.ndarray, b: np.ndarray) -> Trajectory | None:
-        held = getattr(cell, "held_sphere", lambda: None)()
-        if held is None:
-            return plan_move(program.scene, planners, a, b)
-        # carrying: the held object is a sphere on the last link while this motion is planned
-        spheres = program.robot.spheres
-        spheres.add(*held)
-        sc = program.scene
-        carry = replace(sc, vmax=sc.vmax * CARRY_SPEED, amax=sc.amax * CARRY_SPEED ** 2)
-        try:
-            return plan_move(carry, _Planners(carry), a, b)
-        finally:
-            spheres.remove(len(spheres) - 1)
+        if cell_plan is not None:
+            return cell_plan(a, b)  # type: ignore[no-any-return]
+        return plan_move(program.scene, planners, a, b)
 
     for i in range(i0, len(program.steps)):
         step = program.steps[i]
@@ -216,7 +237,7 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
             traj = plan.trajectory
             try:
                 if step.kind == "move" and (plan.deferred or scene_key(program.scene) != chk.scene_key):
-                    traj = plan_move(program.scene, planners, cell.q, plan.q_end)
+                    traj = plan_fn(cell.q, plan.q_end)
                     replanned = not plan.deferred
             except RobointelError as exc:
                 traj = None
@@ -252,6 +273,20 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
                     executed = cell.pop_trace()
                 if not outcome.success:
                     cell.stop(step.kind)
+        elif step.kind == "guide":
+            act = getattr(cell, "guide", None)
+            if act is None:
+                outcome = TrialOutcome(False, Failure.ERROR, f"the cell {type(cell).__name__} has no F/T sensor for "
+                                       "lead-through (use SimCell)")
+            else:
+                g = act(step.args["timeout"])
+                outcome, executed = g.outcome, g.lead.q
+            if not outcome.success:
+                cell.stop("guide")
+        elif step.kind in SKILL_KINDS:
+            outcome = _skill_step(program, step, cell, i)
+            if not outcome.success:
+                cell.stop(step.kind)
         elif step.kind == "set_io":
             for k, v in step.args["outputs"].items():
                 cell.set_io(k, v)
@@ -262,3 +297,21 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
         if not outcome.success:
             return ProgramRun(results, chk, failed_step=i)
     return ProgramRun(results, chk)
+
+
+def _skill_step(program: Program, step: Step, cell: Cell, i: int) -> TrialOutcome:
+    """Run an ``insert`` or ``grind`` step at the cell's station for it (default: the skill's own cell)."""
+    try:
+        skill = load_skill(skill_path(program, step))
+    except RobointelError as exc:
+        return TrialOutcome(False, Failure.ERROR, str(exc))
+    station = getattr(cell, "stations", {}).get(step.kind)
+    seed = int(getattr(cell, "seed", 0)) * 1000 + i
+    if step.kind == "insert":
+        assert isinstance(skill, InsertionSkill)
+        res = run_insert(skill, seed=seed, time_limit=step.args["time_limit"], station=station)
+    else:
+        assert isinstance(skill, GrindingSkill)
+        res = run_grind(skill, seed=seed, tolerance=step.args["tolerance"], speed=step.args["speed"], station=station)
+    out = res.outcome
+    return TrialOutcome(out.success, out.reason, out.detail, {**out.figures, "held_speed_rad_s": res.held_speed})

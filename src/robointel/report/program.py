@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import html
+from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib
@@ -12,6 +13,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from robointel.io.mcap_log import McapRecorder  # noqa: E402
 from robointel.program import Program, ProgramRun  # noqa: E402
 
 
@@ -87,3 +89,45 @@ def write_program_report(program: Program, run: ProgramRun, out: Path) -> Path:
     index = out / "index.html"
     index.write_text(page)
     return index
+
+
+@dataclass
+class _Sample:
+    """A joint-state sample for the recorder (the Recorder protocol's state)."""
+
+    t: float
+    q: np.ndarray
+    qd: np.ndarray
+    wrench: None = None
+
+
+def record_run(recorder: McapRecorder, program: Program, run: ProgramRun, *, period: float = 0.008) -> int:
+    """Record a simulated run: each step's planned trajectory and its measured joints (every ``period`` s).
+
+    The measured joints of the steps (1 ms grid) go to ``/joint_states`` one after the other on one clock,
+    the checked trajectories of ``move`` and ``path`` steps to the trajectory topic at their start time.
+
+    Args:
+        recorder: The open recorder (closed by the caller).
+        program: The program that ran.
+        run: Its run.
+        period: Spacing of the recorded joint states, s.
+
+    Returns:
+        The number of joint states recorded.
+    """
+    t0, count = 0.0, 0
+    every = max(1, int(round(period / 1e-3)))
+    for r in run.steps:
+        plan = run.check.plans[r.index]
+        if plan.trajectory is not None and not r.replanned:
+            recorder.trajectory(t0, plan.trajectory)
+        Q = r.executed
+        if len(Q) == 0:
+            continue
+        qd = np.gradient(Q, 1e-3, axis=0) if len(Q) > 1 else np.zeros_like(Q)
+        for k in range(0, len(Q), every):
+            recorder.joint_state(_Sample(t0 + k * 1e-3, Q[k], qd[k]))
+            count += 1
+        t0 += len(Q) * 1e-3
+    return count

@@ -1,0 +1,134 @@
+"""Skill files: a learned insertion or grinding skill saved for programs to reference.
+
+One HDF5 file per skill (h5py), written by ``robointel learn ... --skill-out FILE`` or :func:`save_skill`::
+
+    /               attrs: format = "robointel.skill/1", kind = "insertion" | "grinding", meta (JSON)
+    /gmr/priors     (K,)       the mixture (5.14) of the GMR (5.17)
+    /gmr/means      (K, D)
+    /gmr/covariances (K, D, D)  attrs: n_inputs
+    /scaling/<name> the fitted input/output scaling and saturation ranges of the skill
+
+The fitted skill is rebuilt without refitting (:func:`load_skill`), so a program runs exactly the skill
+that was saved.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from robointel.errors import InvalidInput
+from robointel.learning.gmr import GaussianMixtureRegression
+from robointel.learning.grinding import GrindingSkill, Plate
+from robointel.learning.insertion import InsertionSkill
+
+SKILL_FORMAT = "robointel.skill/1"
+SKILL_KINDS = ("insertion", "grinding")
+_INSERTION_SCALING = ("x_lo_", "x_hi_", "y_lo_", "y_hi_", "x_mean_", "x_scale_", "y_mean_", "y_scale_")
+_GRINDING_SCALING = ("y_mean_", "y_scale_", "y_lo_", "y_hi_")
+_PLATE_FIELDS = ("center", "top", "size", "hard_spots", "spread", "light", "hard")
+
+Skill = InsertionSkill | GrindingSkill
+
+
+def skill_kind(skill: Any) -> str:
+    """The kind of a fitted skill object ("insertion" or "grinding").
+
+    Raises:
+        InvalidInput: Not a fitted insertion or grinding skill.
+    """
+    if isinstance(skill, InsertionSkill) and hasattr(skill, "x_mean_"):
+        return "insertion"
+    if isinstance(skill, GrindingSkill) and hasattr(skill, "y_mean_"):
+        return "grinding"
+    raise InvalidInput(f"a skill file holds a fitted InsertionSkill or GrindingSkill, got {type(skill).__name__}",
+                       value=type(skill).__name__)
+
+
+def save_skill(path: str | Path, skill: Skill, *, meta: dict[str, Any] | None = None) -> Path:
+    """Write a fitted skill to an HDF5 skill file (see the module docstring).
+
+    Args:
+        path: The file to write (replaced if it exists).
+        skill: A fitted :class:`InsertionSkill` or :class:`GrindingSkill`.
+        meta: Extra JSON-serialisable facts (demonstrations used, seed, ...).
+
+    Returns:
+        The path written.
+
+    Raises:
+        InvalidInput: ``skill`` is not a fitted skill.
+    """
+    kind = skill_kind(skill)
+    p = Path(path)
+    gmr = skill.gmr
+    with h5py.File(p, "w") as f:
+        f.attrs["format"] = SKILL_FORMAT
+        f.attrs["kind"] = kind
+        f.attrs["meta"] = json.dumps(meta or {})
+        g = f.create_group("gmr")
+        g["priors"], g["means"], g["covariances"] = gmr.priors_, gmr.means_, gmr.covariances_
+        g.attrs["n_inputs"] = int(gmr.n_inputs_)
+        s = f.create_group("scaling")
+        for name in (_INSERTION_SCALING if kind == "insertion" else _GRINDING_SCALING):
+            s[name.rstrip("_")] = np.asarray(getattr(skill, name), float)
+        if kind == "insertion":
+            f.attrs["centre"] = float(skill.centre)  # type: ignore[union-attr]
+        else:
+            plate = skill.plate  # type: ignore[union-attr]
+            f.attrs["plate"] = json.dumps({k: getattr(plate, k) for k in _PLATE_FIELDS})
+    return p
+
+
+def load_skill(path: str | Path) -> Skill:
+    """Read a skill file written by :func:`save_skill`.
+
+    Args:
+        path: The HDF5 skill file.
+
+    Returns:
+        The fitted :class:`InsertionSkill` or :class:`GrindingSkill`.
+
+    Raises:
+        InvalidInput: The file is missing, not HDF5, or not a skill file of a known kind.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise InvalidInput(f"skill file {str(path)!r} not found (write one with `robointel learn insertion "
+                           "--skill-out FILE`)", value=str(path))
+    try:
+        with h5py.File(p, "r") as f:
+            if f.attrs.get("format") != SKILL_FORMAT:
+                raise InvalidInput(f"{p}: not a robointel skill file (format {f.attrs.get('format')!r})", value=str(p))
+            kind = str(f.attrs["kind"])
+            if kind not in SKILL_KINDS:
+                raise InvalidInput(f"{p}: unknown skill kind {kind!r}", value=kind)
+            g = f["gmr"]
+            gmr = GaussianMixtureRegression.from_mixture(g["priors"][()], g["means"][()], g["covariances"][()],
+                                                         int(g.attrs["n_inputs"]))
+            scaling = {k: f["scaling"][k][()] for k in f["scaling"]}
+            centre = float(f.attrs.get("centre", 0.0))
+            plate_d = json.loads(f.attrs["plate"]) if "plate" in f.attrs else None
+    except OSError as exc:
+        raise InvalidInput(f"{p}: cannot read the skill file: {exc}", value=str(p)) from None
+    skill: Skill
+    names: tuple[str, ...]
+    if kind == "insertion":
+        skill = InsertionSkill(gmr.n_components, centre=centre)
+        names = _INSERTION_SCALING
+    else:
+        assert plate_d is not None
+        fields: dict[str, Any] = {k: (tuple(tuple(x) if isinstance(x, list) else x for x in v)
+                                      if isinstance(v, list) else v) for k, v in plate_d.items()}
+        plate = Plate(**fields)
+        skill = GrindingSkill(plate, gmr.n_components)
+        names = _GRINDING_SCALING
+    skill.gmr = gmr
+    for name in names:
+        v = scaling[name.rstrip("_")]
+        setattr(skill, name, v if np.ndim(v) else float(v))
+    return skill
