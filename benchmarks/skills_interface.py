@@ -40,7 +40,7 @@ def insertion(trials: int, demos: int, clearance: float) -> dict:
     peg, hole = PegTool(), HoleTask(clearance=clearance)
     task = ins.PegHole()
     rng = np.random.default_rng(0)
-    ds = [ins.demonstrate(task, rng, scene=ins.HDDScene(task)) for _ in range(demos)]
+    ds = ins.seated_demonstrations(task, rng, demos)
     skill = ins.InsertionSkill(4, centre=peg.centre).fit(ds)
     starts = np.random.default_rng(7)
     cases = [(starts.uniform(-1.5e-3, 1.5e-3, 2), (starts.uniform(0, 2 * np.pi), starts.uniform(0, np.radians(3))))
@@ -93,8 +93,7 @@ def runner_cycle_us(n: int = 400) -> dict:
             pass
 
     task = ins.PegHole()
-    skill = ins.InsertionSkill(4, centre=peg.centre).fit([ins.demonstrate(task, np.random.default_rng(0),
-                                                                          scene=ins.HDDScene(task))])
+    skill = ins.InsertionSkill(4, centre=peg.centre).fit(ins.seated_demonstrations(task, np.random.default_rng(0), 1))
     arm = Dry()
     stamps = []
     t = [time.perf_counter()]

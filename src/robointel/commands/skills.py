@@ -110,11 +110,12 @@ def insert(robot: str = typer.Option("sim", help=ROBOT_HELP), record: Path = typ
         peg, hole = PegTool(), HoleTask(clearance=clearance)
         task = ins.PegHole()
         rng = np.random.default_rng(seed)
-        with Progress(TextColumn("demonstrations"), BarColumn(), console=console) as bar:
+        with Progress(TextColumn("seated demonstrations"), BarColumn(), console=console) as bar:
             t = bar.add_task("demos", total=demos)
             ds = []
+            scene = ins.HDDScene(task)
             for _ in range(demos):
-                ds.append(ins.demonstrate(task, rng, scene=ins.HDDScene(task)))
+                ds += ins.seated_demonstrations(task, rng, 1, scene=scene)
                 bar.advance(t)
         skill = ins.InsertionSkill(4, centre=peg.centre).fit(ds)
         arm_robot = peg.robot()

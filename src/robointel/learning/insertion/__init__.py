@@ -10,7 +10,7 @@
 * :mod:`.press_test` - the contact physics' honesty check.
 """
 
-from robointel.learning.insertion.demonstrator import PHASES, Demonstrator, demonstrate
+from robointel.learning.insertion.demonstrator import PHASES, Demonstrator, demonstrate, seated_demonstrations
 from robointel.learning.insertion.hdd_scene import HDDScene
 from robointel.learning.insertion.impedance import CartesianImpedance, ImpedanceGains
 from robointel.learning.insertion.peg_hole import R_DOWN, PegHole, tip_point
@@ -27,6 +27,7 @@ from robointel.learning.insertion.robot_cell import (
 from robointel.learning.insertion.skill import PERCEPTION, POLICY, InsertionSkill, tool_velocities
 
 __all__ = [
+    "seated_demonstrations",
     "ARMATURE", "PERCEPTION", "PHASES", "POLICY", "R_DOWN", "R_FLANGE_TOOL", "CartesianImpedance",
     "ConstantPush", "Demonstrator", "HDDScene", "HandTunedAdmittance", "ImpedanceGains", "InsertionSkill",
     "InsertionTrial", "PegHole", "Policy", "PressResult", "RobotCell", "demonstrate", "press_test",

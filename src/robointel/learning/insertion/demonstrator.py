@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robointel.errors import InvalidInput
 from robointel.geometry.rotations import rotation_about, so3_exp, so3_log
 from robointel.learning.demonstration import Demonstration
 from robointel.learning.insertion.hdd_scene import HDDScene
@@ -231,3 +232,36 @@ def demonstrate(task: PegHole, rng: np.random.Generator, *, scene: HDDScene | No
     return Demonstration.create(np.array(ts), np.array(poses), np.array(wrenches), np.array(labels),
                                 action_names=PHASES, device="hdd", name=name, meta=meta)
 
+
+
+def seated_demonstrations(task: PegHole, rng: np.random.Generator, n: int, *, scene: HDDScene | None = None,
+                          max_tries: int = 30) -> list[Demonstration]:
+    """The first ``n`` demonstrations in which the scripted person seated the peg.
+
+    At a tight fit the person does not seat every try (``meta["seated"]``); a skill is learned from
+    the seated ones, as the benchmark does.
+
+    Args:
+        task: The peg-hole task.
+        rng: Generator of the demonstrations (drawn from in order).
+        n: Seated demonstrations wanted, >= 1.
+        scene: The HDD scene (built from ``task`` when None).
+        max_tries: Demonstrations tried at most.
+
+    Returns:
+        ``n`` seated demonstrations, in the order drawn.
+
+    Raises:
+        InvalidInput: ``n < 1``, or fewer than ``n`` seated within ``max_tries`` tries.
+    """
+    if n < 1:
+        raise InvalidInput(f"n must be >= 1 seated demonstrations, got {n}", value=n)
+    scene = scene or HDDScene(task)
+    out: list[Demonstration] = []
+    for _ in range(max_tries):
+        d = demonstrate(task, rng, scene=scene)
+        if d.meta["seated"]:
+            out.append(d)
+            if len(out) == n:
+                return out
+    raise InvalidInput(f"only {len(out)} of {max_tries} demonstrations seated the peg, {n} wanted", value=len(out))
