@@ -356,6 +356,35 @@ def samples_clearance(Q, W, T, C, G, out, lever, floor, cap):  # pragma: no cove
 
 
 @njit(cache=True)
+def samples_env_below(Q, W, T, C, G, out, lever, thresh):  # pragma: no cover - compiled
+    """Mask (K,) of the nearby samples Q (K, n) whose obstacle clearance may be below ``thresh``.
+
+    A sample is cleared (False) when its own obstacle clearance is >= ``thresh`` or when the
+    clearance of the last evaluated sample minus the sphere travel since stays >= ``thresh``; only
+    the others (True) need a finer check. Self-collision is not looked at.
+    """
+    K = Q.shape[0]
+    mask = np.zeros(K, np.bool_)
+    cap = thresh + 0.25
+    k = 0
+    while k < K:
+        sphere_centres(Q[k], W, T, C, G)
+        c = env_clearance(C, G, W, cap, -np.inf, out)
+        j = k + 1
+        if c < thresh:
+            mask[k] = True
+        else:
+            moved = 0.0
+            while j < K:
+                moved += travel(Q[j - 1], Q[j], lever)
+                if c - moved < thresh:
+                    break
+                j += 1
+        k = j
+    return mask
+
+
+@njit(cache=True)
 def cloud_bounds(P):  # pragma: no cover - compiled
     """Lower and upper corners (3,), (3,) of the points P (N, 3), N >= 1."""
     lo = P[0].copy()

@@ -266,17 +266,22 @@ def _interior(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, s
             return DenseCheck(False, f"the covering spheres come {d * 1e3:.1f} mm from the obstacles between "
                               f"t = {traj.t[i0]:.3f} s and {traj.t[i1]:.3f} s", "collision",
                               min(d, chk.min_clearance_m), chk.samples)
-    mg = MeshGeometry(env.robot, env.obstacles)
+    mg = _mesh_geometry(env)
     if mg.empty:
         return chk
     dense = traj if float(np.max(np.diff(traj.t))) <= st.check_dt * (1 + 1e-9) else traj.resample(st.check_dt)
     t0, t1 = float(traj.t[i0]), float(traj.t[i1])
     thr = max(st.d_min - CLEARANCE_TOL, 0.0)  # the real geometry may not be penetrated at all
+    s = env.scratch
     for sel in (dense.t <= t0, dense.t >= t1):
-        Q = dense.q[sel]
+        Q = np.ascontiguousarray(dense.q[sel])
         if len(Q) == 0:
             continue
-        d, k, link, obs = mg.samples_clearance(Q, env.lever, thresh=thr, cap=st.d_min + 0.1)
+        # the covering spheres contain the meshes: only samples they leave below thr need coal
+        doubt = K.samples_env_below(Q, Wc, s.T, s.C, s.G, s.out, env.lever, thr)
+        if not doubt.any():
+            continue
+        d, k, link, obs = mg.samples_clearance(Q, env.lever, thresh=thr, cap=st.d_min + 0.1, mask=doubt)
         if d < thr:
             return DenseCheck(False, f"collision-mesh check: link {link!r} is {d * 1e3:.2f} mm from {obs!r} at "
                               f"t = {dense.t[sel][k]:.3f} s", "collision", min(d, chk.min_clearance_m), chk.samples)
@@ -342,6 +347,15 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     return path, gi, traj, chk, ""
 
 
+def _mesh_geometry(env: Environment) -> MeshGeometry:
+    """The environment's exact (coal) geometry, built on first use and kept with it."""
+    mg = getattr(env, "_mesh_geometry", None)
+    if mg is None:
+        mg = MeshGeometry(env.robot, env.obstacles)
+        env._mesh_geometry = mg  # type: ignore[attr-defined]
+    return mg
+
+
 _WARM: set[int] = set()
 
 
@@ -350,7 +364,7 @@ def _warmup(env: Environment) -> None:
 
     Runs, outside the time budget and plan_ms.
     """
-    key = env.robot.nq
+    key = id(env.robot)
     if key in _WARM:
         return
     W, s = env.world, env.scratch
@@ -364,6 +378,9 @@ def _warmup(env: Environment) -> None:
     R.shortcut(P, 2, 0, W, W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
     K.edge_valid(P[0], P[1], W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
     K.samples_clearance(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1)
+    K.samples_env_below(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0)
+    if env.cover_meshes:  # the collision meshes and their hulls, loaded once per robot
+        MeshGeometry(env.robot, [])
     _WARM.add(key)
 
 
