@@ -1,11 +1,12 @@
 """Start-to-goal motion planning in cluttered cells for any arm.
 
 The pipeline: a global stage (RRT-Connect on the compiled sphere checks, edges checked so that no
-sphere centre moves more than ``resolution`` between checks, then shortcutting), temporal
-optimization of the path (7.7)-(7.9) (:func:`robointel.planning.temporal.temporal_optimize` on knots
-spaced along the path, so the horizon and the number of steps come from the path itself), or
-jerk-limited rest-to-rest timing with ruckig, and finally the dense check of the executed
-trajectory (1 ms resample: joint limits, velocity and acceleration limits, clearance >= d_min - 1 mm
+sphere centre moves more than ``resolution`` between checks, then shortcutting), then timing: by
+default the time-optimal parametrisation (TOPP, :mod:`robointel.planning.topp`) of a spline through
+knots along the path, so the horizon and the number of steps come from the path itself; or
+temporal optimization (7.7)-(7.9) of knots along the path; or jerk-limited rest-to-rest timing
+with ruckig; and finally the dense check of the executed trajectory (1 ms samples: joint limits,
+velocity and acceleration limits, clearance >= d_min - 1 mm
 to obstacles and between non-adjacent links). ``success`` is True only when that check passed.
 """
 from __future__ import annotations
@@ -27,6 +28,7 @@ from robointel.planning.jerk_limited import jerk_limited_polyline
 from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, check_dense, window_clearance
 from robointel.planning.polyline_timing import polyline_timing
 from robointel.planning.temporal import temporal_optimize
+from robointel.planning.topp import topp_spline
 from robointel.robot.model import Robot
 from robointel.trajectory import Trajectory
 
@@ -49,10 +51,13 @@ class MotionSettings:
             edge keeps clearance >= d_min - resolution / 2 between the checked points).
         search_resolution: the same during the tree search (coarser, faster); the found path's
             edges are re-checked at ``resolution`` (the search is repeated finer if one fails).
-        smooth: time the path by temporal optimization (7.7)-(7.9) of the spline through knots
-            along it (no stop at the vertices); when that spline fails the dense check (it leaves
-            the checked polyline near a corner), fall back to time-optimal rest-to-rest motion
-            along the polyline itself.
+        smooth: time a spline through knots along the path (no stop at the vertices); when that
+            spline fails the dense check (it leaves the checked polyline near a corner), knots 4x
+            closer, then time-optimal rest-to-rest motion along the polyline itself.
+        timing: how the smooth path is timed: ``"topp"``, time-optimal along the spline
+            (:func:`robointel.planning.topp.topp_spline`, knots every ``spline_step``), or
+            ``"temporal"``, temporal optimization (7.7)-(7.9) of the knots every ``knot_step``.
+        spline_step: largest joint step between the TOPP spline's knots, rad.
         max_nodes: capacity of each RRT tree.
         shortcut_iters: random shortcut attempts after the greedy pass.
         knot_step: largest joint step between knots of the time-optimised spline, rad.
@@ -72,6 +77,8 @@ class MotionSettings:
     max_nodes: int = 20000
     shortcut_iters: int = 60
     smooth: bool = True
+    timing: str = "topp"
+    spline_step: float = 0.1
     knot_step: float = 0.2
     velocity_scale: float = 1.0
     acceleration_limit: tuple[float, ...] | None = None
@@ -178,9 +185,10 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
         raise InvalidInput("settings must be a MotionSettings", value=settings)
     st = settings
     if not (st.d_min >= 0 and st.time_budget_s > 0 and st.resolution > 0 and st.rrt_range > 0
-            and 0 < st.velocity_scale <= 1 and st.knot_step > 0 and st.check_dt > 0):
-        raise InvalidInput("settings need d_min >= 0, time_budget_s, resolution, rrt_range, knot_step, check_dt > 0 "
-                           "and 0 < velocity_scale <= 1", value=st)
+            and 0 < st.velocity_scale <= 1 and st.knot_step > 0 and st.spline_step > 0 and st.check_dt > 0
+            and st.timing in ("topp", "temporal")):
+        raise InvalidInput("settings need d_min >= 0, time_budget_s, resolution, rrt_range, knot_step, spline_step, "
+                           "check_dt > 0, 0 < velocity_scale <= 1 and timing 'topp' or 'temporal'", value=st)
     q0 = robot.check_q(np.asarray(start, float), "start", limits=True)
     goals = _goal_set(robot, goal, st.seed)
     env = environment
@@ -326,12 +334,18 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     names = list(robot.joint_names)
     traj, chk = None, None
     if st.smooth and not st.jerk_limited and len(path) > 2:
-        tr = temporal_optimize(_densify(path, float(st.knot_step)), vmax, amax)
-        tt = tr.trajectory
-        traj = Trajectory(tt.t, tt.q, tt.qd, tt.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
-        chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
-        if chk.ok and hybrid:
-            chk = _interior(env, traj, path, Wc, st, chk)
+        steps = (st.knot_step,) if st.timing == "temporal" else (st.spline_step, st.spline_step / 4)
+        for step in steps:  # a spline that leaves the checked polyline too far: knots closer together
+            if st.timing == "temporal":
+                tt = temporal_optimize(_densify(path, float(step)), vmax, amax).trajectory
+                traj = Trajectory(tt.t, tt.q, tt.qd, tt.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
+            else:
+                traj = topp_spline(path, vmax, amax, step=float(step), dt=st.check_dt, joint_names=names)
+            chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
+            if chk.ok and hybrid:
+                chk = _interior(env, traj, path, Wc, st, chk)
+            if chk.ok or chk.kind != "collision":
+                break
         timings["smooth"] = (time.perf_counter() - t3) * 1e3
     if chk is None or not chk.ok:  # rest to rest along the checked polyline
         t4 = time.perf_counter()
