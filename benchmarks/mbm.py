@@ -214,6 +214,9 @@ def main() -> None:
     ap.add_argument("--all", action="store_true", help="every valid problem (the default without --per-family)")
     ap.add_argument("--per-family", type=int, default=None, help="first N valid problems of each family")
     ap.add_argument("--jsonl", type=Path, default=None, help="append each judged row to this JSONL file")
+    ap.add_argument("--interleave", action="store_true",
+                    help="run the families in turn (problem k of every family, then k + 1), so a cut-short run "
+                         "covers every family")
     ap.add_argument("--resume", action="store_true", help="skip the problems already in --jsonl")
     ap.add_argument("--families", nargs="*", default=None)
     ap.add_argument("--peers", nargs="*", default=["ompl", "vamp"], choices=["ompl", "vamp"])
@@ -238,6 +241,13 @@ def main() -> None:
         ap.error("--all and --per-family exclude each other")
     problems = pset.select(families=args.families, per_family=None if args.all else args.per_family)
     families = list(dict.fromkeys(p.family for p in problems))
+    if args.interleave:
+        rank: dict[str, int] = {}
+        keyed = []
+        for p in problems:
+            rank[p.family] = rank.get(p.family, -1) + 1
+            keyed.append(((rank[p.family], families.index(p.family)), p))
+        problems = [p for _, p in sorted(keyed, key=lambda kp: kp[0])]
     checker = MBMChecker(d / "ur5.urdf", d / "ur5.srdf")
     vmax = checker.vmax.copy()
     amax = 3.0 * vmax

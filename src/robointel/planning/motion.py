@@ -173,7 +173,8 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
 
     Raises:
         InvalidInput: bad shapes, NaN, limits, or an environment built for another robot.
-        CollisionAtStart: the start, or every goal, is closer than ``d_min`` (names the pair).
+        CollisionAtStart: the start, or every goal, is closer than max(``d_min`` - 1 mm, 0) (the
+            dense check's tolerance; names the pair).
         IKFailure: a pose goal without IK solutions.
     """
     if not isinstance(environment, Environment) or environment.robot is not robot:
@@ -189,7 +190,7 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
             and st.timing in ("topp", "temporal")):
         raise InvalidInput("settings need d_min >= 0, time_budget_s, resolution, rrt_range, knot_step, spline_step, "
                            "check_dt > 0, 0 < velocity_scale <= 1 and timing 'topp' or 'temporal'", value=st)
-    q0 = robot.check_q(np.asarray(start, float), "start", limits=True)
+    q0 = np.array(robot.check_q(np.asarray(start, float), "start", limits=True), dtype=float)  # writable
     goals = _goal_set(robot, goal, st.seed)
     env = environment
     model = env.model
@@ -209,24 +210,30 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     robot = env.robot
     # the mesh-covering spheres where start and a goal allow them, else the spheres as given
     env.use("cover")
-    hybrid = env.cover_meshes and not _roots_free(env, q0, goals, st.d_min)
+    root = max(st.d_min - CLEARANCE_TOL, 0.0)  # the covering spheres contain the meshes: >= 0 is clear
+    hybrid = env.cover_meshes and not _roots_free(env, q0, goals, root)
     if hybrid:  # edges at the start and goals in spheres grown as far as they allow, the rest covering
         env.use("fitted")
         lo, hi = 0.0, 1.0
-        if _roots_free(env, q0, goals, st.d_min):
+        if _roots_free(env, q0, goals, root):
             for _ in range(8):
                 mid = 0.5 * (lo + hi)
                 env.use("fitted", blend=mid)
-                lo, hi = (mid, hi) if _roots_free(env, q0, goals, st.d_min) else (lo, mid)
+                lo, hi = (mid, hi) if _roots_free(env, q0, goals, root) else (lo, mid)
         env.use("fitted", blend=lo)
     Wc = env.world_cover
     Wr = env.world if hybrid else Wc
-    env.check_free(q0, d_min=st.d_min, what="start configuration")
-    ok = [env.clearance(g, cap=st.d_min + 1.0) >= st.d_min for g in goals]
+    # the roots may be up to the dense check's tolerance closer than d_min, never below 0 (e.g. sphere
+    # pairs of a folded wrist whose meshes are clear); the search then keeps the smallest root clearance
+    floor = root
+    env.check_free(q0, d_min=floor, what="start configuration")
+    cg = np.array([env.clearance(g, cap=st.d_min + 1.0) for g in goals])
+    ok = cg >= floor
     if not any(ok):
-        env.check_free(goals[0], d_min=st.d_min, what="goal configuration" if len(goals) == 1 else "every goal; goal 0")
+        env.check_free(goals[0], d_min=floor, what="goal configuration" if len(goals) == 1 else "every goal; goal 0")
     goal_ids = np.flatnonzero(ok)
     goals = goals[goal_ids]
+    thr = min(st.d_min, env.clearance(q0, cap=st.d_min + 1.0), float(cg[ok].min()))
     vmax = robot.velocity_limit * st.velocity_scale
     amax = np.asarray(st.acceleration_limit if st.acceleration_limit is not None else robot.acceleration_limit, float)
     if amax.shape != (robot.nq,) or np.any(amax <= 0):
@@ -237,7 +244,7 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     attempt = 0
     while True:
         path, gi, traj, chk, why = _attempt(env, q0, goals, st, deadline, Wc, Wr, hybrid, vmax, amax, timings,
-                                            attempt)
+                                            attempt, thr)
         if path is None:
             return _fail(f"no collision-free path found: {why}", Failure.TIMEOUT, t0, timings)
         assert chk is not None
@@ -298,19 +305,22 @@ def _interior(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, s
 
 def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, deadline: float, Wc: tuple,
              Wr: tuple, hybrid: bool, vmax: np.ndarray, amax: np.ndarray, timings: dict[str, float],
-             attempt: int) -> tuple[np.ndarray | None, int, Trajectory | None, DenseCheck | None, str]:
-    """One search, shortcut, timing and dense check: (path, goal, trajectory, check, why not)."""
+             attempt: int, thr: float) -> tuple[np.ndarray | None, int, Trajectory | None, DenseCheck | None, str]:
+    """One search, shortcut, timing and dense check: (path, goal, trajectory, check, why not).
+
+    The search and the shortcut keep sphere clearance ``thr`` (<= d_min); the dense check d_min - 1 mm.
+    """
     robot = env.robot
     # global stage ----------------------------------------------------------------------------
     t1 = time.perf_counter()
     path, gi, why = None, -1, ""
     res = float(st.search_resolution)
     while path is None:
-        path, gi, why = _search(env, q0, goals, st, res, deadline, Wc, Wr, attempt)
+        path, gi, why = _search(env, q0, goals, st, res, deadline, Wc, Wr, attempt, thr)
         if path is None:
             timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
             return None, -1, None, None, why
-        if _path_valid(env, path, st.d_min, st.resolution, Wc, Wr):
+        if _path_valid(env, path, thr, st.resolution, Wc, Wr):
             break
         path, res = None, res / 4  # an edge failed the fine check: search again, finer
         if res < st.resolution:
@@ -321,7 +331,7 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     P = np.empty((max(len(path) * 2 + 64, 256), robot.nq))
     P[:len(path)] = path
     R.seed(int(st.seed) + 1 + 7 * attempt)
-    m = R.shortcut(P, len(path), int(st.shortcut_iters), Wc, Wr, s.T, s.C, s.G, s.out, float(st.d_min), env.lever,
+    m = R.shortcut(P, len(path), int(st.shortcut_iters), Wc, Wr, s.T, s.C, s.G, s.out, float(thr), env.lever,
                    float(st.resolution))
     path = P[:m].copy()
     keep = np.concatenate([[True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-9])
@@ -395,6 +405,9 @@ def _warmup(env: Environment) -> None:
     K.samples_env_below(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0)
     if env.cover_meshes:  # the collision meshes and their hulls, loaded once per robot
         MeshGeometry(env.robot, [])
+    lim = np.ones(env.robot.nq)
+    e = 0.1 * np.eye(env.robot.nq)
+    topp_spline(np.array([q, q + e[0], q + e[0] + e[-1]]), lim, lim)  # a path with a corner
     _WARM.add(key)
 
 
@@ -412,13 +425,14 @@ def _path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: fl
 
 
 def _search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, res: float,
-            deadline: float, W: tuple, Wr: tuple, attempt: int = 0) -> tuple[np.ndarray | None, int, str]:
+            deadline: float, W: tuple, Wr: tuple, attempt: int = 0,
+            thr: float | None = None) -> tuple[np.ndarray | None, int, str]:
     """RRT-Connect from q0 to the goal set (a direct edge first): (path, goal index, why not).
 
     Nodes and edges are checked in ``W``, edges leaving the start or a goal in ``Wr``.
     """
     s = env.scratch
-    thr, lever = float(st.d_min), env.lever
+    thr, lever = float(st.d_min if thr is None else thr), env.lever
     for k, g in enumerate(goals):
         if attempt == 0 and K.edge_valid(q0, g, Wr, s.T, s.C, s.G, s.out, thr, lever, res):
             return np.array([q0, g]), k, ""
