@@ -218,6 +218,8 @@ def main() -> None:
                     help="run the families in turn (problem k of every family, then k + 1), so a cut-short run "
                          "covers every family")
     ap.add_argument("--resume", action="store_true", help="skip the problems already in --jsonl")
+    ap.add_argument("--summary-only", action="store_true",
+                    help="with --jsonl: summarise the rows of that file (problems not in it are left out)")
     ap.add_argument("--families", nargs="*", default=None)
     ap.add_argument("--peers", nargs="*", default=["ompl", "vamp"], choices=["ompl", "vamp"])
     ap.add_argument("--no-ours", action="store_true", help="run the peers and the checker only")
@@ -265,7 +267,13 @@ def main() -> None:
             ours_error = f"robointel.planning.plan_motion not available in this tree: {exc}"
     rows: dict[str, list[dict]] = {k: [] for k in (["ours"] if ours else []) + list(peers)}
     done = load_rows(args.jsonl, rows) if (args.jsonl is not None and args.resume) else set()
-    sink = args.jsonl.open("a") if args.jsonl is not None else None
+    if args.summary_only:
+        if args.jsonl is None:
+            ap.error("--summary-only needs --jsonl")
+        done = load_rows(args.jsonl, rows)
+        problems = [p for p in problems if (p.family, p.index) in done]
+        families = list(dict.fromkeys(p.family for p in problems))
+    sink = args.jsonl.open("a") if args.jsonl is not None and not args.summary_only else None
     endpoints_free = endpoints = 0
     raw_by_key = {(f, p["index"]): p for f, ps in raw_all.items() for p in ps}
     if "vamp" in peers and problems:  # warm-up outside the figures (first-call allocations)
