@@ -58,7 +58,7 @@ class MotionSettings:
             (:func:`robointel.planning.topp.topp_spline`, knots every ``spline_step``), or
             ``"temporal"``, temporal optimization (7.7)-(7.9) of the knots every ``knot_step``.
         spline_step: largest joint step between the TOPP spline's knots, rad.
-        max_nodes: capacity of each RRT tree.
+        max_nodes: capacity of each RRT tree (full trees are started over within the budget).
         shortcut_iters: random shortcut attempts after the greedy pass.
         knot_step: largest joint step between knots of the time-optimised spline, rad.
         velocity_scale: fraction of the robot's velocity limits to use.
@@ -210,22 +210,21 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     robot = env.robot
     # the mesh-covering spheres where start and a goal allow them, else the spheres as given
     env.use("cover")
-    root = max(st.d_min - CLEARANCE_TOL, 0.0)  # the covering spheres contain the meshes: >= 0 is clear
-    hybrid = env.cover_meshes and not _roots_free(env, q0, goals, root)
+    hybrid = env.cover_meshes and not _roots_free(env, q0, goals, st.d_min)
     if hybrid:  # edges at the start and goals in spheres grown as far as they allow, the rest covering
         env.use("fitted")
         lo, hi = 0.0, 1.0
-        if _roots_free(env, q0, goals, root):
+        if _roots_free(env, q0, goals, st.d_min):
             for _ in range(8):
                 mid = 0.5 * (lo + hi)
                 env.use("fitted", blend=mid)
-                lo, hi = (mid, hi) if _roots_free(env, q0, goals, root) else (lo, mid)
+                lo, hi = (mid, hi) if _roots_free(env, q0, goals, st.d_min) else (lo, mid)
         env.use("fitted", blend=lo)
     Wc = env.world_cover
     Wr = env.world if hybrid else Wc
     # the roots may be up to the dense check's tolerance closer than d_min, never below 0 (e.g. sphere
     # pairs of a folded wrist whose meshes are clear); the search then keeps the smallest root clearance
-    floor = root
+    floor = max(st.d_min - CLEARANCE_TOL, 0.0)
     env.check_free(q0, d_min=floor, what="start configuration")
     cg = np.array([env.clearance(g, cap=st.d_min + 1.0) for g in goals])
     ok = cg >= floor
@@ -447,13 +446,16 @@ def _search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetti
     link = np.zeros(2, np.int64)
     R.seed(int(st.seed) + 7 * attempt)
     robot = env.robot
-    status = 0
-    while status == 0 and time.perf_counter() < deadline:
+    status, grown = 0, 0
+    while status != 1 and time.perf_counter() < deadline:
+        if status < 0:  # the trees are full: start over from the roots (the random stream goes on)
+            grown += int(count.sum())
+            count[:] = nroot
+            parent[:] = -1
         status = R.rrt_connect(nodes, parent, count, robot.lower, robot.upper, 32, float(st.rrt_range), W, Wr, nroot,
                                s.T, s.C, s.G, s.out, thr, lever, res, link)
     if status != 1:
-        why = "the search trees are full" if status < 0 else f"the time budget of {st.time_budget_s:g} s ran out"
-        return None, -1, f"{why} ({int(count.sum())} nodes)"
+        return None, -1, f"the time budget of {st.time_budget_s:g} s ran out ({grown + int(count.sum())} nodes)"
     a, b = [], []
     i = int(link[0])
     while i >= 0:
