@@ -9,7 +9,12 @@ RRT-Connect + simplification + TOPP-RA (VAMP's own UR5 spheres). Every trajector
 Limits: the URDF's joint velocity limits (0.5 rad/s on this UR5) and accelerations of 3x the
 velocity limit (1.5 rad/s^2, robointel's default ``Robot.acceleration_limit``) for all three.
 
-    python benchmarks/mbm.py --json [--per-family N] [--families cage box] [--peers ompl vamp] [--frmp]
+    python benchmarks/mbm.py --json [--all | --per-family N] [--families cage box] [--peers ompl vamp] [--frmp]
+                             [--jsonl rows.jsonl [--resume]]
+
+``--all`` runs every valid problem (689); ``--jsonl`` appends one line per planner and problem as soon as
+it is judged, so a long run loses nothing, and ``--resume`` skips the problems already in that file
+(the summary is then computed over all rows of the file).
 
 Prints one JSON object (``--json``) or a table; a progress bar goes to stderr. cuRobo's figures are
 the published ones (RTX 6000 Ada GPU), not run here.
@@ -149,6 +154,42 @@ def frmp_speedup(root: Path) -> tuple[float | None, str]:
         return None, f"benchmarks/frmp.py failed: {exc}"
 
 
+def stream(sink, planner: str, row: dict) -> None:
+    """Append one judged row to the JSONL sink (flushed at once)."""
+    if sink is not None:
+        sink.write(json.dumps(dict(row, planner=planner), default=_jsonable) + "\n")
+        sink.flush()
+
+
+def _jsonable(v):
+    if isinstance(v, (np.floating, np.integer)):
+        return v.item()
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    return str(v)
+
+
+def load_rows(path: Path, rows: dict[str, list[dict]]) -> set[tuple[str, int]]:
+    """Rows of an earlier run from ``path`` into ``rows``; the problems every planner has done."""
+    if not path.exists():
+        return set()
+    seen: dict[str, set[tuple[str, int]]] = {k: set() for k in rows}
+    for line in path.read_text().splitlines():
+        try:
+            r = json.loads(line)
+        except json.JSONDecodeError:  # a line cut by an interrupted run
+            continue
+        name = r.pop("planner", None)
+        if name in rows and (r["family"], r["index"]) not in seen[name]:
+            rows[name].append(r)
+            seen[name].add((r["family"], r["index"]))
+    sets = list(seen.values())
+    both = set.intersection(*sets) if sets else set()
+    for name in rows:  # a problem only some planners finished is run again for all
+        rows[name] = [r for r in rows[name] if (r["family"], r["index"]) in both]
+    return both
+
+
 def summarise(prefix: str, rows: list[dict], families: list[str]) -> dict:
     ok = [r for r in rows if r["success"]]
     fam = {f: {"problems": sum(r["family"] == f for r in rows), "success": sum(r["success"] and r["family"] == f
@@ -170,7 +211,15 @@ def summarise(prefix: str, rows: list[dict], families: list[str]) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--json", action="store_true", help="print one JSON object")
+    ap.add_argument("--all", action="store_true", help="every valid problem (the default without --per-family)")
     ap.add_argument("--per-family", type=int, default=None, help="first N valid problems of each family")
+    ap.add_argument("--jsonl", type=Path, default=None, help="append each judged row to this JSONL file")
+    ap.add_argument("--interleave", action="store_true",
+                    help="run the families in turn (problem k of every family, then k + 1), so a cut-short run "
+                         "covers every family")
+    ap.add_argument("--resume", action="store_true", help="skip the problems already in --jsonl")
+    ap.add_argument("--summary-only", action="store_true",
+                    help="with --jsonl: summarise the rows of that file (problems not in it are left out)")
     ap.add_argument("--families", nargs="*", default=None)
     ap.add_argument("--peers", nargs="*", default=["ompl", "vamp"], choices=["ompl", "vamp"])
     ap.add_argument("--no-ours", action="store_true", help="run the peers and the checker only")
@@ -190,8 +239,17 @@ def main() -> None:
     d = data_dir()
     pset = load_mbm_problems(d / "problems.json")
     raw_all = json.loads((d / "problems.json").read_text())["problems"]
-    problems = pset.select(families=args.families, per_family=args.per_family)
+    if args.all and args.per_family is not None:
+        ap.error("--all and --per-family exclude each other")
+    problems = pset.select(families=args.families, per_family=None if args.all else args.per_family)
     families = list(dict.fromkeys(p.family for p in problems))
+    if args.interleave:
+        rank: dict[str, int] = {}
+        keyed = []
+        for p in problems:
+            rank[p.family] = rank.get(p.family, -1) + 1
+            keyed.append(((rank[p.family], families.index(p.family)), p))
+        problems = [p for _, p in sorted(keyed, key=lambda kp: kp[0])]
     checker = MBMChecker(d / "ur5.urdf", d / "ur5.srdf")
     vmax = checker.vmax.copy()
     amax = 3.0 * vmax
@@ -208,6 +266,14 @@ def main() -> None:
         except ImportError as exc:
             ours_error = f"robointel.planning.plan_motion not available in this tree: {exc}"
     rows: dict[str, list[dict]] = {k: [] for k in (["ours"] if ours else []) + list(peers)}
+    done = load_rows(args.jsonl, rows) if (args.jsonl is not None and args.resume) else set()
+    if args.summary_only:
+        if args.jsonl is None:
+            ap.error("--summary-only needs --jsonl")
+        done = load_rows(args.jsonl, rows)
+        problems = [p for p in problems if (p.family, p.index) in done]
+        families = list(dict.fromkeys(p.family for p in problems))
+    sink = args.jsonl.open("a") if args.jsonl is not None and not args.summary_only else None
     endpoints_free = endpoints = 0
     raw_by_key = {(f, p["index"]): p for f, ps in raw_all.items() for p in ps}
     if "vamp" in peers and problems:  # warm-up outside the figures (first-call allocations)
@@ -219,6 +285,9 @@ def main() -> None:
                   TimeElapsedColumn(), console=console) as bar:
         task = bar.add_task("MBM problems", total=len(problems))
         for p in problems:
+            if (p.family, p.index) in done:
+                bar.advance(task)
+                continue
             raw = raw_by_key[(p.family, p.index)]
             for q in [raw["start"], *raw["goals"]]:
                 endpoints += 1
@@ -234,12 +303,14 @@ def main() -> None:
                     row.update(solved=bool(plan.success), collision=v.collision, limit=v.limit_violation,
                                reaches=v.reaches_goal,
                                min_clearance=v.min_clearance, duration_s=float(tr.t[-1] - tr.t[0]),
-                               planner_clearance=plan.min_clearance_m, pair=v.pair)
+                               planner_clearance=plan.min_clearance_m, pair=v.pair, stages_ms=plan.timings,
+                               timing=tr.meta.get("timing", ""))
                     row["success"] = bool(plan.success) and v.ok
                     if plan.success and not v.ok:
                         row["reason"] = (f"checker: collision {v.pair}" if v.collision else
                                          v.limit_violation or "does not reach the goal")
                 rows["ours"].append(row)
+                stream(sink, "ours", row)
             for name, peer in peers.items():
                 bar.update(task, description=f"{p.name} {name}")
                 if name == "ompl":
@@ -261,19 +332,33 @@ def main() -> None:
                     pv = checker.check_trajectory(T, r.path, raw)
                     row["polyline_collision"] = pv.collision
                 rows[name].append(row)
+                stream(sink, name, row)
             bar.advance(task)
             if not console.is_terminal:  # a log line per problem when stderr is a file
                 print(f"{p.name} done", file=sys.stderr, flush=True)
+    if sink is not None:
+        sink.close()
+    order = {(p.family, p.index): k for k, p in enumerate(problems)}
+    for name in rows:  # resumed rows first in the file: back to problem order, problems of this selection only
+        rows[name] = sorted((r for r in rows[name] if (r["family"], r["index"]) in order),
+                            key=lambda r: order[(r["family"], r["index"])])
     out: dict = {"benchmark": "MotionBenchMaker UR5 (problems.json of vamp-planner 0.6.4)",
                  "ours_settings": {"d_min_m": args.d_min, "time_budget_s": args.time_budget,
                                    "seeds": f"{SEED0} + problem index"},
                  "problems": len(problems), "families": families, "one_core": True, "load_average_1min": load,
+                 "load_average_1min_end": os.getloadavg()[0],
+                 "warmup": "once per process, untimed: the first problem is solved once before the run (numba "
+                           "kernels loaded from the disk cache or compiled, the collision meshes and their hulls "
+                           "loaded, VAMP's first-call allocations); every figure below is a later call",
                  "limits": {"velocity_rad_s": vmax.tolist(), "acceleration_rad_s2": amax.tolist()},
                  "checker": {"what": "coal exact mesh distances, 1 ms resample, SRDF-disabled pairs removed",
                              "valid_endpoints_collision_free": endpoints_free, "valid_endpoints": endpoints}}
     if ours is not None:
         out.update(summarise("", rows["ours"], families))
         out["env_build_ms"] = stats([r["env_ms"] for r in rows["ours"]])
+        stages = sorted({k for r in rows["ours"] for k in r.get("stages_ms", {})})
+        out["stage_ms_median"] = {k: float(np.median([r["stages_ms"].get(k, 0.0) for r in rows["ours"]
+                                                      if "stages_ms" in r])) for k in stages}
         out["plan_ms_note"] = "plan_motion wall time (search + smoothing + time parametrisation + its dense check)"
         with console.status("point-cloud updates (100k points)"):
             pc = ours.pointcloud_update_ms([raw_by_key[(p.family, p.index)] for p in problems[:: max(1, len(

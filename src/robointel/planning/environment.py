@@ -187,7 +187,7 @@ class Environment:
         anc = self.robot._ancestor  # (nj, nq): does config index k move joint j?
         rel = np.array([(anc[groups[a]] ^ anc[groups[b]]) * self.lever for a, b in gpairs]).reshape(-1, self.robot.nq)
         self._self = (gpairs, smask)
-        self._rel = (np.ascontiguousarray(rel, dtype=float), sr, gr)
+        self._rel = (np.ascontiguousarray(rel, dtype=float), sr, gr, _sphere_levers(self.robot, self._chain, sj, sp))
         self._fitted = self._spheres
         self._cover = self._spheres
         if self.cover_meshes:
@@ -370,6 +370,26 @@ def _chain_arrays(robot: Robot) -> tuple:
             axis[j], kind[j] = S[:3] / np.linalg.norm(S[:3]), 1
         qidx[j] = jm.idx_q
     return (parent, place, axis, kind, qidx)
+
+
+def _sphere_levers(robot: Robot, chain: tuple, sj: np.ndarray, sp: np.ndarray) -> np.ndarray:
+    """(m, nj, n) bound of sphere i's speed relative to joint J's body per unit speed of joint k, m/rad.
+
+    Non-zero only for the joints k that move sphere i but not joint J (so the relative distance of
+    sphere i to any sphere fixed to J's body changes at most by sum_k L[i, J, k] |dq_k|).
+    """
+    parent, place, _, kind, qidx = chain
+    anc = robot._ancestor
+    m, nj = len(sj), len(parent)
+    lev = np.zeros((m, robot.nq))
+    for i in range(m):
+        j, reach = int(sj[i]), float(np.linalg.norm(sp[i]))
+        while j > 0:
+            lev[i, qidx[j]] = 1.0 if kind[j] == 1 else reach
+            reach += float(np.linalg.norm(place[j][:3, 3]))
+            j = int(parent[j])
+    out = lev[:, None, :] * (anc[sj][:, None, :] & ~anc[None, :, :])
+    return np.ascontiguousarray(out, dtype=float).reshape(m, nj, robot.nq)
 
 
 def _levers(robot: Robot, chain: tuple, sj: np.ndarray, sp: np.ndarray) -> np.ndarray:

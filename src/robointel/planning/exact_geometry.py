@@ -57,6 +57,8 @@ class MeshGeometry:
             if g is not None:
                 lo, hi = o.bounds()
                 self.obstacles.append((o.label(k), g[0], g[1], np.asarray(lo), np.asarray(hi)))
+        self._lo = np.array([o[3] for o in self.obstacles], float).reshape(-1, 3)
+        self._hi = np.array([o[4] for o in self.obstacles], float).reshape(-1, 3)
         self.reach = max((p.radius + float(np.linalg.norm(p.centre)) for p in self.parts), default=0.0)
 
     @property
@@ -85,10 +87,14 @@ class MeshGeometry:
         for part in self.parts:
             Tl = robot.data.oMf[part.frame].homogeneous
             centre = Tl[:3, :3] @ part.centre + Tl[:3, 3]
+            # broad phase: the part's bounding sphere against every obstacle's box at once
+            bound = np.linalg.norm(np.maximum(0.0, np.maximum(self._lo - centre, centre - self._hi)), axis=1)
+            bound -= part.radius
             Tp = None
-            for label, g, To, lo, hi in self.obstacles:
-                if float(np.linalg.norm(np.maximum(0.0, np.maximum(lo - centre, centre - hi)))) - part.radius >= best:
-                    continue
+            for o in np.argsort(bound):
+                if bound[o] >= best:
+                    break
+                label, g, To = self.obstacles[o][:3]
                 if Tp is None:
                     T = Tl @ part.placement
                     Tp = coal.Transform3s(T[:3, :3], T[:3, 3])
@@ -99,26 +105,35 @@ class MeshGeometry:
                     best, bl, bo = float(d), part.link, label
         return best, bl, bo
 
-    def samples_clearance(self, Q: np.ndarray, lever: np.ndarray, *, thresh: float,
-                          cap: float = 0.1) -> tuple[float, int, str, str]:
+    def samples_clearance(self, Q: np.ndarray, lever: np.ndarray, *, thresh: float, cap: float = 0.1,
+                          mask: np.ndarray | None = None) -> tuple[float, int, str, str]:
         """Smallest clearance over nearby samples Q (K, n).
 
         Samples that the last measured clearance minus the travel since
-        (sum_k (lever_k + reach) |dq_k|) keeps >= thresh are skipped.
+        (sum_k (lever_k + reach) |dq_k|) keeps >= thresh are skipped, and so are the samples
+        ``mask`` (K,) leaves False (already known to be clear, e.g. by conservative spheres).
 
         Returns:
             (distance m, worst sample index or -1, link, obstacle).
         """
         best, worst, bl, bo = cap, -1, "", ""
+        K = len(Q)
+        if K == 0:
+            return best, worst, bl, bo
         lev = np.asarray(lever, float) + self.reach
-        k = 0
-        while k < len(Q):
+        moved = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(Q, axis=0)) @ lev)])  # travel bound from Q[0]
+        todo = np.flatnonzero(mask) if mask is not None else np.arange(K)
+        i = 0
+        while i < len(todo):
+            k = int(todo[i])
             c, link, obs = self.clearance(Q[k], cap=cap, thresh=thresh)
             if c < best:
                 best, worst, bl, bo = c, k, link, obs
-            moved = np.cumsum(np.abs(np.diff(Q[k:], axis=0)) @ lev)
-            nxt = int(np.searchsorted(moved, c - thresh, side="right")) + 1 if c > thresh else 1
-            k += max(1, nxt)
+            if c > thresh:  # every sample within travel c - thresh of Q[k] keeps >= thresh
+                j = int(np.searchsorted(moved, moved[k] + (c - thresh), side="right"))
+                i = max(i + 1, int(np.searchsorted(todo, j)))
+            else:
+                i += 1
         return best, worst, bl, bo
 
 

@@ -1,11 +1,12 @@
 """Start-to-goal motion planning in cluttered cells for any arm.
 
 The pipeline: a global stage (RRT-Connect on the compiled sphere checks, edges checked so that no
-sphere centre moves more than ``resolution`` between checks, then shortcutting), temporal
-optimization of the path (7.7)-(7.9) (:func:`robointel.planning.temporal.temporal_optimize` on knots
-spaced along the path, so the horizon and the number of steps come from the path itself), or
-jerk-limited rest-to-rest timing with ruckig, and finally the dense check of the executed
-trajectory (1 ms resample: joint limits, velocity and acceleration limits, clearance >= d_min - 1 mm
+sphere centre moves more than ``resolution`` between checks, then shortcutting), then timing: by
+default the time-optimal parametrisation (TOPP, :mod:`robointel.planning.topp`) of a spline through
+knots along the path, so the horizon and the number of steps come from the path itself; or
+temporal optimization (7.7)-(7.9) of knots along the path; or jerk-limited rest-to-rest timing
+with ruckig; and finally the dense check of the executed trajectory (1 ms samples: joint limits,
+velocity and acceleration limits, clearance >= d_min - 1 mm
 to obstacles and between non-adjacent links). ``success`` is True only when that check passed.
 """
 from __future__ import annotations
@@ -27,6 +28,7 @@ from robointel.planning.jerk_limited import jerk_limited_polyline
 from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, check_dense, window_clearance
 from robointel.planning.polyline_timing import polyline_timing
 from robointel.planning.temporal import temporal_optimize
+from robointel.planning.topp import topp_spline
 from robointel.robot.model import Robot
 from robointel.trajectory import Trajectory
 
@@ -49,11 +51,14 @@ class MotionSettings:
             edge keeps clearance >= d_min - resolution / 2 between the checked points).
         search_resolution: the same during the tree search (coarser, faster); the found path's
             edges are re-checked at ``resolution`` (the search is repeated finer if one fails).
-        smooth: time the path by temporal optimization (7.7)-(7.9) of the spline through knots
-            along it (no stop at the vertices); when that spline fails the dense check (it leaves
-            the checked polyline near a corner), fall back to time-optimal rest-to-rest motion
-            along the polyline itself.
-        max_nodes: capacity of each RRT tree.
+        smooth: time a spline through knots along the path (no stop at the vertices); when that
+            spline fails the dense check (it leaves the checked polyline near a corner), knots 4x
+            closer, then time-optimal rest-to-rest motion along the polyline itself.
+        timing: how the smooth path is timed: ``"topp"``, time-optimal along the spline
+            (:func:`robointel.planning.topp.topp_spline`, knots every ``spline_step``), or
+            ``"temporal"``, temporal optimization (7.7)-(7.9) of the knots every ``knot_step``.
+        spline_step: largest joint step between the TOPP spline's knots, rad.
+        max_nodes: capacity of each RRT tree (full trees are started over within the budget).
         shortcut_iters: random shortcut attempts after the greedy pass.
         knot_step: largest joint step between knots of the time-optimised spline, rad.
         velocity_scale: fraction of the robot's velocity limits to use.
@@ -72,6 +77,8 @@ class MotionSettings:
     max_nodes: int = 20000
     shortcut_iters: int = 60
     smooth: bool = True
+    timing: str = "topp"
+    spline_step: float = 0.1
     knot_step: float = 0.2
     velocity_scale: float = 1.0
     acceleration_limit: tuple[float, ...] | None = None
@@ -166,7 +173,8 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
 
     Raises:
         InvalidInput: bad shapes, NaN, limits, or an environment built for another robot.
-        CollisionAtStart: the start, or every goal, is closer than ``d_min`` (names the pair).
+        CollisionAtStart: the start, or every goal, is closer than max(``d_min`` - 1 mm, 0) (the
+            dense check's tolerance; names the pair).
         IKFailure: a pose goal without IK solutions.
     """
     if not isinstance(environment, Environment) or environment.robot is not robot:
@@ -178,10 +186,11 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
         raise InvalidInput("settings must be a MotionSettings", value=settings)
     st = settings
     if not (st.d_min >= 0 and st.time_budget_s > 0 and st.resolution > 0 and st.rrt_range > 0
-            and 0 < st.velocity_scale <= 1 and st.knot_step > 0 and st.check_dt > 0):
-        raise InvalidInput("settings need d_min >= 0, time_budget_s, resolution, rrt_range, knot_step, check_dt > 0 "
-                           "and 0 < velocity_scale <= 1", value=st)
-    q0 = robot.check_q(np.asarray(start, float), "start", limits=True)
+            and 0 < st.velocity_scale <= 1 and st.knot_step > 0 and st.spline_step > 0 and st.check_dt > 0
+            and st.timing in ("topp", "temporal")):
+        raise InvalidInput("settings need d_min >= 0, time_budget_s, resolution, rrt_range, knot_step, spline_step, "
+                           "check_dt > 0, 0 < velocity_scale <= 1 and timing 'topp' or 'temporal'", value=st)
+    q0 = np.array(robot.check_q(np.asarray(start, float), "start", limits=True), dtype=float)  # writable
     goals = _goal_set(robot, goal, st.seed)
     env = environment
     model = env.model
@@ -213,12 +222,17 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
         env.use("fitted", blend=lo)
     Wc = env.world_cover
     Wr = env.world if hybrid else Wc
-    env.check_free(q0, d_min=st.d_min, what="start configuration")
-    ok = [env.clearance(g, cap=st.d_min + 1.0) >= st.d_min for g in goals]
+    # the roots may be up to the dense check's tolerance closer than d_min, never below 0 (e.g. sphere
+    # pairs of a folded wrist whose meshes are clear); the search then keeps the smallest root clearance
+    floor = max(st.d_min - CLEARANCE_TOL, 0.0)
+    env.check_free(q0, d_min=floor, what="start configuration")
+    cg = np.array([env.clearance(g, cap=st.d_min + 1.0) for g in goals])
+    ok = cg >= floor
     if not any(ok):
-        env.check_free(goals[0], d_min=st.d_min, what="goal configuration" if len(goals) == 1 else "every goal; goal 0")
+        env.check_free(goals[0], d_min=floor, what="goal configuration" if len(goals) == 1 else "every goal; goal 0")
     goal_ids = np.flatnonzero(ok)
     goals = goals[goal_ids]
+    thr = min(st.d_min, env.clearance(q0, cap=st.d_min + 1.0), float(cg[ok].min()))
     vmax = robot.velocity_limit * st.velocity_scale
     amax = np.asarray(st.acceleration_limit if st.acceleration_limit is not None else robot.acceleration_limit, float)
     if amax.shape != (robot.nq,) or np.any(amax <= 0):
@@ -229,7 +243,7 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     attempt = 0
     while True:
         path, gi, traj, chk, why = _attempt(env, q0, goals, st, deadline, Wc, Wr, hybrid, vmax, amax, timings,
-                                            attempt)
+                                            attempt, thr)
         if path is None:
             return _fail(f"no collision-free path found: {why}", Failure.TIMEOUT, t0, timings)
         assert chk is not None
@@ -266,17 +280,22 @@ def _interior(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, s
             return DenseCheck(False, f"the covering spheres come {d * 1e3:.1f} mm from the obstacles between "
                               f"t = {traj.t[i0]:.3f} s and {traj.t[i1]:.3f} s", "collision",
                               min(d, chk.min_clearance_m), chk.samples)
-    mg = MeshGeometry(env.robot, env.obstacles)
+    mg = _mesh_geometry(env)
     if mg.empty:
         return chk
     dense = traj if float(np.max(np.diff(traj.t))) <= st.check_dt * (1 + 1e-9) else traj.resample(st.check_dt)
     t0, t1 = float(traj.t[i0]), float(traj.t[i1])
     thr = max(st.d_min - CLEARANCE_TOL, 0.0)  # the real geometry may not be penetrated at all
+    s = env.scratch
     for sel in (dense.t <= t0, dense.t >= t1):
-        Q = dense.q[sel]
+        Q = np.ascontiguousarray(dense.q[sel])
         if len(Q) == 0:
             continue
-        d, k, link, obs = mg.samples_clearance(Q, env.lever, thresh=thr, cap=st.d_min + 0.1)
+        # the covering spheres contain the meshes: only samples they leave below thr need coal
+        doubt = K.samples_env_below(Q, Wc, s.T, s.C, s.G, s.out, env.lever, thr)
+        if not doubt.any():
+            continue
+        d, k, link, obs = mg.samples_clearance(Q, env.lever, thresh=thr, cap=st.d_min + 0.1, mask=doubt)
         if d < thr:
             return DenseCheck(False, f"collision-mesh check: link {link!r} is {d * 1e3:.2f} mm from {obs!r} at "
                               f"t = {dense.t[sel][k]:.3f} s", "collision", min(d, chk.min_clearance_m), chk.samples)
@@ -285,19 +304,22 @@ def _interior(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, s
 
 def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, deadline: float, Wc: tuple,
              Wr: tuple, hybrid: bool, vmax: np.ndarray, amax: np.ndarray, timings: dict[str, float],
-             attempt: int) -> tuple[np.ndarray | None, int, Trajectory | None, DenseCheck | None, str]:
-    """One search, shortcut, timing and dense check: (path, goal, trajectory, check, why not)."""
+             attempt: int, thr: float) -> tuple[np.ndarray | None, int, Trajectory | None, DenseCheck | None, str]:
+    """One search, shortcut, timing and dense check: (path, goal, trajectory, check, why not).
+
+    The search and the shortcut keep sphere clearance ``thr`` (<= d_min); the dense check d_min - 1 mm.
+    """
     robot = env.robot
     # global stage ----------------------------------------------------------------------------
     t1 = time.perf_counter()
     path, gi, why = None, -1, ""
     res = float(st.search_resolution)
     while path is None:
-        path, gi, why = _search(env, q0, goals, st, res, deadline, Wc, Wr, attempt)
+        path, gi, why = _search(env, q0, goals, st, res, deadline, Wc, Wr, attempt, thr)
         if path is None:
             timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
             return None, -1, None, None, why
-        if _path_valid(env, path, st.d_min, st.resolution, Wc, Wr):
+        if _path_valid(env, path, thr, st.resolution, Wc, Wr):
             break
         path, res = None, res / 4  # an edge failed the fine check: search again, finer
         if res < st.resolution:
@@ -308,7 +330,7 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     P = np.empty((max(len(path) * 2 + 64, 256), robot.nq))
     P[:len(path)] = path
     R.seed(int(st.seed) + 1 + 7 * attempt)
-    m = R.shortcut(P, len(path), int(st.shortcut_iters), Wc, Wr, s.T, s.C, s.G, s.out, float(st.d_min), env.lever,
+    m = R.shortcut(P, len(path), int(st.shortcut_iters), Wc, Wr, s.T, s.C, s.G, s.out, float(thr), env.lever,
                    float(st.resolution))
     path = P[:m].copy()
     keep = np.concatenate([[True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-9])
@@ -321,12 +343,18 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     names = list(robot.joint_names)
     traj, chk = None, None
     if st.smooth and not st.jerk_limited and len(path) > 2:
-        tr = temporal_optimize(_densify(path, float(st.knot_step)), vmax, amax)
-        tt = tr.trajectory
-        traj = Trajectory(tt.t, tt.q, tt.qd, tt.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
-        chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
-        if chk.ok and hybrid:
-            chk = _interior(env, traj, path, Wc, st, chk)
+        steps = (st.knot_step,) if st.timing == "temporal" else (st.spline_step, st.spline_step / 4)
+        for step in steps:  # a spline that leaves the checked polyline too far: knots closer together
+            if st.timing == "temporal":
+                tt = temporal_optimize(_densify(path, float(step)), vmax, amax).trajectory
+                traj = Trajectory(tt.t, tt.q, tt.qd, tt.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
+            else:
+                traj = topp_spline(path, vmax, amax, step=float(step), dt=st.check_dt, joint_names=names)
+            chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
+            if chk.ok and hybrid:
+                chk = _interior(env, traj, path, Wc, st, chk)
+            if chk.ok or chk.kind != "collision":
+                break
         timings["smooth"] = (time.perf_counter() - t3) * 1e3
     if chk is None or not chk.ok:  # rest to rest along the checked polyline
         t4 = time.perf_counter()
@@ -342,6 +370,15 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     return path, gi, traj, chk, ""
 
 
+def _mesh_geometry(env: Environment) -> MeshGeometry:
+    """The environment's exact (coal) geometry, built on first use and kept with it."""
+    mg = getattr(env, "_mesh_geometry", None)
+    if mg is None:
+        mg = MeshGeometry(env.robot, env.obstacles)
+        env._mesh_geometry = mg  # type: ignore[attr-defined]
+    return mg
+
+
 _WARM: set[int] = set()
 
 
@@ -350,7 +387,7 @@ def _warmup(env: Environment) -> None:
 
     Runs, outside the time budget and plan_ms.
     """
-    key = env.robot.nq
+    key = id(env.robot)
     if key in _WARM:
         return
     W, s = env.world, env.scratch
@@ -364,6 +401,12 @@ def _warmup(env: Environment) -> None:
     R.shortcut(P, 2, 0, W, W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
     K.edge_valid(P[0], P[1], W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
     K.samples_clearance(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1)
+    K.samples_env_below(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0)
+    if env.cover_meshes:  # the collision meshes and their hulls, loaded once per robot
+        MeshGeometry(env.robot, [])
+    lim = np.ones(env.robot.nq)
+    e = 0.1 * np.eye(env.robot.nq)
+    topp_spline(np.array([q, q + e[0], q + e[0] + e[-1]]), lim, lim)  # a path with a corner
     _WARM.add(key)
 
 
@@ -381,13 +424,14 @@ def _path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: fl
 
 
 def _search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, res: float,
-            deadline: float, W: tuple, Wr: tuple, attempt: int = 0) -> tuple[np.ndarray | None, int, str]:
+            deadline: float, W: tuple, Wr: tuple, attempt: int = 0,
+            thr: float | None = None) -> tuple[np.ndarray | None, int, str]:
     """RRT-Connect from q0 to the goal set (a direct edge first): (path, goal index, why not).
 
     Nodes and edges are checked in ``W``, edges leaving the start or a goal in ``Wr``.
     """
     s = env.scratch
-    thr, lever = float(st.d_min), env.lever
+    thr, lever = float(st.d_min if thr is None else thr), env.lever
     for k, g in enumerate(goals):
         if attempt == 0 and K.edge_valid(q0, g, Wr, s.T, s.C, s.G, s.out, thr, lever, res):
             return np.array([q0, g]), k, ""
@@ -402,13 +446,16 @@ def _search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetti
     link = np.zeros(2, np.int64)
     R.seed(int(st.seed) + 7 * attempt)
     robot = env.robot
-    status = 0
-    while status == 0 and time.perf_counter() < deadline:
+    status, grown = 0, 0
+    while status != 1 and time.perf_counter() < deadline:
+        if status < 0:  # the trees are full: start over from the roots (the random stream goes on)
+            grown += int(count.sum())
+            count[:] = nroot
+            parent[:] = -1
         status = R.rrt_connect(nodes, parent, count, robot.lower, robot.upper, 32, float(st.rrt_range), W, Wr, nroot,
                                s.T, s.C, s.G, s.out, thr, lever, res, link)
     if status != 1:
-        why = "the search trees are full" if status < 0 else f"the time budget of {st.time_budget_s:g} s ran out"
-        return None, -1, f"{why} ({int(count.sum())} nodes)"
+        return None, -1, f"the time budget of {st.time_budget_s:g} s ran out ({grown + int(count.sum())} nodes)"
     a, b = [], []
     i = int(link[0])
     while i >= 0:
