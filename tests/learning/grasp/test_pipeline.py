@@ -18,9 +18,9 @@ from robointel.learning.grasp import (
     scene_xml,
     taught_grasps,
     toy_arm,
-    voxel_downsample,
     ycb_object,
 )
+from robointel.learning.grasp.perception import voxel_downsample
 from robointel.learning.grasp_database import GraspDatabase
 
 

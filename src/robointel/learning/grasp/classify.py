@@ -11,13 +11,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from scipy.spatial import cKDTree
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
 from robointel.learning.grasp.cpd import CPDResult, cpd_nonrigid, cpd_rigid, farthest_point_sample
+from robointel.learning.grasp.cpd_warps import Warp
 from robointel.learning.grasp.transfer import Grasp
 
 __all__ = ["Template", "ComposedWarp", "Fit", "Classification", "fit_template", "classify",
@@ -27,7 +30,9 @@ __all__ = ["Template", "ComposedWarp", "Fit", "Classification", "fit_template", 
 
 @dataclass
 class Template:
-    """A taught object: ``points`` (M, 3) in its own frame (metres), taught ``grasps`` in that frame,
+    """A taught object: its points, grasps, category and name.
+
+    A taught object: ``points`` (M, 3) in its own frame (metres), taught ``grasps`` in that frame,
     its ``category`` and ``name``.
     """
 
@@ -47,13 +52,15 @@ class Template:
 class ComposedWarp:
     """``T(x) = outer(inner(x))`` with Jacobian ``J_outer(inner(x)) J_inner(x)``."""
 
-    inner: object
-    outer: object
+    inner: Warp
+    outer: Warp
 
-    def __call__(self, x) -> np.ndarray:
+    def __call__(self, x: npt.ArrayLike) -> np.ndarray:
+        """``outer(inner(x))`` for points ``x`` (K, 3)."""
         return self.outer(self.inner(x))
 
-    def jacobian(self, x) -> np.ndarray:
+    def jacobian(self, x: npt.ArrayLike) -> np.ndarray:
+        """The chain rule at points ``x`` (K, 3): (K, 3, 3)."""
         x = np.atleast_2d(np.asarray(x, float))
         return np.einsum("kij,kjl->kil", self.outer.jacobian(self.inner(x)), self.inner.jacobian(x))
 
@@ -69,16 +76,18 @@ class _Init:
     R: np.ndarray
     t: np.ndarray
 
-    def __call__(self, x):
+    def __call__(self, x: npt.ArrayLike) -> np.ndarray:
         return np.asarray(x, float) @ self.R.T + self.t
 
-    def jacobian(self, x):
+    def jacobian(self, x: npt.ArrayLike) -> np.ndarray:
         return np.broadcast_to(self.R, (np.atleast_2d(x).shape[0], 3, 3)).copy()
 
 
 @dataclass
 class Fit:
-    """A template fitted to a target: the full ``warp`` (template frame -> world), the ``residual``
+    """A template fitted to a target: the warp, the classification score and its terms.
+
+    A template fitted to a target: the full ``warp`` (template frame -> world), the ``residual``
     (the classification score, metres: ``distance * (1 + normal_weight * normals) * (1 + shape_weight *
     shape)``), the symmetric mean nearest-neighbour ``distance`` (6.17)-(6.19) (m), the ``normals``
     disagreement (see :func:`normal_disagreement`), the ``shape`` difference (absolute difference of
@@ -104,7 +113,9 @@ def _sym_residual(A: np.ndarray, B: np.ndarray, treeB: cKDTree) -> float:
 
 
 def normal_disagreement(A: np.ndarray, B: np.ndarray, k: int = 10) -> float:
-    """Symmetric mean ``1 - |n_a . n_b|`` over nearest-neighbour pairs between clouds ``A`` (n, 3) and
+    """Normal disagreement of two clouds (sign-free), in [0, 1].
+
+    Symmetric mean ``1 - |n_a . n_b|`` over nearest-neighbour pairs between clouds ``A`` (n, 3) and
     ``B`` (m, 3), normals by PCA of ``k`` neighbours (sign-free): 0 when the surfaces are parallel
     wherever they meet, up to 1. Shape information the point distance misses: a smooth warp can pull
     a can's flat lid into a cup's open top, or round a box, and land close to every point, but the
@@ -119,7 +130,9 @@ def normal_disagreement(A: np.ndarray, B: np.ndarray, k: int = 10) -> float:
 
 
 def normal_obliqueness(P: np.ndarray, k: int = 10) -> float:
-    """Mean ``|sin 2 phi|`` over the points of ``P`` (n, 3), ``phi`` the elevation of the PCA normal of
+    """Normal obliqueness of a cloud: mean |sin 2 phi| of its normals' elevation, in [0, 1].
+
+    Mean ``|sin 2 phi|`` over the points of ``P`` (n, 3), ``phi`` the elevation of the PCA normal of
     ``k`` neighbours (sign-free): ``2 |n_z| sqrt(1 - n_z^2)``, 0 where the surface is horizontal (tops,
     lids) or vertical (the sides of upright boxes, cans, cups), 1 where it is inclined at 45 degrees.
     A global shape statistic, unlike :func:`normal_disagreement` blind to where the points are: a
@@ -134,7 +147,7 @@ def normal_obliqueness(P: np.ndarray, k: int = 10) -> float:
     return float(np.mean(2.0 * z * np.sqrt(np.clip(1.0 - z * z, 0.0, None))))
 
 
-def footprint_rectangle(points, percentile: float = 2.0) -> tuple[float, np.ndarray]:
+def footprint_rectangle(points: npt.ArrayLike, percentile: float = 2.0) -> tuple[float, np.ndarray]:
     """Minimum-area bounding rectangle of the horizontal footprint of ``points`` (n, 3) (m).
 
     Rotating calipers over the edges of the 2-D convex hull (scipy) of the x, y coordinates: the
@@ -165,12 +178,15 @@ def footprint_rectangle(points, percentile: float = 2.0) -> tuple[float, np.ndar
     return angle, ext
 
 
-def fit_template(target, template: Template, *, n_points: int = 200, yaw_steps: int = 12, beta: float = 3.0,
+def fit_template(target: npt.ArrayLike, template: Template, *, n_points: int = 200, yaw_steps: int = 12,
+                 beta: float = 3.0,
                  lmbda: float = 200.0, w: float = 0.05, nonrigid: bool = True, max_iterations: int = 40,
                  tolerance: float = 1e-4, anisotropic: float = 1.5, rest_z: float | None = None,
                  normal_weight: float = 2.0, starts: int = 2,
                  footprint: bool = True, shape_weight: float = 0.5) -> Fit:
-    """Fit ``template`` (points in metres) to ``target`` (n, 3) (m, world frame): initial alignment
+    """Fit a template to a target cloud: initial alignment, rigid then non-rigid CPD, score.
+
+    Fit ``template`` (points in metres) to ``target`` (n, 3) (m, world frame): initial alignment
     (footprint rectangle or yaw search), rigid CPD (6.8)-(6.10), non-rigid CPD (6.11)-(6.13) with
     ``beta``, ``lmbda``; return the :class:`Fit` (warp and the residual (6.17)-(6.19) with its shape terms).
 
@@ -292,7 +308,7 @@ def fit_template(target, template: Template, *, n_points: int = 200, yaw_steps: 
         inits = (first + [c for c in inits if not c[3].startswith("fp")]
                  + [c for c in inits if c[3].startswith("fp") and not any(c is f for f in first)])
     ob_x = normal_obliqueness(Xs) if shape_weight else 0.0
-    best = None
+    best: Fit | None = None
     for _, A, t, _tag in inits[:max(1, int(starts))]:
         init = _Init(A, t)
         Y0 = init(Ys)
@@ -312,6 +328,7 @@ def fit_template(target, template: Template, *, n_points: int = 200, yaw_steps: 
                   dist, nd, sh)
         if best is None or fit.residual < best.residual:
             best = fit
+    assert best is not None  # at least one start ran
     return best
 
 
@@ -326,11 +343,24 @@ class Classification:
 
     @property
     def best(self) -> Fit:
+        """The winning template's fit."""
         return self.fits[self.index]
 
 
-def classify(target, templates: Sequence[Template], **fit_kwargs) -> Classification:
-    """(6.17)-(6.19): fit every template and pick the one with the smallest residual."""
+def classify(target: npt.ArrayLike, templates: Sequence[Template], **fit_kwargs: Any) -> Classification:
+    """(6.17)-(6.19): fit every template and pick the one with the smallest residual.
+
+    Args:
+        target: The perceived cloud (n, 3), m, world frame.
+        templates: The K classifying templates.
+        **fit_kwargs: Keyword arguments of :func:`fit_template`.
+
+    Returns:
+        The category of the best-fitting template, its index, all residuals (K,) and the fits.
+
+    Raises:
+        InvalidInput: no templates, or a cloud :func:`fit_template` rejects.
+    """
     if not templates:
         raise InvalidInput("classify needs at least one template", value=templates)
     fits = [fit_template(target, t, **fit_kwargs) for t in templates]
@@ -339,10 +369,24 @@ def classify(target, templates: Sequence[Template], **fit_kwargs) -> Classificat
     return Classification(templates[i].category, i, res, fits)
 
 
-def confusion_matrix(true: Sequence[str], predicted: Sequence[str], labels: Sequence[str] | None = None):
-    """Confusion matrix (Fig. 6.7): rows = true category, columns = predicted; returns (C, labels)."""
+def confusion_matrix(true: Sequence[str], predicted: Sequence[str],
+                     labels: Sequence[str] | None = None) -> tuple[np.ndarray, list[str]]:
+    """Confusion matrix (Fig. 6.7): rows = true category, columns = predicted.
+
+    Args:
+        true: True categories.
+        predicted: Predicted categories, as many.
+        labels: Row and column order (default: the sorted union).
+
+    Returns:
+        ``(C, labels)``: counts (L, L) and the labels.
+
+    Raises:
+        InvalidInput: the lengths differ.
+    """
     if len(true) != len(predicted):
-        raise InvalidInput(f"{len(true)} true labels but {len(predicted)} predictions", value=(len(true), len(predicted)))
+        raise InvalidInput(f"{len(true)} true labels but {len(predicted)} predictions",
+                           value=(len(true), len(predicted)))
     labels = list(labels) if labels is not None else sorted(set(true) | set(predicted))
     ix = {l: i for i, l in enumerate(labels)}
     C = np.zeros((len(labels), len(labels)), dtype=int)
