@@ -12,6 +12,7 @@ convex collision ``pieces`` (for MuJoCo).
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, cast
@@ -21,6 +22,7 @@ import numpy.typing as npt
 import trimesh
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from robointel.errors import DataMissing, InvalidInput
 from robointel.learning.grasp.transfer import Grasp, grasp_from_axis
@@ -29,7 +31,7 @@ if TYPE_CHECKING:
     from robointel.learning.grasp.quality import ParallelGripper
 
 __all__ = ["ObjectModel", "YCB_CATEGORIES", "ycb_object", "primitive_object", "toy_arm", "split_convex",
-           "sample_points", "taught_grasps", "sampled_grasps", "demo_objects", "ycb_objects"]
+           "sample_points", "taught_grasps", "sampled_grasps", "top_down_grasps", "demo_objects", "ycb_objects"]
 
 YCB_CATEGORIES: dict[str, list[str]] = {
     "cup": ["065-a_cups", "065-b_cups", "065-c_cups", "065-d_cups", "065-e_cups", "065-f_cups", "065-g_cups",
@@ -299,26 +301,34 @@ def taught_grasps(obj: ObjectModel) -> list[Grasp]:
     return [grasp_from_axis([0, 0, 0.5 * h], [1, 0, 0], down, ext[0], "middle")]
 
 
-def sampled_grasps(obj: ObjectModel, n: int = 3, *, gripper: ParallelGripper | None = None, samples: int = 400,
-                   seed: int = 0, min_separation: float = 0.02) -> list[Grasp]:
-    """Teach by sampling: the best top-down antipodal grasps on the object's full model.
+def top_down_grasps(obj: ObjectModel, *, gripper: ParallelGripper | None = None, samples: int = 400,
+                    seed: int = 0) -> Iterator[tuple[float, Grasp]]:
+    """The positive-quality, collision-free top-down antipodal grasps on the object's full model, as found.
 
-    Teach by sampling: the ``n`` best top-down antipodal grasps on the object's full model (a
-    stand-in for a human's demonstration on the template). Candidates pass through a surface point and
-    close along the horizontal part of its normal; they are re-centred between the contacts, scored by
-    (6.20) and must not collide with the object or the table. Distinct grasps are at least
-    ``min_separation`` m apart. Object frame.
+    Candidates pass through a random surface point (``samples`` draws, seeded) and close along the
+    horizontal part of its normal, centred in the middle of the chord (solid parts) or just inside the
+    surface (thin walls, rims); they are re-centred between the contacts, scored by (6.20) and must
+    not collide with the object or the table.
+
+    Args:
+        obj: The object (object frame).
+        gripper: The jaw model (default the 48 mm one).
+        samples: Surface points drawn.
+        seed: Seed of the surface sampling and the draws.
+
+    Yields:
+        ``(quality, grasp)`` in the order found (object frame).
     """
-    from robointel.learning.grasp.quality import ParallelGripper, estimate_normals, grasp_quality
+    from robointel.learning.grasp.quality import NARROW_GRIPPER, estimate_normals, grasp_quality
 
-    gripper = gripper or ParallelGripper()
+    gripper = gripper or NARROW_GRIPPER
     rng = np.random.default_rng(seed)
     P = sample_points(obj, 3000, seed)
-    N = estimate_normals(P, 12)
+    tree = cKDTree(P)
+    N = estimate_normals(P, 12, tree=tree)
     zmin = gripper.tip_depth + 0.004
     ok = (P[:, 2] > zmin) & (P[:, 2] < obj.height - 0.002) & (np.linalg.norm(N[:, :2], axis=1) > 0.7)
     cand, ncand = P[ok], N[ok]
-    scored: list[tuple[float, Grasp]] = []
     for _ in range(samples if len(cand) else 0):
         i = rng.integers(len(cand))
         y = np.array([ncand[i, 0], ncand[i, 1], 0.0])
@@ -326,13 +336,32 @@ def sampled_grasps(obj: ObjectModel, n: int = 3, *, gripper: ParallelGripper | N
         rel = P - cand[i]
         sv = rel @ y
         near = np.linalg.norm(rel - sv[:, None] * y, axis=1) < 0.004
-        # the middle of the whole chord (solid parts) or just inside the surface (thin walls, rims)
         for centre in (cand[i] + 0.5 * (sv[near].max() + sv[near].min()) * y, cand[i] - 0.002 * y):
             g = grasp_from_axis(centre, y, [0, 0, -1])
-            q = grasp_quality(P, g, gripper=gripper)
+            q = grasp_quality(P, g, gripper=gripper, tree=tree)
             if q.quality > 0 and q.grasp is not None and not gripper.collides(q.grasp, P, table_z=0.0):
-                scored.append((q.quality, q.grasp))
-    scored.sort(key=lambda t: -t[0])
+                yield q.quality, q.grasp
+
+
+def sampled_grasps(obj: ObjectModel, n: int = 3, *, gripper: ParallelGripper | None = None, samples: int = 400,
+                   seed: int = 0, min_separation: float = 0.02) -> list[Grasp]:
+    """Teach by sampling: the best top-down antipodal grasps on the object's full model.
+
+    A stand-in for a human's demonstration on the template: the ``n`` best of
+    :func:`top_down_grasps` by quality (6.20), at least ``min_separation`` m apart.
+
+    Args:
+        obj: The object (object frame).
+        n: Grasps wanted.
+        gripper: The jaw model (default the 48 mm one).
+        samples: Surface points drawn.
+        seed: Seed of the draws.
+        min_separation: Least distance between the grasps' centres (m).
+
+    Returns:
+        Up to ``n`` grasps (object frame), best first, named ``sampled0``, ``sampled1``, ...
+    """
+    scored = sorted(top_down_grasps(obj, gripper=gripper, samples=samples, seed=seed), key=lambda t: -t[0])
     out: list[Grasp] = []
     for _, g in scored:
         if all(np.linalg.norm(g.centre - h.centre) >= min_separation for h in out):

@@ -18,6 +18,7 @@ from robointel.learning.grasp.objects import (
     sample_points,
     sampled_grasps,
     taught_grasps,
+    top_down_grasps,
     toy_arm,
     ycb_objects,
 )
@@ -90,7 +91,8 @@ def holdable(obj: ObjectModel, grippers: Sequence[ParallelGripper] = (NARROW_GRI
         grippers: The candidate grippers.
 
     Returns:
-        True when :func:`robointel.learning.grasp.objects.sampled_grasps` finds a positive-quality (6.20),
-        collision-free top-down grasp on the model for one of them.
+        True when :func:`robointel.learning.grasp.objects.top_down_grasps` finds a positive-quality (6.20),
+        collision-free top-down grasp on the model for one of them (the same test as a non-empty
+        :func:`robointel.learning.grasp.objects.sampled_grasps`, stopped at the first grasp found).
     """
-    return any(sampled_grasps(obj, 1, gripper=g) for g in grippers)
+    return any(next(top_down_grasps(obj, gripper=g), None) is not None for g in grippers)
