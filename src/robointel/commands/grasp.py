@@ -45,19 +45,23 @@ def _templates(objs: dict[str, list[ObjectModel]], db: Path | None = None, *,
                sampled: bool = False) -> list[Template]:
     """The templates: one per category, its first instance, with its taught grasps.
 
-    One template per category (its first instance). Taught grasps: written per category for the
-    generated objects; for scans (``sampled=True``) the best top-down grasps sampled on the template's
-    full model stand in for the human demonstration (toy arms keep their written grasps).
+    One template per category (its first instance). Generated objects: the template as the cameras
+    see it (:func:`robointel.learning.grasp.seen_template`) with the grasps written per category; for
+    scans (``sampled=True``) the best top-down grasps sampled on the template's full model stand in for
+    the human demonstration (toy arms keep their written grasps).
     """
     from robointel.io.grasp_db import GraspDatabase
-    from robointel.learning.grasp import Template, sample_points, sampled_grasps, taught_grasps
+    from robointel.learning.grasp import Template, sample_points, sampled_grasps, seen_template, taught_grasps
 
     if db is not None and Path(db).exists():
         return GraspDatabase(db).load_all()
     out = []
     for cat, lst in objs.items():
         o = lst[0]
-        grasps = sampled_grasps(o) if sampled and cat != "toy_arm" else []
+        if not sampled:  # generated objects: the template as the cameras see it (see ``seen_template``)
+            out.append(seen_template(o))
+            continue
+        grasps = sampled_grasps(o) if cat != "toy_arm" else []
         out.append(Template(o.name, cat, sample_points(o, 800, 0), grasps or taught_grasps(o)))
     return out
 

@@ -24,14 +24,12 @@ from robointel.errors import InvalidInput
 from robointel.learning.grasp import (
     GraspPlanner,
     ObjectModel,
-    Template,
     classifying_templates,
     demo_objects,
     grasp_trial,
     holdable,
     random_placements,
-    sample_points,
-    taught_grasps,
+    seen_template,
     ycb_teaching_set,
 )
 from robointel.outcome import Failure, TrialOutcome
@@ -57,8 +55,7 @@ def setup(source: str, per_category: int = 4,
     """
     if source == "demo":
         objs = demo_objects(per_category, 0)
-        templates = [Template(lst[0].name, cat, sample_points(lst[0], 800, 0), taught_grasps(lst[0]))
-                     for cat, lst in objs.items()]
+        templates = [seen_template(lst[0]) for lst in objs.values()]
         return {cat: lst[1:] or lst for cat, lst in objs.items()}, GraspPlanner(templates)
     if source == "ycb":
         objs, templates = ycb_teaching_set()
@@ -92,7 +89,8 @@ def grasp(spec: TaskSpec) -> TrialOutcome:
         ``wide_gripper`` (1 when the plan chose the 85 mm gripper), ``gripper_fallback`` (1 when the
         wide one was taken because the narrow one had no feasible grasp) and ``grip_width_m`` (the
         jaw opening after closing, NaN when nothing was grasped). ``detail``: the object, the gripper
-        and the trial's reason.
+        and the trial's reason. Timings: ``setup_s``, ``trial_s`` and ``plan_s`` (the planner's
+        classify-register-transfer-score-search time, when it ran).
 
     Raises:
         InvalidInput: unknown source or category, or a category with no holdable instance.
@@ -117,6 +115,8 @@ def grasp(spec: TaskSpec) -> TrialOutcome:
                "gripper_fallback": float(r.plan is not None and r.plan.gripper_fallback),
                "grip_width_m": float(closed)}
     timings = {"setup_s": t1 - t0, "trial_s": time.perf_counter() - t1}
+    if r.plan is not None:
+        timings["plan_s"] = float(r.plan.timings["total"])
     detail = f"{obj.name} [{r.gripper or 'none'}]: {r.reason}"
     if r.success:
         return TrialOutcome(True, Failure.NONE, detail, figures, timings)

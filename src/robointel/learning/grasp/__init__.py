@@ -50,7 +50,7 @@ from robointel.learning.grasp.quality import (
 )
 from robointel.learning.grasp.scene import Placement, arm_scene, random_placements, scene_xml
 from robointel.learning.grasp.search import SearchResult, orientation_search
-from robointel.learning.grasp.teaching import classifying_templates, holdable, ycb_teaching_set
+from robointel.learning.grasp.teaching import classifying_templates, holdable, seen_template, ycb_teaching_set
 from robointel.learning.grasp.transfer import Grasp, grasp_from_axis, transfer_grasp, transfer_grasps
 
 __all__ = [
@@ -67,7 +67,7 @@ __all__ = [
     # objects and the taught set
     "YCB_CATEGORIES", "ObjectModel", "demo_objects", "primitive_object", "sample_points", "sampled_grasps",
     "taught_grasps", "toy_arm", "ycb_object", "ycb_objects", "classifying_templates", "holdable",
-    "ycb_teaching_set",
+    "seen_template", "ycb_teaching_set",
     # perception (Fig. 6.4) and scenes
     "DepthCamera", "default_cameras", "depth_image", "perceive", "Placement", "arm_scene", "random_placements",
     "scene_xml",

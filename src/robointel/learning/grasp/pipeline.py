@@ -360,6 +360,10 @@ def _smooth(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
     return a + (b - a) * s[:, None]
 
 
+#: Height (m) of the pre-grasp pose's grasp centre above the perceived top of the object on the way in:
+#: the arm swings from :data:`Q_PARK` to that pose, then moves straight down to the pre-grasp.
+HOVER_CLEARANCE = 0.15
+
 #: Where the arm waits while the cameras look (joint angles, rad): turned 90 deg away from the table
 #: and folded up, out of the cameras' view of the workspace.
 Q_PARK = np.radians([90.0, -20.0, 10.0, 0.0, -60.0, 0.0])
@@ -374,12 +378,29 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
     object is still held (above 5 cm and within 3 cm of where it sat in the gripper after the lift).
 
     ``arm=True`` (default): the whole LR Mate is in the MuJoCo scene (:func:`scene.arm_scene`): its
-    joint servos track the planned joint path (park -> pre-grasp 8 cm back along the approach ->
-    grasp -> close -> lift 10 cm -> shake with J1 and J6), its links collide with the table and the
-    object, and the held object loads its joints. ``arm=False``: the earlier simplification, the
-    gripper alone follows the forward kinematics of the same joint path (a mocap weld), no arm links.
-    The gripper on the flange is the one the plan chose (:class:`GraspPlanner`: the 48 mm one, or
-    the 85 mm one for wide parts), driven with its own ``grip_force``.
+    joint servos track the planned joint path (park -> the pre-grasp pose raised to
+    :data:`HOVER_CLEARANCE` above the perceived top of the object -> down to the pre-grasp 8 cm back
+    along the approach -> grasp -> close -> lift 10 cm -> shake with J1 and J6), its links collide
+    with the table and the object, and the held object loads its joints. ``arm=False``: the gripper
+    alone follows the forward kinematics of the path from the pre-grasp on (a mocap weld), no arm
+    links. The gripper on the flange is the one the plan chose (:class:`GraspPlanner`: the 48 mm one,
+    or the 85 mm one for wide parts), driven with its own ``grip_force``.
+
+    Args:
+        obj: The object (a free body in the scene).
+        placement: Where it rests on the table.
+        planner: The grasp planner (its robot at the world origin with ``arm=True``).
+        rng: Seed or generator of the sensor noise.
+        cameras: The depth cameras (default :func:`default_cameras`).
+        shake_amplitude: Amplitude of the J6 shake (rad; J1 shakes by 0.06 rad), both at 2 Hz for 1.5 s.
+        settle: Time the object settles before the cameras look (s).
+        arm: Simulate the whole arm (else the gripper alone).
+
+    Returns:
+        The trial's result (``success``, ``reason``, the plan, the state at the end of each phase).
+
+    Raises:
+        InvalidInput: the planner has no robot, or (``arm``) its base is not at the world origin.
     """
     rng = np.random.default_rng(rng)
     cams = cameras or default_cameras()
@@ -447,17 +468,24 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
     G = res.grasp.pose
     pre = G.copy()
     pre[:3, 3] -= 0.08 * res.grasp.approach
+    # the gripper comes in from above: the pre-grasp pose raised to HOVER_CLEARANCE above the
+    # perceived top of the object, then straight down to the pre-grasp
+    hover = pre.copy()
+    hover[2, 3] = max(pre[2, 3], float(cloud[:, 2].max()) + HOVER_CLEARANCE)
     up = G.copy()
     up[2, 3] += 0.10
     try:
         q_grasp = res.q
         q_pre = robot.ik(np.linalg.inv(Tb) @ pre, q_ref=q_grasp)[0]
         q_up = robot.ik(np.linalg.inv(Tb) @ up, q_ref=q_grasp)[0]
+        q_hover = robot.ik(np.linalg.inv(Tb) @ hover, q_ref=q_pre)[0]
     except IKFailure:
         return GraspTrialResult(False, "approach or lift unreachable", cat, plan, cloud=cloud)
     dt = m.opt.timestep
     open_w = g.max_width / 2 - 0.0  # finger joint 0 = open
-    path = [(_smooth(Q_PARK, q_pre, int(1.5 / dt)) if arm else _smooth(q_pre, q_pre, int(0.1 / dt)), 0.0)]
+    approach = (np.vstack([_smooth(Q_PARK, q_hover, int(1.5 / dt)), _smooth(q_hover, q_pre, int(0.5 / dt))]) if arm
+                else _smooth(q_pre, q_pre, int(0.1 / dt)))
+    path = [(approach, 0.0)]
     path.append((_smooth(q_pre, q_grasp, int(0.8 / dt)), 0.0))
     path.append((_smooth(q_grasp, q_grasp, int(0.6 / dt)), open_w))
     path.append((_smooth(q_grasp, q_up, int(1.0 / dt)), open_w))

@@ -22,9 +22,11 @@ from robointel.learning.grasp.objects import (
     toy_arm,
     ycb_objects,
 )
+from robointel.learning.grasp.pipeline import perceived_template
 from robointel.learning.grasp.quality import NARROW_GRIPPER, WIDE_GRIPPER, ParallelGripper
+from robointel.learning.grasp.transfer import Grasp
 
-__all__ = ["TeachingSet", "classifying_templates", "holdable", "ycb_teaching_set"]
+__all__ = ["TeachingSet", "classifying_templates", "holdable", "seen_template", "ycb_teaching_set"]
 
 #: Objects by category (each list's first object is the category's template) and the templates, in the
 #: categories' order.
@@ -96,3 +98,27 @@ def holdable(obj: ObjectModel, grippers: Sequence[ParallelGripper] = (NARROW_GRI
         :func:`robointel.learning.grasp.objects.sampled_grasps`, stopped at the first grasp found).
     """
     return any(next(top_down_grasps(obj, gripper=g), None) is not None for g in grippers)
+
+
+def seen_template(obj: ObjectModel, grasps: Sequence[Grasp] | None = None, *, rng: int = 0) -> Template:
+    """A template taught as the cameras see its object: the points of :func:`perceived_template`.
+
+    Classification (6.17)-(6.19) compares the template with a perceived target: the cameras see the
+    top and the near sides of an object, never its underside or the far sides of a narrow opening.
+    A template sampled on the whole model carries those unseen parts, which no target point matches;
+    with one generated template per category a cup's template (inner and outer wall, both sides of
+    the bottom) then scored worse on a perceived cup than the can's.
+
+    Args:
+        obj: The teaching object (object frame).
+        grasps: Its taught grasps (default :func:`robointel.learning.grasp.objects.taught_grasps`).
+        rng: Seed of the cameras' noise at teach time.
+
+    Returns:
+        The template (object frame).
+
+    Raises:
+        InvalidInput: the cameras do not see the object.
+    """
+    return Template(obj.name, obj.category, perceived_template(obj, rng=rng),
+                    list(grasps) if grasps is not None else taught_grasps(obj))
