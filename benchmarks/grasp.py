@@ -244,14 +244,12 @@ def run_trials(specs: list, results: str | None, workers: int, ray: bool) -> lis
     from rich.console import Console
 
     from robointel.batch import ResultStore, run_batch
-    from robointel.batch.kinds.grasp import setup
 
     root = Path(results or tempfile.mkdtemp(prefix="robointel-grasp-bench-"))
     if ray:
         run_batch(specs, root / "ray", engine="ray", workers=workers, console=Console(stderr=True))
         stores = [root / "ray"]
     elif workers > 1:
-        setup("ycb", 4, specs[0].params["class_templates"]) if specs else None
         shares = [specs[k::workers] for k in range(workers)]
         with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as ex:
             stores = list(ex.map(_batch_share, shares, [str(root / f"part-{k}") for k in range(workers)]))
@@ -292,13 +290,14 @@ def _accuracy(res: dict, cats: list) -> dict:
 def bench_grasping(quick: bool, trials: bool, per_category: int, trial_categories=None, seed: int = 2018,
                    class_templates: int = 1, class_seeds=(), workers: int = 1, classification: bool = True,
                    results: str | None = None, ray: bool = False) -> dict:
-    """Classification on ``seed`` (and each of ``class_seeds``) as independent tasks on ``workers``
-    forked processes (the setup made once, before the fork), then the trials on ``seed`` through
-    ``robointel.batch.run_batch`` (:func:`run_trials`)."""
+    """The trials on ``seed`` through ``robointel.batch.run_batch`` (:func:`run_trials`), then the
+    classification on ``seed`` (and each of ``class_seeds``) as independent tasks on ``workers`` forked
+    processes (the setup made once, before the fork)."""
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
-    from robointel.learning.grasp import classifying_templates, holdable, ycb_teaching_set
+    from robointel.batch.kinds.grasp import setup
+    from robointel.learning.grasp import classifying_templates, ycb_teaching_set
 
     global _SETUP
     t_start = time.perf_counter()
@@ -307,40 +306,13 @@ def bench_grasping(quick: bool, trials: bool, per_category: int, trial_categorie
     classifiers = classifying_templates(objs, templates, class_templates)
     _SETUP = (objs, templates, classifiers)
     cats = list(objs)
-    tasks = []
-    if classification:
-        tasks += [(classification_task, (s, ci, cat, per_category, False)) for s in (seed, *class_seeds)
-                  for ci, cat in enumerate(cats)]
-    if workers > 1 and tasks:
-        with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as ex:
-            futs = [ex.submit(f, *a) for f, a in tasks]
-            results_ = []
-            for i, f_ in enumerate(futs):
-                results_.append(f_.result())
-                print(f"[grasp] task {i + 1}/{len(tasks)} done at {time.perf_counter() - t_start:.0f} s: "
-                      f"{json.dumps(results_[-1])}", file=sys.stderr, flush=True)
-    else:
-        results_ = [f(*a) for f, a in tasks]
     out: dict = {"categories": cats, "templates": [t.name for t in templates],
                  "classifying_templates": len(classifiers), "classifying_templates_per_category": class_templates,
                  "placement_seed": seed}
-    cls_res = []
-    for s_ in (seed, *class_seeds):  # one result per seed, the categories' tasks joined
-        parts = [r for r in results_ if "pred" in r and r["seed"] == s_]
-        if parts:
-            cls_res.append({"seed": s_, "true": sum((r["true"] for r in parts), []),
-                            "pred": sum((r["pred"] for r in parts), []),
-                            "plan_ms": sum((r["plan_ms"] for r in parts), [])})
-    if cls_res:
-        main_ = _accuracy(cls_res[0], cats)
-        out.update({"classification_accuracy": main_["accuracy"], "classification_targets": main_["targets"],
-                    "confusion_matrix": main_["confusion_matrix"], "confusion_labels": main_["confusion_labels"],
-                    "classification_accuracy_paper": PAPER["classification_accuracy"]})
-        out["classification_accuracy_by_seed"] = {str(r["seed"]): _accuracy(r, cats)["accuracy"] for r in cls_res}
-        out["confusion_matrix_by_seed"] = {str(r["seed"]): _accuracy(r, cats)["confusion_matrix"] for r in cls_res}
     if trials:
         chosen = [(ci, cat) for ci, cat in enumerate(cats) if not trial_categories or cat in trial_categories]
-        excluded = {cat: [o.name for o in objs[cat][1:] if not holdable(o)] for _, cat in chosen}
+        targets = setup("ycb", 4, class_templates)[0]  # the trials' held-out, holdable instances
+        excluded = {cat: [o.name for o in objs[cat][1:] if o not in targets[cat]] for _, cat in chosen}
         t_trials = time.perf_counter()
         rows = run_trials(trial_specs(chosen, seed, per_category, class_templates), results, workers, ray)
         cpu = sum(r["cpu_s"] for r in rows)
@@ -362,6 +334,36 @@ def bench_grasping(quick: bool, trials: bool, per_category: int, trial_categorie
                     "transfer_ms": median([1e3 * r["timings"]["plan_s"] for r in rows if "plan_s" in r["timings"]]),
                     "grasp_trials_mode": "LR Mate arm in MuJoCo (joint servos), 48 mm or 85 mm gripper per object",
                     "grasp_success_paper": PAPER["grasp_success"]})
+        print(f"[grasp] trials done at {time.perf_counter() - t_start:.0f} s: {json.dumps(out)}", file=sys.stderr,
+              flush=True)
+    tasks = []
+    if classification:
+        tasks += [(classification_task, (s, ci, cat, per_category, False)) for s in (seed, *class_seeds)
+                  for ci, cat in enumerate(cats)]
+    if workers > 1 and tasks:
+        with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as ex:
+            futs = [ex.submit(f, *a) for f, a in tasks]
+            results_ = []
+            for i, f_ in enumerate(futs):
+                results_.append(f_.result())
+                print(f"[grasp] task {i + 1}/{len(tasks)} done at {time.perf_counter() - t_start:.0f} s: "
+                      f"{json.dumps(results_[-1])}", file=sys.stderr, flush=True)
+    else:
+        results_ = [f(*a) for f, a in tasks]
+    cls_res = []
+    for s_ in (seed, *class_seeds):  # one result per seed, the categories' tasks joined
+        parts = [r for r in results_ if "pred" in r and r["seed"] == s_]
+        if parts:
+            cls_res.append({"seed": s_, "true": sum((r["true"] for r in parts), []),
+                            "pred": sum((r["pred"] for r in parts), []),
+                            "plan_ms": sum((r["plan_ms"] for r in parts), [])})
+    if cls_res:
+        main_ = _accuracy(cls_res[0], cats)
+        out.update({"classification_accuracy": main_["accuracy"], "classification_targets": main_["targets"],
+                    "confusion_matrix": main_["confusion_matrix"], "confusion_labels": main_["confusion_labels"],
+                    "classification_accuracy_paper": PAPER["classification_accuracy"]})
+        out["classification_accuracy_by_seed"] = {str(r["seed"]): _accuracy(r, cats)["accuracy"] for r in cls_res}
+        out["confusion_matrix_by_seed"] = {str(r["seed"]): _accuracy(r, cats)["confusion_matrix"] for r in cls_res}
     return out
 
 
