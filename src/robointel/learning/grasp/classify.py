@@ -186,72 +186,42 @@ def fit_template(target: npt.ArrayLike, template: Template, *, n_points: int = 2
                  footprint: bool = True, shape_weight: float = 0.5) -> Fit:
     """Fit a template to a target cloud: initial alignment, rigid then non-rigid CPD, score.
 
-    Fit ``template`` (points in metres) to ``target`` (n, 3) (m, world frame): initial alignment
-    (footprint rectangle or yaw search), rigid CPD (6.8)-(6.10), non-rigid CPD (6.11)-(6.13) with
-    ``beta``, ``lmbda``; return the :class:`Fit` (warp and the residual (6.17)-(6.19) with its shape terms).
+    The initial alignment (footprint rectangle or yaw search, below) is followed by rigid CPD
+    (6.8)-(6.10) and non-rigid CPD (6.11)-(6.13); the score is the residual (6.17)-(6.19) times two
+    shape terms. The choice of every default is recorded in ``docs/decisions.md`` ("Classification
+    fit parameters").
 
-    The defaults (beta 3, lambda 200, normalised units) are stiffer than the dissertation's CPD setting
-    (beta 2, lambda 50): with the softer warp, thin YCB tools were matched best by the can template
-    (21/28 right on perceived YCB clouds against 25/28 with these defaults).
+    Args:
+        target: The perceived cloud (n, 3), m, world frame.
+        template: The template (points in its own frame, m).
+        n_points: Farthest-point subsample size of both clouds.
+        yaw_steps: Initial headings tried (a uniform grid over a full turn).
+        beta: Non-rigid CPD kernel width (normalised units).
+        lmbda: Non-rigid CPD regularisation lambda.
+        w: CPD outlier weight.
+        nonrigid: Run the non-rigid stage (else rigid only).
+        max_iterations: EM iteration cap of each CPD stage.
+        tolerance: Non-rigid CPD tolerance.
+        anisotropic: (>= 1, 0 disables) the initial alignment scales the template along its own axes
+            towards the target's robust extents, each axis within this factor of the isotropic
+            RMS-radius scale (CPD's normalisation otherwise erases aspect ratios).
+        rest_z: World z of the table (m; None = off): gravity-aware alignment for objects resting
+            upright: the template's base on the table, its height scaled to the target's observed height,
+            x and y scaled isotropically (``anisotropic`` then ignored).
+        normal_weight: The score is the distance times ``1 + normal_weight * normal_disagreement``
+            (0 = distance only, the dissertation's residual).
+        starts: The registration runs from this many best initial alignments; the lowest score wins.
+        footprint: (with ``anisotropic``, without ``rest_z``) four more starts turn the template's
+            minimum-area footprint rectangle (:func:`footprint_rectangle`) onto the target's at the four
+            quarter turns; the best of each pairing runs first.
+        shape_weight: The score is also multiplied by ``1 + shape_weight * shape``, ``shape`` the
+            absolute difference of the :func:`normal_obliqueness` of the warped template and the target.
 
-    ``anisotropic`` (>= 1, 0 disables): the initial alignment scales the template along its own x, y, z
-    axes (after each trial yaw) towards the target's extents, each axis scale kept within a factor
-    ``anisotropic`` of the isotropic RMS-radius scale. CPD's normalisation otherwise erases aspect
-    ratios, so a flat can and a thin box, or a square block and a round can, reach the non-rigid stage
-    with the wrong proportions and the smooth warp absorbs the difference. With 1.5 the held-out YCB
-    classification benchmark (7 categories x 20 perceived placements) went from 126/140 to 131/140
-    (1.3: 128, 1.4: 126, 1.7: 126, unbounded: 118 -- balls stretched onto tools).
+    Returns:
+        The best :class:`Fit` over the starts.
 
-    ``rest_z`` (world z of the table, m; None = off): gravity-aware initial alignment for objects
-    resting upright on the table. The template's base (its z = 0) is put on the table, its height
-    scaled to the target's observed height above the table (the top is always in view) and its x, y
-    scaled isotropically by the horizontal RMS radius (round rims stay round); ``anisotropic`` is then
-    ignored. Matching centroids instead puts flat objects' templates half below the table, because
-    the cameras never see the underside (a fork's warped screwdriver template reached 2 cm below
-    the table and its transferred grasps sat at z = 0).
-
-    ``normal_weight``: the score is the symmetric mean nearest-neighbour distance times
-    ``1 + normal_weight * normal_disagreement`` (0 = distance only, the dissertation's residual).
-    Chosen on perceived placements other than the benchmark's (seeds 7 and 11, 7 categories x 20):
-    distance only 128/140 and 132/140; weights 1, 2, 4 all 130/140 and 133/140 (cups read as cans
-    gone; the margin between the cup and can templates on cups grew from ~0.1 mm to ~0.5 mm); 2 is
-    the middle of that plateau.
-
-    ``starts``: the registration (rigid then non-rigid CPD) runs from the ``starts`` best initial
-    yaws and keeps the lowest score: a square block fitted from a single start sometimes stayed in a
-    local minimum and read as a can. On the same validation placements: 1 start 130/140 and
-    133/140, 2 starts 132/140 and 133/140, 3 starts 132/140 and 133/140 (all with the yaw grid
-    only, ``footprint=False``). With ``footprint`` the first two starts are the footprint-aligned ones.
-
-    ``footprint`` (used only with ``anisotropic`` and without ``rest_z``: the classification fit):
-    four more initial alignments turn the template's minimum-area footprint rectangle
-    (:func:`footprint_rectangle`) onto the target's, at the four quarter turns, each rectangle axis
-    and the height scaled to the target's extents (within ``anisotropic``); the registration runs
-    first from the best of each pairing (the template's first rectangle axis along the target's first
-    or its second side), then from the yaw grid's best. The grid compares the template's extents along
-    the world axes with the target's, which for a square block at 45 degrees (YCB 036_wood_block) are
-    those of its diagonal: the thin sugar-box template was stretched the wrong way, stayed in a
-    worse minimum and the block read as a can. Validation (seeds 7, 11, 3, 5; 7 categories x 20
-    perceived placements each; never the benchmark's seed 2018): yaw grid only 132, 133, 134, 134/140;
-    footprint starts 132, 135, 134, 135 (wood blocks right, but 1-3 tuna cans per seed read as balls:
-    a squashed ball template also fits better from these starts); 2 footprint + 2 grid starts (twice
-    the time) 133, 135, 133, 135.
-
-    ``shape_weight``: the score is also multiplied by ``1 + shape_weight * shape``, ``shape`` the
-    absolute difference between the :func:`normal_obliqueness` of the warped template and of the
-    target (0 = off). The smooth warp squashes a ball template onto a flat tuna can closely enough
-    for both the distance and the local normals, but the ball keeps its oblique shoulders. Same
-    validation placements, with the footprint starts: weights 0.1 to 1.5 leave only
-    010_potted_meat_can errors on all four seeds (0.25: 136, 135, 136, 136; 1.5: 137, 137, 138, 136);
-    2: a cup read as a can; 3: 530/560 (cups read as cans). 0.5 gives the widest margins: 1st / 5th
-    percentile of (best other category's score - true category's) / true category's over the 536
-    targets that are not the potted meat can 0.086 / 0.131, against 0.007 / 0.055 without the term
-    (0.25: 0.078 / 0.112, 1.0: 0.069 / 0.103). With 0.5: 136, 135, 136, 136/140, every error the
-    potted meat can (a rectangular tin: its nearest template is the box), 4, 5, 4, 4 of its 6
-    placements per seed. The shape term without the footprint starts: 132, 133, 135, 134 (the
-    diagonal wood blocks read as cans again: 2, 2, 0, 2). The benchmark's seed 2018, run once after
-    these choices: 131/140 before, 137/140 after (cans 17/20, 3 read as boxes; boxes 20/20 from 17/20;
-    every other category 20/20).
+    Raises:
+        InvalidInput: fewer than 4 target points, or (``rest_z``) a cloud not above its resting plane.
     """
     X = as_array(target, "target", (None, 3))
     if len(X) < 4:
