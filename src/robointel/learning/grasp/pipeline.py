@@ -361,7 +361,8 @@ def _smooth(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
 
 
 #: Height (m) of the pre-grasp pose's grasp centre above the perceived top of the object on the way in:
-#: the arm swings from :data:`Q_PARK` to that pose, then moves straight down to the pre-grasp.
+#: the arm swings from :data:`Q_PARK` to that pose, then moves straight down to the pre-grasp (half the
+#: height when that pose is out of reach, the pre-grasp itself when neither is reachable).
 HOVER_CLEARANCE = 0.15
 
 #: Where the arm waits while the cameras look (joint angles, rad): turned 90 deg away from the table
@@ -470,17 +471,23 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
     pre[:3, 3] -= 0.08 * res.grasp.approach
     # the gripper comes in from above: the pre-grasp pose raised to HOVER_CLEARANCE above the
     # perceived top of the object, then straight down to the pre-grasp
-    hover = pre.copy()
-    hover[2, 3] = max(pre[2, 3], float(cloud[:, 2].max()) + HOVER_CLEARANCE)
     up = G.copy()
     up[2, 3] += 0.10
     try:
         q_grasp = res.q
         q_pre = robot.ik(np.linalg.inv(Tb) @ pre, q_ref=q_grasp)[0]
         q_up = robot.ik(np.linalg.inv(Tb) @ up, q_ref=q_grasp)[0]
-        q_hover = robot.ik(np.linalg.inv(Tb) @ hover, q_ref=q_pre)[0]
     except IKFailure:
         return GraspTrialResult(False, "approach or lift unreachable", cat, plan, cloud=cloud)
+    q_hover = q_pre  # when no raised pose is reachable, the swing ends at the pre-grasp itself
+    for clearance in (HOVER_CLEARANCE, HOVER_CLEARANCE / 2):
+        hover = pre.copy()
+        hover[2, 3] = max(pre[2, 3], float(cloud[:, 2].max()) + clearance)
+        try:
+            q_hover = robot.ik(np.linalg.inv(Tb) @ hover, q_ref=q_pre)[0]
+            break
+        except IKFailure:
+            continue
     dt = m.opt.timestep
     open_w = g.max_width / 2 - 0.0  # finger joint 0 = open
     approach = (np.vstack([_smooth(Q_PARK, q_hover, int(1.5 / dt)), _smooth(q_hover, q_pre, int(0.5 / dt))]) if arm
