@@ -360,6 +360,9 @@ def _smooth(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
     return a + (b - a) * s[:, None]
 
 
+#: Least rise (m) of a held object over its resting height at the end of a trial (the lift is 10 cm).
+LIFT_MIN = 0.05
+
 #: Height (m) of the pre-grasp pose's grasp centre above the perceived top of the object on the way in:
 #: the arm swings from :data:`Q_PARK` to that pose, then moves straight down to the pre-grasp (half the
 #: height when that pose is out of reach, the pre-grasp itself when neither is reachable).
@@ -376,7 +379,8 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
     """Run one lift-and-shake trial (Table 6.2) in MuJoCo.
 
     Place ``obj`` (free body), perceive, plan, approach, close, lift 10 cm, shake; success if the
-    object is still held (above 5 cm and within 3 cm of where it sat in the gripper after the lift).
+    object is still held: raised by more than :data:`LIFT_MIN` over its height before the jaws closed,
+    touching a finger, and within 3 cm of where it sat in the gripper after the lift.
 
     ``arm=True`` (default): the whole LR Mate is in the MuJoCo scene (:func:`scene.arm_scene`): its
     joint servos track the planned joint path (park -> the pre-grasp pose raised to
@@ -531,6 +535,8 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
             d.ctrl[-2:] = ctrl
             mujoco.mj_step(m, d)
         log.append(_phase_state(m, d, PHASES[k], body, gbody, fingers, fp, g))
+        if k == 1:
+            z_rest = float(d.xpos[body][2])  # the object's height before the jaws close
         if k == 2:
             closed = float(d.qpos[m.jnt_qposadr[fp]])  # finger travel after closing (m)
         if k == 3:
@@ -539,12 +545,14 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
     rel = d.xpos[body] - d.xpos[gbody]
     h = float(d.xpos[body][2])
     moved = float(np.linalg.norm(rel - rel_after_lift))
-    held = h > 0.05 and moved < 0.03
+    # held: raised by at least LIFT_MIN above where it rested, still in the jaws (touching a finger,
+    # where it sat after the lift); an object's frame can rest above 5 cm (a toy arm lying on its side)
+    held = h - z_rest > LIFT_MIN and moved < 0.03 and log[-1]["contacts"] > 0
     if held:
         reason = "held"
     elif closed > g.max_width / 2 - 0.002:
         reason = "dropped: fingers closed on nothing"
-    elif h_lift < 0.05:
+    elif h_lift - z_rest < LIFT_MIN:
         reason = f"dropped: slipped during lift (height {h_lift:.3f} m, grip {2 * (g.max_width / 2 - closed):.3f} m)"
     else:
         reason = (f"dropped: slipped during shake (moved {moved:.3f} m in hand, "
