@@ -1,8 +1,8 @@
 """Chapter 6 measured: CPD beside pycpd and probreg, classification by registration residual,
-MuJoCo lift-and-shake grasp trials and the per-object transfer time.
+MuJoCo lift-and-shake grasp trials and the per-object planning time.
 
     python benchmarks/grasp.py [--json] [--quick] [--skip-trials] [--only classification|CATEGORY,...] [--seed N]
-                               [--class-seeds 2019,2020] [--workers N] [--per-category N]
+                               [--class-seeds 2019,2020] [--workers N] [--ray] [--per-category N] [--results DIR]
 
 * CPD exactness: our exact dense non-rigid/rigid/affine CPD against pycpd on fish and bunny with the
   same parameters (max |TY_ours - TY_pycpd|).
@@ -11,35 +11,43 @@ MuJoCo lift-and-shake grasp trials and the per-object transfer time.
   same number of iterations (tolerance 0 after that count; no looser stopping rule). Medians of repeats.
 * Large pairs: probreg's face pair (23,728 points each) and a 100k pair (two YCB scans sampled at
   100,000 points each); time and symmetric mean nearest-neighbour residual before/after.
-* Classification (6.17)-(6.19): one template per category (the first instance with >= 3 taught
-  grasps; ``--class-templates K``: K classifying instances per category, 0 = every other instance,
-  the nearest wins), 20 random placements
-  per category of the other instances (held out: no target is its own template), each perceived by
-  the two simulated depth cameras (ray casting, noise, background removal, DBSCAN, 5 mm voxels).
-* Grasp trials (Table 6.2): 20 random placements per category, perceive -> classify -> register ->
-  transfer -> score -> orientation search (LR Mate IK) -> approach, close, lift 10 cm, shake in MuJoCo,
-  with the whole LR Mate in the scene (URDF links colliding, joint servos tracking the planned path,
-  the gripper on its flange; ``grasp_trials_mode`` in the JSON).
-  The planner chooses per object the 48 mm gripper or the 85 mm one (Robotiq 2F-85 class) by the
-  transferred grasps' widths; the trial puts that gripper on the flange (``grasp_gripper_per_category``).
-  Instances neither gripper can hold from above at all (no positive-quality, collision-free top-down
-  grasp among 400 sampled on the true model) are excluded (listed in the output). A category's
-  placements come from ``default_rng((seed, category index))``.
-* Classification accuracy is reported on ``--seed`` and on each of ``--class-seeds`` (default 2019 and
-  2020, never used to choose parameters) in ``classification_accuracy_by_seed``; a category's
-  placements come from ``default_rng((seed, 1000 + category index))``.
+* Classification (6.17)-(6.19): one template per category (``robointel.learning.grasp.ycb_teaching_set``:
+  the first instance with >= 3 taught grasps; ``--class-templates K``: K classifying instances per
+  category, 0 = every other instance, the nearest wins), ``--per-category`` (20) random placements per
+  category of the other instances (held out: no target is its own template), each perceived by the
+  two simulated depth cameras (ray casting, noise, background removal, DBSCAN, 5 mm voxels), the
+  planner's classification step. Reported on ``--seed`` and on each of ``--class-seeds`` (default 2019
+  and 2020) in ``classification_accuracy_by_seed``; a category's placements come from
+  ``default_rng((seed, 1000 + category index))``.
+* Grasp trials (Table 6.2): ``--per-category`` (20) trials per category as ``robointel.batch`` tasks
+  of kind ``grasp`` (YCB source) run by ``run_batch``, results as ``TrialOutcome`` rows in a Parquet
+  store: perceive -> classify -> register -> transfer -> score -> orientation search (LR Mate IK) ->
+  approach from above, close, lift 10 cm, shake in MuJoCo, with the whole LR Mate in the scene (URDF
+  links colliding, joint servos tracking the planned path, the gripper on its flange). The planner
+  chooses per object the 48 mm gripper or the 85 mm one (Robotiq 2F-85 class) by the transferred
+  grasps' widths (``grasp_gripper_per_category``). Instances neither gripper can hold from above at
+  all (no positive-quality, collision-free top-down grasp on the true model) are excluded (listed).
+  Trial ``k`` of category ``ci`` has the task seed ``seed * 10000 + 100 * ci + k`` (its placement and
+  sensor noise) and held-out instance ``k`` (round robin). ``transfer_ms`` is the trials' median
+  planning time (wall time on the shared machine).
 
 The machine is shared (2 cores, other jobs running): the load average is reported with the figures.
 
 Placements come from ``--seed`` (default 2018, the reported figures). Parameters of the pipeline were
 chosen on other seeds (3, 5, 7 and 11), never on 2018, 2019 or 2020. ``--workers N`` runs the
-classification seeds and the trial categories as N forked processes (same results as one process).
+classification tasks and the trials on N forked processes after one setup (each worker's trials go
+through ``run_batch`` in-process into its own store); ``--ray`` runs the trials on a local Ray with N
+CPUs instead (each Ray worker makes its own setup; the script re-executes itself in a loopback-only
+network namespace). Same outcomes either way.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import shlex
+import shutil
+import subprocess
 import sys
 import time
 
@@ -137,53 +145,6 @@ def bench_cpd(quick: bool) -> dict:
     return out
 
 
-def _fits(obj, grippers) -> bool:
-    """Can one of the grippers hold this instance from above at all? True when the grasp sampler finds
-    a positive-quality (6.20), collision-free top-down grasp on the true model for one of them."""
-    from robointel.learning.grasp import sampled_grasps
-
-    return any(sampled_grasps(obj, 1, gripper=g) for g in grippers)
-
-
-def grasp_setup():
-    """The objects by category (template first) and the templates: one per category, the first
-    instance on which at least 3 distinct top-down grasps can be taught with the 48 mm gripper (else
-    the first instance). Taught grasps: the sampler's with the 48 mm gripper, else with the 85 mm one
-    (cans, boxes, balls wider than 48 mm), else the hand-written ones."""
-    from robointel.learning.grasp import Template, sample_points, sampled_grasps, taught_grasps, toy_arm, ycb_objects
-    from robointel.learning.grasp.quality import WIDE_GRIPPER
-
-    objs = ycb_objects()
-    objs["toy_arm"] = [toy_arm(robot="ur5", rng=100 + i, name=f"toy_ur5_{i}") for i in range(6)]
-    templates = []
-    for cat, lst in objs.items():  # taught grasps: best sampled top-down grasps on the template's model
-        # the template (teaching object) is the first instance on which at least 3 distinct grasps can be
-        # taught; the 48 mm gripper fits only one place of the medium clamp, so the large clamp teaches
-        # the clamp category (a single taught grasp transferred to the larger clamps landed on parts
-        # too wide: clamps 2/20 -> see the report)
-        i = next((j for j, o in enumerate(lst) if cat == "toy_arm" or len(sampled_grasps(o)) >= 3), 0)
-        lst.insert(0, lst.pop(i))
-        o = lst[0]
-        grasps = ((sampled_grasps(o) or sampled_grasps(o, gripper=WIDE_GRIPPER)) if cat != "toy_arm" else []) \
-            or taught_grasps(o)
-        templates.append(Template(o.name, cat, sample_points(o, 800, 0), grasps))
-    return objs, templates
-
-
-def classifying_templates(objs, templates, per_category: int):
-    """The K templates of (6.17)-(6.19): per category the taught template then the next instances in
-    order, ``per_category`` in all (0 = every instance: leave-one-out nearest-template classification).
-    Targets never meet their own instance (the planner excludes it by name)."""
-    from robointel.learning.grasp import Template, sample_points
-
-    out = []
-    for t, (cat, lst) in zip(templates, objs.items()):
-        out.append(t)
-        more = lst[1:] if per_category <= 0 else lst[1:per_category]
-        out += [Template(o.name, cat, sample_points(o, 800, 0), []) for o in more]
-    return out
-
-
 #: (objs, templates, classifiers), set by the parent before the worker processes fork.
 _SETUP: tuple | None = None
 _PLANNER = None
@@ -243,34 +204,77 @@ def classification_task(seed: int, ci: int, cat: str, per_category: int, full_pl
     return {"seed": seed, "true": true, "pred": pred, "plan_ms": plan_ms}
 
 
-def trial_task(ci: int, cat: str, seed: int, per_category: int) -> dict:
-    """``per_category`` lift-and-shake trials of category ``cat`` (index ``ci``), placements from
-    ``default_rng((seed, ci))`` (a category's trials do not depend on which others run)."""
-    from robointel.learning.grasp import grasp_trial, random_placements
-    from robointel.learning.grasp.quality import NARROW_GRIPPER, WIDE_GRIPPER
+def trial_specs(cats: list, seed: int, per_category: int, class_templates: int) -> list:
+    """The trials as batch tasks (kind ``grasp``, YCB source): trial ``k`` of category ``ci`` has the
+    spec seed ``seed * 10000 + 100 * ci + k`` (its placement and sensor noise) and held-out instance
+    ``k`` (round robin over the category's instances one of the grippers can hold)."""
+    from robointel.batch import TaskSpec
 
-    objs = _SETUP[0]
-    planner = _planner()
-    lst = objs[cat]
-    grippers = (NARROW_GRIPPER, WIDE_GRIPPER)
-    held = [o for o in lst[1:] if _fits(o, grippers)]
-    excluded = [o.name for o in lst[1:] if o not in held]
-    out = {"cat": cat, "excluded": excluded, "successes": 0, "trials": 0, "failures": [], "grippers": {},
-           "fallbacks": 0}
-    rng = np.random.default_rng((seed, ci))
-    for k in range(per_category if held else 0):
-        o = held[k % len(held)]
-        p = random_placements([o], rng)[0]
-        r = grasp_trial(o, p, planner, rng=rng)
-        out["trials"] += 1
-        out["successes"] += int(r.success)
-        name = r.gripper or "none"
-        out["grippers"][name] = out["grippers"].get(name, 0) + 1
-        out["fallbacks"] += int(bool(r.plan is not None and r.plan.gripper_fallback))
-        if not r.success:
-            out["failures"].append(f"{o.name} [{name}]: {r.reason}")
-        print(f"[grasp-trial] {cat} {k + 1}/{per_category} {o.name} [{name}] success={r.success} "
-              f"classified={r.category} reason={r.reason}", file=sys.stderr, flush=True)
+    return [TaskSpec("grasp", seed * 10000 + 100 * ci + k,
+                     {"source": "ycb", "category": cat, "instance": k, "class_templates": class_templates})
+            for ci, cat in cats for k in range(per_category)]
+
+
+def _batch_share(specs: list, root: str) -> str:
+    """One forked worker's share of the trials, run in-process by ``run_batch`` into its own store."""
+    from robointel.batch import run_batch
+
+    def log(row: dict) -> None:
+        print(f"[grasp-trial] {row['category']} seed {row['seed']} success={row['success']} "
+              f"classified_right={row['figures'].get('classified_right')} cpu {row['cpu_s']:.0f} s {row['detail']}",
+              file=sys.stderr, flush=True)
+
+    run_batch(specs, root, progress=False, on_row=log)
+    return root
+
+
+def run_trials(specs: list, results: str | None, workers: int, ray: bool) -> list:
+    """Run the trial specs through ``robointel.batch.run_batch`` into result stores under ``results`` (a
+    fresh temporary folder when None; an existing one resumes); return the stored rows in spec order.
+
+    ``ray``: one run on a local Ray with ``workers`` CPUs (each worker makes its own setup). Else
+    in-process: with ``workers`` > 1 the specs are dealt round robin to ``workers`` forked processes
+    (after the parent made the setup, which they share), each running ``run_batch`` in-process into
+    its own store ``part-K``."""
+    import multiprocessing as mp
+    import tempfile
+    from concurrent.futures import ProcessPoolExecutor
+    from pathlib import Path
+
+    from rich.console import Console
+
+    from robointel.batch import ResultStore, run_batch
+
+    root = Path(results or tempfile.mkdtemp(prefix="robointel-grasp-bench-"))
+    if ray:
+        run_batch(specs, root / "ray", engine="ray", workers=workers, console=Console(stderr=True))
+        stores = [root / "ray"]
+    elif workers > 1:
+        shares = [specs[k::workers] for k in range(workers)]
+        with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as ex:
+            stores = list(ex.map(_batch_share, shares, [str(root / f"part-{k}") for k in range(workers)]))
+    else:
+        stores = [_batch_share(specs, str(root / "part-0"))]
+    rows = {(r["spec_hash"], r["seed"]): r for st in stores for r in ResultStore(st).rows()}
+    print(f"[grasp] trial results in {root}", file=sys.stderr, flush=True)
+    return [rows[s.key] for s in specs]
+
+
+def trial_summary(cats: list, rows: list, excluded: dict) -> dict:
+    """Per-category successes, grippers, fallbacks and failures of the trial rows."""
+    out = {}
+    for cat in cats:
+        rs = [r for r in rows if r["category"] == cat]
+        grippers: dict = {}
+        for r in rs:
+            name = "wide_85mm" if r["figures"].get("wide_gripper") else (
+                "none" if "[none]" in r["detail"] else "narrow_48mm")
+            grippers[name] = grippers.get(name, 0) + 1
+        out[cat] = {"cat": cat, "excluded": excluded.get(cat, []), "trials": len(rs),
+                    "successes": sum(int(r["success"]) for r in rs), "grippers": grippers,
+                    "fallbacks": sum(int(r["figures"].get("gripper_fallback", 0)) for r in rs),
+                    "classified_right": sum(int(r["figures"].get("classified_right", 0)) for r in rs),
+                    "failures": [f"seed {r['seed']} {r['reason']}: {r['detail']}" for r in rs if not r["success"]]}
     return out
 
 
@@ -284,42 +288,71 @@ def _accuracy(res: dict, cats: list) -> dict:
 
 
 def bench_grasping(quick: bool, trials: bool, per_category: int, trial_categories=None, seed: int = 2018,
-                   class_templates: int = 1, class_seeds=(), workers: int = 1, classification: bool = True) -> dict:
-    """Classification on ``seed`` (and each of ``class_seeds``) and the trials on ``seed``, run as
-    independent tasks on ``workers`` forked processes (the setup is made once, before the fork)."""
+                   class_templates: int = 1, class_seeds=(), workers: int = 1, classification: bool = True,
+                   results: str | None = None, ray: bool = False) -> dict:
+    """The trials on ``seed`` through ``robointel.batch.run_batch`` (:func:`run_trials`), then the
+    classification on ``seed`` (and each of ``class_seeds``) as independent tasks on ``workers`` forked
+    processes (the setup made once, before the fork)."""
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
+    from robointel.batch.kinds.grasp import setup
+    from robointel.learning.grasp import classifying_templates, ycb_teaching_set
+
     global _SETUP
     t_start = time.perf_counter()
-    objs, templates = grasp_setup()
+    objs, templates = ycb_teaching_set()
     print(f"[grasp] setup {time.perf_counter() - t_start:.0f} s, {workers} workers", file=sys.stderr, flush=True)
     classifiers = classifying_templates(objs, templates, class_templates)
     _SETUP = (objs, templates, classifiers)
     cats = list(objs)
-    tasks = []
-    if trials:  # first: the longest tasks
-        tasks += [(trial_task, (ci, cat, seed, per_category)) for ci, cat in enumerate(cats)
-                  if not trial_categories or cat in trial_categories]
-    if classification:
-        tasks += [(classification_task, (s, ci, cat, per_category, s == seed)) for s in (seed, *class_seeds)
-                  for ci, cat in enumerate(cats)]
-    if workers > 1:
-        with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as ex:
-            futs = [ex.submit(f, *a) for f, a in tasks]
-            results = []
-            for i, f_ in enumerate(futs):
-                results.append(f_.result())
-                print(f"[grasp] task {i + 1}/{len(tasks)} done at {time.perf_counter() - t_start:.0f} s: "
-                      f"{json.dumps(results[-1])}", file=sys.stderr, flush=True)
-    else:
-        results = [f(*a) for f, a in tasks]
     out: dict = {"categories": cats, "templates": [t.name for t in templates],
                  "classifying_templates": len(classifiers), "classifying_templates_per_category": class_templates,
                  "placement_seed": seed}
+    if trials:
+        chosen = [(ci, cat) for ci, cat in enumerate(cats) if not trial_categories or cat in trial_categories]
+        targets = setup("ycb", 4, class_templates)[0]  # the trials' held-out, holdable instances
+        excluded = {cat: [o.name for o in objs[cat][1:] if o not in targets[cat]] for _, cat in chosen}
+        t_trials = time.perf_counter()
+        rows = run_trials(trial_specs(chosen, seed, per_category, class_templates), results, workers, ray)
+        cpu = sum(r["cpu_s"] for r in rows)
+        tr = list(trial_summary([cat for _, cat in chosen], rows, excluded).values())
+        succ = sum(r["successes"] for r in tr)
+        n = sum(r["trials"] for r in tr)
+        out.update({"grasp_success": succ / max(n, 1), "grasp_trials": n, "grasp_successes": succ,
+                    "grasp_trial_categories": sum(1 for r in tr if r["trials"]),
+                    "grasp_success_per_category": {r["cat"]: [r["successes"], r["trials"]] for r in tr},
+                    "grasp_success_rate_per_category": {r["cat"]: r["successes"] / max(r["trials"], 1) for r in tr},
+                    "grasp_gripper_per_category": {r["cat"]: r["grippers"] for r in tr},
+                    "grasp_wide_fallbacks": {r["cat"]: r["fallbacks"] for r in tr},
+                    "grasp_trials_classified_right": sum(r["classified_right"] for r in tr),
+                    "grasp_excluded_too_wide": [x for r in tr for x in r["excluded"]],
+                    "grasp_failures": {r["cat"]: r["failures"] for r in tr if r["failures"]},
+                    "grasp_trials_engine": f"ray x{workers}" if ray else f"inprocess x{workers} (forked)",
+                    "grasp_trials_wall_s": time.perf_counter() - t_trials, "grasp_trials_cpu_s": cpu,
+                    "grasp_trial_cpu_s_median": median([r["cpu_s"] for r in rows]),
+                    "transfer_ms": median([1e3 * r["timings"]["plan_s"] for r in rows if "plan_s" in r["timings"]]),
+                    "grasp_trials_mode": "LR Mate arm in MuJoCo (joint servos), 48 mm or 85 mm gripper per object",
+                    "grasp_success_paper": PAPER["grasp_success"]})
+        print(f"[grasp] trials done at {time.perf_counter() - t_start:.0f} s: {json.dumps(out)}", file=sys.stderr,
+              flush=True)
+    tasks = []
+    if classification:
+        tasks += [(classification_task, (s, ci, cat, per_category, False)) for s in (seed, *class_seeds)
+                  for ci, cat in enumerate(cats)]
+    if workers > 1 and tasks:
+        with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as ex:
+            futs = [ex.submit(f, *a) for f, a in tasks]
+            results_ = []
+            for i, f_ in enumerate(futs):
+                results_.append(f_.result())
+                print(f"[grasp] task {i + 1}/{len(tasks)} done at {time.perf_counter() - t_start:.0f} s: "
+                      f"{json.dumps(results_[-1])}", file=sys.stderr, flush=True)
+    else:
+        results_ = [f(*a) for f, a in tasks]
     cls_res = []
     for s_ in (seed, *class_seeds):  # one result per seed, the categories' tasks joined
-        parts = [r for r in results if "pred" in r and r["seed"] == s_]
+        parts = [r for r in results_ if "pred" in r and r["seed"] == s_]
         if parts:
             cls_res.append({"seed": s_, "true": sum((r["true"] for r in parts), []),
                             "pred": sum((r["pred"] for r in parts), []),
@@ -328,23 +361,9 @@ def bench_grasping(quick: bool, trials: bool, per_category: int, trial_categorie
         main_ = _accuracy(cls_res[0], cats)
         out.update({"classification_accuracy": main_["accuracy"], "classification_targets": main_["targets"],
                     "confusion_matrix": main_["confusion_matrix"], "confusion_labels": main_["confusion_labels"],
-                    "classification_accuracy_paper": PAPER["classification_accuracy"],
-                    "transfer_ms": median(cls_res[0]["plan_ms"])})
+                    "classification_accuracy_paper": PAPER["classification_accuracy"]})
         out["classification_accuracy_by_seed"] = {str(r["seed"]): _accuracy(r, cats)["accuracy"] for r in cls_res}
         out["confusion_matrix_by_seed"] = {str(r["seed"]): _accuracy(r, cats)["confusion_matrix"] for r in cls_res}
-    tr = [r for r in results if "successes" in r]
-    if tr:
-        succ = sum(r["successes"] for r in tr)
-        n = sum(r["trials"] for r in tr)
-        out.update({"grasp_success": succ / max(n, 1), "grasp_trials": n, "grasp_successes": succ,
-                    "grasp_trial_categories": sum(1 for r in tr if r["trials"]),
-                    "grasp_success_per_category": {r["cat"]: [r["successes"], r["trials"]] for r in tr},
-                    "grasp_gripper_per_category": {r["cat"]: r["grippers"] for r in tr},
-                    "grasp_wide_fallbacks": {r["cat"]: r["fallbacks"] for r in tr},
-                    "grasp_excluded_too_wide": [x for r in tr for x in r["excluded"]],
-                    "grasp_failures": {r["cat"]: r["failures"] for r in tr if r["failures"]},
-                    "grasp_trials_mode": "LR Mate arm in MuJoCo (joint servos), 48 mm or 85 mm gripper per object",
-                    "grasp_success_paper": PAPER["grasp_success"]})
     return out
 
 
@@ -362,12 +381,25 @@ def main() -> None:
     ap.add_argument("--class-seeds", default="2019,2020",
                     help="further placement seeds for the classification accuracy (comma list; '' = none)")
     ap.add_argument("--workers", type=int, default=1,
-                    help="processes for the classification seeds and the trial categories (forked)")
+                    help="forked processes for the classification tasks and the trials (run_batch in-process in each)")
+    ap.add_argument("--ray", action="store_true",
+                    help="run the trials on a local Ray with --workers CPUs (the script re-executes itself in a "
+                         "loopback-only network namespace)")
+    ap.add_argument("--results", default=None, help="result store of the trials (default: a fresh temporary folder; "
+                                                    "an existing one resumes)")
+    ap.add_argument("--no-netns", action="store_true", help="with --ray: do not re-execute under unshare --net")
     ap.add_argument("--per-category", type=int, default=None, help="placements per category (default 20)")
     ap.add_argument("--only", default=None,
                     help="comma list: 'classification' and/or trial categories (e.g. can,box: CPD and "
                          "classification skipped, those categories' trials only, on the same placements as a full run)")
     args = ap.parse_args()
+    if args.ray and not args.no_netns and os.environ.get("ROBOINTEL_NETNS") != "1":
+        # a local Ray binds the machine's routable address: run it where only loopback exists
+        if shutil.which("unshare") is None:
+            sys.exit("unshare not found: run as root on Linux, or pass --no-netns")
+        env = {**os.environ, "ROBOINTEL_NETNS": "1", "RAY_USAGE_STATS_ENABLED": "0"}
+        cmd = "ip link set lo up && exec " + " ".join(shlex.quote(a) for a in [sys.executable, *sys.argv])
+        sys.exit(subprocess.call(["unshare", "--net", "sh", "-c", cmd], env=env))
     only = set(args.only.split(",")) if args.only else None
     if only:
         args.skip_cpd = True
@@ -382,7 +414,8 @@ def main() -> None:
                                   seed=args.seed, class_templates=args.class_templates,
                                   class_seeds=[int(v) for v in args.class_seeds.split(",") if v.strip()],
                                   workers=args.workers,
-                                  classification=not only or "classification" in only))
+                                  classification=not only or "classification" in only, results=args.results,
+                                  ray=args.ray))
     if not args.skip_cpd:
         out.update(bench_cpd(args.quick))
     out["load_average_end"] = os.getloadavg()[0]

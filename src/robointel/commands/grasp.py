@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import typer
@@ -17,6 +18,9 @@ from robointel.commands.failure import fail
 from robointel.errors import RobointelError
 from robointel.report.demo import Figure, StageContext, StageResult
 
+if TYPE_CHECKING:
+    from robointel.learning.grasp import GraspPlan, ObjectModel, Placement, Template
+
 console = Console()
 grasp_app = typer.Typer(no_args_is_help=True, help="Grasp transfer by non-rigid registration (Ch. 6).")
 
@@ -25,7 +29,7 @@ PAPER_ACCURACY = 113 / 120
 PAPER_SUCCESS = 18.8 / 20
 
 
-def _objects(source: str, per_category: int = 4, seed: int = 0) -> dict:
+def _objects(source: str, per_category: int = 4, seed: int = 0) -> dict[str, list[ObjectModel]]:
     from robointel.learning.grasp import demo_objects, toy_arm, ycb_objects
 
     if source == "demo":
@@ -37,25 +41,32 @@ def _objects(source: str, per_category: int = 4, seed: int = 0) -> dict:
     raise typer.BadParameter("source must be 'demo' or 'ycb'")
 
 
-def _templates(objs: dict, db: Path | None = None, *, sampled: bool = False):
-    """One template per category (its first instance). Taught grasps: written per category for the
-    generated objects; for scans (``sampled=True``) the best top-down grasps sampled on the template's
-    full model stand in for the human demonstration (toy arms keep their written grasps).
+def _templates(objs: dict[str, list[ObjectModel]], db: Path | None = None, *,
+               sampled: bool = False) -> list[Template]:
+    """The templates: one per category, its first instance, with its taught grasps.
+
+    One template per category (its first instance). Generated objects: the template as the cameras
+    see it (:func:`robointel.learning.grasp.seen_template`) with the grasps written per category; for
+    scans (``sampled=True``) the best top-down grasps sampled on the template's full model stand in for
+    the human demonstration (toy arms keep their written grasps).
     """
     from robointel.io.grasp_db import GraspDatabase
-    from robointel.learning.grasp import Template, sample_points, sampled_grasps, taught_grasps
+    from robointel.learning.grasp import Template, sample_points, sampled_grasps, seen_template, taught_grasps
 
     if db is not None and Path(db).exists():
         return GraspDatabase(db).load_all()
     out = []
     for cat, lst in objs.items():
         o = lst[0]
-        grasps = sampled_grasps(o) if sampled and cat != "toy_arm" else []
+        if not sampled:  # generated objects: the template as the cameras see it (see ``seen_template``)
+            out.append(seen_template(o))
+            continue
+        grasps = sampled_grasps(o) if cat != "toy_arm" else []
         out.append(Template(o.name, cat, sample_points(o, 800, 0), grasps or taught_grasps(o)))
     return out
 
 
-def _static_clouds(placements, rng):
+def _static_clouds(placements: list[Placement], rng: np.random.Generator) -> list[np.ndarray]:
     import mujoco
 
     from robointel.learning.grasp import default_cameras, depth_image, perceive, scene_xml
@@ -71,7 +82,7 @@ def _static_clouds(placements, rng):
     return perceive(m, d, cams, bgs, rng=rng)
 
 
-def plot_transfer(plan, cloud: np.ndarray, path: Path, title: str = "") -> Path:
+def plot_transfer(plan: GraspPlan, cloud: np.ndarray, path: Path, title: str = "") -> Path:
     """Fig. 6.1: template (rigidly placed), warped template, target cloud and the grasps."""
     import matplotlib
 
@@ -88,7 +99,7 @@ def plot_transfer(plan, cloud: np.ndarray, path: Path, title: str = "") -> Path:
     ax.scatter(*placed.T, s=2, c="tab:gray", alpha=0.3, label="template (placed)")
     ax.scatter(*warped.T, s=3, c="tab:blue", alpha=0.5, label="warped template")
     ax.scatter(*cloud.T, s=4, c="tab:orange", alpha=0.8, label="target (cameras)")
-    for i, g in enumerate(plan.transferred):
+    for g in plan.transferred:
         c, y, z = g.centre, g.axis, g.approach
         ax.plot(*np.array([c - 0.024 * y, c + 0.024 * y]).T, c="tab:green", lw=1.5)
         ax.plot(*np.array([c, c - 0.05 * z]).T, c="tab:green", lw=0.8)
@@ -173,7 +184,8 @@ def _check_db(db: Path | None) -> None:
         fail(exc)
 
 
-def _one_target(source, category, seed, db):
+def _one_target(source: str, category: str, seed: int, db: Path | None,
+                ) -> tuple[dict[str, list[ObjectModel]], ObjectModel, Placement, np.ndarray, list[Template]]:
     from robointel.learning.grasp import random_placements
 
     objs = _objects(source)
@@ -216,8 +228,11 @@ def classify_cmd(category: str = typer.Option("cup", help="category of the rando
 
 @grasp_app.command()
 def transfer(category: str = typer.Option("cup"), seed: int = typer.Option(0), source: str = typer.Option("demo"),
-             db: Path = typer.Option(None), out: Path = typer.Option(Path("grasp_transfer.png"), help="3D picture")) -> None:
-    """Classify, register, transfer the taught grasps (6.14)-(6.16), score them (6.20) and run the
+             db: Path = typer.Option(None),
+             out: Path = typer.Option(Path("grasp_transfer.png"), help="3D picture")) -> None:
+    """Plan a grasp on one perceived object and draw it.
+
+    Classify, register, transfer the taught grasps (6.14)-(6.16), score them (6.20) and run the
     orientation search (6.21) with the LR Mate's IK; draws template, warped template, target and grasps.
     """
     from robointel.learning.grasp import GraspPlanner
@@ -242,9 +257,11 @@ def transfer(category: str = typer.Option("cup"), seed: int = typer.Option(0), s
 
 
 @grasp_app.command()
-def trial(category: str = typer.Option("all", help="a category or 'all'"), n: int = typer.Option(5, help="trials per category"),
+def trial(category: str = typer.Option("all", help="a category or 'all'"),
+          n: int = typer.Option(5, help="trials per category"),
           seed: int = typer.Option(0), source: str = typer.Option("demo"), db: Path = typer.Option(None),
-          arm: bool = typer.Option(True, help="the whole LR Mate in MuJoCo (--no-arm: the gripper alone on the FK path)")) -> None:
+          arm: bool = typer.Option(True, help="the whole LR Mate in MuJoCo (--no-arm: the gripper alone on the FK "
+                                              "path)")) -> None:
     """MuJoCo lift-and-shake trials (Table 6.2): random placements, perceive, plan, grasp, lift 10 cm, shake."""
     from rich.progress import track
 
@@ -278,6 +295,7 @@ def trial(category: str = typer.Option("all", help="a category or 'all'"), n: in
 
 
 def register(app: typer.Typer) -> None:
+    """Add ``robointel grasp`` to the CLI."""
     app.add_typer(grasp_app, name="grasp")
 
 
@@ -323,7 +341,7 @@ def demo_stage(ctx: StageContext) -> StageResult:
             ok += int(r.success)
             if r.plan is not None:
                 plan_ms.append(1e3 * r.plan.timings["total"])
-                if shown is None and r.success and cat in ("toy_arm", "cup"):
+                if shown is None and r.success and r.cloud is not None and cat in ("toy_arm", "cup"):
                     shown = (r.plan, r.cloud, o.name)
             ctx.advance(0.1 + 0.8 * (i * n + k + 1) / (len(cats) * n), f"{cat} trial {k + 1}/{n}")
     C, labels = confusion_matrix(true, pred, cats + (["none"] if "none" in pred else []))

@@ -61,7 +61,9 @@ def test_quality_box_and_negative_codes():
     miss = Grasp(g.centre + [0, 0, 0.5], g.rotation)
     assert grasp_quality(P, miss).quality == OFF_AXIS
     # slanted axis through a flat face: outside the friction cone
-    slant = grasp_from_axis(g.centre, [0.0, 1.0, 1.2] if g.axis[1] > 0.5 else [1.0, 0, 1.2], [1, 0, 0] if g.axis[1] > 0.5 else [0, 1, 0])
+    along_y = g.axis[1] > 0.5
+    slant = grasp_from_axis(g.centre, [0.0, 1.0, 1.2] if along_y else [1.0, 0, 1.2],
+                            [1, 0, 0] if along_y else [0, 1, 0])
     assert grasp_quality(P, slant).quality in (SLIP, TOO_WIDE)
 
 

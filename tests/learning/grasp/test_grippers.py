@@ -12,7 +12,9 @@ from robointel.learning.grasp import (
     grasp_from_axis,
     grasp_quality,
     grasp_trial,
+    holdable,
     sample_points,
+    sampled_grasps,
     taught_grasps,
 )
 from robointel.learning.grasp.quality import NARROW_GRIPPER, TOO_WIDE, WIDE_GRIPPER, choose_gripper
@@ -70,3 +72,12 @@ def test_planner_and_trial_put_the_wide_gripper_on_a_wide_can():
     assert np.allclose(T[:3, 3], res.plan.search.grasp.centre, atol=1e-6)
     assert res.success, res.reason
     assert res.final_height > 0.08
+
+
+def test_holdable_is_a_grasp_found_by_either_gripper():
+    """``holdable`` agrees with the teaching sampler: a 66 mm can only with the 85 mm gripper, a 110 mm
+    can with neither."""
+    mid, big = _can(0.033, 0.10, "can66"), _can(0.055, 0.10, "can110")
+    assert not sampled_grasps(mid, 1, gripper=NARROW_GRIPPER) and sampled_grasps(mid, 1, gripper=WIDE_GRIPPER)
+    assert holdable(mid) and not holdable(mid, (NARROW_GRIPPER,))
+    assert not holdable(big)

@@ -8,19 +8,22 @@ from robointel.learning.grasp import (
     GraspPlanner,
     Placement,
     Template,
+    classify,
     default_cameras,
     depth_image,
     grasp_trial,
     perceive,
+    perceived_template,
     primitive_object,
     random_placements,
     sample_points,
     scene_xml,
+    seen_template,
     taught_grasps,
     toy_arm,
-    voxel_downsample,
     ycb_object,
 )
+from robointel.learning.grasp.perception import voxel_downsample
 from robointel.learning.grasp_database import GraspDatabase
 
 
@@ -95,6 +98,23 @@ def test_lift_and_shake_trial_holds_a_box():
     assert res.plan.search.feasible
     assert res.success, res.reason
     assert res.final_height > 0.08
+    # the gripper comes in from above: nothing touches the box before the jaws close on it
+    approach, descend = res.log[0], res.log[1]
+    assert approach["phase"] == "approach" and approach["contacts"] == 0 and descend["contacts"] == 0
+    assert abs(approach["obj_z"]) < 0.002
+
+
+def test_seen_templates_tell_a_generated_cup_from_a_can():
+    """A perceived generated cup is nearer the cup's seen template than the can's (full-model templates
+    carry the unseen underside and far walls, and the can's won)."""
+    cup, can = primitive_object("cup", 21, "cup_t"), primitive_object("can", 22, "can_t")
+    templates = [seen_template(cup), seen_template(can)]
+    assert all(len(t.points) > 50 and t.points[:, 2].min() > -0.01 for t in templates)
+    target = primitive_object("cup", 23, "cup_target")
+    cloud = perceived_template(target, rng=1, placement=Placement(target, 0.52, -0.04, 0.7))
+    T = Placement(target, 0.52, -0.04, 0.7).pose
+    cloud = cloud @ T[:3, :3].T + T[:3, 3]  # back in the world frame
+    assert classify(cloud, templates, n_points=200).category == "cup"
 
 
 def test_perceived_template_is_in_the_object_frame():

@@ -1,10 +1,13 @@
 """The lift-and-shake grasp trial (Table 6.2) as a batch task.
 
-Params: ``category`` [cup], ``source`` [demo] (generated objects with written grasps) or ``ycb``
-(the YCB scans with sampled grasps), ``per_category`` [4] instances, ``arm`` [true] (the whole
-LR Mate in MuJoCo). The held-out instance (never the category's template) and its placement are
-drawn from the seed; :func:`robointel.learning.grasp.grasp_trial` perceives, classifies,
-transfers, searches, grasps, lifts and shakes.
+Params: ``category`` [cup]; ``source`` [demo] (generated objects with written grasps,
+``per_category`` [4] instances each) or ``ycb`` (the YCB scans and toy arms of
+:func:`robointel.learning.grasp.ycb_teaching_set`, ``class_templates`` [1] classifying templates per
+category); ``instance`` [drawn from the seed]: which held-out instance (an index, taken modulo their
+count; with ``ycb`` only the instances one of the grippers can hold from above); ``arm`` [true] (the
+whole LR Mate in MuJoCo). The held-out instance is never the category's template; the placement and
+the perception noise are drawn from the seed. :func:`robointel.learning.grasp.grasp_trial` perceives,
+classifies, transfers, searches, grasps, lifts and shakes.
 """
 
 from __future__ import annotations
@@ -21,35 +24,44 @@ from robointel.errors import InvalidInput
 from robointel.learning.grasp import (
     GraspPlanner,
     ObjectModel,
-    Template,
+    classifying_templates,
     demo_objects,
     grasp_trial,
+    holdable,
     random_placements,
-    sample_points,
-    sampled_grasps,
-    taught_grasps,
-    toy_arm,
-    ycb_objects,
+    seen_template,
+    ycb_teaching_set,
 )
 from robointel.outcome import Failure, TrialOutcome
 
 
 @lru_cache(maxsize=4)
-def _setup(source: str, per_category: int) -> tuple[dict[str, list[ObjectModel]], GraspPlanner]:
-    """Objects by category (the first is the template) and the planner (once per process)."""
+def setup(source: str, per_category: int = 4,
+          class_templates: int = 1) -> tuple[dict[str, list[ObjectModel]], GraspPlanner]:
+    """The held-out targets by category and the planner of a source, made once per process.
+
+    A driver that forks worker processes calls it before the fork, so the workers share it.
+
+    Args:
+        source: "demo" or "ycb" (see the module docstring).
+        per_category: Generated instances per category ("demo").
+        class_templates: Classifying templates per category ("ycb").
+
+    Returns:
+        ``(targets, planner)``: the held-out instances by category and the grasp planner.
+
+    Raises:
+        InvalidInput: an unknown source.
+    """
     if source == "demo":
         objs = demo_objects(per_category, 0)
-    elif source == "ycb":
-        objs = ycb_objects()
-        objs["toy_arm"] = [toy_arm(robot="ur5", rng=100 + i, name=f"toy_ur5_{i}") for i in range(per_category)]
-    else:
-        raise InvalidInput(f"grasp: source must be 'demo' or 'ycb', got {source!r}", value=source)
-    templates = []
-    for cat, lst in objs.items():
-        o = lst[0]
-        grasps = sampled_grasps(o) if source == "ycb" and cat != "toy_arm" else []
-        templates.append(Template(o.name, cat, sample_points(o, 800, 0), grasps or taught_grasps(o)))
-    return objs, GraspPlanner(templates)
+        templates = [seen_template(lst[0]) for lst in objs.values()]
+        return {cat: lst[1:] or lst for cat, lst in objs.items()}, GraspPlanner(templates)
+    if source == "ycb":
+        objs, templates = ycb_teaching_set()
+        planner = GraspPlanner(templates, classifiers=classifying_templates(objs, templates, class_templates))
+        return {cat: [o for o in lst[1:] if holdable(o)] for cat, lst in objs.items()}, planner
+    raise InvalidInput(f"grasp: source must be 'demo' or 'ycb', got {source!r}", value=source)
 
 
 def _failure(reason: str) -> Failure:
@@ -67,27 +79,45 @@ def _failure(reason: str) -> Failure:
 def grasp(spec: TaskSpec) -> TrialOutcome:
     """Run one grasp trial.
 
+    Args:
+        spec: The task (params above; the seed draws the instance unless ``instance`` is given, the
+            placement and the sensor noise).
+
     Returns:
-        Success when the object is still held after the shake; figures ``final_height_m`` and
-        ``classified_right`` (1 when the planner classified the object into its category).
+        Success when the object is still held after the shake; figures ``final_height_m``,
+        ``classified_right`` (1 when the planner classified the object into its category),
+        ``wide_gripper`` (1 when the plan chose the 85 mm gripper), ``gripper_fallback`` (1 when the
+        wide one was taken because the narrow one had no feasible grasp) and ``grip_width_m`` (the
+        jaw opening after closing, NaN when nothing was grasped). ``detail``: the object, the gripper
+        and the trial's reason. Timings: ``setup_s``, ``trial_s`` and ``plan_s`` (the planner's
+        classify-register-transfer-score-search time, when it ran).
 
     Raises:
-        InvalidInput: unknown source or category.
+        InvalidInput: unknown source or category, or a category with no holdable instance.
     """
     source = param(spec, "source", "demo", str)
     cat = param(spec, "category", "cup", str)
     t0 = time.perf_counter()
-    objs, planner = _setup(source, param(spec, "per_category", 4, int))
+    objs, planner = setup(source, param(spec, "per_category", 4, int), param(spec, "class_templates", 1, int))
     if cat not in objs:
         raise InvalidInput(f"grasp: unknown category {cat!r}; known: {', '.join(objs)}", value=cat)
-    held = objs[cat][1:] or objs[cat]
+    held = objs[cat]
+    if not held:
+        raise InvalidInput(f"grasp: category {cat!r} has no held-out instance a gripper can hold", value=cat)
     rng = np.random.default_rng(spec.seed)
-    obj = held[int(rng.integers(len(held)))]
+    k = param(spec, "instance", None, int)
+    obj = held[(int(rng.integers(len(held))) if k is None else k) % len(held)]
     t1 = time.perf_counter()
     r = grasp_trial(obj, random_placements([obj], rng)[0], planner, rng=rng, arm=param(spec, "arm", True, bool))
-    figures = {"final_height_m": float(r.final_height), "classified_right": float(r.category == cat)}
+    closed = next((s["opening"] for s in r.log if s["phase"] == "close"), float("nan"))
+    figures = {"final_height_m": float(r.final_height), "classified_right": float(r.category == cat),
+               "wide_gripper": float(r.gripper == "wide_85mm"),
+               "gripper_fallback": float(r.plan is not None and r.plan.gripper_fallback),
+               "grip_width_m": float(closed)}
     timings = {"setup_s": t1 - t0, "trial_s": time.perf_counter() - t1}
-    detail = f"{obj.name}: {r.reason}"
+    if r.plan is not None:
+        timings["plan_s"] = float(r.plan.timings["total"])
+    detail = f"{obj.name} [{r.gripper or 'none'}]: {r.reason}"
     if r.success:
         return TrialOutcome(True, Failure.NONE, detail, figures, timings)
     return TrialOutcome(False, _failure(r.reason), detail, figures, timings)

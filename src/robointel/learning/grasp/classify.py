@@ -11,13 +11,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from scipy.spatial import cKDTree
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
 from robointel.learning.grasp.cpd import CPDResult, cpd_nonrigid, cpd_rigid, farthest_point_sample
+from robointel.learning.grasp.cpd_warps import Warp
 from robointel.learning.grasp.transfer import Grasp
 
 __all__ = ["Template", "ComposedWarp", "Fit", "Classification", "fit_template", "classify",
@@ -27,7 +30,9 @@ __all__ = ["Template", "ComposedWarp", "Fit", "Classification", "fit_template", 
 
 @dataclass
 class Template:
-    """A taught object: ``points`` (M, 3) in its own frame (metres), taught ``grasps`` in that frame,
+    """A taught object: its points, grasps, category and name.
+
+    A taught object: ``points`` (M, 3) in its own frame (metres), taught ``grasps`` in that frame,
     its ``category`` and ``name``.
     """
 
@@ -47,13 +52,15 @@ class Template:
 class ComposedWarp:
     """``T(x) = outer(inner(x))`` with Jacobian ``J_outer(inner(x)) J_inner(x)``."""
 
-    inner: object
-    outer: object
+    inner: Warp
+    outer: Warp
 
-    def __call__(self, x) -> np.ndarray:
+    def __call__(self, x: npt.ArrayLike) -> np.ndarray:
+        """``outer(inner(x))`` for points ``x`` (K, 3)."""
         return self.outer(self.inner(x))
 
-    def jacobian(self, x) -> np.ndarray:
+    def jacobian(self, x: npt.ArrayLike) -> np.ndarray:
+        """The chain rule at points ``x`` (K, 3): (K, 3, 3)."""
         x = np.atleast_2d(np.asarray(x, float))
         return np.einsum("kij,kjl->kil", self.outer.jacobian(self.inner(x)), self.inner.jacobian(x))
 
@@ -69,16 +76,18 @@ class _Init:
     R: np.ndarray
     t: np.ndarray
 
-    def __call__(self, x):
+    def __call__(self, x: npt.ArrayLike) -> np.ndarray:
         return np.asarray(x, float) @ self.R.T + self.t
 
-    def jacobian(self, x):
+    def jacobian(self, x: npt.ArrayLike) -> np.ndarray:
         return np.broadcast_to(self.R, (np.atleast_2d(x).shape[0], 3, 3)).copy()
 
 
 @dataclass
 class Fit:
-    """A template fitted to a target: the full ``warp`` (template frame -> world), the ``residual``
+    """A template fitted to a target: the warp, the classification score and its terms.
+
+    A template fitted to a target: the full ``warp`` (template frame -> world), the ``residual``
     (the classification score, metres: ``distance * (1 + normal_weight * normals) * (1 + shape_weight *
     shape)``), the symmetric mean nearest-neighbour ``distance`` (6.17)-(6.19) (m), the ``normals``
     disagreement (see :func:`normal_disagreement`), the ``shape`` difference (absolute difference of
@@ -104,7 +113,9 @@ def _sym_residual(A: np.ndarray, B: np.ndarray, treeB: cKDTree) -> float:
 
 
 def normal_disagreement(A: np.ndarray, B: np.ndarray, k: int = 10) -> float:
-    """Symmetric mean ``1 - |n_a . n_b|`` over nearest-neighbour pairs between clouds ``A`` (n, 3) and
+    """Normal disagreement of two clouds (sign-free), in [0, 1].
+
+    Symmetric mean ``1 - |n_a . n_b|`` over nearest-neighbour pairs between clouds ``A`` (n, 3) and
     ``B`` (m, 3), normals by PCA of ``k`` neighbours (sign-free): 0 when the surfaces are parallel
     wherever they meet, up to 1. Shape information the point distance misses: a smooth warp can pull
     a can's flat lid into a cup's open top, or round a box, and land close to every point, but the
@@ -119,7 +130,9 @@ def normal_disagreement(A: np.ndarray, B: np.ndarray, k: int = 10) -> float:
 
 
 def normal_obliqueness(P: np.ndarray, k: int = 10) -> float:
-    """Mean ``|sin 2 phi|`` over the points of ``P`` (n, 3), ``phi`` the elevation of the PCA normal of
+    """Normal obliqueness of a cloud: mean |sin 2 phi| of its normals' elevation, in [0, 1].
+
+    Mean ``|sin 2 phi|`` over the points of ``P`` (n, 3), ``phi`` the elevation of the PCA normal of
     ``k`` neighbours (sign-free): ``2 |n_z| sqrt(1 - n_z^2)``, 0 where the surface is horizontal (tops,
     lids) or vertical (the sides of upright boxes, cans, cups), 1 where it is inclined at 45 degrees.
     A global shape statistic, unlike :func:`normal_disagreement` blind to where the points are: a
@@ -134,7 +147,7 @@ def normal_obliqueness(P: np.ndarray, k: int = 10) -> float:
     return float(np.mean(2.0 * z * np.sqrt(np.clip(1.0 - z * z, 0.0, None))))
 
 
-def footprint_rectangle(points, percentile: float = 2.0) -> tuple[float, np.ndarray]:
+def footprint_rectangle(points: npt.ArrayLike, percentile: float = 2.0) -> tuple[float, np.ndarray]:
     """Minimum-area bounding rectangle of the horizontal footprint of ``points`` (n, 3) (m).
 
     Rotating calipers over the edges of the 2-D convex hull (scipy) of the x, y coordinates: the
@@ -165,77 +178,50 @@ def footprint_rectangle(points, percentile: float = 2.0) -> tuple[float, np.ndar
     return angle, ext
 
 
-def fit_template(target, template: Template, *, n_points: int = 200, yaw_steps: int = 12, beta: float = 3.0,
+def fit_template(target: npt.ArrayLike, template: Template, *, n_points: int = 200, yaw_steps: int = 12,
+                 beta: float = 3.0,
                  lmbda: float = 200.0, w: float = 0.05, nonrigid: bool = True, max_iterations: int = 40,
                  tolerance: float = 1e-4, anisotropic: float = 1.5, rest_z: float | None = None,
                  normal_weight: float = 2.0, starts: int = 2,
                  footprint: bool = True, shape_weight: float = 0.5) -> Fit:
-    """Fit ``template`` (points in metres) to ``target`` (n, 3) (m, world frame): initial alignment
-    (footprint rectangle or yaw search), rigid CPD (6.8)-(6.10), non-rigid CPD (6.11)-(6.13) with
-    ``beta``, ``lmbda``; return the :class:`Fit` (warp and the residual (6.17)-(6.19) with its shape terms).
+    """Fit a template to a target cloud: initial alignment, rigid then non-rigid CPD, score.
 
-    The defaults (beta 3, lambda 200, normalised units) are stiffer than the dissertation's CPD setting
-    (beta 2, lambda 50): with the softer warp, thin YCB tools were matched best by the can template
-    (21/28 right on perceived YCB clouds against 25/28 with these defaults).
+    The initial alignment (footprint rectangle or yaw search, below) is followed by rigid CPD
+    (6.8)-(6.10) and non-rigid CPD (6.11)-(6.13); the score is the residual (6.17)-(6.19) times two
+    shape terms. The choice of every default is recorded in ``docs/decisions.md`` ("Classification
+    fit parameters").
 
-    ``anisotropic`` (>= 1, 0 disables): the initial alignment scales the template along its own x, y, z
-    axes (after each trial yaw) towards the target's extents, each axis scale kept within a factor
-    ``anisotropic`` of the isotropic RMS-radius scale. CPD's normalisation otherwise erases aspect
-    ratios, so a flat can and a thin box, or a square block and a round can, reach the non-rigid stage
-    with the wrong proportions and the smooth warp absorbs the difference. With 1.5 the held-out YCB
-    classification benchmark (7 categories x 20 perceived placements) went from 126/140 to 131/140
-    (1.3: 128, 1.4: 126, 1.7: 126, unbounded: 118 -- balls stretched onto tools).
+    Args:
+        target: The perceived cloud (n, 3), m, world frame.
+        template: The template (points in its own frame, m).
+        n_points: Farthest-point subsample size of both clouds.
+        yaw_steps: Initial headings tried (a uniform grid over a full turn).
+        beta: Non-rigid CPD kernel width (normalised units).
+        lmbda: Non-rigid CPD regularisation lambda.
+        w: CPD outlier weight.
+        nonrigid: Run the non-rigid stage (else rigid only).
+        max_iterations: EM iteration cap of each CPD stage.
+        tolerance: Non-rigid CPD tolerance.
+        anisotropic: (>= 1, 0 disables) the initial alignment scales the template along its own axes
+            towards the target's robust extents, each axis within this factor of the isotropic
+            RMS-radius scale (CPD's normalisation otherwise erases aspect ratios).
+        rest_z: World z of the table (m; None = off): gravity-aware alignment for objects resting
+            upright: the template's base on the table, its height scaled to the target's observed height,
+            x and y scaled isotropically (``anisotropic`` then ignored).
+        normal_weight: The score is the distance times ``1 + normal_weight * normal_disagreement``
+            (0 = distance only, the dissertation's residual).
+        starts: The registration runs from this many best initial alignments; the lowest score wins.
+        footprint: (with ``anisotropic``, without ``rest_z``) four more starts turn the template's
+            minimum-area footprint rectangle (:func:`footprint_rectangle`) onto the target's at the four
+            quarter turns; the best of each pairing runs first.
+        shape_weight: The score is also multiplied by ``1 + shape_weight * shape``, ``shape`` the
+            absolute difference of the :func:`normal_obliqueness` of the warped template and the target.
 
-    ``rest_z`` (world z of the table, m; None = off): gravity-aware initial alignment for objects
-    resting upright on the table. The template's base (its z = 0) is put on the table, its height
-    scaled to the target's observed height above the table (the top is always in view) and its x, y
-    scaled isotropically by the horizontal RMS radius (round rims stay round); ``anisotropic`` is then
-    ignored. Matching centroids instead puts flat objects' templates half below the table, because
-    the cameras never see the underside (a fork's warped screwdriver template reached 2 cm below
-    the table and its transferred grasps sat at z = 0).
+    Returns:
+        The best :class:`Fit` over the starts.
 
-    ``normal_weight``: the score is the symmetric mean nearest-neighbour distance times
-    ``1 + normal_weight * normal_disagreement`` (0 = distance only, the dissertation's residual).
-    Chosen on perceived placements other than the benchmark's (seeds 7 and 11, 7 categories x 20):
-    distance only 128/140 and 132/140; weights 1, 2, 4 all 130/140 and 133/140 (cups read as cans
-    gone; the margin between the cup and can templates on cups grew from ~0.1 mm to ~0.5 mm); 2 is
-    the middle of that plateau.
-
-    ``starts``: the registration (rigid then non-rigid CPD) runs from the ``starts`` best initial
-    yaws and keeps the lowest score: a square block fitted from a single start sometimes stayed in a
-    local minimum and read as a can. On the same validation placements: 1 start 130/140 and
-    133/140, 2 starts 132/140 and 133/140, 3 starts 132/140 and 133/140 (all with the yaw grid
-    only, ``footprint=False``). With ``footprint`` the first two starts are the footprint-aligned ones.
-
-    ``footprint`` (used only with ``anisotropic`` and without ``rest_z``: the classification fit):
-    four more initial alignments turn the template's minimum-area footprint rectangle
-    (:func:`footprint_rectangle`) onto the target's, at the four quarter turns, each rectangle axis
-    and the height scaled to the target's extents (within ``anisotropic``); the registration runs
-    first from the best of each pairing (the template's first rectangle axis along the target's first
-    or its second side), then from the yaw grid's best. The grid compares the template's extents along
-    the world axes with the target's, which for a square block at 45 degrees (YCB 036_wood_block) are
-    those of its diagonal: the thin sugar-box template was stretched the wrong way, stayed in a
-    worse minimum and the block read as a can. Validation (seeds 7, 11, 3, 5; 7 categories x 20
-    perceived placements each; never the benchmark's seed 2018): yaw grid only 132, 133, 134, 134/140;
-    footprint starts 132, 135, 134, 135 (wood blocks right, but 1-3 tuna cans per seed read as balls:
-    a squashed ball template also fits better from these starts); 2 footprint + 2 grid starts (twice
-    the time) 133, 135, 133, 135.
-
-    ``shape_weight``: the score is also multiplied by ``1 + shape_weight * shape``, ``shape`` the
-    absolute difference between the :func:`normal_obliqueness` of the warped template and of the
-    target (0 = off). The smooth warp squashes a ball template onto a flat tuna can closely enough
-    for both the distance and the local normals, but the ball keeps its oblique shoulders. Same
-    validation placements, with the footprint starts: weights 0.1 to 1.5 leave only
-    010_potted_meat_can errors on all four seeds (0.25: 136, 135, 136, 136; 1.5: 137, 137, 138, 136);
-    2: a cup read as a can; 3: 530/560 (cups read as cans). 0.5 gives the widest margins: 1st / 5th
-    percentile of (best other category's score - true category's) / true category's over the 536
-    targets that are not the potted meat can 0.086 / 0.131, against 0.007 / 0.055 without the term
-    (0.25: 0.078 / 0.112, 1.0: 0.069 / 0.103). With 0.5: 136, 135, 136, 136/140, every error the
-    potted meat can (a rectangular tin: its nearest template is the box), 4, 5, 4, 4 of its 6
-    placements per seed. The shape term without the footprint starts: 132, 133, 135, 134 (the
-    diagonal wood blocks read as cans again: 2, 2, 0, 2). The benchmark's seed 2018, run once after
-    these choices: 131/140 before, 137/140 after (cans 17/20, 3 read as boxes; boxes 20/20 from 17/20;
-    every other category 20/20).
+    Raises:
+        InvalidInput: fewer than 4 target points, or (``rest_z``) a cloud not above its resting plane.
     """
     X = as_array(target, "target", (None, 3))
     if len(X) < 4:
@@ -292,7 +278,7 @@ def fit_template(target, template: Template, *, n_points: int = 200, yaw_steps: 
         inits = (first + [c for c in inits if not c[3].startswith("fp")]
                  + [c for c in inits if c[3].startswith("fp") and not any(c is f for f in first)])
     ob_x = normal_obliqueness(Xs) if shape_weight else 0.0
-    best = None
+    best: Fit | None = None
     for _, A, t, _tag in inits[:max(1, int(starts))]:
         init = _Init(A, t)
         Y0 = init(Ys)
@@ -312,6 +298,7 @@ def fit_template(target, template: Template, *, n_points: int = 200, yaw_steps: 
                   dist, nd, sh)
         if best is None or fit.residual < best.residual:
             best = fit
+    assert best is not None  # at least one start ran
     return best
 
 
@@ -326,11 +313,24 @@ class Classification:
 
     @property
     def best(self) -> Fit:
+        """The winning template's fit."""
         return self.fits[self.index]
 
 
-def classify(target, templates: Sequence[Template], **fit_kwargs) -> Classification:
-    """(6.17)-(6.19): fit every template and pick the one with the smallest residual."""
+def classify(target: npt.ArrayLike, templates: Sequence[Template], **fit_kwargs: Any) -> Classification:
+    """(6.17)-(6.19): fit every template and pick the one with the smallest residual.
+
+    Args:
+        target: The perceived cloud (n, 3), m, world frame.
+        templates: The K classifying templates.
+        **fit_kwargs: Keyword arguments of :func:`fit_template`.
+
+    Returns:
+        The category of the best-fitting template, its index, all residuals (K,) and the fits.
+
+    Raises:
+        InvalidInput: no templates, or a cloud :func:`fit_template` rejects.
+    """
     if not templates:
         raise InvalidInput("classify needs at least one template", value=templates)
     fits = [fit_template(target, t, **fit_kwargs) for t in templates]
@@ -339,10 +339,24 @@ def classify(target, templates: Sequence[Template], **fit_kwargs) -> Classificat
     return Classification(templates[i].category, i, res, fits)
 
 
-def confusion_matrix(true: Sequence[str], predicted: Sequence[str], labels: Sequence[str] | None = None):
-    """Confusion matrix (Fig. 6.7): rows = true category, columns = predicted; returns (C, labels)."""
+def confusion_matrix(true: Sequence[str], predicted: Sequence[str],
+                     labels: Sequence[str] | None = None) -> tuple[np.ndarray, list[str]]:
+    """Confusion matrix (Fig. 6.7): rows = true category, columns = predicted.
+
+    Args:
+        true: True categories.
+        predicted: Predicted categories, as many.
+        labels: Row and column order (default: the sorted union).
+
+    Returns:
+        ``(C, labels)``: counts (L, L) and the labels.
+
+    Raises:
+        InvalidInput: the lengths differ.
+    """
     if len(true) != len(predicted):
-        raise InvalidInput(f"{len(true)} true labels but {len(predicted)} predictions", value=(len(true), len(predicted)))
+        raise InvalidInput(f"{len(true)} true labels but {len(predicted)} predictions",
+                           value=(len(true), len(predicted)))
     labels = list(labels) if labels is not None else sorted(set(true) | set(predicted))
     ix = {l: i for i, l in enumerate(labels)}
     C = np.zeros((len(labels), len(labels)), dtype=int)

@@ -31,8 +31,11 @@ Inputs are normalised (zero mean, unit RMS radius; Myronenko's ``cpd_normalize``
 """
 from __future__ import annotations
 
+from contextlib import AbstractContextManager
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from scipy.spatial import cKDTree
 
 from robointel._validate import as_array
@@ -63,8 +66,10 @@ __all__ = [
 _BLAS_CONTROLLER = None
 
 
-def single_thread_blas():
-    """Context manager limiting BLAS to one thread. The fast variants issue many small, thin GEMMs
+def single_thread_blas() -> AbstractContextManager[Any]:
+    """Context manager limiting BLAS to one thread.
+
+    Context manager limiting BLAS to one thread. The fast variants issue many small, thin GEMMs
     for which OpenBLAS' thread start-up and spinning cost 10-100x the arithmetic on a shared machine.
 
     The ``threadpoolctl`` controller is built once (the first call) and reused: building it scans
@@ -85,7 +90,7 @@ def single_thread_blas():
     return _BLAS_CONTROLLER.limit(limits=1, user_api="blas")
 
 
-def _check_clouds(X, Y):
+def _check_clouds(X: npt.ArrayLike, Y: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     X = as_array(X, "X (target)", (None, None))
     Y = as_array(Y, "Y (template)", (None, None))
     if X.shape[0] == 0 or Y.shape[0] == 0:
@@ -97,7 +102,7 @@ def _check_clouds(X, Y):
     return X, Y
 
 
-def _check_params(w, tolerance, max_iterations, sigma2):
+def _check_params(w: float, tolerance: float, max_iterations: int, sigma2: float | None) -> None:
     if not (0.0 <= w < 1.0):
         raise InvalidInput(f"outlier weight w must be in [0, 1), got {w}", value=w)
     if not (tolerance >= 0.0):
@@ -109,7 +114,7 @@ def _check_params(w, tolerance, max_iterations, sigma2):
         raise InvalidInput(f"initial sigma2 must be positive and finite, got {sigma2}", value=sigma2)
 
 
-def _normalise(P: np.ndarray, name: str):
+def _normalise(P: np.ndarray, name: str) -> tuple[np.ndarray, np.ndarray, float]:
     mu = P.mean(axis=0)
     scale = float(np.sqrt(np.sum((P - mu) ** 2) / P.shape[0]))
     if not scale > 1e-12 * max(1.0, float(np.abs(P).max())):
@@ -127,7 +132,8 @@ def _init_sigma2(X: np.ndarray, Y: np.ndarray) -> float:
     return float(tot / (D * M * N))
 
 
-def _nystrom(Y: np.ndarray, beta: float, rank_tol: float, max_rank: int | None):
+def _nystrom(Y: np.ndarray, beta: float, rank_tol: float, max_rank: int | None,
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Low-rank G ~ U diag(lam) U^T from Nystrom landmarks (grown until the spectrum decays).
 
     Returns U (M, K), lam (K,), landmarks Z (L, D), and the map ``Lmap`` (L, M) with
@@ -160,21 +166,11 @@ def _nystrom(Y: np.ndarray, beta: float, rank_tol: float, max_rank: int | None):
 # rigid and affine (pycpd's update rules, column-vector warps on output)
 
 
-def _cpd_rigid(X, Y, *, w: float = 0.0, tolerance: float = 1e-3, max_iterations: int = 100,
+def _cpd_rigid(X: npt.ArrayLike, Y: npt.ArrayLike, *, w: float = 0.0, tolerance: float = 1e-3,
+               max_iterations: int = 100,
               sigma2: float | None = None, scale: bool = True, normalize: bool = True,
               method: str = "exact") -> CPDResult:
-    """Rigid CPD (6.8)-(6.10): find ``s, R, t`` so that ``s R y + t`` matches the target.
-
-    Args:
-        X: (N, D) target points, D in {2, 3}. Y: (M, D) template points.
-        w: outlier weight in [0, 1). tolerance: stop when |Q - Q_prev| < tolerance (pycpd's rule).
-        max_iterations: EM iteration cap. sigma2: initial variance (default: pycpd's).
-        scale: estimate the scale ``s`` (else s = 1). normalize: register normalised copies.
-        method: "exact" (float64 dense E-step, = pycpd) or "fast" (float32 blocked E-step).
-
-    Returns:
-        CPDResult with a :class:`RigidWarp` (det R = +1).
-    """
+    """Rigid CPD (6.8)-(6.10) in the calling thread (see :func:`cpd_rigid`)."""
     X, Y = _check_clouds(X, Y)
     _check_params(w, tolerance, max_iterations, sigma2)
     D = X.shape[1]
@@ -241,7 +237,8 @@ def _cpd_rigid(X, Y, *, w: float = 0.0, tolerance: float = 1e-3, max_iterations:
     return CPDResult("rigid", warp, warp(Y), float(s2), it, bool(converged), P1, method)
 
 
-def cpd_affine(X, Y, *, w: float = 0.0, tolerance: float = 1e-3, max_iterations: int = 100,
+def cpd_affine(X: npt.ArrayLike, Y: npt.ArrayLike, *, w: float = 0.0, tolerance: float = 1e-3,
+               max_iterations: int = 100,
                sigma2: float | None = None, normalize: bool = True) -> CPDResult:
     """Affine CPD: find ``B, t`` so that ``B y + t`` matches the target (Myronenko Fig. 3).
 
@@ -303,30 +300,12 @@ def cpd_affine(X, Y, *, w: float = 0.0, tolerance: float = 1e-3, max_iterations:
 # non-rigid
 
 
-def _cpd_nonrigid(X, Y, *, beta: float = 2.0, lmbda: float = 2.0, w: float = 0.0, tolerance: float = 1e-3,
+def _cpd_nonrigid(X: npt.ArrayLike, Y: npt.ArrayLike, *, beta: float = 2.0, lmbda: float = 2.0, w: float = 0.0,
+                  tolerance: float = 1e-3,
                  max_iterations: int = 100, sigma2: float | None = None, normalize: bool = True,
                  method: str = "fast", rank_tol: float = 1e-8, max_rank: int | None = None,
                  max_points: int = 2500) -> CPDResult:
-    """Non-rigid CPD (6.11)-(6.13): ``T(y) = y + G(y, Y) W`` with motion coherence.
-
-    Args:
-        X: (N, D) target. Y: (M, D) template.
-        beta: kernel width (normalised units when ``normalize``). lmbda: regularisation lambda
-            (pycpd's ``alpha``). w: outlier weight in [0, 1).
-        tolerance: stop when |sigma2 - sigma2_prev| < tolerance (pycpd's rule). max_iterations: cap.
-        sigma2: initial variance (default pycpd's mean squared distance / D).
-        normalize: register normalised copies (robust to units and offsets).
-        method: "exact" (dense, pycpd-equivalent), "lowrank" or "fast" (see module docstring).
-        rank_tol: relative eigenvalue cut-off of the low-rank kernel. max_rank: cap on landmarks.
-        max_points: "fast" registers subsamples of at most this many points per cloud.
-
-    Returns:
-        CPDResult with a :class:`NonrigidWarp` (apply it and its Jacobian to any point).
-
-    Raises:
-        InvalidInput: empty or degenerate clouds, bad parameters. SolverFailure: all
-        correspondences lost (sigma2 too small to start).
-    """
+    """Non-rigid CPD (6.11)-(6.13) in the calling thread (see :func:`cpd_nonrigid`)."""
     X, Y = _check_clouds(X, Y)
     _check_params(w, tolerance, max_iterations, sigma2)
     if not (beta > 0 and np.isfinite(beta)):
@@ -401,34 +380,98 @@ def _cpd_nonrigid(X, Y, *, beta: float = 2.0, lmbda: float = 2.0, w: float = 0.0
     return CPDResult("nonrigid", warp, TYout, float(s2), it, bool(converged), P1, method, rank)
 
 
-def cpd_rigid(X, Y, **kwargs) -> CPDResult:
-    return _threaded(_cpd_rigid, X, Y, kwargs.get("method", "exact") != "exact", **kwargs)
+def cpd_rigid(X: npt.ArrayLike, Y: npt.ArrayLike, *, w: float = 0.0, tolerance: float = 1e-3,
+              max_iterations: int = 100, sigma2: float | None = None, scale: bool = True, normalize: bool = True,
+              method: str = "exact") -> CPDResult:
+    """Rigid CPD (6.8)-(6.10): find ``s, R, t`` so that ``s R y + t`` matches the target.
 
+    Args:
+        X: (N, D) target points, D in {2, 3}.
+        Y: (M, D) template points.
+        w: Outlier weight in [0, 1).
+        tolerance: Stop when |Q - Q_prev| < tolerance (pycpd's rule).
+        max_iterations: EM iteration cap.
+        sigma2: Initial variance (default: pycpd's).
+        scale: Estimate the scale ``s`` (else s = 1).
+        normalize: Register normalised copies.
+        method: "exact" (float64 dense E-step, = pycpd) or "fast" (float32 blocked E-step, one BLAS thread).
 
-def cpd_nonrigid(X, Y, **kwargs) -> CPDResult:
-    return _threaded(_cpd_nonrigid, X, Y, kwargs.get("method", "fast") != "exact", **kwargs)
+    Returns:
+        CPDResult with a :class:`RigidWarp` (det R = +1).
 
-
-cpd_rigid.__doc__ = _cpd_rigid.__doc__
-cpd_nonrigid.__doc__ = _cpd_nonrigid.__doc__
-
-
-def _threaded(fn, X, Y, single: bool, **kwargs):
-    if not single:
-        return fn(X, Y, **kwargs)
+    Raises:
+        InvalidInput: empty or degenerate clouds, bad parameters.
+        ShapeError: D not 2 or 3, or the clouds' dimensions differ.
+        SolverFailure: all correspondences lost.
+    """
+    kw = {"w": w, "tolerance": tolerance, "max_iterations": max_iterations, "sigma2": sigma2, "scale": scale,
+          "normalize": normalize, "method": method}
+    if method == "exact":
+        return _cpd_rigid(X, Y, **kw)  # type: ignore[arg-type]
     with single_thread_blas():
-        return fn(X, Y, **kwargs)
+        return _cpd_rigid(X, Y, **kw)  # type: ignore[arg-type]
 
 
-def register(X, Y, kind: str = "nonrigid", **kwargs) -> CPDResult:
-    """Dispatch to :func:`cpd_rigid`, :func:`cpd_affine` or :func:`cpd_nonrigid` by ``kind``."""
+def cpd_nonrigid(X: npt.ArrayLike, Y: npt.ArrayLike, *, beta: float = 2.0, lmbda: float = 2.0, w: float = 0.0,
+                 tolerance: float = 1e-3, max_iterations: int = 100, sigma2: float | None = None,
+                 normalize: bool = True, method: str = "fast", rank_tol: float = 1e-8, max_rank: int | None = None,
+                 max_points: int = 2500) -> CPDResult:
+    """Non-rigid CPD (6.11)-(6.13): ``T(y) = y + G(y, Y) W`` with motion coherence.
+
+    Args:
+        X: (N, D) target.
+        Y: (M, D) template.
+        beta: Kernel width (normalised units when ``normalize``).
+        lmbda: Regularisation lambda (pycpd's ``alpha``).
+        w: Outlier weight in [0, 1).
+        tolerance: Stop when |sigma2 - sigma2_prev| < tolerance (pycpd's rule).
+        max_iterations: EM iteration cap.
+        sigma2: Initial variance (default pycpd's mean squared distance / D).
+        normalize: Register normalised copies (robust to units and offsets).
+        method: "exact" (dense, pycpd-equivalent), "lowrank" or "fast" (see module docstring; both on
+            one BLAS thread).
+        rank_tol: Relative eigenvalue cut-off of the low-rank kernel.
+        max_rank: Cap on the landmarks.
+        max_points: "fast" registers subsamples of at most this many points per cloud.
+
+    Returns:
+        CPDResult with a :class:`NonrigidWarp` (apply it and its Jacobian to any point).
+
+    Raises:
+        InvalidInput: empty or degenerate clouds, bad parameters.
+        SolverFailure: all correspondences lost (sigma2 too small to start).
+    """
+    kw = {"beta": beta, "lmbda": lmbda, "w": w, "tolerance": tolerance, "max_iterations": max_iterations,
+          "sigma2": sigma2, "normalize": normalize, "method": method, "rank_tol": rank_tol, "max_rank": max_rank,
+          "max_points": max_points}
+    if method == "exact":
+        return _cpd_nonrigid(X, Y, **kw)  # type: ignore[arg-type]
+    with single_thread_blas():
+        return _cpd_nonrigid(X, Y, **kw)  # type: ignore[arg-type]
+
+
+def register(X: npt.ArrayLike, Y: npt.ArrayLike, kind: str = "nonrigid", **kwargs: Any) -> CPDResult:
+    """Dispatch to :func:`cpd_rigid`, :func:`cpd_affine` or :func:`cpd_nonrigid` by ``kind``.
+
+    Args:
+        X: (N, D) target.
+        Y: (M, D) template.
+        kind: "rigid", "affine" or "nonrigid".
+        **kwargs: The chosen function's keyword arguments.
+
+    Returns:
+        The registration.
+
+    Raises:
+        InvalidInput: an unknown ``kind`` (or the chosen function's errors).
+    """
     fn = {"rigid": cpd_rigid, "affine": cpd_affine, "nonrigid": cpd_nonrigid}.get(kind)
     if fn is None:
         raise InvalidInput(f"kind must be 'rigid', 'affine' or 'nonrigid', got {kind!r}", value=kind)
     return fn(X, Y, **kwargs)
 
 
-def mean_nn_residual(A, B) -> float:
+def mean_nn_residual(A: npt.ArrayLike, B: npt.ArrayLike) -> float:
     """Symmetric mean nearest-neighbour distance (6.17)-(6.19) between clouds A (n, D) and B (m, D)."""
     A = as_array(A, "A", (None, None))
     B = as_array(B, "B", (None, None))

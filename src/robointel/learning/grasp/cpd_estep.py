@@ -1,5 +1,8 @@
-"""The Gaussian-mixture E-step of CPD (6.5)-(6.7): exact float64 and the fused float32 numba kernel,
-and farthest-point sampling (landmarks and subsamples)."""
+"""The Gaussian-mixture E-step of CPD (6.5)-(6.7) and farthest-point sampling.
+
+The Gaussian-mixture E-step of CPD (6.5)-(6.7): exact float64 and the fused float32 numba kernel,
+and farthest-point sampling (landmarks and subsamples).
+"""
 
 from __future__ import annotations
 
@@ -18,7 +21,8 @@ def _sqdist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return d2
 
 
-def _estep_exact(X, TY, sigma2, w):
+def _estep_exact(X: np.ndarray, TY: np.ndarray, sigma2: float, w: float,
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """(6.5)-(6.7) dense, float64, exactly as pycpd: returns P (M, N), Pt1, P1, Np."""
     M, D = TY.shape
     N = X.shape[0]
@@ -31,7 +35,8 @@ def _estep_exact(X, TY, sigma2, w):
     return P, P.sum(axis=0), P.sum(axis=1), float(P.sum())
 
 
-def _estep_fast(X32, xx32, TY, sigma2, w):
+def _estep_fast(X32: np.ndarray, xx32: np.ndarray, TY: np.ndarray, sigma2: float, w: float,
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """The same E-step in float32 with one GEMM for the exponent and SIMD exp.
 
     Returns Pt1 (N,), P1 (M,), PX (M, D), Np without forming P twice.
@@ -73,7 +78,9 @@ def _estep_fast(X32, xx32, TY, sigma2, w):
 
 
 @numba.njit(fastmath=True, cache=True)
-def _estep_kernel(x0, x1, x2, y0, y1, y2, inv2s2, c, pt1, s0, s1, s2, s3, kb, ib, n0, n1):  # pragma: no cover - numba
+def _estep_kernel(x0: np.ndarray, x1: np.ndarray, x2: np.ndarray, y0: np.ndarray, y1: np.ndarray, y2: np.ndarray,
+                  inv2s2: float, c: float, pt1: np.ndarray, s0: np.ndarray, s1: np.ndarray, s2: np.ndarray,
+                  s3: np.ndarray, kb: np.ndarray, ib: np.ndarray, n0: int, n1: int) -> None:  # pragma: no cover - numba
     """Fused float32 E-step: one pass over targets, the kernel column held in ``kb``.
 
     exp(-d^2 / (2 sigma2)) is evaluated as 2^t with t = -d^2 log2(e) / (2 sigma2) split into integer
@@ -124,8 +131,12 @@ def _estep_kernel(x0, x1, x2, y0, y1, y2, inv2s2, c, pt1, s0, s1, s2, s3, kb, ib
 
 
 @numba.njit(parallel=True, cache=True)
-def _estep_chunks(x0, x1, x2, y0, y1, y2, inv2s2, c, pt1, S, KB, IB):  # pragma: no cover - numba
-    """The fused E-step on ``S.shape[0]`` threads: chunk j of the targets accumulates into S[j]
+def _estep_chunks(x0: np.ndarray, x1: np.ndarray, x2: np.ndarray, y0: np.ndarray, y1: np.ndarray, y2: np.ndarray,
+                  inv2s2: float, c: float, pt1: np.ndarray, S: np.ndarray, KB: np.ndarray,
+                  IB: np.ndarray) -> None:  # pragma: no cover - numba
+    """Run the fused E-step on ``S.shape[0]`` threads.
+
+    The fused E-step on ``S.shape[0]`` threads: chunk j of the targets accumulates into S[j]
     (4, M) with its own kernel buffers KB[j], IB[j]; the caller sums S over the chunks.
     """
     C = S.shape[0]
@@ -155,7 +166,7 @@ class _FastEstep:
         else:
             self.xx32 = np.einsum("ij,ij->i", self.X32, self.X32)
 
-    def __call__(self, TY: np.ndarray, sigma2: float, w: float):
+    def __call__(self, TY: np.ndarray, sigma2: float, w: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """Pt1 (N,), P1 (M,), PX (M, D), Np."""
         if self.D > 3:
             return _estep_fast(self.X32, self.xx32, TY, sigma2, w)
@@ -163,7 +174,7 @@ class _FastEstep:
         y = [np.ascontiguousarray(TY[:, i], dtype=np.float32) if i < D else np.zeros(M, np.float32)
              for i in range(3)]
         c = (2.0 * np.pi * sigma2) ** (D / 2.0) * w / (1.0 - w) * M / N
-        _estep_chunks(*self.x, *y, np.float32(1.0 / (2.0 * sigma2)), np.float32(c), self.pt1, self.S,
+        _estep_chunks(*self.x, *y, np.float32(1.0 / (2.0 * sigma2)), np.float32(c), self.pt1, self.S,  # type: ignore[call-arg, arg-type]
                       self.KB, self.IB)
         Ssum = self.S.sum(axis=0, dtype=np.float64)
         P1 = Ssum[0]
@@ -172,7 +183,7 @@ class _FastEstep:
 
 
 @numba.njit(cache=True)
-def _fps(P, k, start):
+def _fps(P: np.ndarray, k: int, start: int) -> np.ndarray:
     n, D = P.shape
     idx = np.empty(k, dtype=np.int64)
     d = np.full(n, np.inf)

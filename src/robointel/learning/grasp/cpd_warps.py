@@ -3,13 +3,26 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
+import numpy.typing as npt
 
 from robointel.learning.grasp.cpd_estep import _sqdist
 
-__all__ = ["AffineWarp", "CPDResult", "NonrigidWarp", "RigidWarp"]
+__all__ = ["AffineWarp", "CPDResult", "NonrigidWarp", "RigidWarp", "Warp"]
 
+
+class Warp(Protocol):
+    """A map of space ``T`` with its Jacobian: what a registration fits and a grasp is transferred through."""
+
+    def __call__(self, x: npt.ArrayLike) -> np.ndarray:
+        """``T(x)`` for points ``x`` (K, D) (or one point (D,))."""
+        ...
+
+    def jacobian(self, x: npt.ArrayLike) -> np.ndarray:
+        """``dT/dx`` at points ``x`` (K, D): (K, D, D)."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -20,11 +33,12 @@ class RigidWarp:
     R: np.ndarray
     t: np.ndarray
 
-    def __call__(self, x) -> np.ndarray:
+    def __call__(self, x: npt.ArrayLike) -> np.ndarray:
+        """``T(x)`` for points ``x`` (K, D)."""
         x = np.asarray(x, float)
         return self.s * x @ self.R.T + self.t
 
-    def jacobian(self, x) -> np.ndarray:
+    def jacobian(self, x: npt.ArrayLike) -> np.ndarray:
         """dT/dx at each point: (K, D, D) (constant ``s R``)."""
         x = np.atleast_2d(np.asarray(x, float))
         return np.broadcast_to(self.s * self.R, (x.shape[0],) + self.R.shape).copy()
@@ -37,10 +51,11 @@ class AffineWarp:
     B: np.ndarray
     t: np.ndarray
 
-    def __call__(self, x) -> np.ndarray:
+    def __call__(self, x: npt.ArrayLike) -> np.ndarray:
+        """``T(x)`` for points ``x`` (K, D)."""
         return np.asarray(x, float) @ self.B.T + self.t
 
-    def jacobian(self, x) -> np.ndarray:
+    def jacobian(self, x: npt.ArrayLike) -> np.ndarray:
         """dT/dx at each point: (K, D, D) (constant ``B``)."""
         x = np.atleast_2d(np.asarray(x, float))
         return np.broadcast_to(self.B, (x.shape[0],) + self.B.shape).copy()
@@ -68,7 +83,7 @@ class NonrigidWarp:
         d2 = _sqdist(u, self.centres)
         return np.exp(-d2 / (2.0 * self.beta ** 2))
 
-    def __call__(self, x) -> np.ndarray:
+    def __call__(self, x: npt.ArrayLike) -> np.ndarray:
         """Warp points ``x`` (K, D) -> (K, D), in the caller's units."""
         x = np.asarray(x, float)
         one = x.ndim == 1
@@ -80,7 +95,7 @@ class NonrigidWarp:
             out[i:i + 4096] = v * self.out_scale + self.out_shift
         return out[0] if one else out
 
-    def jacobian(self, x) -> np.ndarray:
+    def jacobian(self, x: npt.ArrayLike) -> np.ndarray:
         """dT/dx at each point: (K, D, D) = (out_scale/in_scale)(I - beta^-2 sum_k G_k a_k (u - c_k)^T)."""
         x = np.atleast_2d(np.asarray(x, float))
         u = (x - self.in_shift) / self.in_scale
@@ -109,11 +124,11 @@ class CPDResult:
     """
 
     kind: str
-    warp: object
+    warp: Warp
     TY: np.ndarray
     sigma2: float
     iterations: int
     converged: bool
-    P1: np.ndarray = field(repr=False, default=None)
+    P1: np.ndarray | None = field(repr=False, default=None)
     method: str = "exact"
     rank: int | None = None

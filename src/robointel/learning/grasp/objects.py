@@ -12,19 +12,26 @@ convex collision ``pieces`` (for MuJoCo).
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
+import numpy.typing as npt
 import trimesh
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from robointel.errors import DataMissing, InvalidInput
 from robointel.learning.grasp.transfer import Grasp, grasp_from_axis
 
+if TYPE_CHECKING:
+    from robointel.learning.grasp.quality import ParallelGripper
+
 __all__ = ["ObjectModel", "YCB_CATEGORIES", "ycb_object", "primitive_object", "toy_arm", "split_convex",
-           "sample_points", "taught_grasps", "sampled_grasps", "demo_objects", "ycb_objects"]
+           "sample_points", "taught_grasps", "sampled_grasps", "top_down_grasps", "demo_objects", "ycb_objects"]
 
 YCB_CATEGORIES: dict[str, list[str]] = {
     "cup": ["065-a_cups", "065-b_cups", "065-c_cups", "065-d_cups", "065-e_cups", "065-f_cups", "065-g_cups",
@@ -51,6 +58,7 @@ class ObjectModel:
 
     @property
     def height(self) -> float:
+        """Height of the object's top above its resting plane (m)."""
         return float(self.mesh.bounds[1, 2])
 
 
@@ -92,8 +100,8 @@ def ycb_object(name: str, category: str | None = None, *, density: float = 400.0
     from robointel.io.reference import data_path
 
     folder = data_path("objects", "ycb", name)
-    mesh = trimesh.load(folder / "mesh.ply", force="mesh")
-    pieces = split_convex(trimesh.load(folder / "collision.stl", force="mesh"))
+    mesh = cast(trimesh.Trimesh, trimesh.load(folder / "mesh.ply", force="mesh"))
+    pieces = split_convex(cast(trimesh.Trimesh, trimesh.load(folder / "collision.stl", force="mesh")))
     if not pieces:
         raise DataMissing(f"no convex pieces in {folder / 'collision.stl'}", value=str(folder))
     mesh, pieces = _canonical(mesh, pieces)
@@ -123,7 +131,9 @@ def _ring(r_in: float, r_out: float, z0: float, z1: float, segments: int) -> lis
 
 
 def primitive_object(category: str, rng: np.random.Generator | int = 0, name: str | None = None) -> ObjectModel:
-    """A generated object of ``category`` ("cup", "can", "box", "ball", "long_tool") with random
+    """A generated object of one category with random proportions.
+
+    A generated object of ``category`` ("cup", "can", "box", "ball", "long_tool") with random
     proportions (seeded ``rng``). Sizes fit a 48 mm gripper where the category's taught grasp needs it.
     """
     rng = np.random.default_rng(rng)
@@ -134,7 +144,7 @@ def primitive_object(category: str, rng: np.random.Generator | int = 0, name: st
         wall.apply_translation([0, 0, h / 2])
         bottom = trimesh.creation.cylinder(radius=r, height=t, sections=48)
         bottom.apply_translation([0, 0, t / 2])
-        mesh = trimesh.util.concatenate([wall, bottom])
+        mesh = cast(trimesh.Trimesh, trimesh.util.concatenate([wall, bottom]))
         pieces = _ring(r - t, r, t, h, 16) + [bottom]
         mass = 0.08
     elif category == "can":
@@ -159,7 +169,7 @@ def primitive_object(category: str, rng: np.random.Generator | int = 0, name: st
         handle.apply_translation([-0.275 * L, 0, r])
         shaft = trimesh.creation.box(extents=[0.55 * L, 0.3 * r, 0.3 * r])
         shaft.apply_translation([0.225 * L, 0, r])
-        mesh = trimesh.util.concatenate([handle, shaft])
+        mesh = cast(trimesh.Trimesh, trimesh.util.concatenate([handle, shaft]))
         pieces, mass = [handle, shaft], 0.06
     else:
         raise InvalidInput(f"unknown primitive category {category!r}", value=category)
@@ -170,9 +180,12 @@ def primitive_object(category: str, rng: np.random.Generator | int = 0, name: st
 _ARMS = {"ur5": "ur_description/urdf/ur5_robot.urdf", "panda": "panda_description/urdf/panda.urdf"}
 
 
-def toy_arm(q=None, *, robot: str = "ur5", height: float = 0.25, rng: np.random.Generator | int | None = 0,
+def toy_arm(q: npt.ArrayLike | None = None, *, robot: str = "ur5", height: float = 0.25,
+            rng: np.random.Generator | int | None = 0,
             name: str | None = None) -> ObjectModel:
-    """A robot arm from ``example-robot-data`` posed at joint angles ``q`` (random within a safe band
+    """A posed robot arm from ``example-robot-data`` scaled to a toy (the articulated category).
+
+    A robot arm from ``example-robot-data`` posed at joint angles ``q`` (random within a safe band
     of its limits when None, seeded by ``rng``), its collision meshes merged and scaled so that its
     base-to-top height at the home pose is about ``height`` metres (a toy manipulator).
     """
@@ -184,17 +197,19 @@ def toy_arm(q=None, *, robot: str = "ur5", height: float = 0.25, rng: np.random.
     if root is None or robot not in _ARMS:
         raise DataMissing(f"example-robot-data arm {robot!r} not available", value=robot)
     urdf = root / _ARMS[robot]
-    model, cmodel, _ = pin.buildModelsFromUrdf(str(urdf), package_dirs=[str(root.parent.parent), str(root.parent), str(root)])
+    model, cmodel, _ = pin.buildModelsFromUrdf(str(urdf),
+                                               package_dirs=[str(root.parent.parent), str(root.parent), str(root)])
     data, cdata = model.createData(), cmodel.createData() if hasattr(cmodel, "createData") else pin.GeometryData(cmodel)
     if q is None:
         g = np.random.default_rng(rng)
         lo = np.maximum(model.lowerPositionLimit, -np.pi)
         hi = np.minimum(model.upperPositionLimit, np.pi)
         mid = 0.5 * (lo + hi)
-        q = mid + 0.35 * (hi - lo) * g.uniform(-1, 1, model.nq) * 0.6
+        qr = mid + 0.35 * (hi - lo) * g.uniform(-1, 1, model.nq) * 0.6
         if robot == "ur5":
-            q[1] = g.uniform(-1.85, -1.3)  # upper arm near vertical: the toy stands on its base
-            q[2] = g.uniform(0.3, 1.6)
+            qr[1] = g.uniform(-1.85, -1.3)  # upper arm near vertical: the toy stands on its base
+            qr[2] = g.uniform(0.3, 1.6)
+        q = qr
     q = np.asarray(q, float)
     pin.forwardKinematics(model, data, q)
     pin.updateGeometryPlacements(model, data, cmodel, cdata)
@@ -209,7 +224,7 @@ def toy_arm(q=None, *, robot: str = "ur5", height: float = 0.25, rng: np.random.
         parts.append(m)
     if not parts:
         raise DataMissing(f"no collision meshes found for {robot}", value=str(urdf))
-    mesh = trimesh.util.concatenate(parts)
+    mesh = cast(trimesh.Trimesh, trimesh.util.concatenate(parts))
     scale = height / {"ur5": 1.0, "panda": 1.0}[robot]
     mesh.apply_scale(scale)
     pieces = []
@@ -234,7 +249,9 @@ def sample_points(obj: ObjectModel, n: int = 1500, rng: np.random.Generator | in
 
 
 def taught_grasps(obj: ObjectModel) -> list[Grasp]:
-    """The demonstrated grasps of a category template (object frame), a few per object as a human
+    """The demonstrated grasps of a category template, as a human would teach them.
+
+    The demonstrated grasps of a category template (object frame), a few per object as a human
     would teach them: cups on the rim wall at four places, cans and balls across from above in two
     directions, boxes across the narrow side at three places, long tools across the handle at three
     places, toy arms around the upper arm in four directions, clamps across the body.
@@ -284,24 +301,34 @@ def taught_grasps(obj: ObjectModel) -> list[Grasp]:
     return [grasp_from_axis([0, 0, 0.5 * h], [1, 0, 0], down, ext[0], "middle")]
 
 
-def sampled_grasps(obj: ObjectModel, n: int = 3, *, gripper=None, samples: int = 400, seed: int = 0,
-                   min_separation: float = 0.02) -> list[Grasp]:
-    """Teach by sampling: the ``n`` best top-down antipodal grasps on the object's full model (a
-    stand-in for a human's demonstration on the template). Candidates pass through a surface point and
-    close along the horizontal part of its normal; they are re-centred between the contacts, scored by
-    (6.20) and must not collide with the object or the table. Distinct grasps are at least
-    ``min_separation`` m apart. Object frame.
-    """
-    from robointel.learning.grasp.quality import ParallelGripper, estimate_normals, grasp_quality
+def top_down_grasps(obj: ObjectModel, *, gripper: ParallelGripper | None = None, samples: int = 400,
+                    seed: int = 0) -> Iterator[tuple[float, Grasp]]:
+    """The positive-quality, collision-free top-down antipodal grasps on the object's full model, as found.
 
-    gripper = gripper or ParallelGripper()
+    Candidates pass through a random surface point (``samples`` draws, seeded) and close along the
+    horizontal part of its normal, centred in the middle of the chord (solid parts) or just inside the
+    surface (thin walls, rims); they are re-centred between the contacts, scored by (6.20) and must
+    not collide with the object or the table.
+
+    Args:
+        obj: The object (object frame).
+        gripper: The jaw model (default the 48 mm one).
+        samples: Surface points drawn.
+        seed: Seed of the surface sampling and the draws.
+
+    Yields:
+        ``(quality, grasp)`` in the order found (object frame).
+    """
+    from robointel.learning.grasp.quality import NARROW_GRIPPER, estimate_normals, grasp_quality
+
+    gripper = gripper or NARROW_GRIPPER
     rng = np.random.default_rng(seed)
     P = sample_points(obj, 3000, seed)
-    N = estimate_normals(P, 12)
+    tree = cKDTree(P)
+    N = estimate_normals(P, 12, tree=tree)
     zmin = gripper.tip_depth + 0.004
     ok = (P[:, 2] > zmin) & (P[:, 2] < obj.height - 0.002) & (np.linalg.norm(N[:, :2], axis=1) > 0.7)
     cand, ncand = P[ok], N[ok]
-    scored = []
     for _ in range(samples if len(cand) else 0):
         i = rng.integers(len(cand))
         y = np.array([ncand[i, 0], ncand[i, 1], 0.0])
@@ -309,13 +336,32 @@ def sampled_grasps(obj: ObjectModel, n: int = 3, *, gripper=None, samples: int =
         rel = P - cand[i]
         sv = rel @ y
         near = np.linalg.norm(rel - sv[:, None] * y, axis=1) < 0.004
-        # the middle of the whole chord (solid parts) or just inside the surface (thin walls, rims)
         for centre in (cand[i] + 0.5 * (sv[near].max() + sv[near].min()) * y, cand[i] - 0.002 * y):
             g = grasp_from_axis(centre, y, [0, 0, -1])
-            q = grasp_quality(P, g, gripper=gripper)
-            if q.quality > 0 and not gripper.collides(q.grasp, P, table_z=0.0):
-                scored.append((q.quality, q.grasp))
-    scored.sort(key=lambda t: -t[0])
+            q = grasp_quality(P, g, gripper=gripper, tree=tree)
+            if q.quality > 0 and q.grasp is not None and not gripper.collides(q.grasp, P, table_z=0.0):
+                yield q.quality, q.grasp
+
+
+def sampled_grasps(obj: ObjectModel, n: int = 3, *, gripper: ParallelGripper | None = None, samples: int = 400,
+                   seed: int = 0, min_separation: float = 0.02) -> list[Grasp]:
+    """Teach by sampling: the best top-down antipodal grasps on the object's full model.
+
+    A stand-in for a human's demonstration on the template: the ``n`` best of
+    :func:`top_down_grasps` by quality (6.20), at least ``min_separation`` m apart.
+
+    Args:
+        obj: The object (object frame).
+        n: Grasps wanted.
+        gripper: The jaw model (default the 48 mm one).
+        samples: Surface points drawn.
+        seed: Seed of the draws.
+        min_separation: Least distance between the grasps' centres (m).
+
+    Returns:
+        Up to ``n`` grasps (object frame), best first, named ``sampled0``, ``sampled1``, ...
+    """
+    scored = sorted(top_down_grasps(obj, gripper=gripper, samples=samples, seed=seed), key=lambda t: -t[0])
     out: list[Grasp] = []
     for _, g in scored:
         if all(np.linalg.norm(g.centre - h.centre) >= min_separation for h in out):
@@ -326,7 +372,9 @@ def sampled_grasps(obj: ObjectModel, n: int = 3, *, gripper=None, samples: int =
 
 
 def demo_objects(per_category: int = 4, seed: int = 0, *, arms: bool = True) -> dict[str, list[ObjectModel]]:
-    """Objects that need no shared data: primitives of five categories with varied proportions and
+    """Generated objects of every category that need no shared data.
+
+    Objects that need no shared data: primitives of five categories with varied proportions and
     toy UR5 arms at random joint angles (``per_category`` instances each).
     """
     rng = np.random.default_rng(seed)

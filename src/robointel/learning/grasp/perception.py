@@ -10,9 +10,11 @@ DBSCAN and voxel-downsampled (5 mm).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 from sklearn.cluster import DBSCAN
 
 from robointel._validate import as_array
@@ -22,12 +24,12 @@ __all__ = ["DepthCamera", "default_cameras", "depth_image", "foreground_points",
            "cluster_objects", "perceive", "look_at"]
 
 
-def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
+def look_at(eye: npt.ArrayLike, target: npt.ArrayLike, up: npt.ArrayLike = (0.0, 0.0, 1.0)) -> np.ndarray:
     """Camera rotation (3, 3), columns = camera x (right), y (down), z (forward), in the world."""
     eye, target = np.asarray(eye, float), np.asarray(target, float)
     z = target - eye
     z /= np.linalg.norm(z)
-    x = np.cross(z, up)
+    x = np.cross(z, np.asarray(up, float))
     x /= np.linalg.norm(x)
     y = np.cross(z, x)
     return np.column_stack([x, y, z])
@@ -61,14 +63,15 @@ class DepthCamera:
         return d @ self.R.T
 
 
-def default_cameras(**kw) -> list[DepthCamera]:
+def default_cameras(**kw: Any) -> list[DepthCamera]:
     """Two cameras on opposite sides of the workspace centre (0.5, 0, 0): front-left and back-right."""
     target = np.array([0.5, 0.0, 0.0])
     eyes = [np.array([0.95, 0.4, 0.55]), np.array([0.1, -0.4, 0.6])]
     return [DepthCamera(e, look_at(e, target), **kw) for e in eyes]
 
 
-def depth_image(model: mujoco.MjModel, data: mujoco.MjData, cam: DepthCamera, rng=None) -> np.ndarray:
+def depth_image(model: mujoco.MjModel, data: mujoco.MjData, cam: DepthCamera,
+                rng: np.random.Generator | int | None = None) -> np.ndarray:
     """Ray-cast range along each pixel ray (H, W) in metres; NaN where nothing is hit or dropped.
 
     Noise (when ``cam.noise``): axial Gaussian noise growing with depth, 1 mm quantisation and random
@@ -103,7 +106,7 @@ def foreground_points(depth: np.ndarray, background: np.ndarray, cam: DepthCamer
     return cam.position + cam.rays()[fg] * d[fg, None]
 
 
-def voxel_downsample(points, voxel: float = 0.005) -> np.ndarray:
+def voxel_downsample(points: npt.ArrayLike, voxel: float = 0.005) -> np.ndarray:
     """Mean point of each occupied ``voxel`` (m) cube: (k, 3)."""
     P = as_array(points, "points", (None, 3))
     if voxel <= 0:
@@ -118,8 +121,11 @@ def voxel_downsample(points, voxel: float = 0.005) -> np.ndarray:
     return out / cnt[:, None]
 
 
-def cluster_objects(points, *, eps: float = 0.02, min_samples: int = 8, min_points: int = 30) -> list[np.ndarray]:
-    """DBSCAN (scikit-learn) clusters of the foreground points, largest first; noise and clusters
+def cluster_objects(points: npt.ArrayLike, *, eps: float = 0.02, min_samples: int = 8,
+                    min_points: int = 30) -> list[np.ndarray]:
+    """DBSCAN (scikit-learn) clusters of the foreground points, largest first.
+
+    DBSCAN (scikit-learn) clusters of the foreground points, largest first; noise and clusters
     smaller than ``min_points`` are dropped.
     """
     P = as_array(points, "points", (None, 3))
@@ -131,9 +137,12 @@ def cluster_objects(points, *, eps: float = 0.02, min_samples: int = 8, min_poin
     return sorted(clusters, key=len, reverse=True)
 
 
-def perceive(model, data, cameras: list[DepthCamera], backgrounds: list[np.ndarray], *, voxel: float = 0.005,
-             rng=None, table_z: float = 0.0, min_height: float = 0.004) -> list[np.ndarray]:
-    """The Fig. 6.4 pipeline: depth from each camera, background removal, merge, drop points at the
+def perceive(model: mujoco.MjModel, data: mujoco.MjData, cameras: list[DepthCamera], backgrounds: list[np.ndarray],
+             *, voxel: float = 0.005, rng: np.random.Generator | int | None = None, table_z: float = 0.0,
+             min_height: float = 0.004) -> list[np.ndarray]:
+    """The Fig. 6.4 perception pipeline: one cloud per object seen by the cameras.
+
+    The Fig. 6.4 pipeline: depth from each camera, background removal, merge, drop points at the
     table plane, DBSCAN, voxel downsampling. Returns one (k, 3) cloud per object, largest first.
     """
     rng = np.random.default_rng(rng)

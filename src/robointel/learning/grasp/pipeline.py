@@ -12,30 +12,38 @@ kinematics).
 from __future__ import annotations
 
 import time
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import mujoco
 import numpy as np
+import numpy.typing as npt
 from scipy.spatial import cKDTree
 
 from robointel.errors import IKFailure, InvalidInput, RobointelError
-from robointel.learning.grasp.classify import Classification, ComposedWarp, Template, classify, fit_template
-from robointel.learning.grasp.cpd import cpd_rigid, single_thread_blas
+from robointel.learning.grasp.classify import Classification, ComposedWarp, Fit, Template, classify, fit_template
+from robointel.learning.grasp.cpd import RigidWarp, cpd_rigid, single_thread_blas
 from robointel.learning.grasp.objects import ObjectModel
-from robointel.learning.grasp.perception import default_cameras, depth_image, perceive
-from robointel.learning.grasp.quality import WIDE_GRIPPER, ParallelGripper, choose_gripper, grasp_quality
+from robointel.learning.grasp.perception import DepthCamera, default_cameras, depth_image, perceive
+from robointel.learning.grasp.quality import (
+    NARROW_GRIPPER,
+    WIDE_GRIPPER,
+    ParallelGripper,
+    choose_gripper,
+    grasp_quality,
+)
 from robointel.learning.grasp.scene import ARM_KP, ARM_KV, Placement, arm_scene, scene_xml
 from robointel.learning.grasp.search import SearchResult, orientation_search, refine_position
 from robointel.learning.grasp.transfer import Grasp, transfer_grasp
+from robointel.robot import Robot
 
-__all__ = ["GraspPlanner", "GraspPlan", "TrialResult", "carve_above_seen", "grasp_trial", "lrmate_with_gripper",
+__all__ = ["GraspPlanner", "GraspPlan", "GraspTrialResult", "carve_above_seen", "grasp_trial", "lrmate_with_gripper",
            "perceived_template"]
 
 
-def lrmate_with_gripper(gripper: ParallelGripper = ParallelGripper()):
+def lrmate_with_gripper(gripper: ParallelGripper = NARROW_GRIPPER) -> Robot:
     """The LR Mate 200iD/7L with the gripper's grasp frame as its tool (for :func:`orientation_search`)."""
-    from robointel.robot import Robot
-
     return Robot.load("lrmate200id7l", tool=gripper.tool_transform())
 
 
@@ -72,21 +80,25 @@ def carve_above_seen(completion: np.ndarray, observed: np.ndarray, *, radius: fl
 
 @dataclass
 class GraspPlan:
-    """A planned grasp: the classification, the transferred grasps, the chosen search result, the
+    """A planned grasp: classification, transferred grasps, search result, gripper, timings.
+
+    A planned grasp: the classification, the transferred grasps, the chosen search result, the
     wall-clock time of each step (s), the ``gripper`` the grasp is planned for (its tool in the IK),
     the contact ``widths`` (m) of the transferred grasps that chose it, and ``gripper_fallback``: True
-    when the width chose the narrow gripper, it had no feasible grasp and the wide one did."""
+    when the width chose the narrow gripper, it had no feasible grasp and the wide one did.
+    """
 
     classification: Classification
     transferred: list[Grasp]
     search: SearchResult
-    timings: dict = field(default_factory=dict)
-    gripper: ParallelGripper = field(default_factory=ParallelGripper)
-    widths: list = field(default_factory=list)
+    timings: dict[str, float] = field(default_factory=dict)
+    gripper: ParallelGripper = NARROW_GRIPPER
+    widths: list[float] = field(default_factory=list)
     gripper_fallback: bool = False
 
     @property
     def feasible(self) -> bool:
+        """Whether the search found a reachable, collision-free grasp of positive quality."""
         return self.search.feasible
 
 
@@ -121,9 +133,10 @@ class GraspPlanner:
             (the LR Mate is loaded with each gripper's tool).
     """
 
-    def __init__(self, templates: list[Template], *, gripper: ParallelGripper = ParallelGripper(), robot="lrmate",
-                 base_pose: np.ndarray | None = None, table_z: float = 0.0, n_points: int = 200,
-                 q_ref=None, local_radius: float = 0.04, refine: bool = True, seen_contacts: bool = False,
+    def __init__(self, templates: list[Template], *, gripper: ParallelGripper = NARROW_GRIPPER,
+                 robot: Robot | str | None = "lrmate", base_pose: np.ndarray | None = None, table_z: float = 0.0,
+                 n_points: int = 200, q_ref: npt.ArrayLike | None = None, local_radius: float = 0.04,
+                 refine: bool = True, seen_contacts: bool = False,
                  classifiers: list[Template] | None = None, edge_normals: bool = True, carve: bool = True,
                  pad_reach: float | None = 0.003, rest_height: bool = True,
                  wide_gripper: ParallelGripper | None = WIDE_GRIPPER) -> None:
@@ -132,9 +145,11 @@ class GraspPlanner:
         self.templates = templates
         self.classifiers = list(classifiers) if classifiers else list(templates)
         self.gripper = gripper
-        self.robot = lrmate_with_gripper(gripper) if robot == "lrmate" else robot
+        if isinstance(robot, str) and robot != "lrmate":
+            raise InvalidInput(f"robot must be 'lrmate', a Robot or None, got {robot!r}", value=robot)
+        self.robot: Robot | None = lrmate_with_gripper(gripper) if robot == "lrmate" else robot  # type: ignore[assignment]
         self.grippers = [gripper]
-        self._robots = {gripper: self.robot}
+        self._robots: dict[ParallelGripper, Robot | None] = {gripper: self.robot}
         if wide_gripper is not None and wide_gripper != gripper and (robot == "lrmate" or robot is None):
             self.grippers.append(wide_gripper)
             self._robots[wide_gripper] = lrmate_with_gripper(wide_gripper) if robot == "lrmate" else None
@@ -148,16 +163,22 @@ class GraspPlanner:
         self.carve = carve
         self.pad_reach = pad_reach
         self.rest_height = rest_height
-        self.q_ref = np.radians([0, 20, -10, 0, -70, 0]) if q_ref is None else q_ref
+        self.q_ref = np.radians([0, 20, -10, 0, -70, 0]) if q_ref is None else np.asarray(q_ref, float)
 
-    def robot_for(self, gripper: ParallelGripper):
-        """The robot whose tool is ``gripper``'s grasp frame (one of :attr:`grippers`)."""
+    def robot_for(self, gripper: ParallelGripper) -> Robot | None:
+        """The robot whose tool is ``gripper``'s grasp frame (one of :attr:`grippers`; None: no IK).
+
+        Raises:
+            InvalidInput: ``gripper`` is not one of the planner's.
+        """
         if gripper not in self._robots:
             raise InvalidInput(f"gripper {gripper.name!r} is not one of the planner's", value=gripper.name)
         return self._robots[gripper]
 
-    def _transfer(self, fit, g: Grasp, cloud: np.ndarray) -> Grasp:
-        """(6.14)-(6.16) through the fitted warp, optionally followed by a local rigid CPD of the
+    def _transfer(self, fit: Fit, g: Grasp, cloud: np.ndarray) -> Grasp:
+        """Transfer one taught grasp (6.14)-(6.16), locally refined by a rigid CPD.
+
+        (6.14)-(6.16) through the fitted warp, optionally followed by a local rigid CPD of the
         template's neighbourhood of the grasp (radius ``local_radius``) onto the target's, which keeps
         grasps on articulated or locally different parts where a smooth global warp lags.
         """
@@ -175,13 +196,17 @@ class GraspPlanner:
             rr = cpd_rigid(Xl, Wl, scale=False, w=0.1, tolerance=1e-3, max_iterations=30, method="fast")
         except RobointelError:
             return h
-        ang = np.arccos(np.clip((np.trace(rr.warp.R) - 1) / 2, -1, 1))
-        if ang > np.radians(20) or np.linalg.norm(rr.warp.t + rr.warp.R @ h.centre - h.centre) > r:
+        rw = rr.warp
+        assert isinstance(rw, RigidWarp)
+        ang = np.arccos(np.clip((np.trace(rw.R) - 1) / 2, -1, 1))
+        if ang > np.radians(20) or np.linalg.norm(rw.t + rw.R @ h.centre - h.centre) > r:
             return h  # the local fit jumped to another part: keep the global transfer
         return transfer_grasp(ComposedWarp(fit.warp, rr.warp), g)
 
-    def plan(self, cloud, exclude=()) -> GraspPlan:
-        """Plan a grasp on ``cloud`` (n, 3) in the world frame; classifying templates named in
+    def plan(self, cloud: npt.ArrayLike, exclude: Iterable[str] = ()) -> GraspPlan:
+        """Plan a grasp on a perceived cloud.
+
+        Plan a grasp on ``cloud`` (n, 3) in the world frame; classifying templates named in
         ``exclude`` are left out (a held-out target is never its own template).
         """
         with single_thread_blas():
@@ -196,7 +221,7 @@ class GraspPlanner:
                 return u
         raise InvalidInput(f"no template of category {cls.category!r} has taught grasps", value=cls.category)
 
-    def _plan(self, cloud, exclude=frozenset()) -> GraspPlan:
+    def _plan(self, cloud: npt.ArrayLike, exclude: set[str] | frozenset[str] = frozenset()) -> GraspPlan:
         t0 = time.perf_counter()
         cands = [t for t in self.classifiers if t.name not in exclude]
         if not cands:
@@ -242,7 +267,8 @@ class GraspPlanner:
                                              "score_search": t3 - t2, "total": t3 - t0},
                          gripper, [float(w) for w in widths], fallback)
 
-    def _search(self, fulls, per_fit, cloud: np.ndarray, gripper: ParallelGripper) -> SearchResult:
+    def _search(self, fulls: Sequence[tuple[np.ndarray, cKDTree]], per_fit: Sequence[Sequence[Grasp]],
+                cloud: np.ndarray, gripper: ParallelGripper) -> SearchResult:
         """Refine and search (6.21) the transferred grasps with ``gripper``; the lowest cost wins.
 
         Each fit's grasps are refined (:func:`refine_position`) and searched on that fit's completed
@@ -271,8 +297,10 @@ class GraspPlanner:
 
 
 @dataclass
-class TrialResult:
-    """One lift-and-shake trial: ``success``, the planned ``plan`` (None if perception failed),
+class GraspTrialResult:
+    """One lift-and-shake trial's result.
+
+    One lift-and-shake trial: ``success``, the planned ``plan`` (None if perception failed),
     the predicted ``category``, the object's final height (m), a ``reason`` and a ``log``: the state at
     the end of each phase (:data:`PHASES`; see :func:`_phase_state`).
     """
@@ -283,7 +311,7 @@ class TrialResult:
     plan: GraspPlan | None = None
     final_height: float = float("nan")
     cloud: np.ndarray | None = None
-    log: list = field(default_factory=list)
+    log: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def gripper(self) -> str | None:
@@ -295,8 +323,11 @@ class TrialResult:
 PHASES = ("approach", "descend", "close", "lift", "shake", "hold")
 
 
-def _phase_state(m, d, phase: str, body: int, gbody: int, fingers: set, fp: int, g: ParallelGripper) -> dict:
-    """Diagnostics at the end of a trial phase: ``phase``; the object's position in the gripper's
+def _phase_state(m: mujoco.MjModel, d: mujoco.MjData, phase: str, body: int, gbody: int, fingers: set[int], fp: int,
+                 g: ParallelGripper) -> dict[str, Any]:
+    """Diagnostics at the end of a trial phase.
+
+    Diagnostics at the end of a trial phase: ``phase``; the object's position in the gripper's
     frame ``obj_in_gripper`` (m, (3,)); its height ``obj_z`` (m); the lowest fingertip corner's height
     ``fingertip_z`` (m, world); the jaw opening ``opening`` (m); the
     summed normal force of the finger-object contacts ``grip_normal_N`` (N) and their summed
@@ -329,36 +360,69 @@ def _smooth(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
     return a + (b - a) * s[:, None]
 
 
+#: Least rise (m) of a held object over its resting height at the end of a trial (the lift is 10 cm).
+LIFT_MIN = 0.05
+
+#: Height (m) of the pre-grasp pose's grasp centre above the perceived top of the object on the way in:
+#: the arm swings from :data:`Q_PARK` to that pose, then moves straight down to the pre-grasp (half the
+#: height when that pose is out of reach, the pre-grasp itself when neither is reachable).
+HOVER_CLEARANCE = 0.15
+
 #: Where the arm waits while the cameras look (joint angles, rad): turned 90 deg away from the table
 #: and folded up, out of the cameras' view of the workspace.
 Q_PARK = np.radians([90.0, -20.0, 10.0, 0.0, -60.0, 0.0])
 
 
-def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *, rng=None,
-                cameras=None, shake_amplitude: float = 0.15, settle: float = 0.3, arm: bool = True) -> TrialResult:
-    """Place ``obj`` (free body), perceive, plan, approach, close, lift 10 cm, shake; success if the
-    object is still held (above 5 cm and within 3 cm of where it sat in the gripper after the lift).
+def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *,
+                rng: np.random.Generator | int | None = None, cameras: list[DepthCamera] | None = None,
+                shake_amplitude: float = 0.15, settle: float = 0.3, arm: bool = True) -> GraspTrialResult:
+    """Run one lift-and-shake trial (Table 6.2) in MuJoCo.
+
+    Place ``obj`` (free body), perceive, plan, approach, close, lift 10 cm, shake; success if the
+    object is still held: raised by more than :data:`LIFT_MIN` over its height before the jaws closed,
+    touching a finger, and within 3 cm of where it sat in the gripper after the lift.
 
     ``arm=True`` (default): the whole LR Mate is in the MuJoCo scene (:func:`scene.arm_scene`): its
-    joint servos track the planned joint path (park -> pre-grasp 8 cm back along the approach ->
-    grasp -> close -> lift 10 cm -> shake with J1 and J6), its links collide with the table and the
-    object, and the held object loads its joints. ``arm=False``: the earlier simplification, the
-    gripper alone follows the forward kinematics of the same joint path (a mocap weld), no arm links.
-    The gripper on the flange is the one the plan chose (:class:`GraspPlanner`: the 48 mm one, or
-    the 85 mm one for wide parts), driven with its own ``grip_force``."""
+    joint servos track the planned joint path (park -> the pre-grasp pose raised to
+    :data:`HOVER_CLEARANCE` above the perceived top of the object -> down to the pre-grasp 8 cm back
+    along the approach -> grasp -> close -> lift 10 cm -> shake with J1 and J6), its links collide
+    with the table and the object, and the held object loads its joints. ``arm=False``: the gripper
+    alone follows the forward kinematics of the path from the pre-grasp on (a mocap weld), no arm
+    links. The gripper on the flange is the one the plan chose (:class:`GraspPlanner`: the 48 mm one,
+    or the 85 mm one for wide parts), driven with its own ``grip_force``.
+
+    Args:
+        obj: The object (a free body in the scene).
+        placement: Where it rests on the table.
+        planner: The grasp planner (its robot at the world origin with ``arm=True``).
+        rng: Seed or generator of the sensor noise.
+        cameras: The depth cameras (default :func:`default_cameras`).
+        shake_amplitude: Amplitude of the J6 shake (rad; J1 shakes by 0.06 rad), both at 2 Hz for 1.5 s.
+        settle: Time the object settles before the cameras look (s).
+        arm: Simulate the whole arm (else the gripper alone).
+
+    Returns:
+        The trial's result (``success``, ``reason``, the plan, the state at the end of each phase).
+
+    Raises:
+        InvalidInput: the planner has no robot, or (``arm``) its base is not at the world origin.
+    """
     rng = np.random.default_rng(rng)
     cams = cameras or default_cameras()
     Tb = planner.base_pose
     # the scene is built before the plan (the cameras look at it); the plan may choose the wide gripper
     # (then the scene is rebuilt with it, the object and the noise draws as they were)
     return _trial(obj, placement, planner, planner.gripper, rng, cams, shake_amplitude, settle, arm, Tb,
-                  rng.bit_generator.state)
+                  dict(rng.bit_generator.state))
 
 
-def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: ParallelGripper, rng, cams,
-           shake_amplitude: float, settle: float, arm: bool, Tb: np.ndarray, rng_state: dict,
-           plan: GraspPlan | None = None) -> TrialResult:
+def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: ParallelGripper, rng: np.random.Generator,
+           cams: list[DepthCamera], shake_amplitude: float, settle: float, arm: bool, Tb: np.ndarray,
+           rng_state: dict[str, Any],
+           plan: GraspPlan | None = None) -> GraspTrialResult:
     robot = planner.robot_for(g)
+    if robot is None:
+        raise InvalidInput("grasp_trial needs a planner with a robot (robot='lrmate')", value=None)
     if arm:
         if robot is None or not np.allclose(Tb, np.eye(4)):
             raise InvalidInput("grasp_trial(arm=True) needs the planner's robot at the world origin", value=Tb)
@@ -390,10 +454,10 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
         mujoco.mj_step(m, d)
     clouds = perceive(m, d, cams, bgs, rng=rng)
     if not clouds:
-        return TrialResult(False, "nothing perceived")
+        return GraspTrialResult(False, "nothing perceived")
     cloud = clouds[0]
     if len(cloud) < 20:
-        return TrialResult(False, "cloud too small", cloud=cloud)
+        return GraspTrialResult(False, "cloud too small", cloud=cloud)
     if plan is None:
         plan = planner.plan(cloud, exclude=(obj.name,))
         if plan.gripper != g:  # the same placement and draws, the chosen gripper on the flange
@@ -403,11 +467,14 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
     cat = plan.classification.category
     res = plan.search
     if not res.feasible or res.q is None:
-        return TrialResult(False, f"no feasible grasp ({plan.search.detail.reason if plan.search.detail else '-'})",
+        why = plan.search.detail.reason if plan.search.detail else "-"
+        return GraspTrialResult(False, f"no feasible grasp ({why})",
                            cat, plan, cloud=cloud)
     G = res.grasp.pose
     pre = G.copy()
     pre[:3, 3] -= 0.08 * res.grasp.approach
+    # the gripper comes in from above: the pre-grasp pose raised to HOVER_CLEARANCE above the
+    # perceived top of the object, then straight down to the pre-grasp
     up = G.copy()
     up[2, 3] += 0.10
     try:
@@ -415,10 +482,21 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
         q_pre = robot.ik(np.linalg.inv(Tb) @ pre, q_ref=q_grasp)[0]
         q_up = robot.ik(np.linalg.inv(Tb) @ up, q_ref=q_grasp)[0]
     except IKFailure:
-        return TrialResult(False, "approach or lift unreachable", cat, plan, cloud=cloud)
+        return GraspTrialResult(False, "approach or lift unreachable", cat, plan, cloud=cloud)
+    q_hover = q_pre  # when no raised pose is reachable, the swing ends at the pre-grasp itself
+    for clearance in (HOVER_CLEARANCE, HOVER_CLEARANCE / 2):
+        hover = pre.copy()
+        hover[2, 3] = max(pre[2, 3], float(cloud[:, 2].max()) + clearance)
+        try:
+            q_hover = robot.ik(np.linalg.inv(Tb) @ hover, q_ref=q_pre)[0]
+            break
+        except IKFailure:
+            continue
     dt = m.opt.timestep
     open_w = g.max_width / 2 - 0.0  # finger joint 0 = open
-    path = [(_smooth(Q_PARK, q_pre, int(1.5 / dt)) if arm else _smooth(q_pre, q_pre, int(0.1 / dt)), 0.0)]
+    approach = (np.vstack([_smooth(Q_PARK, q_hover, int(1.5 / dt)), _smooth(q_hover, q_pre, int(0.5 / dt))]) if arm
+                else _smooth(q_pre, q_pre, int(0.1 / dt)))
+    path = [(approach, 0.0)]
     path.append((_smooth(q_pre, q_grasp, int(0.8 / dt)), 0.0))
     path.append((_smooth(q_grasp, q_grasp, int(0.6 / dt)), open_w))
     path.append((_smooth(q_grasp, q_up, int(1.0 / dt)), open_w))
@@ -457,6 +535,8 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
             d.ctrl[-2:] = ctrl
             mujoco.mj_step(m, d)
         log.append(_phase_state(m, d, PHASES[k], body, gbody, fingers, fp, g))
+        if k == 1:
+            z_rest = float(d.xpos[body][2])  # the object's height before the jaws close
         if k == 2:
             closed = float(d.qpos[m.jnt_qposadr[fp]])  # finger travel after closing (m)
         if k == 3:
@@ -465,20 +545,26 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
     rel = d.xpos[body] - d.xpos[gbody]
     h = float(d.xpos[body][2])
     moved = float(np.linalg.norm(rel - rel_after_lift))
-    held = h > 0.05 and moved < 0.03
+    # held: raised by at least LIFT_MIN above where it rested, still in the jaws (touching a finger,
+    # where it sat after the lift); an object's frame can rest above 5 cm (a toy arm lying on its side)
+    held = h - z_rest > LIFT_MIN and moved < 0.03 and log[-1]["contacts"] > 0
     if held:
         reason = "held"
     elif closed > g.max_width / 2 - 0.002:
         reason = "dropped: fingers closed on nothing"
-    elif h_lift < 0.05:
+    elif h_lift - z_rest < LIFT_MIN:
         reason = f"dropped: slipped during lift (height {h_lift:.3f} m, grip {2 * (g.max_width / 2 - closed):.3f} m)"
     else:
-        reason = f"dropped: slipped during shake (moved {moved:.3f} m in hand, grip {2 * (g.max_width / 2 - closed):.3f} m)"
-    return TrialResult(bool(held), reason, cat, plan, h, cloud, log)
+        reason = (f"dropped: slipped during shake (moved {moved:.3f} m in hand, "
+                  f"grip {2 * (g.max_width / 2 - closed):.3f} m)")
+    return GraspTrialResult(bool(held), reason, cat, plan, h, cloud, log)
 
 
-def perceived_template(obj: ObjectModel, *, rng=0, cameras=None, placement: Placement | None = None) -> np.ndarray:
-    """The template cloud as the cameras see it at teach time: ``obj`` placed at ``placement``
+def perceived_template(obj: ObjectModel, *, rng: np.random.Generator | int | None = 0,
+                       cameras: list[DepthCamera] | None = None, placement: Placement | None = None) -> np.ndarray:
+    """The template cloud as the cameras see it at teach time.
+
+    The template cloud as the cameras see it at teach time: ``obj`` placed at ``placement``
     (default: workspace centre, heading 0), perceived (Fig. 6.4 pipeline) and mapped back into the
     object frame (n, 3). Templates and targets then share the cameras' viewpoints and sampling.
     """

@@ -23,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 from scipy.spatial import cKDTree
 
 from robointel._validate import as_array
@@ -77,9 +78,11 @@ class ParallelGripper:
         T[:3, 3] = [self.flange_offset + self.palm_height + self.finger_length - self.tip_depth, 0.0, 0.0]
         return T
 
-    def collides(self, grasp: Grasp, cloud: np.ndarray, *, opening: float | None = None, margin: float = 0.001,
+    def collides(self, grasp: Grasp, cloud: npt.ArrayLike, *, opening: float | None = None, margin: float = 0.001,
                  table_z: float | None = None) -> bool:
-        """True when any cloud point is inside a finger or the palm (grown by ``margin``), or a box
+        """Whether the gripper at ``grasp`` collides with the cloud or the table.
+
+        True when any cloud point is inside a finger or the palm (grown by ``margin``), or a box
         reaches below the table plane ``z = table_z`` (world frame).
         """
         local = (np.asarray(cloud, float) - grasp.centre) @ grasp.rotation
@@ -88,7 +91,8 @@ class ParallelGripper:
             if np.any(np.all(np.abs(local - c) <= h, axis=1)):
                 return True
             if table_z is not None:
-                corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * (size / 2) + c
+                signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+                corners = signs * (size / 2) + c
                 world = corners @ grasp.rotation.T + grasp.centre
                 if world[:, 2].min() < table_z + margin:
                     return True
@@ -134,7 +138,9 @@ def choose_gripper(widths: list[float], grippers: list[ParallelGripper], margin:
 
 @dataclass
 class GraspQuality:
-    """Result of :func:`grasp_quality`: ``quality`` (isotropy in [0, 1], or a negative code),
+    """Result of :func:`grasp_quality`.
+
+    Result of :func:`grasp_quality`: ``quality`` (isotropy in [0, 1], or a negative code),
     ``reason``, the two ``contacts`` (2, 3), outward ``normals`` (2, 3), ``width`` (m) and the
     re-centred grasp (centre at the contacts' midpoint).
     """
@@ -147,8 +153,11 @@ class GraspQuality:
     grasp: Grasp | None = None
 
 
-def estimate_normals(cloud, k: int = 12, *, viewpoint=None, tree: cKDTree | None = None) -> np.ndarray:
-    """Unit normals (n, 3) by PCA of the ``k`` nearest neighbours, oriented away from the centroid
+def estimate_normals(cloud: npt.ArrayLike, k: int = 12, *, viewpoint: npt.ArrayLike | None = None,
+                     tree: cKDTree | None = None) -> np.ndarray:
+    """Unit normals by PCA of the nearest neighbours.
+
+    Unit normals (n, 3) by PCA of the ``k`` nearest neighbours, oriented away from the centroid
     (or toward ``viewpoint``).
     """
     P = as_array(cloud, "cloud", (None, 3))
@@ -170,7 +179,9 @@ def estimate_normals(cloud, k: int = 12, *, viewpoint=None, tree: cKDTree | None
 
 def grasp_map(contacts: np.ndarray, normals: np.ndarray, centre: np.ndarray, *, mu: float = 0.5,
               mu_t: float = 0.3, edges: int = 4, length: float | None = None) -> np.ndarray:
-    """The grasp map G (6, 2 (edges + 2)): friction-cone edge forces and soft-finger torsion about
+    """The grasp map G of (6.20): friction-cone edges and soft-finger torsion.
+
+    The grasp map G (6, 2 (edges + 2)): friction-cone edge forces and soft-finger torsion about
     ``centre``; torques divided by ``length`` (default half the contact distance) to be unit-free.
     ``normals`` point out of the object; contact forces push along -normal.
     """
@@ -201,7 +212,9 @@ def isotropy(G: np.ndarray) -> float:
 
 def _rim_normal(contact: np.ndarray, mean: np.ndarray, face: np.ndarray, closing: np.ndarray,
                 radius: float) -> np.ndarray:
-    """Outward normal of the rim of a thin part (a fork's or knife's handle lying on the table) at a
+    """Outward rim normal of a thin part seen face-on, at a jaw contact.
+
+    Outward normal of the rim of a thin part (a fork's or knife's handle lying on the table) at a
     jaw contact, when the cloud shows only the part's face.
 
     A depth camera above a handle 2-3 mm thick sees its top face; after 5 mm voxels the PCA normal of
@@ -223,7 +236,7 @@ def _rim_normal(contact: np.ndarray, mean: np.ndarray, face: np.ndarray, closing
     return d / nd
 
 
-def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGripper(), mu: float = 0.5,
+def grasp_quality(cloud: npt.ArrayLike, grasp: Grasp, *, gripper: ParallelGripper | None = None, mu: float = 0.5,
                   axis_radius: float = 0.006, normal_radius: float = 0.010, min_neighbors: int = 5,
                   tree: cKDTree | None = None, observed: cKDTree | None = None,
                   observed_radius: float = 0.005, edge_normals: bool = False,
@@ -231,10 +244,16 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
     """(6.20) grasp isotropy of ``grasp`` on ``cloud`` (n, 3), negative for infeasible grasps.
 
     Args:
-        cloud: object points (n, 3), metres. grasp: the grasp frame.
-        gripper: jaw model (max opening). mu: friction coefficient.
+        cloud: object points (n, 3), metres.
+        grasp: the grasp frame.
+        gripper: jaw model (max opening; default :data:`NARROW_GRIPPER`).
+        mu: friction coefficient of the contacts' cones.
         axis_radius: points within this distance of the axis line count for the line search.
-        normal_radius: neighbourhood for the contact normals; ``min_neighbors`` points needed there.
+        normal_radius: neighbourhood for the contact normals.
+        min_neighbors: points needed within ``normal_radius`` of a contact (else SPARSE).
+        tree: KD-tree of ``cloud`` (built when None).
+        observed_radius: see ``observed`` (m).
+        table_z: table plane height (world, m): points within 4 mm above it are not seen.
         observed: KD-tree of the points actually perceived (when ``cloud`` is completed by a model);
             contacts must lie within ``observed_radius`` (m) of them.
         pad_reach: contacts must lie at least this far (m) inside the finger pads along the approach,
@@ -262,6 +281,7 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
             SLIP: squeezed, it slid out of the jaws toward its narrow end.
     """
     P = as_array(cloud, "cloud", (None, 3))
+    gripper = NARROW_GRIPPER if gripper is None else gripper
     if len(P) < min_neighbors:
         return GraspQuality(SPARSE, "sparse")
     y = grasp.axis
@@ -273,9 +293,9 @@ def grasp_quality(cloud, grasp: Grasp, *, gripper: ParallelGripper = ParallelGri
     if np.any(near & (np.abs(s) > half) & (np.abs(s) <= half + gripper.finger_thickness)):
         return GraspQuality(TOO_WIDE, "too wide")  # a jaw would land on the object
     near &= np.abs(s) <= half
-    beyond = None
+    t = rel @ grasp.approach
+    beyond = np.zeros(len(P), bool)
     if pad_reach is not None or edge_normals:
-        t = rel @ grasp.approach
         # points past the fingertips (up to axis_radius deeper), in the jaws' path across the breadth
         beyond = (np.abs(rel @ grasp.rotation[:, 0]) < axis_radius) & (np.abs(s) <= half) & \
             (t > gripper.tip_depth) & (t < gripper.tip_depth + axis_radius)

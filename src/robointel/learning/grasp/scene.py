@@ -10,12 +10,21 @@ friction acts) with two slide-jointed fingers driven by force-limited position a
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
+import mujoco
 import numpy as np
+import numpy.typing as npt
 
 from robointel.learning.grasp.objects import ObjectModel
 from robointel.learning.grasp.quality import ParallelGripper
+from robointel.sim.mjcf import build_spec, shape_geoms, shape_name
+
+if TYPE_CHECKING:
+    from robointel.geometry.obstacles import Obstacle
+    from robointel.robot import Robot
 
 __all__ = ["Placement", "scene_xml", "TABLE_CENTRE", "TABLE_HALF", "random_placements"]
 
@@ -34,6 +43,7 @@ class Placement:
 
     @property
     def pose(self) -> np.ndarray:
+        """4x4 world pose of the object frame (resting on the table plane)."""
         T = np.eye(4)
         c, s = np.cos(self.yaw), np.sin(self.yaw)
         T[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
@@ -41,7 +51,9 @@ class Placement:
         return T
 
 
-def random_placements(objects, rng, *, region=((0.4, 0.6), (-0.15, 0.15)), min_gap: float = 0.03,
+def random_placements(objects: Sequence[ObjectModel], rng: np.random.Generator | int | None, *,
+                      region: tuple[tuple[float, float], tuple[float, float]] = ((0.4, 0.6), (-0.15, 0.15)),
+                      min_gap: float = 0.03,
                       tries: int = 200) -> list[Placement]:
     """Place ``objects`` at random positions and headings in ``region`` without overlapping footprints."""
     rng = np.random.default_rng(rng)
@@ -58,7 +70,7 @@ def random_placements(objects, rng, *, region=((0.4, 0.6), (-0.15, 0.15)), min_g
     return out
 
 
-def _fmt(a) -> str:
+def _fmt(a: npt.ArrayLike) -> str:
     return " ".join(f"{v:.6g}" for v in np.asarray(a, float).ravel())
 
 
@@ -72,7 +84,8 @@ def scene_xml(placements: list[Placement], *, dynamic: bool = False, gripper: Pa
     assets, bodies = [], []
     for i, p in enumerate(placements):
         o = p.obj
-        assets.append(f'<mesh name="scan{i}" vertex="{_fmt(o.mesh.vertices)}" face="{" ".join(map(str, o.mesh.faces.ravel()))}"/>')
+        faces = " ".join(map(str, o.mesh.faces.ravel()))
+        assets.append(f'<mesh name="scan{i}" vertex="{_fmt(o.mesh.vertices)}" face="{faces}"/>')
         geoms = [f'<geom type="mesh" mesh="scan{i}" group="1" contype="0" conaffinity="0" rgba=".8 .5 .3 1" mass="0"/>']
         for j, piece in enumerate(o.pieces):
             assets.append(f'<mesh name="p{i}_{j}" vertex="{_fmt(piece.vertices)}"/>')
@@ -81,7 +94,8 @@ def scene_xml(placements: list[Placement], *, dynamic: bool = False, gripper: Pa
         mass = max(o.mass, 0.01)
         com = o.mesh.bounds.mean(axis=0) if not o.mesh.is_watertight else o.mesh.center_mass
         ext = np.maximum(o.mesh.extents, 0.01)
-        inertia = mass / 12 * np.array([ext[1] ** 2 + ext[2] ** 2, ext[0] ** 2 + ext[2] ** 2, ext[0] ** 2 + ext[1] ** 2])
+        inertia = mass / 12 * np.array([ext[1] ** 2 + ext[2] ** 2, ext[0] ** 2 + ext[2] ** 2,
+                                        ext[0] ** 2 + ext[1] ** 2])
         joint = f'<freejoint name="obj{i}"/>' if dynamic else ""
         inert = f'<inertial pos="{_fmt(com)}" mass="{mass:.4g}" diaginertia="{_fmt(inertia)}"/>' if dynamic else ""
         bodies.append(f'<body name="obj{i}" pos="{p.x:.6g} {p.y:.6g} 0.0005" quat="{_quat_yaw(p.yaw)}">{joint}{inert}'
@@ -98,7 +112,8 @@ def scene_xml(placements: list[Placement], *, dynamic: bool = False, gripper: Pa
         palm = np.array([g.palm_breadth, g.max_width + 2 * g.finger_thickness, g.palm_height]) / 2
         fingers = ""
         for name, s in (("fp", 1.0), ("fn", -1.0)):
-            fingers += (f'<body name="{name}" pos="0 {s * y0:.6g} {zc:.6g}"><joint name="{name}" type="slide" axis="0 {-s:.0f} 0" '
+            fingers += (f'<body name="{name}" pos="0 {s * y0:.6g} {zc:.6g}">'
+                        f'<joint name="{name}" type="slide" axis="0 {-s:.0f} 0" '
                         f'range="0 {g.max_width / 2:.6g}" damping="200" armature="0.01"/>'
                         f'<geom type="box" size="{_fmt(fb)}" mass="0.05" friction="{friction} 0.02 0.001" condim="6" '
                         f'rgba=".2 .2 .2 1"/></body>')
@@ -115,7 +130,8 @@ def scene_xml(placements: list[Placement], *, dynamic: bool = False, gripper: Pa
   <option timestep="{timestep}" gravity="0 0 -9.81" cone="elliptic" impratio="5" integrator="implicitfast"/>
   <asset>{"".join(assets)}</asset>
   <worldbody>
-    <geom name="table" type="box" pos="{TABLE_CENTRE[0]} {TABLE_CENTRE[1]} -0.02" size="{TABLE_HALF[0]} {TABLE_HALF[1]} 0.02"
+    <geom name="table" type="box" pos="{TABLE_CENTRE[0]} {TABLE_CENTRE[1]} -0.02"
+          size="{TABLE_HALF[0]} {TABLE_HALF[1]} 0.02"
           rgba=".7 .7 .7 1" friction="{friction} 0.02 0.001"/>
     {"".join(bodies)}
     {grip}
@@ -132,10 +148,13 @@ ARM_KV = (120.0, 120.0, 60.0, 6.0, 6.0, 3.0)
 ARM_ARMATURE = (0.2, 0.2, 0.1, 0.02, 0.02, 0.01)
 
 
-def arm_scene(placements: list[Placement], robot, gripper: ParallelGripper, *, timestep: float = 0.002,
-              friction: float = 1.0, grip_force: float | None = None, kp=ARM_KP, kv=ARM_KV, armature=ARM_ARMATURE,
-              obstacles=()):
-    """The grasp scene with the whole robot: the table and free objects of :func:`scene_xml`, and the
+def arm_scene(placements: list[Placement], robot: Robot, gripper: ParallelGripper, *, timestep: float = 0.002,
+              friction: float = 1.0, grip_force: float | None = None, kp: Sequence[float] = ARM_KP,
+              kv: Sequence[float] = ARM_KV, armature: Sequence[float] = ARM_ARMATURE,
+              obstacles: Sequence[Obstacle] = ()) -> mujoco.MjModel:
+    """The grasp scene with the whole LR Mate and the gripper on its flange (compiled MjModel).
+
+    The grasp scene with the whole robot: the table and free objects of :func:`scene_xml`, and the
     arm built from its URDF by :func:`robointel.sim.mjcf.build_spec` (root at the world origin, its
     links' collision geometry touching the table and the objects) carrying the parallel-jaw gripper
     on its flange at ``gripper.tool_transform()``. Each arm joint is driven by a position servo
@@ -145,19 +164,16 @@ def arm_scene(placements: list[Placement], robot, gripper: ParallelGripper, *, t
     0 = open); each finger's drive force is limited to ``grip_force`` (N, default the gripper's
     ``grip_force``). Any :class:`ParallelGripper` fits (the 48 mm or the 85 mm one). ``obstacles``:
     ``robointel.geometry`` shapes added as static bodies ``obstacle/<name>`` (fixtures the arm and the
-    objects collide with). Returns the compiled ``MjModel``."""
-    import mujoco
-
-    from robointel.sim.mjcf import build_spec, shape_geoms, shape_name
-
+    objects collide with). Returns the compiled ``MjModel``.
+    """
     spec = mujoco.MjSpec.from_string(scene_xml(placements, dynamic=True, timestep=timestep, friction=friction))
     for i, shape in enumerate(obstacles):
         name = shape_name(shape, f"obstacle_{i}")
         pos, geoms = shape_geoms(shape)
         body = spec.worldbody.add_body(name="obstacle/" + name, pos=pos)
-        for k, g in enumerate(geoms):
-            body.add_geom(name="obstacle/" + name + ("" if len(geoms) == 1 else f"/{k}"), type=g["type"],
-                          size=g["size"], pos=g["pos"], quat=g["quat"], rgba=[0.8, 0.2, 0.2, 0.6])
+        for k, geom in enumerate(geoms):
+            body.add_geom(name="obstacle/" + name + ("" if len(geoms) == 1 else f"/{k}"), type=geom["type"],
+                          size=geom["size"], pos=geom["pos"], quat=geom["quat"], rgba=[0.8, 0.2, 0.2, 0.6])
     rs, _ = build_spec(robot, table=False, ft_sensor=False, timestep=timestep, armature=np.asarray(armature, float))
     for b in rs.bodies:
         if b.name != "world":
@@ -175,7 +191,8 @@ def arm_scene(placements: list[Placement], robot, gripper: ParallelGripper, *, t
     gb = rs.body("tool").add_body(name="gripper", pos=T[:3, 3], quat=q)
     gb.gravcomp = 1.0
     palm = np.array([g.palm_breadth, g.max_width + 2 * g.finger_thickness, g.palm_height]) / 2
-    gb.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=palm, pos=[0, 0, g.tip_depth - g.finger_length - g.palm_height / 2],
+    gb.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=palm,
+                pos=[0, 0, g.tip_depth - g.finger_length - g.palm_height / 2],
                 mass=g.mass, rgba=[0.4, 0.4, 0.4, 1])
     fb = np.array([g.finger_breadth, g.finger_thickness, g.finger_length]) / 2
     zc = g.tip_depth - g.finger_length / 2

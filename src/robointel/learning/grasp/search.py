@@ -1,4 +1,6 @@
-"""Orientation search (6.21): turn the transferred grasp about its closing axis to a reachable,
+"""Orientation search (6.21) and the local position refinement before it.
+
+Orientation search (6.21): turn the transferred grasp about its closing axis to a reachable,
 collision-free, high-quality pose.
 
 For each angle ``a`` in a fan around the transferred grasp, the cost is
@@ -9,23 +11,35 @@ gripper (at full opening) intersects the cloud or the table. The best angle wins
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 from scipy.spatial import cKDTree
 
-from robointel.errors import IKFailure
-from robointel.learning.grasp.quality import GraspQuality, ParallelGripper, grasp_quality
+from robointel.errors import IKFailure, InvalidInput
+from robointel.learning.grasp.quality import NARROW_GRIPPER, GraspQuality, ParallelGripper, grasp_quality
 from robointel.learning.grasp.transfer import Grasp, grasp_from_axis
+
+if TYPE_CHECKING:
+    from robointel.robot import Robot
 
 __all__ = ["SearchResult", "orientation_search", "refine_position", "PENALTY"]
 
 PENALTY = 10.0
 
 
+#: Default turns of :func:`refine_position` (rad): -30, -15, 0, 15, 30 deg.
+REFINE_YAWS: tuple[float, ...] = tuple(float(a) for a in np.radians([-30, -15, 0, 15, 30]))
+
+
 @dataclass
 class SearchResult:
-    """Best grasp of the search: ``grasp`` (world frame), joint solution ``q`` (None if none reachable),
+    """Best grasp of the orientation search.
+
+    Best grasp of the search: ``grasp`` (world frame), joint solution ``q`` (None if none reachable),
     ``quality`` (6.20), ``angle`` (rad), ``cost``, ``feasible`` (IK ok, no collision, quality > 0) and
     per-angle ``table`` rows (angle, quality, ik_ok, collision_free, cost).
     """
@@ -36,19 +50,21 @@ class SearchResult:
     angle: float
     cost: float
     feasible: bool
-    table: np.ndarray = field(repr=False, default=None)
+    table: np.ndarray | None = field(repr=False, default=None)
     detail: GraspQuality | None = field(repr=False, default=None)
 
 
-def orientation_search(grasp: Grasp, cloud, robot=None, *, gripper: ParallelGripper = ParallelGripper(),
-                       angles=None, weight: float = 0.05, table_z: float | None = None, q_ref=None,
+def orientation_search(grasp: Grasp, cloud: npt.ArrayLike, robot: Robot | None = None, *,
+                       gripper: ParallelGripper = NARROW_GRIPPER, angles: npt.ArrayLike | None = None,
+                       weight: float = 0.05, table_z: float | None = None, q_ref: npt.ArrayLike | None = None,
                        base_pose: np.ndarray | None = None, lift: float = 0.10,
                        tree: cKDTree | None = None, observed: cKDTree | None = None,
                        edge_normals: bool = False, pad_reach: float | None = None) -> SearchResult:
     """(6.21) search rotations of ``grasp`` about its closing axis.
 
     Args:
-        grasp: transferred grasp in the world frame. cloud: object points (n, 3), world frame.
+        grasp: transferred grasp in the world frame.
+        cloud: object points (n, 3), world frame (m).
         robot: a :class:`robointel.robot.Robot` whose tool is the gripper's grasp frame
             (``Robot.load("lrmate200id7l", tool=gripper.tool_transform())``); None skips IK.
         angles: candidate turns (rad); default -90..90 deg in 10 deg steps.
@@ -61,18 +77,26 @@ def orientation_search(grasp: Grasp, cloud, robot=None, *, gripper: ParallelGrip
             :func:`grasp_quality`: contacts must have been seen).
         edge_normals: rim normals at contacts on thin parts seen face-on (see :func:`grasp_quality`).
         pad_reach: contacts only where the finger pads reach (see :func:`grasp_quality`).
+        gripper: the jaw model (opening, finger and palm boxes).
+        tree: KD-tree of ``cloud`` (built when None).
+
+    Returns:
+        The lowest-cost turn; ``feasible`` False (and ``q`` None) when no turn is reachable, collision-free
+        and of positive quality.
     """
     P = np.asarray(cloud, float)
     tree = tree or cKDTree(P)
     angles = np.radians(np.arange(-90, 91, 10)) if angles is None else np.asarray(angles, float)
     Tb_inv = np.linalg.inv(base_pose) if base_pose is not None else np.eye(4)
-    rows, best = [], None
+    rows: list[tuple[float, float, bool, bool, float]] = []
+    best: tuple[float, Grasp, np.ndarray | None, GraspQuality, float, bool] | None = None
     cache: dict = {}
     for a in angles:
         g = grasp.rotated_about_axis(float(a))
         if table_z is not None:  # raise the grasp until the fingertips clear the table
             tips = g.centre[2] + min(((np.array([sx, sy, sz]) * s / 2 + c) @ g.rotation[2])
-                                     for c, s in gripper.boxes()[:2] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1))
+                                     for c, s in gripper.boxes()[:2]
+                                     for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1))
             deficit = table_z + 0.003 - tips
             if deficit > 0:
                 g = Grasp(g.centre + np.array([0, 0, deficit]), g.rotation, g.width, g.name)
@@ -99,17 +123,23 @@ def orientation_search(grasp: Grasp, cloud, robot=None, *, gripper: ParallelGrip
         rows.append((a, gq.quality, ik_ok, not col, cost))
         if best is None or cost < best[0]:
             best = (cost, g, q, gq, a, ik_ok and not col and gq.quality > 0)
+    if best is None:
+        raise InvalidInput("orientation_search needs at least one candidate angle", value=angles)
     cost, g, q, gq, a, ok = best
     return SearchResult(g, q, float(gq.quality), float(a), float(cost), bool(ok), np.array(rows, float), gq)
 
 
-def refine_position(grasp: Grasp, cloud, *, gripper: ParallelGripper = ParallelGripper(), step: float = 0.006,
-                    yaws=np.radians([-30, -15, 0, 15, 30]), dz=(0.0, 0.005, -0.005, -0.01), weight: float = 2.0,
+def refine_position(grasp: Grasp, cloud: npt.ArrayLike, *, gripper: ParallelGripper = NARROW_GRIPPER,
+                    step: float = 0.006, yaws: Sequence[float] = REFINE_YAWS,
+                    dz: Sequence[float] = (0.0, 0.005, -0.005, -0.01), weight: float = 2.0,
                     keep: int = 3, tree: cKDTree | None = None, table_z: float | None = None,
                     column_radius: float = 0.008, clearance: float = 0.003,
-                    slide=(-0.018, -0.012, 0.012, 0.018), observed=None, edge_normals: bool = False,
+                    slide: Sequence[float] = (-0.018, -0.012, 0.012, 0.018), observed: npt.ArrayLike | None = None,
+                    edge_normals: bool = False,
                     pad_reach: float | None = None, rest_height: bool = False) -> list[Grasp]:
-    """Our addition before (6.21): a small local search around a transferred grasp, for when the warp
+    """Refine a transferred grasp's position locally (our addition before (6.21)).
+
+    Our addition before (6.21): a small local search around a transferred grasp, for when the warp
     lands it a few millimetres off a thin feature (a cup's rim, a tool's handle). Centres on a
     3 x 3 grid (``step`` m) in the plane normal to the approach, heights ``dz``, turns of the closing
     axis about the approach by ``yaws``, for the grasp as transferred and turned upright (approach

@@ -6,12 +6,18 @@ direction (from the palm toward the object). ``width`` is the jaw opening at tea
 """
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
+
+if TYPE_CHECKING:
+    from robointel.learning.grasp.cpd_warps import Warp
 
 __all__ = ["Grasp", "nearest_rotation", "transfer_grasp", "transfer_grasps", "grasp_from_axis"]
 
@@ -63,8 +69,23 @@ class Grasp:
         return replace(self, rotation=self.rotation @ Ry)
 
 
-def grasp_from_axis(centre, axis, approach, width: float = 0.0, name: str = "") -> Grasp:
-    """Build a :class:`Grasp` from its closing ``axis`` and an ``approach`` direction (made orthogonal)."""
+def grasp_from_axis(centre: npt.ArrayLike, axis: npt.ArrayLike, approach: npt.ArrayLike, width: float = 0.0,
+                    name: str = "") -> Grasp:
+    """Build a :class:`Grasp` from its closing ``axis`` and an ``approach`` direction (made orthogonal).
+
+    Args:
+        centre: Grasp centre (3,), m.
+        axis: Closing axis (3,), any length.
+        approach: Approach direction (3,); its part along ``axis`` is removed.
+        width: Jaw opening (m).
+        name: Label.
+
+    Returns:
+        The grasp frame (x = breadth, y = closing axis, z = approach).
+
+    Raises:
+        InvalidInput: a wrong shape, or ``approach`` parallel to ``axis``.
+    """
     y = as_array(axis, "axis", (3,))
     z = as_array(approach, "approach", (3,))
     y = y / np.linalg.norm(y)
@@ -76,7 +97,7 @@ def grasp_from_axis(centre, axis, approach, width: float = 0.0, name: str = "") 
     return Grasp(as_array(centre, "centre", (3,)), np.column_stack([np.cross(y, z), y, z]), width, name)
 
 
-def nearest_rotation(A) -> np.ndarray:
+def nearest_rotation(A: npt.ArrayLike) -> np.ndarray:
     """(6.15)-(6.16): the proper rotation nearest to ``A`` (3, 3): ``U diag(1, 1, det(U V^T)) V^T``.
 
     The sign fix makes det = +1 even when ``A`` (e.g. a warp Jacobian times R) is a reflection.
@@ -87,7 +108,7 @@ def nearest_rotation(A) -> np.ndarray:
     return U @ np.diag([1.0, 1.0, d]) @ Vt
 
 
-def transfer_grasp(warp, grasp: Grasp) -> Grasp:
+def transfer_grasp(warp: Warp, grasp: Grasp) -> Grasp:
     """(6.14)-(6.16): move a taught grasp through a fitted warp T.
 
     Centre ``t' = T(t)``; rotation ``R' = U V^T`` from the SVD ``grad T(t) R = U S V^T`` (det = +1).
@@ -100,6 +121,6 @@ def transfer_grasp(warp, grasp: Grasp) -> Grasp:
     return Grasp(c, R, width, grasp.name)
 
 
-def transfer_grasps(warp, grasps) -> list[Grasp]:
+def transfer_grasps(warp: Warp, grasps: Iterable[Grasp]) -> list[Grasp]:
     """:func:`transfer_grasp` for each grasp."""
     return [transfer_grasp(warp, g) for g in grasps]
