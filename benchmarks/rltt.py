@@ -104,7 +104,9 @@ def main() -> None:
     demos, learned = learned_skill(args.demos, args.labelled, args.seed, rng=rng)
     out["demonstrations"] = len(demos)
     out["demonstrations_seated"] = int(sum(d.meta["seated"] for d in demos))
-    out["demonstrations_used"] = out["demonstrations_seated"]  # the skill learns from the seated ones
+    out["demonstrations_used"] = len(learned.skill_demos)  # seated, with a plausible decomposition
+    out["skill_output_r2_held_out"] = dict(zip(I.POLICY, learned.skill.r2_.round(3).tolist(), strict=True))
+    out["skill_outputs_used"] = [n for n, ok in zip(I.POLICY, learned.skill.y_supported_, strict=True) if ok]
     out["demonstration_recoveries"] = int(sum(d.meta["recoveries"] for d in demos))
     out["demonstration_sim_s"] = time.perf_counter() - t0 - learned.timings["total"]
 
