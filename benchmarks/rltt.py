@@ -122,7 +122,7 @@ def main() -> None:
     gains_json = json.loads(args.insertion_gains)
     gains = I.ImpedanceGains(**gains_json)
     out["insertion_controller"] = ("torque-level Cartesian impedance (tau = J^T W + h(q, qd) + friction), no probe "
-                                   "and no hole axis: the policy (GMR wrench -> tool twist, translation and rotation) "
+                                   "and no hole axis: the policy (GMR wrench -> tool twist, skill_outputs_used) "
                                    "moves the equilibrium and sets the axial speed")
     out["insertion_gains"] = json.loads(args.insertion_gains)
     out["insertion_start_seed"] = args.start_seed
