@@ -104,7 +104,9 @@ def main() -> None:
     demos, learned = learned_skill(args.demos, args.labelled, args.seed, rng=rng)
     out["demonstrations"] = len(demos)
     out["demonstrations_seated"] = int(sum(d.meta["seated"] for d in demos))
-    out["demonstrations_used"] = out["demonstrations_seated"]  # the skill learns from the seated ones
+    out["demonstrations_used"] = len(learned.skill_demos)  # seated, with a plausible decomposition
+    out["skill_output_r2_held_out"] = dict(zip(I.POLICY, learned.skill.r2_.round(3).tolist(), strict=True))
+    out["skill_outputs_used"] = [n for n, ok in zip(I.POLICY, learned.skill.y_supported_, strict=True) if ok]
     out["demonstration_recoveries"] = int(sum(d.meta["recoveries"] for d in demos))
     out["demonstration_sim_s"] = time.perf_counter() - t0 - learned.timings["total"]
 
@@ -120,7 +122,7 @@ def main() -> None:
     gains_json = json.loads(args.insertion_gains)
     gains = I.ImpedanceGains(**gains_json)
     out["insertion_controller"] = ("torque-level Cartesian impedance (tau = J^T W + h(q, qd) + friction), no probe "
-                                   "and no hole axis: the policy (GMR wrench -> tool twist, translation and rotation) "
+                                   "and no hole axis: the policy (GMR wrench -> tool twist, skill_outputs_used) "
                                    "moves the equilibrium and sets the axial speed")
     out["insertion_gains"] = json.loads(args.insertion_gains)
     out["insertion_start_seed"] = args.start_seed

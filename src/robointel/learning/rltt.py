@@ -33,6 +33,8 @@ class LearnedInsertion:
         boundary_errors: (n_unlabelled, A-1) |predicted - true| split times (s) where ground truth
             exists (NaN otherwise).
         timings: seconds for ``sync``, ``decompose``, ``train`` and ``total``.
+        skill_demos: indices of the demonstrations the skill was fitted on (seated, and hand-labelled or
+            decomposed into phases no shorter than half the shortest hand-labelled one).
     """
 
     skill: InsertionSkill
@@ -41,6 +43,29 @@ class LearnedInsertion:
     labels: list[npt.NDArray[np.int_]]
     boundary_errors: npt.NDArray[np.float64]
     timings: dict[str, float] = field(default_factory=dict)
+    skill_demos: list[int] = field(default_factory=list)
+
+
+def plausible_decompositions(labels: Sequence[npt.NDArray[np.int_]], n_labelled: int,
+                             *, min_fraction: float = 0.5) -> list[bool]:
+    """Whether each decomposition has every phase at least ``min_fraction`` of its shortest hand-labelled length.
+
+    With few hand-labelled demonstrations Algorithm 1 can collapse a phase to a window or two and hand the
+    whole approach and rotation (free-air motion at up to 7 cm/s and 0.3 rad/s, zero wrench) to the
+    insertion; a skill fitted on those samples drifts sideways and turns with nothing felt.
+
+    Args:
+        labels: Per demonstration (N_i,) phase labels; the first ``n_labelled`` are the hand labels.
+        n_labelled: How many leading entries are hand labels (always plausible).
+        min_fraction: Shortest accepted phase, as a fraction of its shortest hand-labelled length.
+
+    Returns:
+        One flag per demonstration.
+    """
+    n_phases = len(PHASES)
+    counts = [np.bincount(np.asarray(lab), minlength=n_phases)[:n_phases] for lab in labels]
+    shortest = np.min(counts[:n_labelled], axis=0)
+    return [i < n_labelled or bool(np.all(c >= min_fraction * shortest)) for i, c in enumerate(counts)]
 
 
 def learn_insertion(demos: Sequence[Demonstration], *, n_labelled: int = 20, reference: int = 0,
@@ -104,8 +129,12 @@ def _learn_insertion(demos: Sequence[Demonstration], n_labelled: int, reference:
         else:
             errs.append(np.full(len(PHASES) - 1, np.nan))
     t2 = time.perf_counter()
-    keep = [i for i, d in enumerate(demos) if not only_successful or d.meta.get("seated", True)]
+    plausible = plausible_decompositions(labels, n_labelled)
+    keep = [i for i, d in enumerate(demos) if plausible[i] and (not only_successful or d.meta.get("seated", True))]
+    if not keep:
+        raise InvalidInput("no seated demonstration with a plausible decomposition to learn the skill from",
+                           value=len(demos))
     skill = InsertionSkill(n_components, centre=centre).fit([demos[i] for i in keep], [labels[i] for i in keep])
     t3 = time.perf_counter()
     return LearnedInsertion(skill, seg, aligned, labels, np.array(errs),
-                            {"sync": t1 - t0, "decompose": t2 - t1, "train": t3 - t2, "total": t3 - t0})
+                            {"sync": t1 - t0, "decompose": t2 - t1, "train": t3 - t2, "total": t3 - t0}, keep)

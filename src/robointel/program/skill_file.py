@@ -28,7 +28,8 @@ from robointel.learning.insertion import InsertionSkill
 
 SKILL_FORMAT = "robointel.skill/1"
 SKILL_KINDS = ("insertion", "grinding")
-_INSERTION_SCALING = ("x_lo_", "x_hi_", "y_lo_", "y_hi_", "x_mean_", "x_scale_", "y_mean_", "y_scale_")
+_INSERTION_SCALING = ("x_lo_", "x_hi_", "y_lo_", "y_hi_", "x_mean_", "x_scale_", "y_mean_", "y_scale_",
+                      "y_supported_")
 _GRINDING_SCALING = ("y_mean_", "y_scale_", "y_lo_", "y_hi_")
 _PLATE_FIELDS = ("center", "top", "size", "hard_spots", "spread", "light", "hard")
 
@@ -129,6 +130,9 @@ def load_skill(path: str | Path) -> Skill:
         names = _GRINDING_SCALING
     skill.gmr = gmr
     for name in names:
+        if name == "y_supported_" and "y_supported" not in scaling:  # an older file: every output used
+            skill.y_supported_ = np.ones(len(scaling["y_mean"]), bool)  # type: ignore[union-attr]
+            continue
         v = scaling[name.rstrip("_")]
         setattr(skill, name, v if np.ndim(v) else float(v))
     return skill

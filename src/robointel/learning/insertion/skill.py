@@ -52,10 +52,18 @@ class InsertionSkill:
     Inputs [fx, fy, fz, tx, ty] and outputs [vx, vy, vz, wx, wy] are in the tool frame; both are
     standardised before the mixture is fitted (k-means needs comparable scales). The output rotation
     [wx, wy] is about the compliance centre.
+
+    An output is used only where the demonstrations show that it depends on the wrench: its GMR
+    prediction on held-out demonstrations explains at least ``min_r2`` of its variance (leave-demonstrations-
+    out cross-validation, ``r2_``). Otherwise the wrench does not tell the demonstrated value: the axial
+    speed is the demonstrated mean push and a lateral or rotational correction is zero (a correction the
+    wrench does not determine is none). A reproducing robot integrates the twist into its impedance
+    equilibrium: the mixture's incidental structure, or a few demonstrations' mean turn, would wind the
+    stiff rotational spring against the wall at a rate no demonstration links to the felt wrench.
     """
 
     def __init__(self, n_components: int = 6, *, random_state: int = 0, max_samples: int = 12000,
-                 centre: float = 0.0) -> None:
+                 centre: float = 0.0, min_r2: float = 0.1, cv_folds: int = 3) -> None:
         """Set up an unfitted skill.
 
         Args:
@@ -64,8 +72,12 @@ class InsertionSkill:
             max_samples: Samples kept for EM (a seeded subsample above that).
             centre: Distance (m) along the tool axis from the F/T sensor to the compliance centre the
                 twist's velocity refers to (the robot's impedance centre).
+            min_r2: Held-out coefficient of determination an output needs to follow the wrench.
+            cv_folds: Folds (over demonstrations) of the support check; fewer demonstrations: one fold each.
         """
         self.centre = float(centre)
+        self.min_r2 = float(min_r2)
+        self.cv_folds = int(cv_folds)
         self.gmr = GaussianMixtureRegression(n_components, random_state=random_state)
         self.max_samples = int(max_samples)
 
@@ -86,7 +98,7 @@ class InsertionSkill:
         """
         if len(demos) == 0:
             raise InvalidInput("InsertionSkill.fit needs at least one demonstration")
-        xs, ys = [], []
+        xs, ys, gs = [], [], []
         for i, d in enumerate(demos):
             lab = d.labels if labels is None else np.asarray(labels[i])
             if lab is None:
@@ -95,22 +107,47 @@ class InsertionSkill:
             tw = tool_velocities(d, centre=self.centre)
             xs.append(d.wrench[m][:, list(PERCEPTION)])
             ys.append(tw[m][:, [0, 1, 2, 3, 4]])
-        X, Y = np.concatenate(xs), np.concatenate(ys)
+            gs.append(np.full(int(m.sum()), i))
+        X, Y, G = np.concatenate(xs), np.concatenate(ys), np.concatenate(gs)
         if len(X) == 0:
             raise InvalidInput(f"no samples labelled {PHASES[phase]!r} in the demonstrations")
         if len(X) > self.max_samples:  # EM cost grows with the samples; a seeded subsample suffices
             keep = np.sort(np.random.default_rng(0).choice(len(X), self.max_samples, replace=False))
-            X, Y = X[keep], Y[keep]
+            X, Y, G = X[keep], Y[keep], G[keep]
         self.x_lo_, self.x_hi_ = np.percentile(X, 0.5, axis=0), np.percentile(X, 99.5, axis=0)
         self.y_lo_, self.y_hi_ = np.percentile(Y, 0.5, axis=0), np.percentile(Y, 99.5, axis=0)
         self.x_mean_, self.x_scale_ = X.mean(0), X.std(0) + 1e-9
         self.y_mean_, self.y_scale_ = Y.mean(0), Y.std(0) + 1e-12
         self.gmr.fit((X - self.x_mean_) / self.x_scale_, (Y - self.y_mean_) / self.y_scale_)
         self.X_, self.Y_ = X, Y
+        self.r2_ = self._held_out_r2(X, Y, G)
+        self.y_supported_ = self.r2_ >= self.min_r2
         return self
+
+    def _held_out_r2(self, X: npt.NDArray[np.float64], Y: npt.NDArray[np.float64],
+                     G: npt.NDArray[np.int_]) -> npt.NDArray[np.float64]:
+        """Per-output R^2 (5,) of the GMR on held-out demonstrations (``inf`` with a single demonstration)."""
+        ids = np.unique(G)
+        if len(ids) < 2:
+            return np.full(Y.shape[1], np.inf)
+        folds = np.array_split(np.random.default_rng(0).permutation(ids), min(self.cv_folds, len(ids)))
+        sse, sst = np.zeros(Y.shape[1]), np.zeros(Y.shape[1])
+        for held in folds:
+            te = np.isin(G, held)
+            xm, xs = X[~te].mean(0), X[~te].std(0) + 1e-9
+            ym, ys = Y[~te].mean(0), Y[~te].std(0) + 1e-12
+            gmr = GaussianMixtureRegression(self.gmr.n_components, random_state=0)
+            gmr.fit((X[~te] - xm) / xs, (Y[~te] - ym) / ys)
+            pred = gmr.predict((np.clip(X[te], X[~te].min(0), X[~te].max(0)) - xm) / xs) * ys + ym
+            sse += ((Y[te] - pred) ** 2).sum(0)
+            sst += ((Y[te] - ym) ** 2).sum(0)
+        r2 = 1.0 - sse / np.maximum(sst, 1e-300)
+        return np.asarray(np.where(sst > 1e-12 * len(Y), r2, 0.0), float)  # an output never varied: nothing to follow
 
     def predict(self, wrench: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Corrective tool twist for felt wrenches, saturated to the demonstrated ranges (no extrapolation).
+
+        Outputs the wrench does not predict (``y_supported_`` False): the mean axial speed, no correction.
 
         Args:
             wrench: (n, 6) or (6,) wrenches [N; N m] in the tool frame.
@@ -123,6 +160,10 @@ class InsertionSkill:
         w = np.clip(np.atleast_2d(w)[:, list(PERCEPTION)], self.x_lo_, self.x_hi_)
         y = self.gmr.predict((w - self.x_mean_) / self.x_scale_) * self.y_scale_ + self.y_mean_
         y = np.clip(y, self.y_lo_, self.y_hi_)
+        supported = getattr(self, "y_supported_", None)
+        if supported is not None:
+            fallback = np.where(np.arange(len(POLICY)) == POLICY.index("vz"), self.y_mean_, 0.0)
+            y = np.where(np.asarray(supported, bool), y, fallback)
         return y[0] if one else y
 
 
