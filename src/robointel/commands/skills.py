@@ -229,7 +229,7 @@ def grasp_execute(category: str = typer.Option("box", help="category of the rand
     """
     from robointel.commands.grasp import _one_target
     from robointel.learning.grasp import GraspPlanner
-    from robointel.learning.grasp.pipeline import Q_PARK
+    from robointel.learning.grasp.trial import Q_PARK
     from robointel.sim import Workcell
     from robointel.sim.mjcf import Payload, SimObject
 

@@ -33,8 +33,9 @@ from robointel.learning.grasp import (
     sample_points,
     taught_grasps,
 )
-from robointel.learning.grasp.pipeline import Q_PARK, lrmate_with_gripper
+from robointel.learning.grasp.pipeline import lrmate_with_gripper
 from robointel.learning.grasp.scene import ARM_KP, ARM_KV, arm_scene
+from robointel.learning.grasp.trial import Q_PARK
 from robointel.outcome import Failure, TrialOutcome
 from robointel.program.format import OBJECT_CATEGORIES, Program
 from robointel.program.guide_step import GuideResult, PushOperator, guide_with_hand

@@ -34,8 +34,6 @@ from robointel.learning.grasp.perception import DepthCamera, default_cameras, de
 from robointel.learning.grasp.pipeline import (
     GraspPlan,
     GraspPlanner,
-    GraspTrialResult,
-    grasp_trial,
     lrmate_with_gripper,
     perceived_template,
 )
@@ -52,6 +50,7 @@ from robointel.learning.grasp.scene import Placement, arm_scene, random_placemen
 from robointel.learning.grasp.search import SearchResult, orientation_search
 from robointel.learning.grasp.teaching import classifying_templates, holdable, seen_template, ycb_teaching_set
 from robointel.learning.grasp.transfer import Grasp, grasp_from_axis, transfer_grasp, transfer_grasps
+from robointel.learning.grasp.trial import GraspTrialResult, grasp_trial
 
 __all__ = [
     # registration (6.3)-(6.13)

@@ -1,0 +1,291 @@
+"""MuJoCo lift-and-shake grasp trials (Table 6.2).
+
+:func:`grasp_trial` places an object at a random pose, perceives it with the two simulated depth
+cameras, plans with a :class:`~robointel.learning.grasp.pipeline.GraspPlanner`, then has the whole LR
+Mate in MuJoCo (joint servos, links colliding, the gripper on its flange) follow the joint path (park,
+hover, pre-grasp, grasp, close, lift 10 cm, shake with J1 and J6) and reports success when the object
+rose and is still between the fingers at the end (``arm=False``: the earlier simplification, the
+gripper alone on the path's forward kinematics).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from robointel.errors import IKFailure, InvalidInput
+from robointel.learning.grasp.objects import ObjectModel
+from robointel.learning.grasp.perception import DepthCamera, default_cameras, depth_image, perceive
+from robointel.learning.grasp.pipeline import GraspPlan, GraspPlanner
+from robointel.learning.grasp.quality import (
+    ParallelGripper,
+)
+from robointel.learning.grasp.scene import ARM_KP, ARM_KV, Placement, arm_scene, scene_xml
+
+__all__ = ["HOVER_CLEARANCE", "LIFT_MIN", "PHASES", "Q_PARK", "GraspTrialResult", "grasp_trial"]
+
+
+@dataclass
+class GraspTrialResult:
+    """One lift-and-shake trial's result.
+
+    One lift-and-shake trial: ``success``, the planned ``plan`` (None if perception failed),
+    the predicted ``category``, the object's final height (m), a ``reason`` and a ``log``: the state at
+    the end of each phase (:data:`PHASES`; see :func:`_phase_state`).
+    """
+
+    success: bool
+    reason: str
+    category: str | None = None
+    plan: GraspPlan | None = None
+    final_height: float = float("nan")
+    cloud: np.ndarray | None = None
+    log: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def gripper(self) -> str | None:
+        """Name of the gripper the trial used (None when nothing was planned)."""
+        return self.plan.gripper.name if self.plan is not None else None
+
+
+#: The phases of a trial's joint path, in order.
+PHASES = ("approach", "descend", "close", "lift", "shake", "hold")
+
+
+def _phase_state(m: mujoco.MjModel, d: mujoco.MjData, phase: str, body: int, gbody: int, fingers: set[int], fp: int,
+                 g: ParallelGripper) -> dict[str, Any]:
+    """Diagnostics at the end of a trial phase.
+
+    Diagnostics at the end of a trial phase: ``phase``; the object's position in the gripper's
+    frame ``obj_in_gripper`` (m, (3,)); its height ``obj_z`` (m); the lowest fingertip corner's height
+    ``fingertip_z`` (m, world); the jaw opening ``opening`` (m); the
+    summed normal force of the finger-object contacts ``grip_normal_N`` (N) and their summed
+    tangential (friction) force ``grip_tangential_N`` (N); ``contacts`` (count).
+    """
+    R = d.xmat[gbody].reshape(3, 3)
+    rel = R.T @ (d.xpos[body] - d.xpos[gbody])
+    fn = ft = 0.0
+    n = 0
+    f6 = np.zeros(6)
+    for i in range(d.ncon):
+        c = d.contact[i]
+        b1, b2 = m.geom_bodyid[c.geom1], m.geom_bodyid[c.geom2]
+        if (b1 == body and b2 in fingers) or (b2 == body and b1 in fingers):
+            mujoco.mj_contactForce(m, d, i, f6)
+            fn += abs(f6[0])
+            ft += float(np.hypot(f6[1], f6[2]))
+            n += 1
+    tips = min(float((d.geom_xpos[j] + d.geom_xmat[j].reshape(3, 3) @ (np.array([sx, sy, sz]) * m.geom_size[j]))[2])
+               for j in range(m.ngeom) if m.geom_bodyid[j] in fingers
+               for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1))
+    return {"phase": phase, "obj_in_gripper": rel.round(4).tolist(), "obj_z": round(float(d.xpos[body][2]), 4),
+            "fingertip_z": round(tips, 4),
+            "opening": round(float(g.max_width - 2 * d.qpos[m.jnt_qposadr[fp]]), 4),
+            "grip_normal_N": round(fn, 2), "grip_tangential_N": round(ft, 2), "contacts": n}
+
+
+def _smooth(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
+    s = 0.5 - 0.5 * np.cos(np.linspace(0, np.pi, n))
+    return a + (b - a) * s[:, None]
+
+
+#: Least rise (m) of a held object over its resting height at the end of a trial (the lift is 10 cm).
+LIFT_MIN = 0.05
+
+#: Height (m) of the pre-grasp pose's grasp centre above the perceived top of the object on the way in:
+#: the arm swings from :data:`Q_PARK` to that pose, then moves straight down to the pre-grasp (half the
+#: height when that pose is out of reach, the pre-grasp itself when neither is reachable).
+HOVER_CLEARANCE = 0.15
+
+#: Where the arm waits while the cameras look (joint angles, rad): turned 90 deg away from the table
+#: and folded up, out of the cameras' view of the workspace.
+Q_PARK = np.radians([90.0, -20.0, 10.0, 0.0, -60.0, 0.0])
+
+
+def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *,
+                rng: np.random.Generator | int | None = None, cameras: list[DepthCamera] | None = None,
+                shake_amplitude: float = 0.15, settle: float = 0.3, arm: bool = True) -> GraspTrialResult:
+    """Run one lift-and-shake trial (Table 6.2) in MuJoCo.
+
+    Place ``obj`` (free body), perceive, plan, approach, close, lift 10 cm, shake; success if the
+    object is still held: raised by more than :data:`LIFT_MIN` over its height before the jaws closed,
+    touching a finger, and within 3 cm of where it sat in the gripper after the lift.
+
+    ``arm=True`` (default): the whole LR Mate is in the MuJoCo scene (:func:`scene.arm_scene`): its
+    joint servos track the planned joint path (park -> the pre-grasp pose raised to
+    :data:`HOVER_CLEARANCE` above the perceived top of the object -> down to the pre-grasp 8 cm back
+    along the approach -> grasp -> close -> lift 10 cm -> shake with J1 and J6), its links collide
+    with the table and the object, and the held object loads its joints. ``arm=False``: the gripper
+    alone follows the forward kinematics of the path from the pre-grasp on (a mocap weld), no arm
+    links. The gripper on the flange is the one the plan chose (:class:`GraspPlanner`: the 48 mm one,
+    or the 85 mm one for wide parts), driven with its own ``grip_force``.
+
+    Args:
+        obj: The object (a free body in the scene).
+        placement: Where it rests on the table.
+        planner: The grasp planner (its robot at the world origin with ``arm=True``).
+        rng: Seed or generator of the sensor noise.
+        cameras: The depth cameras (default :func:`default_cameras`).
+        shake_amplitude: Amplitude of the J6 shake (rad; J1 shakes by 0.06 rad), both at 2 Hz for 1.5 s.
+        settle: Time the object settles before the cameras look (s).
+        arm: Simulate the whole arm (else the gripper alone).
+
+    Returns:
+        The trial's result (``success``, ``reason``, the plan, the state at the end of each phase).
+
+    Raises:
+        InvalidInput: the planner has no robot, or (``arm``) its base is not at the world origin.
+    """
+    rng = np.random.default_rng(rng)
+    cams = cameras or default_cameras()
+    Tb = planner.base_pose
+    # the scene is built before the plan (the cameras look at it); the plan may choose the wide gripper
+    # (then the scene is rebuilt with it, the object and the noise draws as they were)
+    return _trial(obj, placement, planner, planner.gripper, rng, cams, shake_amplitude, settle, arm, Tb,
+                  dict(rng.bit_generator.state))
+
+
+def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: ParallelGripper, rng: np.random.Generator,
+           cams: list[DepthCamera], shake_amplitude: float, settle: float, arm: bool, Tb: np.ndarray,
+           rng_state: dict[str, Any],
+           plan: GraspPlan | None = None) -> GraspTrialResult:
+    robot = planner.robot_for(g)
+    if robot is None:
+        raise InvalidInput("grasp_trial needs a planner with a robot (robot='lrmate')", value=None)
+    if arm:
+        if robot is None or not np.allclose(Tb, np.eye(4)):
+            raise InvalidInput("grasp_trial(arm=True) needs the planner's robot at the world origin", value=Tb)
+        m = arm_scene([placement], robot, g)
+        jadr = np.array([m.jnt_qposadr[m.joint("arm/" + n).id] for n in robot.joint_names])
+        gbody = m.body("arm/gripper").id
+        fp = m.joint("arm/fp").id
+    else:
+        m = mujoco.MjModel.from_xml_string(scene_xml([placement], dynamic=True, gripper=g))
+        gbody = m.body("gripper").id
+        fp = m.joint("fp").id
+    d = mujoco.MjData(m)
+    d.ctrl[:] = 0.0
+    if arm:
+        d.qpos[jadr] = Q_PARK
+        d.ctrl[:6] = Q_PARK
+    else:
+        d.mocap_pos[0] = np.array([0.5, 0.0, 1.6])
+    mujoco.mj_forward(m, d)
+    # background: the same scene with the object moved far away (the empty workspace)
+    qadr = m.jnt_qposadr[m.joint("obj0").id]
+    saved = d.qpos[qadr:qadr + 7].copy()
+    d.qpos[qadr:qadr + 3] = [5.0, 5.0, -5.0]
+    mujoco.mj_forward(m, d)
+    bgs = [depth_image(m, d, c, rng) for c in cams]
+    d.qpos[qadr:qadr + 7] = saved
+    mujoco.mj_forward(m, d)
+    for _ in range(int(settle / m.opt.timestep)):
+        mujoco.mj_step(m, d)
+    clouds = perceive(m, d, cams, bgs, rng=rng)
+    if not clouds:
+        return GraspTrialResult(False, "nothing perceived")
+    cloud = clouds[0]
+    if len(cloud) < 20:
+        return GraspTrialResult(False, "cloud too small", cloud=cloud)
+    if plan is None:
+        plan = planner.plan(cloud, exclude=(obj.name,))
+        if plan.gripper != g:  # the same placement and draws, the chosen gripper on the flange
+            rng.bit_generator.state = rng_state
+            return _trial(obj, placement, planner, plan.gripper, rng, cams, shake_amplitude, settle, arm, Tb,
+                          rng_state, plan)
+    cat = plan.classification.category
+    res = plan.search
+    if not res.feasible or res.q is None:
+        why = plan.search.detail.reason if plan.search.detail else "-"
+        return GraspTrialResult(False, f"no feasible grasp ({why})",
+                           cat, plan, cloud=cloud)
+    G = res.grasp.pose
+    pre = G.copy()
+    pre[:3, 3] -= 0.08 * res.grasp.approach
+    # the gripper comes in from above: the pre-grasp pose raised to HOVER_CLEARANCE above the
+    # perceived top of the object, then straight down to the pre-grasp
+    up = G.copy()
+    up[2, 3] += 0.10
+    try:
+        q_grasp = res.q
+        q_pre = robot.ik(np.linalg.inv(Tb) @ pre, q_ref=q_grasp)[0]
+        q_up = robot.ik(np.linalg.inv(Tb) @ up, q_ref=q_grasp)[0]
+    except IKFailure:
+        return GraspTrialResult(False, "approach or lift unreachable", cat, plan, cloud=cloud)
+    q_hover = q_pre  # when no raised pose is reachable, the swing ends at the pre-grasp itself
+    for clearance in (HOVER_CLEARANCE, HOVER_CLEARANCE / 2):
+        hover = pre.copy()
+        hover[2, 3] = max(pre[2, 3], float(cloud[:, 2].max()) + clearance)
+        try:
+            q_hover = robot.ik(np.linalg.inv(Tb) @ hover, q_ref=q_pre)[0]
+            break
+        except IKFailure:
+            continue
+    dt = m.opt.timestep
+    open_w = g.max_width / 2 - 0.0  # finger joint 0 = open
+    approach = (np.vstack([_smooth(Q_PARK, q_hover, int(1.5 / dt)), _smooth(q_hover, q_pre, int(0.5 / dt))]) if arm
+                else _smooth(q_pre, q_pre, int(0.1 / dt)))
+    path = [(approach, 0.0)]
+    path.append((_smooth(q_pre, q_grasp, int(0.8 / dt)), 0.0))
+    path.append((_smooth(q_grasp, q_grasp, int(0.6 / dt)), open_w))
+    path.append((_smooth(q_grasp, q_up, int(1.0 / dt)), open_w))
+    n_sh = int(1.5 / dt)
+    tt = np.arange(n_sh) * dt
+    shake = np.tile(q_up, (n_sh, 1))
+    shake[:, 0] += 0.06 * np.sin(2 * np.pi * 2.0 * tt)
+    shake[:, 5] += shake_amplitude * np.sin(2 * np.pi * 2.0 * tt)
+    path.append((shake, open_w))
+    path.append((_smooth(q_up, q_up, int(0.4 / dt)), open_w))
+    body = m.body("obj0").id
+    if not arm:
+        gadr = m.jnt_qposadr[m.joint("gripper").id]
+        T0 = Tb @ robot.fk(q_pre)
+        q0 = np.empty(4)
+        mujoco.mju_mat2Quat(q0, T0[:3, :3].ravel())
+        d.qpos[gadr:gadr + 3] = T0[:3, 3]
+        d.qpos[gadr + 3:gadr + 7] = q0
+        d.qvel[m.jnt_dofadr[m.joint("gripper").id]:][:6] = 0.0
+    kv_over_kp = np.asarray(ARM_KV) / np.asarray(ARM_KP)
+    rel_after_lift = None
+    fingers = {m.body("arm/fp" if arm else "fp").id, m.body("arm/fn" if arm else "fn").id}
+    log: list[dict] = []
+    for k, (qs, ctrl) in enumerate(path):
+        qd = np.gradient(qs, dt, axis=0) if len(qs) > 1 else np.zeros_like(qs)
+        for q, v in zip(qs, qd):
+            if arm:
+                # servo torque kp (ctrl - q) - kv qdot = kp (q_ref - q) + kv (qdot_ref - qdot)
+                d.ctrl[:6] = q + kv_over_kp * v
+            else:
+                T = Tb @ robot.fk(q)
+                d.mocap_pos[0] = T[:3, 3]
+                qw = np.empty(4)
+                mujoco.mju_mat2Quat(qw, T[:3, :3].ravel())
+                d.mocap_quat[0] = qw
+            d.ctrl[-2:] = ctrl
+            mujoco.mj_step(m, d)
+        log.append(_phase_state(m, d, PHASES[k], body, gbody, fingers, fp, g))
+        if k == 1:
+            z_rest = float(d.xpos[body][2])  # the object's height before the jaws close
+        if k == 2:
+            closed = float(d.qpos[m.jnt_qposadr[fp]])  # finger travel after closing (m)
+        if k == 3:
+            rel_after_lift = (d.xpos[body] - d.xpos[gbody]).copy()
+            h_lift = float(d.xpos[body][2])
+    rel = d.xpos[body] - d.xpos[gbody]
+    h = float(d.xpos[body][2])
+    moved = float(np.linalg.norm(rel - rel_after_lift))
+    # held: raised by at least LIFT_MIN above where it rested, still in the jaws (touching a finger,
+    # where it sat after the lift); an object's frame can rest above 5 cm (a toy arm lying on its side)
+    held = h - z_rest > LIFT_MIN and moved < 0.03 and log[-1]["contacts"] > 0
+    if held:
+        reason = "held"
+    elif closed > g.max_width / 2 - 0.002:
+        reason = "dropped: fingers closed on nothing"
+    elif h_lift - z_rest < LIFT_MIN:
+        reason = f"dropped: slipped during lift (height {h_lift:.3f} m, grip {2 * (g.max_width / 2 - closed):.3f} m)"
+    else:
+        reason = (f"dropped: slipped during shake (moved {moved:.3f} m in hand, "
+                  f"grip {2 * (g.max_width / 2 - closed):.3f} m)")
+    return GraspTrialResult(bool(held), reason, cat, plan, h, cloud, log)
