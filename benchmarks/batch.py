@@ -5,7 +5,7 @@ killed worker loses and duplicates nothing.
 
 A fixed set of real trials (``--insertion`` peg-in-hole trials with the LR Mate under impedance
 control, ~1.5 s each on an idle core, and ``--grasp`` lift-and-shake grasp trials, ~6-17 s each)
-runs four times in one process, each into a fresh result folder:
+runs in one process, each run into a fresh result folder:
 
 * in-process (the default engine), after one warm-up trial of each kind (per-process caches:
   the insertion cell, the grasp planner);
@@ -122,7 +122,6 @@ def main() -> None:
     empty = [TaskSpec("synthetic", s, {"work_s": 0.0}) for s in range(args.empty)]
     t_empty_in, _ = timed(empty, root / "empty-inproc")
 
-    runs: dict[int, float] = {}
     pairs: list[float] = []  # (Ray 1 worker - in-process) wall per task, ms, for each repeat
     for w in (1, 2):
         t0 = time.perf_counter()
@@ -132,7 +131,6 @@ def main() -> None:
         timed(warmup(args.grasp, w), root / f"warm-ray{w}", engine="ray", workers=w)
         out[f"warmup_s_{w}_workers"] = time.perf_counter() - t0
         t, r = timed(specs, root / f"ray{w}", engine="ray", workers=w)
-        runs[w] = t
         if w == 1:
             pairs.append((t - t_in) / n * 1e3)
             for k in range(1, args.repeats):  # the same pair again, in-process first: the machine's drift cancels

@@ -16,7 +16,7 @@ from robointel.interface.grasp_execute import GraspMotion, execute_grasp
 from robointel.interface.gripper import FanucGripper
 from robointel.interface.skill_cells import R_DOWN, HoleTask, PegTool, ik_near, stylus
 from robointel.interface.skill_grinding import run_grinding
-from robointel.interface.skill_insertion import SkillLimits, run_insertion
+from robointel.interface.skill_insertion import run_insertion
 from robointel.interface.wrench_source import VirtualWall
 from robointel.io.mcap_log import COMMAND, JOINT_STATES, McapRecorder
 from robointel.robot import Robot
@@ -54,8 +54,8 @@ def test_the_learned_insertion_skill_streams_to_the_emulator_and_stops_at_the_co
     # seated demonstrations backs off and pushes again as its demonstrator does when stuck
     assert 0.004 < res.advance.max() < 0.019 and res.advance[-1] > 0.004, (res.advance.max(), res.advance[-1])
     late = res.t > res.t[-1] - 0.5
-    push = -res.wrench[:, 2]
-    assert 0.5 < push[late].mean() and push.max() < SkillLimits().max_force, (push[late].mean(), push.max())
+    push = -res.wrench[late, 2]
+    assert 0.5 < push.mean(), push.mean()  # still pressing on the wall (the timeout reason: no force-limit stop)
     assert len(res.q_cmd) == int(round(2.5 / 0.008))
     assert stats  # the driver's real-time core ran
     with open(tmp_path / "run.mcap", "rb") as f:
