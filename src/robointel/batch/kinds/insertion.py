@@ -5,7 +5,8 @@ All knowledge of the insertion package is in this file. Params (defaults in brac
 the stiff joint servo along the tool axis, :meth:`RobotCell.insert_position_only`), ``policy``
 [constant_push] (``constant_push``: :class:`ConstantPush`; ``hand_tuned``: :class:`HandTunedAdmittance`;
 ``skill``: the GMR skill learned from ``demos`` [20] seeded demonstrations, ``labelled`` [10] of them
-labelled, demonstration seed ``demo_seed`` [0]), ``gains`` [{}] (:class:`ImpedanceGains` fields),
+labelled, demonstration seed ``demo_seed`` [0]; ``felt_skill``: the feel-align-insert strategy with the
+rotation learned (:class:`FeltSkill`) from ``felt_demos`` [10] demonstrations of seed ``demo_seed``), ``gains`` [{}] (:class:`ImpedanceGains` fields),
 ``interference`` [0] (m), ``time_limit`` [10] (s), ``lateral`` [0.002] (m) and ``max_tilt_deg`` [5]:
 the start error is drawn from the task seed by :func:`random_start_errors`. With ``start_seed`` the
 start is instead the ``seed``-th of ``random_start_errors(default_rng(start_seed), seed + 1)``: the
@@ -26,6 +27,7 @@ from robointel.errors import InvalidInput
 from robointel.learning.demonstration import Demonstration
 from robointel.learning.insertion import (
     ConstantPush,
+    FeltSkill,
     HandTunedAdmittance,
     HDDScene,
     ImpedanceGains,
@@ -33,15 +35,16 @@ from robointel.learning.insertion import (
     Policy,
     RobotCell,
     demonstrate,
+    demonstrate_felt,
     random_start_errors,
 )
 from robointel.learning.rltt import LearnedInsertion, learn_insertion
 from robointel.outcome import TrialOutcome
 
-__all__ = ["insertion_category", "insertion_trial", "learned_skill"]
+__all__ = ["felt_skill", "insertion_category", "insertion_trial", "learned_skill"]
 
 CONTROLLERS = ("impedance", "position")
-POLICIES = ("constant_push", "hand_tuned", "skill")
+POLICIES = ("constant_push", "hand_tuned", "skill", "felt_skill")
 
 
 @lru_cache(maxsize=4)
@@ -78,6 +81,30 @@ def learned_skill(demos: int, labelled: int, demo_seed: int, *,
         _LEARNED.clear()  # one skill per process at a time
         _LEARNED[key] = ds, learn_insertion(ds, n_labelled=labelled, centre=scene.tool.tip - scene.tool.radius)
     return _LEARNED[key]
+
+
+_FELT: dict[tuple[int, int], tuple[list[Demonstration], FeltSkill]] = {}
+
+
+def felt_skill(demos: int, demo_seed: int) -> tuple[list[Demonstration], FeltSkill]:
+    """The felt-strategy demonstrations and the skill learned from them, made once per process.
+
+    Args:
+        demos: Number of demonstrations by the scripted person (:func:`demonstrate_felt`).
+        demo_seed: Seed of their generator.
+
+    Returns:
+        The demonstrations and the fitted :class:`FeltSkill`.
+    """
+    key = (demos, demo_seed)
+    if key not in _FELT:
+        task = PegHole()
+        gen = np.random.default_rng(demo_seed)
+        scene = HDDScene(task)
+        ds = [demonstrate_felt(task, gen, scene=scene, name=f"felt_{i:02d}") for i in range(demos)]
+        _FELT.clear()
+        _FELT[key] = ds, FeltSkill().fit(ds)
+    return _FELT[key]
 
 
 def _skill(demos: int, labelled: int, demo_seed: int) -> Policy:
@@ -118,6 +145,9 @@ def insertion_trial(spec: TaskSpec) -> TrialOutcome:
     pol: Policy
     if policy == "skill":
         pol = _skill(int(p.get("demos", 20)), int(p.get("labelled", 10)), int(p.get("demo_seed", 0)))
+    elif policy == "felt_skill":
+        pol = felt_skill(int(p.get("felt_demos", 10)), int(p.get("demo_seed", 0)))[1].policy(
+            cell.tool.tip - cell.tool.radius)
     elif policy == "hand_tuned":
         pol = HandTunedAdmittance(centre=cell.tool.tip - cell.tool.radius)
     else:

@@ -4,6 +4,8 @@
 * :mod:`.hdd_scene` - the hand-held demonstration device over the task in MuJoCo.
 * :mod:`.demonstrator` - the scripted person and its demonstrations.
 * :mod:`.skill` - the skill model: GMR wrench -> corrective tool twist.
+* :mod:`.felt` - feel the face, align, insert: the person's strategy as a stage machine (a policy).
+* :mod:`.felt_skill` - the person demonstrating it with the device, and the rotation learned from them.
 * :mod:`.policies` - the baselines: a constant push, a hand-tuned admittance.
 * :mod:`.impedance` - the torque-level Cartesian impedance.
 * :mod:`.robot_cell` - the LR Mate with the tool over the task; the trials.
@@ -11,6 +13,8 @@
 """
 
 from robointel.learning.insertion.demonstrator import PHASES, Demonstrator, demonstrate, seated_demonstrations
+from robointel.learning.insertion.felt import STAGES, FeltStrategy, face_normal
+from robointel.learning.insertion.felt_skill import FeltSkill, demonstrate_felt
 from robointel.learning.insertion.hdd_scene import HDDScene
 from robointel.learning.insertion.impedance import CartesianImpedance, ImpedanceGains
 from robointel.learning.insertion.peg_hole import R_DOWN, PegHole, tip_point
@@ -27,7 +31,7 @@ from robointel.learning.insertion.robot_cell import (
 from robointel.learning.insertion.skill import PERCEPTION, POLICY, InsertionSkill, tool_velocities
 
 __all__ = [
-    "seated_demonstrations",
+    "seated_demonstrations", "STAGES", "FeltStrategy", "FeltSkill", "demonstrate_felt", "face_normal",
     "ARMATURE", "PERCEPTION", "PHASES", "POLICY", "R_DOWN", "R_FLANGE_TOOL", "CartesianImpedance",
     "ConstantPush", "Demonstrator", "HDDScene", "HandTunedAdmittance", "ImpedanceGains", "InsertionSkill",
     "InsertionTrial", "PegHole", "Policy", "PressResult", "RobotCell", "demonstrate", "press_test",

@@ -34,6 +34,9 @@ class ImpedanceGains:
         friction_compensation: Add the joint friction model to the torques.
         friction_velocity: Coulomb smoothing velocity (rad/s).
         insert_lateral_stiffness: Lateral spring (N/m) while inserting; None: ``lateral_stiffness``.
+        friction_feedforward: Compensate the Coulomb friction at the measured joint velocity plus the one
+            the commanded motion asks for (J_c^+ [v_eq; w_eq]): a joint at rest that is commanded to move
+            starts moving, instead of waiting for the spring to wind up past its stiction.
     """
 
     center_from_tip: float | None = None
@@ -48,6 +51,7 @@ class ImpedanceGains:
     friction_compensation: bool = True
     friction_velocity: float = 0.01
     insert_lateral_stiffness: float | None = 300.0
+    friction_feedforward: bool = True
 
 
 class CartesianImpedance:
@@ -122,8 +126,12 @@ class CartesianImpedance:
         self.D[2] = 0.0
         self.lam = lam
 
-    def torque(self, q, qd, x0, R0, v_ref: float) -> tuple[np.ndarray, np.ndarray]:
-        """Joint torques (n,) N m (clipped to the effort limits) and the commanded wrench W (6,)."""
+    def torque(self, q, qd, x0, R0, v_ref: float, twist_ref=None) -> tuple[np.ndarray, np.ndarray]:
+        """Joint torques (n,) N m (clipped to the effort limits) and the commanded wrench W (6,).
+
+        ``twist_ref`` (6,) is the commanded motion of the equilibrium (centre frame, m/s and rad/s), used by
+        the friction feed-forward.
+        """
         x, R, tw, J = self.pose_twist(q, qd)
         e = np.concatenate([R.T @ (x0 - x), R.T @ so3_log(R0 @ R.T)])
         W = self.K * e - self.D * tw
@@ -131,6 +139,9 @@ class CartesianImpedance:
         W[2] = float(np.clip(g.axial_damping * (v_ref - tw[2]), -g.max_axial_force, g.max_axial_force))
         tau = J.T @ W + self.pin.rnea(self.model, self.data, q, qd, np.zeros_like(q))
         if g.friction_compensation:
-            tau += self.viscous * qd + self.coulomb * np.tanh(qd / g.friction_velocity)
+            qd_f = qd
+            if g.friction_feedforward and twist_ref is not None and np.any(twist_ref):
+                qd_f = qd + np.linalg.lstsq(J, np.asarray(twist_ref, float), rcond=None)[0]
+            tau += self.viscous * qd + self.coulomb * np.tanh(qd_f / g.friction_velocity)
         return np.clip(tau, -self.effort, self.effort), W
 

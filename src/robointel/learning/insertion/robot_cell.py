@@ -28,8 +28,10 @@ R_FLANGE_TOOL = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
 #: reflected motor-rotor inertia of the LR Mate's joints (kg m^2), in MuJoCo and in the controller's model
 ARMATURE = (0.5, 0.5, 0.2, 0.05, 0.05, 0.02)
 
-#: an insertion policy: felt wrench (6,) [N; N m] in the tool frame -> tool twist [vx, vy, vz, wx, wy] (m/s, rad/s)
-Policy = Callable[[npt.NDArray[np.float64]], npt.NDArray[np.float64]]
+#: an insertion policy: felt wrench (6,) [N; N m] in the tool frame -> tool twist [vx, vy, vz, wx, wy] (m/s, rad/s);
+#: a policy whose ``proprioceptive`` attribute is true is also given the tool pose (4, 4) relative to its pose at
+#: the first call, and is ``reset()`` before each trial
+Policy = Callable[..., npt.NDArray[np.float64]]
 
 
 @dataclass(frozen=True)
@@ -282,7 +284,10 @@ class RobotCell:
         position servo and no knowledge of the hole: only the F/T sensor and the robot's kinematics. Every
         ``policy_dt`` the policy maps the felt wrench (6,) (tool frame, with sensor noise) to a tool twist
         [vx, vy, vz, wx, wy]: [vx, vy] moves the impedance equilibrium laterally, [wx, wy] rotates it about the
-        compliance centre, and vz is the speed of the force-limited axial damper (5.17).
+        compliance centre, and vz is the speed of the force-limited axial damper (5.17). A proprioceptive
+        policy (``policy.proprioceptive`` true, e.g. :class:`~robointel.learning.insertion.felt.FeltStrategy`)
+        is reset first and also gets the tool pose relative to the first call (the arm's kinematics, no
+        world frame).
 
         Args:
             policy: Wrench -> tool twist (the learned skill, a constant push, a hand-tuned admittance).
@@ -323,6 +328,10 @@ class RobotCell:
         logs: list[list[npt.NDArray[np.float64]]] = [[], [], []]
         log_t: list[float] = []
         stop, detail, seated = Failure.TIMEOUT, "time limit", False
+        proprio = bool(getattr(policy, "proprioceptive", False))
+        if proprio:
+            policy.reset()  # type: ignore[attr-defined]
+        T_first: npt.NDArray[np.float64] | None = None
         k = 0
         for k in range(int(time_limit / dt)):
             q, qd = d.qpos[self.qadr], d.qvel[self.vadr]
@@ -340,7 +349,12 @@ class RobotCell:
                 stop, detail = Failure.FORCE_LIMIT, "force limit (safety stop)"
                 break
             if k % n_policy == 0:
-                tw = np.asarray(policy(w), float)
+                if T_first is None:
+                    T_first = T.copy()
+                if proprio:
+                    tw = np.asarray(policy(w, np.linalg.solve(T_first, T)), float)  # type: ignore[call-arg]
+                else:
+                    tw = np.asarray(policy(w), float)
             if k % 10 == 0:
                 log_t.append(k * dt)
                 for lst, v in zip(logs, (tip, w, tw.copy()), strict=True):
@@ -349,7 +363,7 @@ class RobotCell:
             x0 = x0 + R @ np.array([tw[0], tw[1], 0.0]) * dt
             x0 = x0 + R[:, 2] * (R[:, 2] @ (x - x0))  # no axial spring: the axis is force controlled
             R0 = so3_exp(R @ np.array([tw[3], tw[4], 0.0]) * dt) @ R0
-            d.ctrl[self.aid] = imp.torque(q, qd, x0, R0, float(tw[2]))[0]
+            d.ctrl[self.aid] = imp.torque(q, qd, x0, R0, float(tw[2]), np.array([*tw, 0.0]))[0]
             mujoco.mj_step(m, d)
             max_pen = max(max_pen, self._penetration())
         if stop is Failure.TIMEOUT and not seated:
