@@ -106,8 +106,9 @@ def main() -> None:
     out["demonstrations"] = len(demos)
     out["demonstrations_seated"] = int(sum(d.meta["seated"] for d in demos))
     out["rltt_pipeline_demonstrations_used"] = len(learned.skill_demos)  # seated, plausible decomposition
-    out["rltt_pipeline_skill_output_r2_held_out"] = dict(zip(I.POLICY, learned.skill.r2_.round(3).tolist(), strict=True))
-    out["rltt_pipeline_skill_outputs_used"] = [n for n, ok in zip(I.POLICY, learned.skill.y_supported_, strict=True) if ok]
+    sk = learned.skill
+    out["rltt_pipeline_skill_output_r2_held_out"] = dict(zip(I.POLICY, sk.r2_.round(3).tolist(), strict=True))
+    out["rltt_pipeline_skill_outputs_used"] = [n for n, ok in zip(I.POLICY, sk.y_supported_, strict=True) if ok]
     out["demonstration_recoveries"] = int(sum(d.meta["recoveries"] for d in demos))
     out["demonstration_sim_s"] = time.perf_counter() - t0 - learned.timings["total"]
 

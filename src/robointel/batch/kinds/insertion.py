@@ -5,8 +5,9 @@ All knowledge of the insertion package is in this file. Params (defaults in brac
 the stiff joint servo along the tool axis, :meth:`RobotCell.insert_position_only`), ``policy``
 [constant_push] (``constant_push``: :class:`ConstantPush`; ``hand_tuned``: :class:`HandTunedAdmittance`;
 ``skill``: the GMR skill learned from ``demos`` [20] seeded demonstrations, ``labelled`` [10] of them
-labelled, demonstration seed ``demo_seed`` [0]; ``felt_skill``: the feel-align-insert strategy with the
-rotation learned (:class:`FeltSkill`) from ``felt_demos`` [10] demonstrations of seed ``demo_seed``), ``gains`` [{}] (:class:`ImpedanceGains` fields),
+labelled, demonstration seed ``demo_seed`` [0]; ``felt_skill``: the feel-align-insert strategy with
+the rotation learned (:class:`FeltSkill`) from ``felt_demos`` [10] demonstrations of seed
+``demo_seed``), ``gains`` [{}] (:class:`ImpedanceGains` fields),
 ``interference`` [0] (m), ``time_limit`` [10] (s), ``lateral`` [0.002] (m) and ``max_tilt_deg`` [5]:
 the start error is drawn from the task seed by :func:`random_start_errors`. With ``start_seed`` the
 start is instead the ``seed``-th of ``random_start_errors(default_rng(start_seed), seed + 1)``: the

@@ -24,6 +24,8 @@ from robointel.errors import InvalidInput
 
 #: stages of the strategy, in order
 STAGES = ("aside", "touch", "feel", "lift", "align", "return", "insert")
+#: a learned rotation: remaining tilt (2,) rad -> rotation rate (2,) rad/s
+RotationModel = Callable[[npt.NDArray[np.float64]], npt.NDArray[np.float64]]
 #: axial damping (N s/m) that turns a commanded axial speed into a push at a stall (the robot's axial damper)
 AXIAL_DAMPING = 1000.0
 
@@ -106,7 +108,7 @@ class FeltStrategy:
     k_pos: float = 5.0
     stage_timeout: float = 2.0
     dt: float = 0.01
-    rotation_model: Callable[[npt.NDArray[np.float64]], npt.NDArray[np.float64]] | None = None
+    rotation_model: RotationModel | None = None
     proprioceptive: bool = field(default=True, init=False)
 
     def __post_init__(self) -> None:
@@ -178,7 +180,8 @@ class FeltStrategy:
             om = 2 * np.pi * self.circle_hz
             ph = om * st
             goal = self._circle + self.circle_radius * np.array([np.cos(ph) - 1.0, np.sin(ph)])
-            tw[:2] = om * self.circle_radius * np.array([-np.sin(ph), np.cos(ph)]) + 2 * self.k_pos * (goal - (R.T @ c)[:2])
+            pos = (R.T @ c)[:2]
+            tw[:2] = om * self.circle_radius * np.array([-np.sin(ph), np.cos(ph)]) + 2 * self.k_pos * (goal - pos)
             tw[2] = self.feel_push
             if st > 0.15 and push > 0.7 * AXIAL_DAMPING * self.feel_push:
                 self._points.append(c.copy())

@@ -12,7 +12,6 @@ insertion policy.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
 
 import numpy as np
 import numpy.typing as npt
@@ -22,7 +21,7 @@ from robointel.geometry.rotations import rotation_about, so3_exp, so3_log
 from robointel.learning.demonstration import Demonstration
 from robointel.learning.gmr import GaussianMixtureRegression
 from robointel.learning.insertion.demonstrator import PHASES, Demonstrator
-from robointel.learning.insertion.felt import AXIAL_DAMPING, STAGES, FeltStrategy
+from robointel.learning.insertion.felt import AXIAL_DAMPING, STAGES, FeltStrategy, RotationModel
 from robointel.learning.insertion.hdd_scene import HDDScene
 from robointel.learning.insertion.peg_hole import R_DOWN, PegHole, tip_point
 
@@ -34,8 +33,26 @@ PERSON_RANGES = {"aside": (0.017, 0.020), "circle_radius": (0.0018, 0.0022), "ci
                  "v_insert": (0.008, 0.012)}
 
 
+def strategy_with(centre: float, params: dict[str, float], rotation_model: RotationModel | None = None) -> FeltStrategy:
+    """A :class:`FeltStrategy` with the :data:`PERSON_RANGES` parameters in ``params`` (others default).
+
+    Args:
+        centre: Distance (m) from the F/T sensor to the ball tip's centre.
+        params: Values of (some of) the :data:`PERSON_RANGES` keys.
+        rotation_model: The learned rotation (None: the reflex).
+
+    Returns:
+        The strategy.
+    """
+    d = FeltStrategy(centre=centre)
+    g = {k: float(params.get(k, getattr(d, k))) for k in PERSON_RANGES}
+    return FeltStrategy(centre=centre, aside=g["aside"], circle_radius=g["circle_radius"], circle_hz=g["circle_hz"],
+                        feel_push=g["feel_push"], k_align=g["k_align"], w_max=g["w_max"], v_insert=g["v_insert"],
+                        rotation_model=rotation_model)
+
+
 def demonstrate_felt(task: PegHole, rng: np.random.Generator, *, scene: HDDScene | None = None,
-                     person: Demonstrator = Demonstrator(), name: str = "", time_limit: float = 20.0,
+                     person: Demonstrator | None = None, name: str = "", time_limit: float = 20.0,
                      completion: float = 0.3) -> Demonstration:
     """One demonstration of the feel-align-insert strategy by the scripted person with the device.
 
@@ -48,7 +65,7 @@ def demonstrate_felt(task: PegHole, rng: np.random.Generator, *, scene: HDDScene
         task: The peg-hole task.
         rng: Generator of the person's variation, the start error, tremor and sensor noise.
         scene: The device scene (built from ``task`` when None).
-        person: The hand's impedance and noise.
+        person: The hand's impedance and noise (default :class:`Demonstrator`).
         name: Name of the demonstration.
         time_limit: Longest demonstration (s).
         completion: Hold after seating (s), labelled ``completion``.
@@ -59,10 +76,11 @@ def demonstrate_felt(task: PegHole, rng: np.random.Generator, *, scene: HDDScene
         into :data:`STAGES`, the drawn ``params``, ``seated``, ``normal_error_rad`` and the start errors.
     """
     scene = scene or HDDScene(task)
+    person = person or Demonstrator()
     tool = scene.tool
     dt = float(scene.model.opt.timestep)
     params = {k: float(rng.uniform(*b)) for k, b in PERSON_RANGES.items()}
-    strat = FeltStrategy(centre=tool.tip - tool.radius, **params)
+    strat = strategy_with(tool.tip - tool.radius, params)
     tilt = np.radians(rng.uniform(0.0, person.max_tilt_deg))
     phi = rng.uniform(0, 2 * np.pi)
     R = rotation_about(np.array([np.cos(phi), np.sin(phi), 0.0]), tilt) @ R_DOWN
@@ -90,7 +108,7 @@ def demonstrate_felt(task: PegHole, rng: np.random.Generator, *, scene: HDDScene
             w[3:] += person.torque_noise * rng.standard_normal(3)
             phase = 3 if seated_at is not None else STAGE_PHASE[strat.stage]
             if seated_at is None:
-                tw = strat(w, np.linalg.solve(T0, T))
+                tw = strat(w, np.asarray(np.linalg.solve(T0, T), float))
             else:
                 tw = np.zeros(5)
             ts.append(t)
@@ -236,4 +254,4 @@ class FeltSkill:
             A fresh :class:`FeltStrategy` (proprioceptive policy for :meth:`RobotCell.insert`).
         """
         p = {k: v for k, v in self.params_.items() if k not in ("k_align", "w_max")}
-        return replace(FeltStrategy(centre=centre), **p, rotation_model=self.predict)
+        return strategy_with(centre, p, self.predict)
