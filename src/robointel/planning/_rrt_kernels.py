@@ -114,13 +114,25 @@ def _length(P, npts, L):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def shortcut(P, npts, iters, W, Wr, T, C, G, out, thresh, lever, res):  # pragma: no cover - compiled
+def _edge2(q0, q1, W, T, C, G, out, thresh, lever, res, coarse):  # pragma: no cover - compiled
+    """``edge_valid`` at ``res``, after a pass at the coarser ``coarse`` that rejects most bad edges faster.
+
+    The coarse pass returns False only at a configuration below ``thresh``, so it never rejects an
+    edge that is valid; an edge is accepted only by the check at ``res``.
+    """
+    if coarse > res and not edge_valid(q0, q1, W, T, C, G, out, thresh, lever, coarse):
+        return False
+    return edge_valid(q0, q1, W, T, C, G, out, thresh, lever, res)
+
+
+@njit(cache=True)
+def shortcut(P, npts, iters, W, Wr, T, C, G, out, thresh, lever, res, coarse):  # pragma: no cover - compiled
     """Shorten the path P[:npts] in place.
 
     A greedy pass (each vertex joined to the farthest one
     it sees), then ``iters`` random shortcuts between points anywhere on the path. Returns the
     new vertex count. Edges from the first or to the last vertex are checked in world ``Wr``, all
-    others in ``W``.
+    others in ``W``; every edge at resolution ``res`` after a rejecting pass at ``coarse``.
     """
     n = P.shape[1]
     cap = P.shape[0]
@@ -131,8 +143,8 @@ def shortcut(P, npts, iters, W, Wr, T, C, G, out, thresh, lever, res):  # pragma
     i = 0
     while i < npts - 1:
         j = npts - 1
-        while j > i + 1 and not edge_valid(P[i], P[j], Wr if (i == 0 or j == npts - 1) else W, T, C, G, out,
-                                           thresh, lever, res):
+        while j > i + 1 and not _edge2(P[i], P[j], Wr if (i == 0 or j == npts - 1) else W, T, C, G, out,
+                                       thresh, lever, res, coarse):
             j -= 1
         Q[m] = P[j]
         m += 1
@@ -162,7 +174,7 @@ def shortcut(P, npts, iters, W, Wr, T, C, G, out, thresh, lever, res):  # pragma
         for k in range(n):
             qa[k] = P[s1, k] + f1 * (P[s1 + 1, k] - P[s1, k])
             qb[k] = P[s2, k] + f2 * (P[s2 + 1, k] - P[s2, k])
-        if not edge_valid(qa, qb, W, T, C, G, out, thresh, lever, res):
+        if not _edge2(qa, qb, W, T, C, G, out, thresh, lever, res, coarse):
             continue
         m = 0
         for r in range(s1 + 1):

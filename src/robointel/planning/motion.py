@@ -98,7 +98,8 @@ class MotionPlan:
         path: (k, n) geometric waypoints before timing, rad.
         plan_ms: wall time of the whole call, ms.
         timings: wall time per stage, ms.
-        min_clearance_m: smallest clearance of the checked trajectory, m (capped at d_min + 0.1).
+        min_clearance_m: smallest clearance of the checked trajectory, m (capped at d_min + 0.1;
+            see :class:`~robointel.planning.motion_check.DenseCheck`).
         goal_index: index of the goal reached in the goal set (-1 when none).
     """
 
@@ -331,7 +332,7 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     P[:len(path)] = path
     R.seed(int(st.seed) + 1 + 7 * attempt)
     m = R.shortcut(P, len(path), int(st.shortcut_iters), Wc, Wr, s.T, s.C, s.G, s.out, float(thr), env.lever,
-                   float(st.resolution))
+                   float(st.resolution), float(st.search_resolution))
     path = P[:m].copy()
     keep = np.concatenate([[True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-9])
     keep[-1] = True
@@ -398,7 +399,7 @@ def _warmup(env: Environment) -> None:
     R.rrt_connect(nodes, parent, count, env.robot.lower, env.robot.upper, 0, 1.0, W, W, count, s.T, s.C, s.G,
                   s.out, 0.0, env.lever, 0.01, np.zeros(2, np.int64))
     P = np.array([q, q + 1e-3 * (env.robot.upper - q)])
-    R.shortcut(P, 2, 0, W, W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
+    R.shortcut(P, 2, 0, W, W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, 0.02)
     K.edge_valid(P[0], P[1], W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
     K.samples_clearance(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1)
     K.samples_env_below(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0)

@@ -30,8 +30,10 @@ class DenseCheck:
         ok: every sample passed.
         reason: "" when ok, else the first failed property with its figure.
         kind: "collision", "limit" or "" when ok.
-        min_clearance_m: smallest clearance over the samples, m (exact below ``d_min + 0.01`` m,
-            else a lower bound; capped at ``d_min + 0.1`` m).
+        min_clearance_m: smallest clearance over the evaluated samples, m (capped at ``d_min + 0.1``
+            m). Exact when it is below ``d_min - CLEARANCE_TOL`` (the check fails); otherwise the
+            samples skipped by the travel bound are proven >= ``d_min - CLEARANCE_TOL`` and the true
+            minimum lies between that and this value.
         samples: number of samples checked.
     """
 
@@ -72,7 +74,7 @@ def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.A
     cap = d_min + 0.1
     s = env.scratch
     dmin, worst = K.samples_clearance(np.ascontiguousarray(Q), env.world, s.T, s.C, s.G, s.out, env.lever,
-                                      d_min + 0.01, cap)
+                                      d_min - CLEARANCE_TOL, cap)
     n = len(Q)
     if lo.size:
         k = int(lo[0])
@@ -103,7 +105,8 @@ def window_clearance(env: Environment, traj: Trajectory, W: tuple, t0: float, t1
         W: the packed world to check in (e.g. :attr:`Environment.world_cover`).
         t0: window start, s.
         t1: window end, s.
-        d_min: required clearance, m (sets the exactness floor as in :func:`check_dense`).
+        d_min: required clearance, m (as in :func:`check_dense`, the result is exact below
+            ``d_min - CLEARANCE_TOL``, else the samples skipped are proven >= that).
         dt: resampling step, s.
 
     Returns:
@@ -114,5 +117,5 @@ def window_clearance(env: Environment, traj: Trajectory, W: tuple, t0: float, t1
     if len(Q) == 0:
         return d_min + 0.1
     s = env.scratch
-    d, _ = K.samples_clearance(Q, W, s.T, s.C, s.G, s.out, env.lever, d_min + 0.01, d_min + 0.1)
+    d, _ = K.samples_clearance(Q, W, s.T, s.C, s.G, s.out, env.lever, d_min - CLEARANCE_TOL, d_min + 0.1)
     return float(d)

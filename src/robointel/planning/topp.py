@@ -166,18 +166,42 @@ def _sample(ts: np.ndarray, tg: np.ndarray, s: np.ndarray, sd: np.ndarray, u: np
     return max(rv, math.sqrt(ra))
 
 
+@njit(cache=True)
+def _merge_times(tg: np.ndarray, step: float, gap: float) -> np.ndarray:  # pragma: no cover - compiled
+    """The regular times k * step below tg[-1] not within ``gap`` of a grid time, merged with ``tg``."""
+    N = tg.shape[0]
+    T = tg[N - 1]
+    nreg = int(math.ceil(T / step)) + 1
+    out = np.empty(nreg + N)
+    m, j = 0, 0
+    for k in range(nreg):
+        t = k * step
+        if t >= T:
+            break
+        while j < N and tg[j] < t:  # grid times before t go first
+            out[m] = tg[j]
+            m += 1
+            j += 1
+        near = (j < N and tg[j] - t < gap) or (j > 0 and t - tg[j - 1] < gap)
+        if not near:
+            out[m] = t
+            m += 1
+    while j < N:
+        out[m] = tg[j]
+        m += 1
+        j += 1
+    return out[:m]
+
+
 def _times(tg: np.ndarray, dt: float) -> np.ndarray:
     """Sample times: every ``dt`` and at every grid time ``tg`` (where the acceleration switches).
 
     With a sample at every switch, each sample interval lies on one grid interval, where the motion
     is smooth, so an interpolation of the samples (a cubic Hermite through q, qd) keeps the
     accelerations of the schedule. Regular samples (every 0.95 dt) closer than dt / 25 to a grid
-    time are dropped, so no two samples are more than dt apart.
+    time are dropped, so no two samples are more than dt apart. ``tg`` must increase strictly.
     """
-    reg = np.arange(0.0, tg[-1], 0.95 * dt)
-    j = np.clip(np.searchsorted(tg, reg), 1, len(tg) - 1)
-    near = np.minimum(np.abs(reg - tg[j - 1]), np.abs(tg[j] - reg)) < dt / 25
-    return np.union1d(reg[~near], tg)
+    return _merge_times(np.ascontiguousarray(tg, dtype=float), 0.95 * dt, dt / 25)
 
 
 def topp_spline(path: npt.ArrayLike, vmax: npt.ArrayLike, amax: npt.ArrayLike, *, step: float = 0.1,
@@ -211,8 +235,8 @@ def topp_spline(path: npt.ArrayLike, vmax: npt.ArrayLike, amax: npt.ArrayLike, *
         raise InvalidInput("the path has no length", value=path)
     knots = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
     spline = CubicSpline(knots, P, bc_type="natural")
-    s = np.unique(np.concatenate([np.linspace(a, b, GRID_PER_KNOT, endpoint=False)
-                                  for a, b in zip(knots[:-1], knots[1:])] + [knots[-1:]]))
+    frac = np.arange(GRID_PER_KNOT) / GRID_PER_KNOT  # GRID_PER_KNOT points per knot interval
+    s = np.concatenate([(knots[:-1, None] + np.diff(knots)[:, None] * frac).ravel(), knots[-1:]])
     x, u, ok = topp_grid(s, spline(s, 1), spline(s, 2), GRID_MARGIN * vmax, GRID_MARGIN * amax)
     if not ok:
         raise InvalidInput("TOPP: the path admits no motion (a joint's derivative is not finite)", value=path)
