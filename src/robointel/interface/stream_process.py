@@ -63,27 +63,33 @@ class _CoreView:
     def running(self) -> bool:
         """True while the child runs and its core streams."""
         o = self._owner
-        return o.alive() and bool(o.read_state()["running"])
+        return o.alive() and bool(o.read_block()[_R["running"]])
 
     def get_snapshot(self) -> dict[str, Any]:
         """The core's snapshot as the child last published it (the keys ``FanucRobot`` reads)."""
         o = self._owner
-        s = o.read_state()
+        v = o.read_block().tolist()
         base = o.base_ns
-        snap: dict[str, Any] = {k: bool(s[k]) for k in ("e_stopped", "in_error", "tp_enabled", "motion_possible",
-                                                         "wrench_valid", "stalled", "refused")}
-        snap.update({k: int(s[k]) for k in ("mode", "fault", "cmd_tick", "active_motion_id",
-                                            "active_motion_status")})
-        rx_ns = base + int(round(float(s["rx_s"]) * 1e9))
+        snap: dict[str, Any] = {k: bool(v[_R[k]]) for k in _FLAGS}
+        snap.update({k: int(v[_R[k]]) for k in _INTS})
+        rx_ns = base + int(v[_R["rx_s"]] * 1e9)
         snap["rx_mono_ns"] = rx_ns
-        snap["tick_mono_ns"] = base + int(round(float(s["tick_s"]) * 1e9))
+        snap["tick_mono_ns"] = base + int(v[_R["tick_s"]] * 1e9)
         snap["rx_age_ms"] = (time.monotonic_ns() - rx_ns) * 1e-6
-        for k in ("q_meas", "qd_est", "q_cmd"):
-            snap[k] = s[k].tolist()
-        for k, v in zip(("fx", "fy", "fz", "mx", "my", "mz"), s["wrench"], strict=True):
-            snap[k] = float(v)
-        snap["stall_gap_s"] = float(s["stall_gap_s"])
+        for k in _VECTORS:
+            i = _R[k]
+            snap[k] = v[i:i + sc.NDOF]
+        i = _R["wrench"]
+        snap.update(zip(("fx", "fy", "fz", "mx", "my", "mz"), v[i:i + sc.NDOF], strict=True))
+        snap["stall_gap_s"] = v[_R["stall_gap_s"]]
         return snap
+
+
+_R = {name: sl.start - sc.S_OFF for name, sl in sc.STATE_INDEX.items()}
+"""Offset of each state field in the block :meth:`StreamProcess.read_block` returns."""
+_FLAGS = ("e_stopped", "in_error", "tp_enabled", "motion_possible", "wrench_valid", "stalled", "refused")
+_INTS = ("mode", "fault", "cmd_tick", "active_motion_id", "active_motion_status")
+_VECTORS = ("q_meas", "qd_est", "q_cmd")
 
 
 class _Handle:
@@ -159,16 +165,21 @@ class StreamProcess:
         """True while the child process runs."""
         return not self._closed and self._proc.poll() is None
 
-    def read_state(self) -> dict[str, npt.NDArray[np.float64]]:
-        """A consistent copy of the child's state block (seqlock read)."""
+    def read_block(self) -> npt.NDArray[np.float64]:
+        """A consistent copy of the child's state block (seqlock read; fields at ``stream_process._R``)."""
         b = self._buf
         for _ in range(1000):
             v0 = b[sc.H_VERSION]
             block = b[sc.S_OFF:sc.RING_OFF].copy()
             if v0 % 2 == 0 and b[sc.H_VERSION] == v0:
                 break
-        return {name: block[sl.start - sc.S_OFF:sl.stop - sc.S_OFF] if sl.stop - sl.start > 1
-                else block[sl.start - sc.S_OFF] for name, sl in sc.STATE_INDEX.items()}
+        return block
+
+    def read_state(self) -> dict[str, Any]:
+        """The child's state block by field name (a float, or an array for vectors)."""
+        block = self.read_block()
+        return {name: block[_R[name]:_R[name] + sl.stop - sl.start] if sl.stop - sl.start > 1
+                else float(block[_R[name]]) for name, sl in sc.STATE_INDEX.items()}
 
     def _reply(self, timeout: float, what: str) -> Any:
         if not self._conn.poll(timeout):
