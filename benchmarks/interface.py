@@ -267,6 +267,7 @@ def main() -> None:
     fake = EmulatorProcess()
     try:
         fan = _streaming_run(lambda: open_robot(fake.url, lookahead_s=args.lookahead), args.seconds)
+        n_proc = len(fake.call("violations"))
         inproc = (_streaming_run(lambda: open_robot(fake.url, stream_process=False), args.seconds)
                   if args.in_process else None)
         n_fan = len(fake.call("violations"))
@@ -276,7 +277,8 @@ def main() -> None:
     finally:
         violations = fake.close()
     peer_violations = violations[n_fan:n_fan + n_peer]  # the bare driver's session (its close included)
-    violations = violations[:n_fan] + violations[n_fan + n_peer:]
+    inproc_violations = violations[n_proc:n_fan]  # the in-process session's
+    violations = violations[:n_proc] + violations[n_fan + n_peer:]
     core = fan["core"]
     frmp, v2 = _frmp_run()
     sim = _streaming_run(lambda: SimRobot(paced=True, stall_periods=10), args.seconds)
@@ -290,6 +292,8 @@ def main() -> None:
         "fanuc_caller_late_cycles": fan["missed_cycles"], "fanuc_caller_late_over_100ms": fan["late_over_100ms"],
         "fanuc_load_avg_1min": fan["load_avg_1min"],
         "in_process_missed_cycles": inproc["missed_cycles"] if inproc else None,
+        "in_process_per_cycle_us": inproc["per_cycle_us"] if inproc else None,
+        "in_process_conformance_violations": len(inproc_violations),
         "in_process_max_late_ms": inproc["max_late_ms"] if inproc else None,
         "in_process_stall_stops": inproc["stall_stops"] if inproc else None,
         "in_process_load_avg_1min": inproc["load_avg_1min"] if inproc else None,
@@ -310,6 +314,7 @@ def main() -> None:
                                                                "tx_interval_max_ms", "double_send_guard",
                                                                "stream_submits")},
         "violations": violations + v2, "peer_violations": peer_violations,
+        "in_process_violations": inproc_violations,
     })
     print(json.dumps(out, indent=None if args.json else 1))
 
