@@ -3,6 +3,16 @@ in the simulated cell, with a planner running in another thread; e-stop reaction
 
     python benchmarks/interface.py --json [--seconds 60]
 
+A *missed cycle* on the FANUC is a controller window that got no fresh command from robointel: the
+streaming process (``FanucRobot(stream_process=True)``, the default) counts every window of a
+stream as fresh (a target interpolated at the tick's time, submitted before the tick), starved (the
+caller had not delivered a target for it: late by more than the look-ahead) or late (the streaming
+process itself submitted after the tick). ``fanuc_missed_cycles`` = starved + late. Windows the
+airo-fanuc core itself skipped (its real-time thread stalled by the machine) are reported apart
+(``fanuc_core_skipped_windows``). The same stream with the driver in the caller's process
+(``stream_process=False``, a target per ``stream()`` call) is measured in the same run: there a
+cycle is missed when ``stream()`` returned after the end of its period.
+
 The emulator (airo_fanuc.testing.FakeCRXController, strict conformance, 127.0.0.1) runs in a child
 process (robointel.interface.emulator) so that its Python real-time loop does not share our
 interpreter lock. Peer: the same
@@ -88,9 +98,12 @@ def _stream(send, targets, robot=None):
 
 
 def _streaming_run(make_robot, seconds, planner=True):
+    import os
+
     stop, counter = threading.Event(), [0]
     th = threading.Thread(target=_planner_thread, args=(stop, counter), daemon=True)
     robot = make_robot()
+    load0 = os.getloadavg()[0]
     try:
         if planner:
             th.start()
@@ -107,7 +120,8 @@ def _streaming_run(make_robot, seconds, planner=True):
         robot.close()
     return {"cycles": len(cyc), "missed_cycles": int(missed), "per_cycle_us": _stats(cyc),
             "planner_segments_meanwhile": counter[0], "core": extra, "max_late_ms": float(late.max()),
-            "stall_stops": len(stalls)}
+            "stall_stops": len(stalls), "late_over_100ms": int(np.sum(late > 100.0)),
+            "load_avg_1min": [load0, os.getloadavg()[0]]}
 
 
 FIFO = [True]
@@ -135,7 +149,7 @@ def _peer_run(url_fake, seconds):
 
     stop, counter = threading.Event(), [0]
     th = threading.Thread(target=_planner_thread, args=(stop, counter), daemon=True)
-    robot = FanucRobot("127.0.0.1", rmi_port=url_fake.rmi_port, sm_port=url_fake.sm_port)
+    robot = FanucRobot("127.0.0.1", rmi_port=url_fake.rmi_port, sm_port=url_fake.sm_port, stream_process=False)
     policy = robot.policy
     robot.close()
     drv = FanucDriver("127.0.0.1", policy)
@@ -161,25 +175,38 @@ def _estop_run(fake):
     robot = open_robot(fake.url)
     try:
         targets = _targets(robot.state().q, 3.0)
-        t0, t_press, err = time.perf_counter(), None, None
+        t0, t_press, err, submits0 = time.perf_counter(), None, None, 0
         for k in range(len(targets)):
             sleep_until(t0 + k * PERIOD)
             if k == 150:
                 t_press = fake.timed("press_estop")[1]
+                submits0 = _submits(robot)
             try:
                 robot.stream(targets[k])
             except ControllerFault as exc:
                 err = exc
                 break
+        time.sleep(0.2)
         after = [t for t in robot.sent_times if t > t_press]
         st = robot.state()
-        out = {"estop_to_last_command_ms": (max(after) - t_press) * 1e3 if after else 0.0,
-               "commands_after_estop": len(after), "raised": type(err).__name__ if err else None,
-               "state_mode": st.mode.value, "state_why": st.why_stopped}
+        if robot.stream_process:  # what reached the core: the streaming process's submissions
+            last = robot.driver.last_submit_ns() * 1e-9
+            out = {"estop_to_last_command_ms": max(0.0, last - t_press) * 1e3,
+                   "commands_after_estop": _submits(robot) - submits0, "targets_accepted_after_estop": len(after)}
+        else:
+            out = {"estop_to_last_command_ms": (max(after) - t_press) * 1e3 if after else 0.0,
+                   "commands_after_estop": len(after)}
+        out.update({"raised": type(err).__name__ if err else None, "state_mode": st.mode.value,
+                    "state_why": st.why_stopped})
     finally:
         robot.close()
     fake.call("release_estop")
     return out
+
+
+def _submits(robot):
+    """Targets the streaming process has submitted to the core so far."""
+    return int(robot.driver.read_state()["submits"])
 
 
 def _frmp_run():
@@ -220,6 +247,10 @@ def main() -> None:
                     help="sys.setswitchinterval for this process (the interpreter lock hand-over), s")
     ap.add_argument("--fifo", action=argparse.BooleanOptionalAction, default=True,
                     help="stream from a SCHED_FIFO thread (needs CAP_SYS_NICE; else normal priority)")
+    ap.add_argument("--lookahead", type=float, default=0.1,
+                    help="look-ahead of the FANUC streaming process, s (FanucRobot(lookahead_s=...))")
+    ap.add_argument("--in-process", action=argparse.BooleanOptionalAction, default=True,
+                    help="also stream with the driver in this process (stream_process=False)")
     args = ap.parse_args()
     FIFO[0], SWITCH[0] = args.fifo, args.switch_interval
     import os
@@ -227,14 +258,18 @@ def main() -> None:
     from robointel.interface import open_robot
     from robointel.interface.sim import SimRobot
 
-    out: dict = {"seconds": args.seconds, "streaming_thread_fifo": args.fifo, "period_ms": PERIOD * 1e3,
+    out: dict = {"seconds": args.seconds, "lookahead_s": args.lookahead, "streaming_thread_fifo": args.fifo,
+                 "period_ms": PERIOD * 1e3,
                  "switch_interval_s": args.switch_interval,
                  "process_policy": {os.SCHED_OTHER: "SCHED_OTHER", os.SCHED_RR: "SCHED_RR",
                                     os.SCHED_FIFO: "SCHED_FIFO"}.get(os.sched_getscheduler(0), "other"),
                  "process_nice": os.nice(0), "load_avg_1min_at_start": os.getloadavg()[0]}
     fake = EmulatorProcess()
     try:
-        fan = _streaming_run(lambda: open_robot(fake.url), args.seconds)
+        fan = _streaming_run(lambda: open_robot(fake.url, lookahead_s=args.lookahead), args.seconds)
+        n_proc = len(fake.call("violations"))
+        inproc = (_streaming_run(lambda: open_robot(fake.url, stream_process=False), args.seconds)
+                  if args.in_process else None)
         n_fan = len(fake.call("violations"))
         peer = _peer_run(fake, args.seconds)
         n_peer = len(fake.call("violations")) - n_fan
@@ -242,11 +277,26 @@ def main() -> None:
     finally:
         violations = fake.close()
     peer_violations = violations[n_fan:n_fan + n_peer]  # the bare driver's session (its close included)
-    violations = violations[:n_fan] + violations[n_fan + n_peer:]
+    inproc_violations = violations[n_proc:n_fan]  # the in-process session's
+    violations = violations[:n_proc] + violations[n_fan + n_peer:]
+    core = fan["core"]
     frmp, v2 = _frmp_run()
     sim = _streaming_run(lambda: SimRobot(paced=True, stall_periods=10), args.seconds)
     out.update({
-        "fanuc_cycles": fan["cycles"], "fanuc_missed_cycles": fan["missed_cycles"],
+        "fanuc_cycles": fan["cycles"],
+        "fanuc_missed_cycles": int(core["stream_starved"] + core["stream_late"]),
+        "fanuc_windows": core["stream_windows"], "fanuc_fresh_windows": core["stream_fresh"],
+        "fanuc_starved_windows": core["stream_starved"], "fanuc_late_windows": core["stream_late"],
+        "fanuc_core_skipped_windows": core.get("skipped_tick_windows"),
+        "fanuc_lookahead_ms": core["lookahead_s"] * 1e3,
+        "fanuc_caller_late_cycles": fan["missed_cycles"], "fanuc_caller_late_over_100ms": fan["late_over_100ms"],
+        "fanuc_load_avg_1min": fan["load_avg_1min"],
+        "in_process_missed_cycles": inproc["missed_cycles"] if inproc else None,
+        "in_process_per_cycle_us": inproc["per_cycle_us"] if inproc else None,
+        "in_process_conformance_violations": len(inproc_violations),
+        "in_process_max_late_ms": inproc["max_late_ms"] if inproc else None,
+        "in_process_stall_stops": inproc["stall_stops"] if inproc else None,
+        "in_process_load_avg_1min": inproc["load_avg_1min"] if inproc else None,
         "conformance_violations": len(violations) + len(v2), "peer_conformance_violations": len(peer_violations),
         "estop_to_last_command_ms": est["estop_to_last_command_ms"],
         "per_cycle_us": fan["per_cycle_us"],
@@ -261,8 +311,10 @@ def main() -> None:
         "planner_segments_during_sim_stream": sim["planner_segments_meanwhile"],
         "fanuc_core_timing": {k: fan["core"].get(k) for k in ("tx_count", "tick_count", "skipped_tick_windows",
                                                                "missed_rx_ticks", "tx_interval_p99_ms",
-                                                               "tx_interval_max_ms", "double_send_guard")},
+                                                               "tx_interval_max_ms", "double_send_guard",
+                                                               "stream_submits")},
         "violations": violations + v2, "peer_violations": peer_violations,
+        "in_process_violations": inproc_violations,
     })
     print(json.dumps(out, indent=None if args.json else 1))
 

@@ -107,6 +107,7 @@ class Backend:
         self._watch_stop = threading.Event()
         self._watch: threading.Thread | None = None
         self._stall_check = True  # off while a backend's own deadman supervises (fanuc execute)
+        self._stall_extra_s = 0.0  # added to the stall limit: a backend that plays targets later (look-ahead)
         self.sent_times: list[float] = []
         """Wall (``time.perf_counter``) times of every command that reached the backend."""
 
@@ -362,7 +363,8 @@ class Backend:
         :data:`MONITOR_PERIODS` periods without a stall watchdog.
         """
         period = self.period
-        limit = self.stall_periods * period if self.stall_periods is not None else MONITOR_PERIODS * period
+        limit = (self.stall_periods * period + self._stall_extra_s if self.stall_periods is not None
+                 else MONITOR_PERIODS * period)
         timeout = limit
         while not self._watch_stop.wait(timeout):
             timeout = limit

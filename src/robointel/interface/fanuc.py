@@ -1,7 +1,10 @@
 """The ``fanuc`` backend: a FANUC controller over Stream Motion + RMI through ``airo-fanuc``.
 
 Targets go out with ``FanucDriver.servo_j(q, period)`` (the driver's compiled real-time core owns
-the 8 ms Stream Motion timeline). The controller is polled every period by the interface's
+the 8 ms Stream Motion timeline). By default the driver runs in a streaming process of its own
+(:class:`~robointel.interface.stream_process.StreamProcess`) that plays the streamed targets at the
+controller's ticks ``lookahead_s`` after they arrive, so the caller's interpreter lock (a planner
+thread) cannot delay a controller window. The controller is polled every period by the interface's
 watchdog thread and before every target: an e-stop, an alarm or a lost status stream stops
 commanding at once (``stop_j``), and the next call raises :class:`~robointel.errors.ControllerFault`
 (:class:`~robointel.errors.ConnectionLost` for a lost link) with the last known state. The
@@ -25,10 +28,14 @@ from robointel.interface.profile import lrmate_profile
 from robointel.interface.protocol import CycleCallback
 from robointel.interface.realtime import realtime_thread
 from robointel.interface.state import RobotMode, RobotState
+from robointel.interface.stream_child import stop_core_between_ticks
+from robointel.interface.stream_process import StreamProcess
 from robointel.trajectory import Trajectory
 
 DEFAULT_RMI_PORT = 16001
 DEFAULT_SM_PORT = 60015
+DEFAULT_LOOKAHEAD_S = 0.1
+"""Look-ahead of the streaming process, s (docs/decisions.md: the caller's stalls under load)."""
 STALE_STATUS_PERIODS = 12
 """Status older than this many periods counts as a lost connection (the core's own RX-silence hold
 starts earlier)."""
@@ -53,12 +60,19 @@ class FanucRobot(Backend):
         sched_fifo: run the driver's 125 Hz real-time thread under ``SCHED_FIFO`` (ignored without
             the privilege, ``CAP_SYS_NICE``), so a loaded machine does not delay its packets.
         gripper: bring the gripper dispatcher up too (``driver.gripper``; see
-            :class:`~robointel.interface.gripper.FanucGripper`).
+            :class:`~robointel.interface.gripper.FanucGripper`); the driver then runs in this
+            process (``stream_process`` is ignored).
         ft_sensor: the wrist F/T sensor whose wrench the state reports when Stream Motion carries
             none (a :class:`~robointel.interface.ft_sensor.WrenchSource`, or a ``netft://HOST[:PORT]``
             URL opened here and closed with the robot); None: no wrench (lead-through is refused).
+        stream_process: run the driver in a streaming process of its own, fed through a look-ahead
+            queue (:class:`~robointel.interface.stream_process.StreamProcess`); False: in this process,
+            each target submitted by the caller's thread as it comes.
+        lookahead_s: the streaming process plays a target this long after it arrived, s: a stall of
+            the streaming caller shorter than this costs no controller window; it is added latency.
 
     Raises:
+        InvalidInput: a bad look-ahead, stall count or profile.
         ConnectionLost: bring-up failed (the controller is unreachable or refuses motion).
     """
 
@@ -66,7 +80,8 @@ class FanucRobot(Backend):
                  profile: RobotProfile | None = None, robot: Any = None, stall_periods: int | None = 10,
                  recorder: Recorder | None = None, connect_timeout: float = 5.0,
                  lock_path: str | None = None, deadman_s: float = 0.5, sched_fifo: bool = True,
-                 gripper: bool = False, ft_sensor: WrenchSource | str | None = None) -> None:
+                 gripper: bool = False, ft_sensor: WrenchSource | str | None = None, stream_process: bool = True,
+                 lookahead_s: float = DEFAULT_LOOKAHEAD_S) -> None:
         if robot is None:
             from robointel.robot import Robot
 
@@ -96,10 +111,27 @@ class FanucRobot(Backend):
             raise InvalidInput("ft_sensor must have a read() method returning a (6,) wrench", value=ft_sensor)
         self._snap: dict[str, Any] = {}
         self._last_state: RobotState | None = None
+        self.stream_process = bool(stream_process) and not gripper
+        if not (np.isfinite(lookahead_s) and 0 < lookahead_s <= 1.0):
+            raise InvalidInput(f"lookahead_s must be in (0, 1] s, got {lookahead_s}", value=lookahead_s)
+        self.lookahead_s = float(lookahead_s) if self.stream_process else 0.0
+        self._stall_extra_s = self.lookahead_s  # a target is played lookahead_s after it arrived
+        self.rmi_port = int(rmi_port)
+        self.driver: Any = self._open_driver()
+
+    def _open_driver(self) -> Any:
+        """Bring up a driver session (in the streaming process or here).
+
+        Raises:
+            ConnectionLost: the controller cannot be brought up.
+        """
         try:
-            self.driver = FanucDriver(host, self.policy)
+            if self.stream_process:
+                return StreamProcess(self.host, self.policy, period=self.period, lookahead_s=self.lookahead_s,
+                                     stall_periods=self.stall_periods if self.stall_periods is not None else 10**9)
+            return FanucDriver(self.host, self.policy)
         except FanucError as exc:
-            raise ConnectionLost(f"could not bring up the FANUC controller at {host}:{rmi_port}: {exc}",
+            raise ConnectionLost(f"could not bring up the FANUC controller at {self.host}:{self.rmi_port}: {exc}",
                                  reason=str(exc)) from exc
 
     # ------------------------------------------------------------------ backend hooks
@@ -157,10 +189,17 @@ class FanucRobot(Backend):
             faults.append(fault.name.lower())
         if not s.get("motion_possible", False):
             faults.append("motion_not_possible")
+        if s.get("refused") and not faults:
+            faults.append("faulted")
+        if not faults and s.get("stalled"):
+            why = (f"command stream stalled: no target to play for {float(s.get('stall_gap_s', 0.0)) * 1e3:.0f} ms "
+                   f"(> {self.stall_periods} periods; the look-ahead is {self.lookahead_s * 1e3:.0f} ms)")
+            return RobotMode.STOPPED, why, ("stream_stalled",)
         if not faults:
             return None
         why = {"e_stop": "e-stop pressed", "in_error": "controller alarm (in error)",
-               "teach_pendant_enabled": "teach pendant enabled"}.get(faults[0], faults[0].replace("_", " "))
+               "teach_pendant_enabled": "teach pendant enabled",
+               "faulted": "controller refused motion"}.get(faults[0], faults[0].replace("_", " "))
         return RobotMode.FAULTED, f"controller stopped: {why} [{', '.join(faults)}]", tuple(faults)
 
     def _needs_monitor(self) -> bool:
@@ -195,43 +234,20 @@ class FanucRobot(Backend):
 
     def _close(self) -> None:
         try:
-            self._stop_core_between_ticks()
+            if not self.stream_process:  # the streaming process does this itself
+                self._stop_core_between_ticks()
             self.driver.close()
         finally:
             if self._owns_ft and self.ft_sensor is not None:
                 self.ft_sensor.close()  # type: ignore[attr-defined]
 
-    def _stop_core_between_ticks(self, attempts: int = 25) -> None:
-        """End the Stream Motion session with its terminal packet in the middle of a tick window.
+    def _stop_core_between_ticks(self) -> None:
+        """End the Stream Motion session between two ticks (``stream_child.stop_core_between_ticks``).
 
-        ``FanucDriver.close`` ends the session from the calling thread (terminal command, Stop
-        packet) while the core's real-time thread may be sending its own command for the same
-        window: the controller then sees two commands microseconds apart (a strict-conformance
-        double send, measured in 6 of 40 closes at load 24). Here the core is quiesced
-        (``stop_j``) and stopped just after one of its ticks, half a period before the next.
+        ``FanucDriver.close`` alone may double-send (measured in 6 of 40 closes at load 24).
         """
-        core = self.driver.core
-        if core is None or not core.running:
-            return
-        self.driver.stop_j()
-        period_ns = int(self.period * 1e9)
         with realtime_thread(freeze_gc=False):
-            last = _tick_ns(core)
-            for _ in range(attempts):
-                while True:  # wait for the next tick
-                    tick = _tick_ns(core)
-                    if tick != last or time.monotonic_ns() - last > 4 * period_ns:
-                        break
-                    time.sleep(0.0002)
-                last = tick
-                mid = tick + period_ns // 2
-                now = time.monotonic_ns()
-                if now > mid - period_ns // 4:
-                    continue  # woke too late in this window: take the next one
-                sleep_until(time.perf_counter() + (mid - now) * 1e-9)
-                if time.monotonic_ns() < tick + 3 * period_ns // 4:
-                    break
-        core.stop()
+            stop_core_between_ticks(self.driver, self.period)
 
     def _commanded(self) -> npt.NDArray[np.float64] | None:
         self._read()
@@ -347,8 +363,8 @@ class FanucRobot(Backend):
             except FanucError:
                 pass  # the old session is gone either way
             try:
-                self.driver = FanucDriver(self.host, self.policy)
-            except FanucError as exc:
+                self.driver = self._open_driver()
+            except ConnectionLost as exc:
                 self._latch_fault(RobotMode.DISCONNECTED, f"reconnect failed: {exc}", ("disconnected",))
                 raise ConnectionLost(self._why, value=self._read(), reason=self._why) from exc
             self._mode, self._why, self._faults, self._last_cmd = RobotMode.IDLE, "", (), None
@@ -358,6 +374,3 @@ class FanucRobot(Backend):
         return dict(self.driver.timing_stats())
 
 
-def _tick_ns(core: Any) -> int:
-    """CLOCK_MONOTONIC time of the core's last tick (command sent), ns."""
-    return int(core.get_snapshot()["tick_mono_ns"])

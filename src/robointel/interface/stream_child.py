@@ -1,0 +1,375 @@
+"""The FANUC streaming process: owns the airo-fanuc driver and plays time-stamped targets at the ticks.
+
+This file runs as a script in a child process (see :mod:`robointel.interface.stream_process`, which
+starts it and talks to it). It imports only the standard library, numpy and ``airo_fanuc``: the
+child has its own interpreter lock, so a planner thread in the caller's process can never hold it.
+
+The caller's process writes joint targets into a ring in shared memory, each stamped with the time
+it is to be played (its *slot*: arrival + the look-ahead, then one period apart). Once per
+controller tick (the core's ``cmd_tick``) this process interpolates the targets linearly at the next
+tick's time and submits the result with ``servo_j``. A controller window is *fresh* when a target
+with a slot at or after its time was there to interpolate; it is *starved* when the caller had not
+delivered one (its lateness exceeded the look-ahead), and *late* when this process itself submitted
+after the tick. The state of the core (snapshot), the counters and a stall flag go back through a
+seqlock block in the same shared memory.
+"""
+from __future__ import annotations
+
+import gc
+import math
+import mmap
+import os
+import sys
+import time
+from multiprocessing.connection import Connection
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+NDOF = 6
+RING = 1024
+"""Ring capacity, targets (8.2 s at 8 ms)."""
+
+H_WRITE, H_CUT, H_HOLD, H_READ, H_VERSION, H_HOLD_GEN = 0, 1, 2, 3, 4, 5
+"""Header slots: targets written (caller), discard below this index (caller, on stop), targets
+written when the last hold was asked (caller), targets consumed (child), state seqlock version
+(child), holds asked so far (caller)."""
+
+STATE_FIELDS: tuple[tuple[str, int], ...] = (
+    ("published_s", 1), ("rx_s", 1), ("tick_s", 1), ("cmd_tick", 1), ("mode", 1), ("fault", 1),
+    ("e_stopped", 1), ("in_error", 1), ("tp_enabled", 1), ("motion_possible", 1), ("wrench_valid", 1),
+    ("running", 1), ("active_motion_id", 1), ("active_motion_status", 1),
+    ("q_meas", NDOF), ("qd_est", NDOF), ("q_cmd", NDOF), ("wrench", NDOF),
+    ("stalled", 1), ("stall_gap_s", 1), ("refused", 1),
+    ("windows", 1), ("fresh", 1), ("starved", 1), ("late", 1), ("submits", 1), ("last_submit_s", 1),
+)
+"""The state block: name and length. Times are seconds after the session's base (CLOCK_MONOTONIC)."""
+
+S_OFF = 8
+STATE_INDEX: dict[str, slice] = {}
+_o = S_OFF
+for _name, _n in STATE_FIELDS:
+    STATE_INDEX[_name] = slice(_o, _o + _n)
+    _o += _n
+RING_OFF = _o
+SLOT_WIDTH = 1 + NDOF
+SHM_DOUBLES = RING_OFF + RING * SLOT_WIDTH
+SHM_BYTES = SHM_DOUBLES * 8
+PRIORITY = 45
+"""SCHED_FIFO priority of this process's main thread (below the core's 80, above a streaming thread's 40)."""
+
+_SNAP_SCALARS = ("cmd_tick", "mode", "fault", "e_stopped", "in_error", "tp_enabled", "motion_possible",
+                 "wrench_valid", "active_motion_id", "active_motion_status")
+
+
+class Player:
+    """Plays the targets of the ring at the controller's ticks (runs in the streaming process).
+
+    Args:
+        buf: the (SHM_DOUBLES,) shared array.
+        base_ns: CLOCK_MONOTONIC origin of every time in ``buf``, ns.
+        period: controller period, s.
+        stall_periods: stop the robot after this many consecutive starved windows.
+        driver: the ``FanucDriver`` (anything with ``servo_j``, ``hold``, ``stop_j``, ``core``).
+    """
+
+    def __init__(self, buf: npt.NDArray[np.float64], base_ns: int, period: float, stall_periods: int,
+                 driver: Any) -> None:
+        self.buf, self.base_ns, self.period = buf, int(base_ns), float(period)
+        self.stall_periods, self.driver = int(stall_periods), driver
+        self.pending: list[tuple[int, float, npt.NDArray[np.float64]]] = []
+        self.active = False
+        self.hold_gen = 0
+        self.last_tick = -1
+        self.consec_starved = 0
+        self._read_upto = 0
+        self.counters = {"windows": 0, "fresh": 0, "starved": 0, "late": 0, "submits": 0, "last_submit_s": 0.0,
+                         "stalled": 0, "stall_gap_s": 0.0, "refused": 0}
+
+    def rel(self, ns: int) -> float:
+        """Seconds after the base."""
+        return (int(ns) - self.base_ns) * 1e-9
+
+    # ------------------------------------------------------------------ shared memory
+    def publish(self, snap: dict[str, Any], running: bool) -> None:
+        """Write the core's snapshot and the counters into the seqlock block."""
+        b, ix = self.buf, STATE_INDEX
+        b[H_VERSION] += 1  # odd: writing
+        b[ix["published_s"]] = self.rel(time.monotonic_ns())
+        b[ix["rx_s"]] = self.rel(int(snap.get("rx_mono_ns", 0)))
+        b[ix["tick_s"]] = self.rel(int(snap.get("tick_mono_ns", 0)))
+        for k in _SNAP_SCALARS:
+            b[ix[k]] = float(snap.get(k, 0))
+        b[ix["running"]] = float(running)
+        for k in ("q_meas", "qd_est", "q_cmd"):
+            b[ix[k]] = snap.get(k, [0.0] * NDOF)
+        b[ix["wrench"]] = [float(snap.get(k, 0.0)) for k in ("fx", "fy", "fz", "mx", "my", "mz")]
+        for k, v in self.counters.items():
+            b[ix[k]] = v
+        b[H_READ] = float(self._read_upto)
+        b[H_VERSION] += 1  # even: consistent
+
+    def consume(self) -> None:
+        """Move the targets the caller wrote since the last call into ``pending`` (dropping cut ones)."""
+        b = self.buf
+        w, cut = int(b[H_WRITE]), int(b[H_CUT])
+        for idx in range(max(self._read_upto, cut), w):
+            o = RING_OFF + (idx % RING) * SLOT_WIDTH
+            self.pending.append((idx, float(b[o]), np.array(b[o + 1:o + SLOT_WIDTH])))
+        self._read_upto = max(self._read_upto, w)
+        if cut > 0 and self.pending and self.pending[0][0] < cut:
+            self.pending = [p for p in self.pending if p[0] >= cut]
+
+    def discard(self) -> None:
+        """Drop every pending target and end the segment (a stop, a fault, a trajectory)."""
+        self.consume()
+        self.pending.clear()
+        self.active = False
+        self.consec_starved = 0
+
+    # ------------------------------------------------------------------ one controller window
+    def serve(self, snap: dict[str, Any]) -> None:
+        """Called once per new core tick: submit the interpolated target for the next tick."""
+        tick = int(snap["cmd_tick"])
+        self.consume()
+        if _faulted(snap):
+            if self.active or self.pending:
+                self.discard()
+                self.driver.stop_j()
+            self.last_tick = tick
+            return
+        tau = self.rel(int(snap["tick_mono_ns"])) + self.period  # the next tick's time
+        gen, hold_at = int(self.buf[H_HOLD_GEN]), int(self.buf[H_HOLD])
+        hold = gen > self.hold_gen  # a hold after the target hold_at - 1 is pending
+        seg_end = hold_at - 1 if hold else math.inf
+        seg = [p for p in self.pending if p[0] <= seg_end]
+        if not self.active:
+            if seg and seg[0][1] <= tau + 1e-9:
+                self.active = True
+                self.last_tick = tick - 1
+            elif hold and not seg:
+                self._hold(gen, hold_at)
+            if not self.active:
+                self.last_tick = tick
+                return
+        c = self.counters
+        gap = tick - self.last_tick
+        if gap > 1:  # this process slept through whole windows: no fresh command went into them
+            c["late"] += gap - 1
+            c["windows"] += gap - 1
+        self.last_tick = tick
+        if not seg:  # the segment ended with a hold
+            self._hold(gen, hold_at)
+            return
+        while len(seg) >= 2 and seg[1][1] <= tau + 1e-9:
+            seg.pop(0)
+            self.pending.pop(0)
+        a = seg[0]
+        if len(seg) >= 2:
+            b_ = seg[1]
+            s = min(1.0, max(0.0, (tau - a[1]) / (b_[1] - a[1])))
+            q = a[2] + (b_[2] - a[2]) * s
+        elif a[1] >= tau - 1e-9:
+            q = a[2]
+        elif hold:  # the last target before a hold has been played
+            self._hold(gen, hold_at)
+            return
+        else:  # starved: the caller has not delivered the target for this window
+            c["windows"] += 1
+            c["starved"] += 1
+            self.consec_starved += 1
+            if self.consec_starved >= self.stall_periods:
+                self.driver.stop_j()
+                c["stalled"], c["stall_gap_s"] = 1, tau - a[1]
+                self.discard()
+            return  # the servo keeps heading for the last target
+        c["windows"] += 1
+        c["fresh"] += 1
+        self.consec_starved = 0
+        self._submit(q, tick)
+
+    def _hold(self, gen: int, hold_at: int) -> None:
+        self.pending = [p for p in self.pending if p[0] >= hold_at]
+        self.hold_gen = gen
+        self.active = False
+        self.consec_starved = 0
+        self.driver.hold()
+
+    def _submit(self, q: npt.NDArray[np.float64], tick: int) -> None:
+        from airo_fanuc.exceptions import FanucError
+
+        c = self.counters
+        try:
+            self.driver.servo_j(q, self.period)
+        except FanucError:
+            c["refused"] = 1
+            self.discard()
+            return
+        now = time.monotonic_ns()
+        c["submits"] += 1
+        c["last_submit_s"] = self.rel(now)
+        after = int(self.driver.core.get_snapshot()["cmd_tick"])
+        if after != tick:  # the tick this target was for went out before it arrived
+            c["late"] += 1
+            c["fresh"] -= 1
+            self.last_tick = after
+
+
+def _faulted(snap: dict[str, Any]) -> bool:
+    """True when the controller or the core reports anything that forbids motion."""
+    return bool(snap.get("e_stopped") or snap.get("in_error") or snap.get("tp_enabled")
+                or int(snap.get("fault", 0)) != 0 or not snap.get("motion_possible", False))
+
+
+def stop_core_between_ticks(driver: Any, period: float, attempts: int = 25) -> None:
+    """End the Stream Motion session with its terminal packet in the middle of a tick window.
+
+    ``FanucDriver.close`` ends the session from the calling thread while the core's real-time
+    thread may send its own command for the same window (a strict-conformance double send). The
+    core is quiesced (``stop_j``), and stopped just after one of its ticks, half a period before
+    the next.
+
+    Args:
+        driver: the ``FanucDriver``.
+        period: controller period, s.
+        attempts: windows to try before stopping anyway.
+    """
+    core = driver.core
+    if core is None or not core.running:
+        return
+    driver.stop_j()
+    period_ns = int(period * 1e9)
+    last = int(core.get_snapshot()["tick_mono_ns"])
+    for _ in range(attempts):
+        while True:  # wait for the next tick
+            tick = int(core.get_snapshot()["tick_mono_ns"])
+            if tick != last or time.monotonic_ns() - last > 4 * period_ns:
+                break
+            time.sleep(0.0002)
+        last = tick
+        mid = tick + period_ns // 2
+        now = time.monotonic_ns()
+        if now > mid - period_ns // 4:
+            continue  # woke too late in this window: take the next one
+        rem = (mid - now) * 1e-9
+        if rem > 0.0003:
+            time.sleep(rem - 0.0003)
+        while time.monotonic_ns() < mid:
+            pass
+        if time.monotonic_ns() < tick + 3 * period_ns // 4:
+            break
+    core.stop()
+
+
+def _set_fifo(priority: int) -> None:
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (PermissionError, OSError):
+        pass
+
+
+def serve_forever(conn: Connection, buf: npt.NDArray[np.float64], driver: Any, base_ns: int, period: float,
+                  stall_periods: int) -> None:
+    """The streaming process's loop: one :meth:`Player.serve` per tick, requests from the caller between.
+
+    Returns when the caller asks to close or its end of the connection is gone (it died): the core
+    is stopped between ticks and the driver closed either way.
+    """
+    player = Player(buf, base_ns, period, stall_periods, driver)
+    handles: dict[int, Any] = {}
+    core = driver.core
+    seen = -1
+    try:
+        while True:
+            running = core is not None and core.running
+            snap = core.get_snapshot() if core is not None else {}
+            if running and int(snap["cmd_tick"]) != seen:
+                player.serve(snap)
+                snap = core.get_snapshot()
+                seen = int(snap["cmd_tick"])
+            player.publish(snap, running)
+            if running:  # wake 0.3 ms after the next tick, and every 2 ms to publish the state
+                nxt = int(snap["tick_mono_ns"]) + int(period * 1e9) + 300_000
+                wait = min(0.002, max(0.0002, (nxt - time.monotonic_ns()) * 1e-9))
+            else:
+                wait = period
+            if not conn.poll(wait):
+                continue
+            try:
+                name, args, kwargs, reply = conn.recv()
+            except (EOFError, OSError):
+                return  # the caller is gone
+            if name == "close":
+                break
+            try:
+                value = _request(name, args, kwargs, driver, player, handles, core)
+                if reply:
+                    conn.send((True, value))
+            except Exception as exc:  # reported to the caller; the stream goes on
+                if reply:
+                    conn.send((False, (type(exc).__name__, str(exc))))
+    finally:
+        try:
+            stop_core_between_ticks(driver, period)
+        finally:
+            driver.close()
+            player.publish(core.get_snapshot() if core is not None else {}, False)
+    conn.send((True, None))
+
+
+def _request(name: str, args: tuple, kwargs: dict, driver: Any, player: Player, handles: dict[int, Any],
+             core: Any) -> Any:
+    """Carry out one request of the caller (see :class:`~robointel.interface.stream_process.StreamProcess`)."""
+    if name == "kick":
+        driver.kick()
+        return None
+    if name == "stop_j":
+        player.discard()
+        driver.stop_j()
+        return None
+    if name == "recover":
+        player.discard()
+        player.counters.update(stalled=0, stall_gap_s=0.0, refused=0)
+        ok = driver.recover(escalate_reconnect=False)
+        driver.arm()
+        return bool(ok)
+    if name == "move_trajectory":
+        player.discard()
+        h = driver.move_trajectory(*args, **kwargs)
+        handles[h.motion_id] = h
+        return h.motion_id
+    if name == "motion_done":
+        return bool(handles[args[0]].done())
+    if name == "motion_result":
+        r = handles[args[0]].result()
+        return None if r is None else r.value
+    if name == "timing_stats":
+        return dict(driver.timing_stats())
+    raise ValueError(f"unknown request {name!r}")
+
+
+def main(conn_fd: int, shm_fd: int) -> None:
+    """Entry point of the child: bring the driver up, report, serve until closed."""
+    from airo_fanuc import FanucDriver
+    from airo_fanuc.exceptions import FanucError
+
+    conn = Connection(conn_fd)
+    mm = mmap.mmap(shm_fd, SHM_BYTES)
+    buf = np.frombuffer(mm, dtype=np.float64)
+    host, policy, base_ns, period, stall_periods = conn.recv()
+    try:
+        driver = FanucDriver(host, policy)
+    except FanucError as exc:
+        conn.send((False, (type(exc).__name__, str(exc))))
+        return
+    _set_fifo(PRIORITY)  # after bring-up: the driver's own threads keep their policy
+    gc.collect()
+    gc.freeze()
+    sys.setswitchinterval(0.0005)
+    conn.send((True, None))
+    serve_forever(conn, buf, driver, base_ns, period, stall_periods)
+
+
+if __name__ == "__main__":
+    main(int(sys.argv[1]), int(sys.argv[2]))

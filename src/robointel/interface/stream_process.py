@@ -1,0 +1,323 @@
+"""The FANUC driver in a streaming process of its own, fed through a look-ahead queue in shared memory.
+
+A Python thread that streams one target per 8 ms shares its interpreter lock with every other
+thread of its process; a planner thread holding the lock while the kernel preempts it delays the
+stream by a scheduling latency (docs/decisions.md). :class:`StreamProcess` moves the per-tick work
+out of the caller's interpreter: the ``airo-fanuc`` driver and its real-time core live in a child
+process (:mod:`robointel.interface.stream_child`), and each target the caller streams is stamped
+with the time it is to be played, ``lookahead_s`` after it arrived (then one period after the
+previous one), and written into a ring in shared memory. At each controller tick the child
+interpolates the targets at the tick's time and submits the result, so a stall of the caller
+shorter than the look-ahead costs no controller window; the price is ``lookahead_s`` of added
+latency between a target and its command.
+
+The class offers the part of ``FanucDriver``'s surface that :class:`~robointel.interface.fanuc.FanucRobot`
+uses (``servo_j``, ``hold``, ``stop_j``, ``kick``, ``recover``, ``arm``, ``move_trajectory``,
+``timing_stats``, ``close`` and ``core.get_snapshot()`` / ``core.running``), so the robot's own
+checks (gate, faults, stall, recording) stay where they are.
+"""
+from __future__ import annotations
+
+import mmap
+import os
+import socket
+import subprocess
+import sys
+import threading
+import time
+from multiprocessing.connection import Connection
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from airo_fanuc import MotionResult
+from airo_fanuc.exceptions import FanucConnectionError, FanucError, RobotFaultedError, TrajectoryValidationError
+
+from robointel.errors import InvalidInput
+from robointel.interface import stream_child as sc
+
+START_TIMEOUT_S = 60.0
+"""Bring-up of the child (interpreter start, imports, driver bring-up), s."""
+REPLY_TIMEOUT_S = 30.0
+"""A request to the child (recovery ladders included), s."""
+
+_ERRORS: dict[str, type[FanucError]] = {"TrajectoryValidationError": TrajectoryValidationError,
+                                         "RobotFaultedError": RobotFaultedError,
+                                         "FanucConnectionError": FanucConnectionError}
+_CHILD = ("import runpy, sys; sys.path.pop(0); sys.argv = sys.argv[1:]; "
+          "runpy.run_path(sys.argv[0], run_name='__main__')")
+
+
+def _error(kind: str, message: str) -> FanucError:
+    """The ``airo_fanuc`` exception the child reported (``FanucError`` for any other kind)."""
+    return _ERRORS.get(kind, FanucError)(f"{message}" if kind in _ERRORS else f"{kind}: {message}")
+
+
+class _CoreView:
+    """``core.get_snapshot()`` and ``core.running`` read from the shared state block."""
+
+    def __init__(self, owner: StreamProcess) -> None:
+        self._owner = owner
+
+    @property
+    def running(self) -> bool:
+        """True while the child runs and its core streams."""
+        o = self._owner
+        return o.alive() and bool(o.read_block()[_R["running"]])
+
+    def get_snapshot(self) -> dict[str, Any]:
+        """The core's snapshot as the child last published it (the keys ``FanucRobot`` reads)."""
+        o = self._owner
+        v = o.read_block().tolist()
+        base = o.base_ns
+        snap: dict[str, Any] = {k: bool(v[_R[k]]) for k in _FLAGS}
+        snap.update({k: int(v[_R[k]]) for k in _INTS})
+        rx_ns = base + int(v[_R["rx_s"]] * 1e9)
+        snap["rx_mono_ns"] = rx_ns
+        snap["tick_mono_ns"] = base + int(v[_R["tick_s"]] * 1e9)
+        snap["rx_age_ms"] = (time.monotonic_ns() - rx_ns) * 1e-6
+        for k in _VECTORS:
+            i = _R[k]
+            snap[k] = v[i:i + sc.NDOF]
+        i = _R["wrench"]
+        snap.update(zip(("fx", "fy", "fz", "mx", "my", "mz"), v[i:i + sc.NDOF], strict=True))
+        snap["stall_gap_s"] = v[_R["stall_gap_s"]]
+        return snap
+
+
+_R = {name: sl.start - sc.S_OFF for name, sl in sc.STATE_INDEX.items()}
+"""Offset of each state field in the block :meth:`StreamProcess.read_block` returns."""
+_FLAGS = ("e_stopped", "in_error", "tp_enabled", "motion_possible", "wrench_valid", "stalled", "refused")
+_INTS = ("mode", "fault", "cmd_tick", "active_motion_id", "active_motion_status")
+_VECTORS = ("q_meas", "qd_est", "q_cmd")
+
+
+class _Handle:
+    """A ``MotionHandle`` of a trajectory the child's core plays."""
+
+    def __init__(self, owner: StreamProcess, motion_id: int) -> None:
+        self._owner, self.motion_id = owner, int(motion_id)
+
+    def done(self) -> bool:
+        """True once the motion has a result."""
+        return bool(self._owner.call("motion_done", self.motion_id))
+
+    def result(self) -> MotionResult | None:
+        """The motion's result, or None while it runs."""
+        v = self._owner.call("motion_result", self.motion_id)
+        return None if v is None else MotionResult(v)
+
+
+class StreamProcess:
+    """A FANUC driver in a child process, streamed through a look-ahead queue.
+
+    Args:
+        host: controller address.
+        policy: the ``airo_fanuc.DriverPolicy`` (sent to the child).
+        period: controller period, s.
+        lookahead_s: delay between a target's arrival and its play time, s (> 0).
+        stall_periods: the child stops the robot after this many consecutive controller windows
+            without a target to play.
+
+    Raises:
+        InvalidInput: a look-ahead or stall count out of range.
+        FanucError: the child could not bring the controller up (the driver's own error class).
+    """
+
+    gripper = None
+    """No gripper dispatcher in the streaming process (``FanucRobot(gripper=True)`` keeps the driver in-process)."""
+
+    def __init__(self, host: str, policy: Any, *, period: float, lookahead_s: float, stall_periods: int) -> None:
+        if not (np.isfinite(lookahead_s) and 0 < lookahead_s <= 1.0):
+            raise InvalidInput(f"lookahead_s must be in (0, 1] s, got {lookahead_s}", value=lookahead_s)
+        if int(stall_periods) < 1:
+            raise InvalidInput(f"stall_periods must be >= 1, got {stall_periods}", value=stall_periods)
+        self.period, self.lookahead_s = float(period), float(lookahead_s)
+        self.base_ns = time.monotonic_ns()
+        self._lock = threading.Lock()
+        self._closed = False
+        self._last_slot: float | None = None
+        self._prev_slot = -np.inf
+        fd = os.memfd_create("robointel-stream")
+        try:
+            os.ftruncate(fd, sc.SHM_BYTES)
+            self._mm = mmap.mmap(fd, sc.SHM_BYTES)
+            self._buf: npt.NDArray[np.float64] = np.frombuffer(self._mm, dtype=np.float64)
+            ours, theirs = socket.socketpair()
+            self._conn = Connection(ours.detach())
+            try:
+                self._proc = subprocess.Popen([sys.executable, "-c", _CHILD, sc.__file__, str(theirs.fileno()),
+                                               str(fd)], pass_fds=(theirs.fileno(), fd))
+            finally:
+                theirs.close()
+        finally:
+            os.close(fd)
+        self.core = _CoreView(self)
+        try:
+            self._conn.send((host, policy, self.base_ns, self.period, int(stall_periods)))
+            self._reply(START_TIMEOUT_S, "bring-up")
+        except BaseException:
+            self._kill()
+            raise
+
+    # ------------------------------------------------------------------ plumbing
+    def alive(self) -> bool:
+        """True while the child process runs."""
+        return not self._closed and self._proc.poll() is None
+
+    def read_block(self) -> npt.NDArray[np.float64]:
+        """A consistent copy of the child's state block (seqlock read; fields at ``stream_process._R``)."""
+        b = self._buf
+        for _ in range(1000):
+            v0 = b[sc.H_VERSION]
+            block = b[sc.S_OFF:sc.RING_OFF].copy()
+            if v0 % 2 == 0 and b[sc.H_VERSION] == v0:
+                break
+        return block
+
+    def read_state(self) -> dict[str, Any]:
+        """The child's state block by field name (a float, or an array for vectors)."""
+        block = self.read_block()
+        return {name: block[_R[name]:_R[name] + sl.stop - sl.start] if sl.stop - sl.start > 1
+                else float(block[_R[name]]) for name, sl in sc.STATE_INDEX.items()}
+
+    def _reply(self, timeout: float, what: str) -> Any:
+        if not self._conn.poll(timeout):
+            raise FanucConnectionError(f"the streaming process did not answer {what} within {timeout:.0f} s")
+        try:
+            ok, value = self._conn.recv()
+        except (EOFError, OSError) as exc:
+            raise FanucConnectionError(f"the streaming process is gone ({what}): {exc}") from exc
+        if not ok:
+            raise _error(*value)
+        return value
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> Any:
+        """Run request ``name`` in the child and return its answer.
+
+        Raises:
+            FanucError: the child's driver raised (same class), or the child is gone
+                (``FanucConnectionError``).
+        """
+        with self._lock:
+            if not self.alive():
+                raise FanucConnectionError("the streaming process is not running")
+            try:
+                self._conn.send((name, args, kwargs, True))
+            except OSError as exc:
+                raise FanucConnectionError(f"the streaming process is gone: {exc}") from exc
+            return self._reply(REPLY_TIMEOUT_S, name)
+
+    # ------------------------------------------------------------------ the driver's surface
+    def servo_j(self, q: npt.NDArray[np.float64], duration: float) -> None:
+        """Queue target ``q`` (6,) rad; it is played ``lookahead_s`` after the stream's start.
+
+        The target's slot is one period after the previous one, or ``lookahead_s`` from now when the
+        stream (re)starts or the previous slot has already passed (the caller fell behind by more
+        than the look-ahead). A caller faster than the period replaces its last queued slot once the
+        queue holds twice the look-ahead.
+
+        Raises:
+            FanucConnectionError: the child is gone or no longer takes targets.
+        """
+        if not self.alive():
+            raise FanucConnectionError("the streaming process is not running")
+        b = self._buf
+        now = (time.monotonic_ns() - self.base_ns) * 1e-9
+        last = self._last_slot
+        if last is None or now > last:
+            slot = max(now + self.lookahead_s, self._prev_slot + self.period)
+        else:
+            slot = last + self.period
+            if slot > now + 2 * self.lookahead_s + self.period:
+                slot = last
+        w = int(b[sc.H_WRITE])
+        if w - int(b[sc.H_READ]) >= sc.RING - 1:
+            raise FanucConnectionError(f"the streaming process took no target for {sc.RING} targets")
+        o = sc.RING_OFF + (w % sc.RING) * sc.SLOT_WIDTH
+        b[o] = slot
+        b[o + 1:o + sc.SLOT_WIDTH] = q
+        b[sc.H_WRITE] = w + 1  # published last: the child reads the count, then the slot
+        self._last_slot = self._prev_slot = slot
+
+    def hold(self) -> None:
+        """Hold after the targets already queued have been played."""
+        b = self._buf
+        b[sc.H_HOLD] = b[sc.H_WRITE]
+        b[sc.H_HOLD_GEN] += 1
+        self._last_slot = None
+
+    def stop_j(self) -> None:
+        """Drop the queued targets and brake at once (never raises)."""
+        self._buf[sc.H_CUT] = self._buf[sc.H_WRITE]
+        self._last_slot = None
+        try:
+            self.call("stop_j")
+        except FanucError:
+            pass  # the child is gone: its core stopped with it
+
+    def kick(self) -> None:
+        """Feed the core's trajectory deadman (no answer awaited)."""
+        with self._lock:
+            if self.alive():
+                try:
+                    self._conn.send(("kick", (), {}, False))
+                except OSError:
+                    pass
+
+    def recover(self, timeout_s: float | None = None, *, escalate_reconnect: bool = False) -> bool:
+        """The driver's recovery ladder and ARM gate in the child; the queue starts empty."""
+        self._last_slot = None
+        return bool(self.call("recover"))
+
+    def arm(self) -> None:
+        """Nothing to do: :meth:`recover` arms in the child."""
+
+    def move_trajectory(self, times: npt.NDArray[np.int64], q: npt.NDArray[np.float64], qd: npt.NDArray[np.float64],
+                        *, deadman_s: float | None = None, asynchronous: bool = True) -> _Handle:
+        """Play a trajectory on the child's core (``FanucDriver.move_trajectory``); drops queued targets."""
+        self._last_slot = None
+        mid = self.call("move_trajectory", np.asarray(times, dtype=np.int64).tolist(), np.asarray(q).tolist(),
+                        np.asarray(qd).tolist(), deadman_s=deadman_s, asynchronous=asynchronous)
+        return _Handle(self, mid)
+
+    def timing_stats(self) -> dict[str, Any]:
+        """The core's timing statistics plus the streaming process's window counters.
+
+        ``stream_windows``: controller windows while a stream played; ``stream_fresh``: windows that got
+        a freshly interpolated target in time; ``stream_starved``: windows the caller left without a
+        target (late by more than the look-ahead); ``stream_late``: windows this process itself missed.
+        """
+        out = dict(self.call("timing_stats"))
+        s = self.read_state()
+        for k in ("windows", "fresh", "starved", "late", "submits"):
+            out[f"stream_{k}"] = int(s[k])
+        out["lookahead_s"] = self.lookahead_s
+        return out
+
+    def last_submit_ns(self) -> int:
+        """CLOCK_MONOTONIC time of the child's last target submission to the core, ns (0: none yet)."""
+        s = float(self.read_state()["last_submit_s"])
+        return self.base_ns + int(round(s * 1e9)) if s > 0 else 0
+
+    def close(self) -> None:
+        """Stop the core between two ticks, close the driver and end the child (idempotent)."""
+        if self._closed:
+            return
+        try:
+            if self.alive():
+                with self._lock:
+                    self._conn.send(("close", (), {}, True))
+                    self._reply(REPLY_TIMEOUT_S, "close")
+                self._proc.wait(10.0)
+        except (FanucError, OSError, subprocess.TimeoutExpired):
+            pass
+        finally:
+            self._kill()
+
+    def _kill(self) -> None:
+        self._closed = True
+        if self._proc.poll() is None:
+            self._proc.kill()
+            self._proc.wait(5.0)
+        self._conn.close()

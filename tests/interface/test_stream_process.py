@@ -1,0 +1,109 @@
+"""The FANUC streaming process: the look-ahead queue, a stalled caller, a caller that dies."""
+import os
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pytest
+
+from robointel.errors import InvalidInput
+from robointel.interface import RobotMode
+from robointel.interface.fanuc import FanucRobot
+
+PERIOD = 0.008
+
+
+def _open(fake, **kw):
+    return FanucRobot("127.0.0.1", rmi_port=fake.rmi_port, sm_port=fake.sm_port, **kw)
+
+
+def _ramp(q0, n, rate=0.2):
+    """(n, 6) targets moving every joint at ``rate`` rad/s."""
+    return q0 + rate * PERIOD * np.arange(1, n + 1)[:, None] * np.ones(6)
+
+
+def test_a_target_is_played_no_earlier_than_the_lookahead(fake_controller):
+    with _open(fake_controller, lookahead_s=0.3) as robot:
+        assert robot.stream_process
+        q0 = robot.state().q_cmd
+        targets = _ramp(q0, 80)
+        t0 = time.perf_counter()
+        seen = []
+        for k, q in enumerate(targets):
+            robot.stream(q)
+            seen.append((time.perf_counter(), robot.state().q_cmd.copy()))
+            time.sleep(max(0.0, t0 + (k + 1) * PERIOD - time.perf_counter()))
+        robot.hold()
+        deadline = time.perf_counter() + 10.0
+        while time.perf_counter() < deadline and robot.timing_stats()["stream_windows"] < 60:
+            time.sleep(0.05)
+        stats = robot.timing_stats()
+    moved = [t for t, q_cmd in seen if np.max(np.abs(q_cmd - q0)) > 1e-9]
+    assert moved, "the commanded position never moved"
+    assert moved[0] >= t0 + 0.3 - 2 * PERIOD  # the first target was played a look-ahead after it came
+    assert stats["stream_fresh"] > 0 and stats["stream_submits"] == stats["stream_fresh"]
+
+
+def test_a_caller_stall_shorter_than_the_lookahead_costs_no_window(fake_controller):
+    """The caller stops for 5 periods, then sends the targets it owes at once (as a thread that got
+    the interpreter lock back would): every controller window still gets a target in time."""
+    with _open(fake_controller, lookahead_s=0.5, stall_periods=3) as robot:
+        q0 = robot.state().q_cmd
+        targets = _ramp(q0, 150)
+        t0 = time.perf_counter()
+        for k, q in enumerate(targets):
+            if k == 60:
+                time.sleep(5 * PERIOD)  # the stall: no target for 40 ms, then a burst
+            robot.stream(q)
+            time.sleep(max(0.0, t0 + (k + 1) * PERIOD - time.perf_counter()))
+        assert robot.state().mode is RobotMode.STREAMING
+        robot.hold()
+        deadline = time.perf_counter() + 10.0
+        while time.perf_counter() < deadline and robot.timing_stats()["stream_windows"] < 140:
+            time.sleep(0.05)
+        st = robot.state()
+        stats = robot.timing_stats()
+    assert st.mode is RobotMode.HOLDING, st.why_stopped  # no stall stop: the queue never ran dry
+    assert stats["stream_starved"] == 0, stats
+    assert stats["stream_windows"] >= 140
+
+
+def test_the_streaming_process_stops_when_its_caller_dies(fake_controller):
+    """A caller killed mid-stream: the streaming process ends the session and exits by itself."""
+    script = textwrap.dedent(f"""
+        import os, sys, time
+        import numpy as np
+        from robointel.interface.fanuc import FanucRobot
+        robot = FanucRobot("127.0.0.1", rmi_port={fake_controller.rmi_port}, sm_port={fake_controller.sm_port})
+        print(robot.driver._proc.pid, flush=True)
+        q = robot.state().q_cmd
+        for k in range(50):
+            robot.stream(q + 0.001 * k)
+            time.sleep({PERIOD})
+        os._exit(3)
+    """)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, env=env)
+    assert proc.returncode == 3, proc.stderr
+    child = int(proc.stdout.split()[0])
+    deadline = time.monotonic() + 30.0
+    while time.monotonic() < deadline and os.path.exists(f"/proc/{child}") and not _zombie(child):
+        time.sleep(0.05)
+    assert not os.path.exists(f"/proc/{child}") or _zombie(child), "the streaming process outlived its caller"
+
+
+def _zombie(pid):
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split(") ")[1].startswith("Z")
+    except OSError:
+        return True
+
+
+@pytest.mark.parametrize("bad", [0.0, -0.1, float("nan"), 2.0])
+def test_a_bad_lookahead_is_refused_before_bring_up(bad):
+    with pytest.raises(InvalidInput, match="lookahead_s") as err:
+        FanucRobot("127.0.0.1", rmi_port=1, sm_port=1, lookahead_s=bad)
+    assert err.value.value == bad or np.isnan(err.value.value)
