@@ -82,6 +82,20 @@ def cores_used(folder, wall: float) -> float:
     return sum(r["cpu_s"] for r in ResultStore(folder).rows()) / wall
 
 
+def per_task(folder, wall: float) -> dict:
+    """Where a run's time went, per task: the medians by kind of the task's wall and CPU time inside
+    ``execute`` (in the driver, or in the Ray worker), and ``between_ms`` = (run wall - the tasks' summed
+    wall) / tasks: dispatch, result transfer and store writes (meaningful for one worker at a time)."""
+    rows = ResultStore(folder).rows()
+    busy = sum(r["wall_s"] for r in rows)
+    out: dict = {"between_ms": (wall - busy) / len(rows) * 1e3, "tasks_wall_s": busy}
+    for kind in sorted({r["kind"] for r in rows}):
+        mine = [r for r in rows if r["kind"] == kind]
+        out[kind] = {"wall_s_median": float(np.median([r["wall_s"] for r in mine])),
+                     "cpu_s_median": float(np.median([r["cpu_s"] for r in mine]))}
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--json", action="store_true")
@@ -119,6 +133,7 @@ def main() -> None:
     out["cores_used_inprocess"] = cores_used(root / "inproc", t_in)
     out["trial_s_median"] = float(np.nanmedian(trial_s))
     out["successes_inprocess"] = n - r_in.counts.failed
+    splits: list[tuple[dict, dict]] = [(per_task(root / "inproc", t_in), {})]  # (in-process, Ray 1 worker) per repeat
     empty = [TaskSpec("synthetic", s, {"work_s": 0.0}) for s in range(args.empty)]
     t_empty_in, _ = timed(empty, root / "empty-inproc")
 
@@ -133,10 +148,12 @@ def main() -> None:
         t, r = timed(specs, root / f"ray{w}", engine="ray", workers=w)
         if w == 1:
             pairs.append((t - t_in) / n * 1e3)
+            splits[0][1].update(per_task(root / "ray1", t))
             for k in range(1, args.repeats):  # the same pair again, in-process first: the machine's drift cancels
                 t_in_k, _ = timed(specs, root / f"inproc-{k}")
                 t_ray_k, _ = timed(specs, root / f"ray1-{k}", engine="ray", workers=1)
                 pairs.append((t_ray_k - t_in_k) / n * 1e3)
+                splits.append((per_task(root / f"inproc-{k}", t_in_k), per_task(root / f"ray1-{k}", t_ray_k)))
             timed(empty[:10], root / "empty-warm", engine="ray", workers=1)
             t_empty_ray, _ = timed(empty, root / "empty-ray1", engine="ray", workers=1)
             out["overhead_per_task_ms_empty_tasks"] = (t_empty_ray - t_empty_in) / len(empty) * 1e3
@@ -165,6 +182,11 @@ def main() -> None:
     out["speedup_2_workers"] = out["throughput_2_workers"] / out["throughput_1_worker"]
     out["overhead_per_task_ms"] = float(np.median(pairs))
     out["overhead_per_task_ms_repeats"] = pairs
+    # the overhead split: between tasks (dispatch, transfer, store) and inside them (the trials' own time)
+    out["overhead_between_tasks_ms"] = float(np.median([r["between_ms"] - i["between_ms"] for i, r in splits]))
+    out["overhead_inside_tasks_ms"] = float(np.median([(r["tasks_wall_s"] - i["tasks_wall_s"]) / n * 1e3
+                                                       for i, r in splits]))
+    out["per_task_repeats"] = [{"inprocess": i, "ray_1_worker": r} for i, r in splits]
     out["worker_niceness"] = args.worker_niceness
     out["overhead_fraction_of_1s_trial"] = out["overhead_per_task_ms"] / 1e3
     out["targets"] = {"lost": 0, "duplicated": 0, "speedup_2_workers": ">= 1.8", "overhead_per_task_ms": "<= 50"}

@@ -22,13 +22,40 @@ import ray
 from ray.exceptions import RayError
 
 from robointel.batch.execute import THREAD_ENV, Fault, execute, failure_row
+from robointel.batch.registry import get_kind
 from robointel.batch.spec import TaskSpec
 from robointel.errors import EngineUnavailable, InvalidInput
 from robointel.outcome import Failure
 
-__all__ = ["run_on_ray", "start_ray"]
+__all__ = ["longest_first", "run_on_ray", "start_ray"]
 
 JOIN_ATTEMPTS = 3  # tries to join a cluster through Ray Client (ray://) before giving up
+
+_REMOTE: list[Any] = []  # the remote execute, made once per driver process (its definition is exported once)
+
+
+def _remote_execute() -> Any:
+    """``ray.remote(execute)``, one per process: each sweep sets its options on the same remote function."""
+    if not _REMOTE:
+        _REMOTE.append(ray.remote(execute))
+    return _REMOTE[0]
+
+
+def _expected_s(spec: TaskSpec) -> float:
+    """The spec's expected duration (s), a scheduling hint: 1 s when its kind has none or cannot tell."""
+    try:
+        return get_kind(spec.kind).expected_s(spec)
+    except Exception:  # a hint never stops a sweep: a bad spec fails in its own task, with its own row
+        return 1.0
+
+
+def longest_first(todo: Sequence[TaskSpec]) -> list[TaskSpec]:
+    """The tasks in the order they are started: longest expected first (ties keep their order).
+
+    Longest-processing-time-first list scheduling: the sweep ends with the short tasks, which fill
+    the workers' last gaps, instead of one worker running a long trial while the others are idle.
+    """
+    return sorted(todo, key=lambda s: -_expected_s(s))
 
 
 def start_ray(*, workers: int, address: str | None, worker_niceness: int = 0) -> bool:
@@ -72,7 +99,8 @@ def run_on_ray(todo: Sequence[TaskSpec], on_row: Callable[[dict[str, Any]], None
                worker_niceness: int = 0) -> None:
     """Run ``todo`` as Ray tasks and hand each finished row to ``on_row`` (in completion order).
 
-    At most twice the cluster's task slots are in flight, so a sweep of any size streams.
+    The tasks start longest expected first (:func:`longest_first`). At most twice the cluster's task
+    slots are in flight, so a sweep of any size streams.
     On an exception (e.g. KeyboardInterrupt) the pending tasks are cancelled and it propagates;
     a Ray started here is shut down on the way out.
 
@@ -87,9 +115,8 @@ def run_on_ray(todo: Sequence[TaskSpec], on_row: Callable[[dict[str, Any]], None
             raise InvalidInput(f"cpus_per_task {cpus_per_task} exceeds the cluster's {cpus:g} CPUs: no task could "
                                "ever start", value=cpus_per_task)
         slots = max(1, int(cpus // cpus_per_task))
-        remote = ray.remote(execute).options(num_cpus=cpus_per_task, max_retries=max_retries,
-                                             retry_exceptions=False)
-        queue = list(todo)[::-1]
+        remote = _remote_execute().options(num_cpus=cpus_per_task, max_retries=max_retries, retry_exceptions=False)
+        queue = longest_first(todo)[::-1]
         pending: dict[Any, TaskSpec] = {}
         try:
             while queue or pending:

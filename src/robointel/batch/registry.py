@@ -30,19 +30,28 @@ class TrialKind:
         run: The pure trial function ``spec -> TrialOutcome``.
         category: ``spec -> str``: the report's grouping when the spec names none.
         summary: One line for ``robointel batch kinds``.
+        cost: ``spec -> s``: the task's typical duration on one core, a scheduling hint only (the Ray
+            engine starts the longest tasks first, so that no worker is left alone with a long trial
+            at the end of a sweep). ``None``: 1 s.
     """
 
     name: str
     run: TrialFunction
     category: Callable[[TaskSpec], str]
     summary: str = ""
+    cost: Callable[[TaskSpec], float] | None = None
+
+    def expected_s(self, spec: TaskSpec) -> float:
+        """The expected duration of ``spec`` (s; :attr:`cost`, 1 s without one)."""
+        return 1.0 if self.cost is None else float(self.cost(spec))
 
 
 _KINDS: dict[str, TrialKind] = {}
 
 
 def register_kind(name: str, run: TrialFunction, *, category: Callable[[TaskSpec], str] | None = None,
-                  summary: str = "", replace: bool = False) -> TrialKind:
+                  summary: str = "", replace: bool = False, cost: Callable[[TaskSpec], float] | None = None,
+                  ) -> TrialKind:
     """Register a trial kind.
 
     Args:
@@ -51,6 +60,7 @@ def register_kind(name: str, run: TrialFunction, *, category: Callable[[TaskSpec
         category: The report grouping of a spec (default: the kind's name).
         summary: One-line description.
         replace: Allow replacing an existing kind.
+        cost: The expected duration of a spec (s), a scheduling hint (see :class:`TrialKind`).
 
     Returns:
         The registered kind.
@@ -62,7 +72,7 @@ def register_kind(name: str, run: TrialFunction, *, category: Callable[[TaskSpec
         raise InvalidInput("a trial kind needs a name", value=name)
     if name in _KINDS and not replace:
         raise InvalidInput(f"trial kind {name!r} is already registered", value=name)
-    kind = TrialKind(name, run, category or (lambda spec: spec.kind), summary)
+    kind = TrialKind(name, run, category or (lambda spec: spec.kind), summary, cost)
     if name in BUILTIN and not replace:
         raise InvalidInput(f"trial kind {name!r} is built in", value=name)
     _KINDS[name] = kind

@@ -1,4 +1,9 @@
 """CPD against pycpd (same parameters) and its own invariants."""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -123,3 +128,32 @@ def test_farthest_point_sample_spreads():
     P = np.random.default_rng(0).uniform(size=(500, 3))
     idx = farthest_point_sample(P, 20)
     assert len(set(idx.tolist())) == 20
+
+
+_ESTEP_DIGEST = """
+import hashlib, numpy as np, numba
+from robointel.learning.grasp.cpd_estep import _FastEstep
+rng = np.random.default_rng(0)
+X, Y = rng.normal(size=(3000, 3)), rng.normal(size=(400, 3))
+digests = []
+for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+    numba.set_num_threads(threads)
+    out = _FastEstep(X, 400)(Y, 0.3, 0.1)
+    digests.append(hashlib.sha256(b"".join(np.ascontiguousarray(a).tobytes() for a in out[:3])).hexdigest())
+print(" ".join(digests))
+"""
+
+
+def test_fast_estep_same_bits_compiled_or_cached_on_any_thread_count(tmp_path):
+    """The fused E-step gives the same bits whether numba just compiled it or loaded it from its cache,
+    and on 1 or 2 threads: a grasp trial is a function of its spec, not of the process's history."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path),
+           "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[3] / "src"),
+                                          os.environ.get("PYTHONPATH", "")])}
+    runs = [subprocess.run([sys.executable, "-c", _ESTEP_DIGEST], env=env, capture_output=True, text=True,
+                           timeout=600) for _ in range(2)]  # the first compiles into tmp_path, the second loads
+    assert all(r.returncode == 0 for r in runs), [r.stderr[-2000:] for r in runs]
+    assert any(tmp_path.rglob("*.nbc"))  # the second run had a cache to load
+    fresh, cached = (r.stdout.split() for r in runs)
+    assert len(fresh) == 2 and fresh[0] == fresh[1]  # 1 and 2 threads
+    assert cached == fresh

@@ -173,4 +173,5 @@ def insertion_trial(spec: TaskSpec) -> TrialOutcome:
     return TrialOutcome(r.outcome.success, r.outcome.reason, r.outcome.detail, figures, timings)
 
 
-KIND = TrialKind("insertion", insertion_trial, insertion_category, "peg-in-hole insertion with the LR Mate (Ch. 5)")
+KIND = TrialKind("insertion", insertion_trial, insertion_category, "peg-in-hole insertion with the LR Mate (Ch. 5)",
+                 cost=lambda s: 1.5)  # 1-2 s on an idle core

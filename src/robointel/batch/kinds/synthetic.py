@@ -42,4 +42,4 @@ def synthetic(spec: TaskSpec) -> TrialOutcome:
 
 
 KIND = TrialKind("synthetic", synthetic, lambda s: str(s.params.get("category", "synthetic")),
-                 "cheap deterministic trial (tests, overhead)")
+                 "cheap deterministic trial (tests, overhead)", cost=lambda s: float(s.params.get("work_s", 0.0)))

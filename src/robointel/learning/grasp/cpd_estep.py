@@ -11,6 +11,9 @@ import numpy as np
 
 __all__ = ["farthest_point_sample"]
 
+LANES = 16  # partial sums of the kernel column in the fused E-step
+MAX_CHUNKS = 8  # target chunks of the fused E-step: the summation order, whatever the thread count
+
 
 def _sqdist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """|a_i - b_j|^2 (I, J) computed with per-dimension differences (no cancellation)."""
@@ -77,7 +80,7 @@ def _estep_fast(X32: np.ndarray, xx32: np.ndarray, TY: np.ndarray, sigma2: float
     return Pt1, P1, PX, float(P1.sum())
 
 
-@numba.njit(fastmath=True, cache=True)
+@numba.njit(fastmath={"nnan", "ninf", "nsz", "arcp", "afn"}, cache=True)
 def _estep_kernel(x0: np.ndarray, x1: np.ndarray, x2: np.ndarray, y0: np.ndarray, y1: np.ndarray, y2: np.ndarray,
                   inv2s2: float, c: float, pt1: np.ndarray, s0: np.ndarray, s1: np.ndarray, s2: np.ndarray,
                   s3: np.ndarray, kb: np.ndarray, ib: np.ndarray, n0: int, n1: int) -> None:  # pragma: no cover - numba
@@ -86,8 +89,11 @@ def _estep_kernel(x0: np.ndarray, x1: np.ndarray, x2: np.ndarray, y0: np.ndarray
     exp(-d^2 / (2 sigma2)) is evaluated as 2^t with t = -d^2 log2(e) / (2 sigma2) split into integer
     and fraction: the fraction by a degree-5 polynomial (relative error < 2e-7), the integer written
     straight into the float32 exponent bits (``ib`` viewed as float32), so that the loops vectorise.
+    Fast-math without reassociation or contraction: the sums run in the order written, so the
+    result is the same bits whether the code was just compiled or loaded from numba's cache.
     """
     fb = ib.view(np.float32)
+    acc = np.empty(LANES, np.float32)
     M = y0.shape[0]
     for m in range(M):
         s0[m] = 0.0
@@ -109,11 +115,17 @@ def _estep_kernel(x0: np.ndarray, x1: np.ndarray, x2: np.ndarray, y0: np.ndarray
             kb[m] = np.float32(1.0) + f * (np.float32(0.6931472) + f * (np.float32(0.2402265) + f * (
                 np.float32(0.05550411) + f * (np.float32(0.009618129) + f * np.float32(0.001333355)))))
             ib[m] = (np.int32(fl) + np.int32(127)) << 23
-        den = np.float32(0.0)
         for m in range(M):
-            k = kb[m] * fb[m]
-            kb[m] = k
-            den += k
+            kb[m] *= fb[m]
+        acc[:] = 0.0  # LANES partial sums in a fixed order: vectorised without reassociation
+        for m0 in range(0, M - LANES + 1, LANES):
+            for j in range(LANES):
+                acc[j] += kb[m0 + j]
+        for m in range(M - M % LANES, M):
+            acc[m % LANES] += kb[m]
+        den = np.float32(0.0)
+        for j in range(LANES):
+            den += acc[j]
         ksum = den
         if den < np.float32(1.1920929e-07):
             den = np.float32(1.1920929e-07)
@@ -158,8 +170,9 @@ class _FastEstep:
                     for i in range(3)]
             self.x = cols
             self.pt1 = np.empty(self.N, np.float32)
-            # one chunk of targets per thread when the work pays for the threads (>= ~0.25 M pairs)
-            C = max(1, min(numba.get_num_threads(), self.N * M // 250_000))
+            # one chunk per ~0.25 M pairs (what pays for a thread), at most MAX_CHUNKS; not the thread
+            # count, so that the summation order and the result are the same on any number of threads
+            C = max(1, min(MAX_CHUNKS, self.N * M // 250_000))
             self.S = np.empty((C, 4, M), np.float32)
             self.KB = np.empty((C, M), np.float32)
             self.IB = np.empty((C, M), np.int32)
