@@ -14,7 +14,7 @@ from robointel.errors import RobointelError
 from robointel.interface import open_robot
 from robointel.io.mcap_log import McapRecorder
 from robointel.program import Cell, GraspCell, ProgramRejected, SimCell, check_program, load_program, run_program
-from robointel.program.interface_cell import InterfaceCell, interface_refusal
+from robointel.program.interface_cell import InterfaceCell, interface_refusal, output_refusal
 from robointel.program.teaching import program_from_teleop
 from robointel.report.demo import Figure, StageContext, StageResult
 from robointel.report.program import plot_run, record_run, write_program_report
@@ -43,6 +43,7 @@ def run(program: str = typer.Argument(..., help="program YAML file, or a built-i
             else:
                 interface_refusal(prog, i0)
                 arm = stack.enter_context(open_robot(robot, recorder=rec))
+                output_refusal(prog, arm, i0)
                 cell_q = np.asarray(arm.state().q, float)
             with Progress(TextColumn("{task.description:<32}"), BarColumn(), TextColumn("{task.fields[status]}"),
                           TimeElapsedColumn(), console=console) as bar:
