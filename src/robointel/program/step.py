@@ -88,12 +88,15 @@ class TableObject:
         seed: Seed of the generated instance (its shape and size).
         at: (x, y) position on the table in m, or None for a random placement drawn by the run's seed.
         yaw: Heading in rad (None: random).
+        ycb: Name of a YCB scan (``../shared/data/objects/ycb/<name>``) to place instead of a generated
+            instance, or None.
     """
 
     category: str
     seed: int = 0
     at: tuple[float, float] | None = None
     yaw: float | None = None
+    ycb: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for the YAML file."""
@@ -102,6 +105,8 @@ class TableObject:
             d["at"] = list(self.at)
         if self.yaw is not None:
             d["yaw_deg"] = float(np.degrees(self.yaw))
+        if self.ycb is not None:
+            d["ycb"] = self.ycb
         return d
 
 
@@ -114,7 +119,7 @@ def parse_object(d: Any, i: int) -> TableObject:
     where = f"object {i}"
     if not isinstance(d, Mapping) or "category" not in d:
         raise InvalidInput(f"{where} must be a mapping with a category ({', '.join(OBJECT_CATEGORIES)})", value=d)
-    unknown = set(d) - {"category", "seed", "at", "yaw_deg"}
+    unknown = set(d) - {"category", "seed", "at", "yaw_deg", "ycb"}
     if unknown:
         raise InvalidInput(f"{where}: unknown keys {sorted(map(str, unknown))}", value=d)
     cat = str(d["category"])
@@ -126,7 +131,11 @@ def parse_object(d: Any, i: int) -> TableObject:
     at = None if d.get("at") is None else tuple(float(x) for x in _vec(d["at"], 2, f"{where}.at"))
     yaw = None if d.get("yaw_deg") is None else float(np.radians(_number(d["yaw_deg"], f"{where}.yaw_deg",
                                                                           minimum=-np.inf)))
-    return TableObject(cat, int(seed), at, yaw)  # type: ignore[arg-type]
+    ycb = d.get("ycb")
+    if ycb is not None and (not isinstance(ycb, str) or not ycb or "/" in ycb or ycb.startswith(".")):
+        raise InvalidInput(f"{where}: ycb must be the name of a YCB scan folder (e.g. 044_flat_screwdriver), "
+                           f"got {ycb!r}", value=ycb)
+    return TableObject(cat, int(seed), at, yaw, ycb)  # type: ignore[arg-type]
 
 
 
