@@ -75,6 +75,23 @@ def test_an_insertion_that_wedges_stops_the_robot_and_names_the_step(skill_files
     assert cell.stopped == "insert"
 
 
+def test_the_insert_step_runs_at_its_fit_with_its_start_error_budget(skill_files):
+    step = {"skill": str(skill_files["insert"]), "time_limit": 1.0}
+    default = program([{"insert": step}]).steps[0].args  # the learning benchmark's task
+    assert (default["clearance_mm"], default["lateral_error_mm"], default["tilt_error_deg"]) == (0.02, 2.0, 5.0)
+    for bad in ({"clearance_mm": 2.0}, {"clearance_mm": 0}, {"tilt_error_deg": -1}, {"fit": 1}):
+        with pytest.raises(InvalidInput, match="insert_peg") as err:
+            program([{"insert": {**step, **bad}, "name": "insert_peg"}])
+        assert err.value.value is not None
+    budget = {"clearance_mm": 0.1, "lateral_error_mm": 0.5, "tilt_error_deg": 0.25}
+    prog = program([{"insert": {**step, **budget}, "name": "insert_peg"}])
+    assert program_from_dict(prog.to_dict()).steps[0].args == prog.steps[0].args  # round-trips
+    run = run_program(prog, SimCell(prog, prog.waypoints["home"], seed=5))
+    fig = run.steps[0].outcome.figures  # one real trial (seated or not within its 1 s): its station and start
+    assert fig["clearance_um"] == pytest.approx(100.0)
+    assert fig["start_tilt_deg"] <= 0.25 and fig["start_lateral_mm"] <= 0.5 * np.sqrt(2)
+
+
 def test_guide_step_follows_the_operator_and_the_guided_path_becomes_a_path_step(tmp_path):
     prog = program([{"move": "home"}, {"guide": {"timeout": 5.0}, "name": "teach"}])
     q0 = prog.waypoints["home"]

@@ -14,7 +14,7 @@ from robointel.errors import RobointelError
 from robointel.interface import open_robot
 from robointel.io.mcap_log import McapRecorder
 from robointel.program import Cell, GraspCell, ProgramRejected, SimCell, check_program, load_program, run_program
-from robointel.program.interface_cell import InterfaceCell, interface_refusal
+from robointel.program.interface_cell import InterfaceCell, interface_refusal, output_refusal
 from robointel.program.teaching import program_from_teleop
 from robointel.report.demo import Figure, StageContext, StageResult
 from robointel.report.program import plot_run, record_run, write_program_report
@@ -43,6 +43,7 @@ def run(program: str = typer.Argument(..., help="program YAML file, or a built-i
             else:
                 interface_refusal(prog, i0)
                 arm = stack.enter_context(open_robot(robot, recorder=rec))
+                output_refusal(prog, arm, i0)
                 cell_q = np.asarray(arm.state().q, float)
             with Progress(TextColumn("{task.description:<32}"), BarColumn(), TextColumn("{task.fields[status]}"),
                           TimeElapsedColumn(), console=console) as bar:
@@ -108,13 +109,14 @@ def register(app: typer.Typer) -> None:
 
 
 def demo_stage(ctx: StageContext) -> StageResult:
-    """Run the demo's task-program stage: the built-in example and the pick-and-place program.
+    """Run the demo's task-program stage: the ``moves`` program and the example cell (with its insertion).
 
     Args:
         ctx: The demo stage context (output folder, quick flag, progress).
 
     Returns:
-        The stage's figures (steps, pre-run check time, motion time, pick-and-place outcome) and plots.
+        The stage's figures (steps, pre-run check time, motion time, the example's outcome, its insertion)
+        and plots.
     """
     prog = load_program("moves")
     q0 = prog.initial_configuration()
@@ -128,18 +130,28 @@ def demo_stage(ctx: StageContext) -> StageResult:
                    f"{len(res.steps)} steps, {'all ok' if res.success else res.outcome.detail}"),
             Figure("pre-run check (plan + dense check of every motion)", f"{chk.check_ms:.0f} ms"),
             Figure("motion time", f"{motion:.2f} s")]
-    ctx.advance(0.3, "pick and place")
-    pp = load_program("pick_place")
+    ctx.advance(0.3, "example cell")
+    pp = load_program("example")
     q1 = pp.initial_configuration()
     cell = GraspCell(pp, q1, seed=3)
     t_sim = float(cell.data.time)
     run = run_program(pp, cell, progress=lambda i, s: ctx.advance(0.3 + 0.65 * i / len(pp.steps), s))
-    images = [png, plot_run(pp, run, ctx.out / "pick_place_joints.png")]
-    place = run.steps[-2].outcome.figures.get("place_error_m") if len(run.steps) >= 3 else None
-    figs += [Figure("task program 'pick_place' (perceive, grasp, carry around fixtures, place, home)",
+    images = [png, plot_run(pp, run, ctx.out / "example_joints.png")]
+    by_name = {r.name: r for r in run.steps}
+    placed = by_name.get("place_part")
+    place = placed.outcome.figures.get("place_error_m") if placed is not None else None
+    ins = by_name.get("insert_peg")
+    figs += [Figure("task program 'example' (perceive, grasp, carry around fixtures, place, home, insert)",
                     "all steps ok" if run.success else run.outcome.detail,
                     note=f"part placed {place * 1000:.1f} mm from its target" if place is not None else ""),
              Figure("pick-and-place cycle (simulated time)", f"{float(cell.data.time) - t_sim:.1f} s")]
+    if ins is not None:
+        f = ins.outcome.figures
+        figs.append(Figure("insertion with the learned skill (0.1 mm fit, +-0.5 mm, <= 0.25 deg)",
+                           f"{'seated' if ins.outcome.success else ins.outcome.reason.value} in "
+                           f"{f.get('time_s', 0.0):.1f} s", note=f"start tilt {f.get('start_tilt_deg', 0.0):.2f} deg, "
+                           f"lateral {f.get('start_lateral_mm', 0.0):.2f} mm, peak force "
+                           f"{f.get('max_force_n', 0.0):.0f} N"))
     return StageResult("Task programs (robointel run)", figs, images,
-                       text="robointel run moves / pick_place: the whole program is checked before the robot "
+                       text="robointel run moves / example: the whole program is checked before the robot "
                             "moves; a failed step stops the robot and is named.")

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from robointel.errors import CollisionAtStart, IKFailure, InfeasibleProblem, InvalidInput, RobointelError
+from robointel.errors import CollisionAtStart, DataMissing, IKFailure, InfeasibleProblem, InvalidInput, RobointelError
+from robointel.io.reference import data_path
 from robointel.learning.grasp import ParallelGripper
 from robointel.learning.grasp.pipeline import lrmate_with_gripper
 from robointel.planning.frmp import check_trajectory, plan_scene, planner_settings
@@ -240,12 +241,20 @@ def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
         The :class:`ProgramCheck` with a plan per step (steps before ``start`` hold empty plans).
 
     Raises:
-        ProgramRejected: A step cannot run; the message names the step and why.
+        ProgramRejected: A step cannot run; the message names the step and why (or an object whose YCB
+            scan is not available).
     """
     t0 = time.perf_counter()
     scene = program.scene
     robot = program.robot
     q = robot.check_q(q_start, "q_start", limits=True).copy()
+    for k, o in enumerate(program.objects):
+        if o.ycb is not None:
+            try:
+                data_path("objects", "ycb", o.ycb, "mesh.ply")
+            except DataMissing as exc:
+                raise ProgramRejected(f"object {k} ({o.category}): the YCB scan {o.ycb!r} is not available: {exc}",
+                                      value={"object": k, "ycb": o.ycb}) from None
     planners = _Planners(scene)
     checker = planners.checker()
     plans: list[StepPlan] = [StepPlan(q, q) for _ in range(start)]

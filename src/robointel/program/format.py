@@ -17,14 +17,17 @@ A program joins what robointel teaches, learns and plans into one job. The forma
       - move: {pose: {xyz: [0.45, 0.2, 0.3], rpy_deg: [0, 90, 0]}}   # ... or a TCP pose (IK)
       - path: {points: [[0.45, 0.2, 0.3], [0.45, -0.1, 0.3]], speed: 0.1}   # TCP path via key points
       - wait: 0.5                 # s
-      - set_io: {gripper: 1}      # digital outputs
+      - set_io: {gripper: 1}      # outputs (on a FANUC controller: numeric registers, {"R[10]": 1})
       - grasp: {category: cup}    # perceive, classify, transfer a taught grasp, approach, close, lift, verify
       - place: {at: [0.45, -0.30]}   # carry the held object (planned around the scene), set it down there
     objects:                      # objects on the table of the simulated cell (generated instances)
       - {category: cup, seed: 3}                        # at a random placement (the run's seed) ...
       - {category: ball, seed: 1, at: [0.5, 0.1], yaw_deg: 30}   # ... or at a given one (m, deg)
+      - {category: long_tool, ycb: 044_flat_screwdriver}       # a YCB scan (../shared/data/objects/ycb)
 
-      - insert: {skill: peg.skill.h5, time_limit: 10}   # a learned insertion skill (skill file, s)
+      - insert: {skill: peg.skill.h5, time_limit: 10}   # a learned insertion skill (skill file, s) at a
+                                  # station: clearance_mm (the fit), lateral_error_mm, tilt_error_deg (start
+                                  # error bounds); defaults 0.02, 2, 5 (the learning benchmark's task)
       - grind: {skill: grind.skill.h5, tolerance: 0.15}  # a learned grinding skill (force RMS / peak allowed)
       - guide: {timeout: 60}      # lead-through with collision avoidance until the operator presses continue
 

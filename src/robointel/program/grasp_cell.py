@@ -13,6 +13,7 @@ above the target, sets it down, opens and retreats, and verifies where it came t
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import mujoco
 import numpy as np
@@ -32,6 +33,7 @@ from robointel.learning.grasp import (
     random_placements,
     sample_points,
     taught_grasps,
+    ycb_object,
 )
 from robointel.learning.grasp.pipeline import lrmate_with_gripper
 from robointel.learning.grasp.scene import ARM_KP, ARM_KV, arm_scene
@@ -94,7 +96,9 @@ class GraspCell:
         self.gripper = gripper or ParallelGripper()
         self.rng = np.random.default_rng(seed)
         self.robot = lrmate_with_gripper(self.gripper)
-        models = [primitive_object(o.category, o.seed, name=f"{o.category}_{i}") for i, o in enumerate(program.objects)]
+        models = [replace(ycb_object(o.ycb, o.category), name=f"{o.category}_{i}") if o.ycb is not None
+                  else primitive_object(o.category, o.seed, name=f"{o.category}_{i}")
+                  for i, o in enumerate(program.objects)]
         free = [m for m, o in zip(models, program.objects) if o.at is None]
         rand = iter(random_placements(free, self.rng)) if free else iter(())
         self.placements: list[Placement] = []

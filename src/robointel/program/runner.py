@@ -211,9 +211,13 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
         The :class:`ProgramRun`.
 
     Raises:
-        ProgramRejected: The pre-run check refused the program (nothing moved).
+        ProgramRejected: The pre-run check refused the program (nothing moved); a cell with a ``refuse``
+            method (:class:`InterfaceCell`) refuses what it cannot run first.
     """
     i0 = program.index(start)
+    refuse = getattr(cell, "refuse", None)  # the cell's own part of the check (a robot interface's outputs)
+    if callable(refuse):
+        refuse(program, i0)
     chk = check or check_program(program, cell.q, start=i0)
     results: list[StepResult] = []
     planners = _Planners(program.scene)
@@ -288,9 +292,13 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
             if not outcome.success:
                 cell.stop(step.kind)
         elif step.kind == "set_io":
-            for k, v in step.args["outputs"].items():
-                cell.set_io(k, v)
             outcome = TrialOutcome(True)
+            try:
+                for k, v in step.args["outputs"].items():
+                    cell.set_io(k, v)
+            except RobointelError as exc:
+                outcome = TrialOutcome(False, Failure.FAULT, f"setting the outputs failed: {exc}")
+                cell.stop("set_io")
         else:  # pragma: no cover - the format refuses other kinds
             outcome = TrialOutcome(False, Failure.ERROR, f"unknown step kind {step.kind!r}")
         results.append(StepResult(i, step.name, step.kind, outcome, time.perf_counter() - t0, executed, replanned))
@@ -309,7 +317,10 @@ def _skill_step(program: Program, step: Step, cell: Cell, i: int) -> TrialOutcom
     seed = int(getattr(cell, "seed", 0)) * 1000 + i
     if step.kind == "insert":
         assert isinstance(skill, InsertionSkill)
-        res = run_insert(skill, seed=seed, time_limit=step.args["time_limit"], station=station)
+        a = step.args
+        res = run_insert(skill, seed=seed, time_limit=a["time_limit"], clearance=1e-3 * a["clearance_mm"],
+                         lateral_error=1e-3 * a["lateral_error_mm"], tilt_error=np.radians(a["tilt_error_deg"]),
+                         station=station)
     else:
         assert isinstance(skill, GrindingSkill)
         res = run_grind(skill, seed=seed, tolerance=step.args["tolerance"], speed=step.args["speed"], station=station)

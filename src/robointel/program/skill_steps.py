@@ -2,8 +2,8 @@
 
 ``insert`` runs the peg-in-hole skill at the insertion station (the insertion package's
 :class:`robointel.learning.insertion.RobotCell`: the LR Mate with the peg tool over the hole, torque-level
-impedance, the skill's GMR (5.17) mapping the felt wrench to the corrective twist every 10 ms) from a
-start pose with the pose error a part handed over by the previous steps has (drawn from the run's seed).
+impedance, the skill's GMR (5.17) mapping the felt wrench to the corrective twist every 10 ms) over a hole
+of the step's fit, from a start pose with the step's pose error budget (drawn from the run's seed).
 ``grind`` reproduces the grinding skill's force profile along the plate
 (:func:`robointel.learning.grinding.reproduce_grinding`). A failed skill (wedged, force limit, time limit,
 force off the profile) leaves the arm held still by the joint servo where it stopped.
@@ -51,27 +51,40 @@ def _hold(station: RobotCell) -> tuple[npt.NDArray[np.float64], float]:
     return q, float(np.max(np.abs(station.data.qvel[station.vadr])))
 
 
-def run_insert(skill: InsertionSkill, *, seed: int, time_limit: float = 10.0,
+def run_insert(skill: InsertionSkill, *, seed: int, time_limit: float = 10.0, clearance: float = 20e-6,
+               lateral_error: float = 2e-3, tilt_error: float = np.radians(5.0),
                station: RobotCell | None = None) -> SkillResult:
     """Run the learned insertion skill once at the insertion station.
 
+    The station knows where its hole is (the cell's scene); the start pose error is what the cell's
+    calibration and the part's placement leave: a lateral offset uniform in +-``lateral_error`` per axis
+    and a tilt uniform in [0, ``tilt_error``] about a random horizontal axis, drawn from ``seed``.
+
     Args:
         skill: The fitted skill (from a skill file).
-        seed: Seed of the start pose error (lateral up to 2 mm, tilt up to 5 deg) and the sensor noise.
+        seed: Seed of the start pose error and the sensor noise.
         time_limit: Time the skill gets to seat the peg, s.
-        station: The insertion station (default: a new :class:`RobotCell` over the :class:`PegHole`).
+        clearance: Diametral clearance of the station's fit (hole minus peg diameter), m, in (0, 2 mm).
+        lateral_error: Lateral start error bound per axis, m.
+        tilt_error: Tilt start error bound, rad.
+        station: The insertion station (default: a new :class:`RobotCell` over a :class:`PegHole` with
+            ``clearance``; a given station keeps its own fit).
 
     Returns:
         The :class:`SkillResult`; success when the peg seated (tip within 1 mm of the bottom, wall
         penetration below half the clearance).
+
+    Raises:
+        InvalidInput: ``clearance`` outside (0, 2 mm).
     """
-    cell = station if station is not None else RobotCell(PegHole())
-    lateral, tilt = random_start_errors(np.random.default_rng(seed), 1)[0]
+    cell = station if station is not None else RobotCell(PegHole(clearance=clearance))
+    lateral, tilt = random_start_errors(np.random.default_rng(seed), 1, lateral=lateral_error, max_tilt=tilt_error)[0]
     trial = cell.insert(skill.predict, cell.start_pose(lateral, tilt), time_limit=time_limit, seed=seed)
     q_stop, speed = _hold(cell)
     out = trial.outcome
     figures = {**out.figures, "start_tilt_deg": float(np.degrees(tilt[1])),
-               "start_lateral_mm": float(1e3 * np.linalg.norm(lateral))}
+               "start_lateral_mm": float(1e3 * np.linalg.norm(lateral)),
+               "clearance_um": float(1e6 * cell.task.clearance)}
     detail = out.detail if out.success else f"insertion stopped: {out.detail}"
     outcome = TrialOutcome(out.success, out.reason, detail, figures)
     return SkillResult(outcome, np.zeros((0, len(q_stop))), q_stop, speed)

@@ -13,6 +13,10 @@ from robointel.geometry.rotations import rpy_to_matrix
 
 STEP_KINDS = ("move", "path", "wait", "set_io", "grasp", "place", "insert", "grind", "guide")
 SKILL_KINDS = {"insert": "insertion", "grind": "grinding"}  # step kind -> the skill file's kind
+#: ``insert`` options and defaults: time limit (s), the station's diametral fit clearance (mm), the start pose
+#: error bounds of the part at the station (lateral per axis, mm; tilt, deg). The defaults are the learning
+#: benchmark's task (20 um, +-2 mm, 5 deg), not a calibrated cell's.
+INSERT_OPTIONS = {"time_limit": 10.0, "clearance_mm": 0.02, "lateral_error_mm": 2.0, "tilt_error_deg": 5.0}
 OBJECT_CATEGORIES = ("cup", "can", "box", "ball", "long_tool")
 
 @dataclass(frozen=True)
@@ -84,12 +88,15 @@ class TableObject:
         seed: Seed of the generated instance (its shape and size).
         at: (x, y) position on the table in m, or None for a random placement drawn by the run's seed.
         yaw: Heading in rad (None: random).
+        ycb: Name of a YCB scan (``../shared/data/objects/ycb/<name>``) to place instead of a generated
+            instance, or None.
     """
 
     category: str
     seed: int = 0
     at: tuple[float, float] | None = None
     yaw: float | None = None
+    ycb: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for the YAML file."""
@@ -98,6 +105,8 @@ class TableObject:
             d["at"] = list(self.at)
         if self.yaw is not None:
             d["yaw_deg"] = float(np.degrees(self.yaw))
+        if self.ycb is not None:
+            d["ycb"] = self.ycb
         return d
 
 
@@ -110,7 +119,7 @@ def parse_object(d: Any, i: int) -> TableObject:
     where = f"object {i}"
     if not isinstance(d, Mapping) or "category" not in d:
         raise InvalidInput(f"{where} must be a mapping with a category ({', '.join(OBJECT_CATEGORIES)})", value=d)
-    unknown = set(d) - {"category", "seed", "at", "yaw_deg"}
+    unknown = set(d) - {"category", "seed", "at", "yaw_deg", "ycb"}
     if unknown:
         raise InvalidInput(f"{where}: unknown keys {sorted(map(str, unknown))}", value=d)
     cat = str(d["category"])
@@ -122,7 +131,11 @@ def parse_object(d: Any, i: int) -> TableObject:
     at = None if d.get("at") is None else tuple(float(x) for x in _vec(d["at"], 2, f"{where}.at"))
     yaw = None if d.get("yaw_deg") is None else float(np.radians(_number(d["yaw_deg"], f"{where}.yaw_deg",
                                                                           minimum=-np.inf)))
-    return TableObject(cat, int(seed), at, yaw)  # type: ignore[arg-type]
+    ycb = d.get("ycb")
+    if ycb is not None and (not isinstance(ycb, str) or not ycb or "/" in ycb or ycb.startswith(".")):
+        raise InvalidInput(f"{where}: ycb must be the name of a YCB scan folder (e.g. 044_flat_screwdriver), "
+                           f"got {ycb!r}", value=ycb)
+    return TableObject(cat, int(seed), at, yaw, ycb)  # type: ignore[arg-type]
 
 
 
@@ -217,7 +230,7 @@ def parse_step(d: Any, i: int, n: int) -> Step:
     where = f"step {i} ({name!r})"
     v = d[kind]
     if kind in SKILL_KINDS:
-        opt = {"insert": {"time_limit": 10.0}, "grind": {"tolerance": 0.15, "speed": 0.03}}[kind]
+        opt = {"insert": INSERT_OPTIONS, "grind": {"tolerance": 0.15, "speed": 0.03}}[kind]
         if not isinstance(v, Mapping) or "skill" not in v or not isinstance(v["skill"], str):
             raise InvalidInput(f"{where}: {kind} needs {{skill: FILE}} (a skill file written by `robointel learn "
                                f"{SKILL_KINDS[kind]} --skill-out FILE`)", value=v)
@@ -226,7 +239,10 @@ def parse_step(d: Any, i: int, n: int) -> Step:
             raise InvalidInput(f"{where}: unknown {kind} keys {sorted(map(str, unknown))}", value=v)
         args: dict[str, Any] = {"skill": str(v["skill"])}
         for k, default in opt.items():
-            args[k] = _number(v.get(k, default), f"{where}: {kind} {k}", strict=True)
+            args[k] = _number(v.get(k, default), f"{where}: {kind} {k}", strict="error" not in k)
+        if kind == "insert" and args["clearance_mm"] >= 2.0:
+            raise InvalidInput(f"{where}: insert clearance_mm must be below 2 mm, got {args['clearance_mm']!r}",
+                               value=args["clearance_mm"])
         return Step(kind, name, args)
     if kind == "guide":
         if v is None:
