@@ -50,6 +50,7 @@ import shutil
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -204,6 +205,31 @@ def classification_task(seed: int, ci: int, cat: str, per_category: int, full_pl
     return {"seed": seed, "true": true, "pred": pred, "plan_ms": plan_ms}
 
 
+def _task_file(store: Path | None, args: tuple) -> Path | None:
+    """The stored result of one classification task (seed, category index, placements, full plan)."""
+    if store is None:
+        return None
+    s, ci, _cat, n, full = args
+    return store / f"seed-{s}-cat-{ci}-n-{n}{'-plan' if full else ''}.json"
+
+
+def _stored(store: Path | None, args: tuple) -> dict | None:
+    f = _task_file(store, args)
+    return json.loads(f.read_text()) if f is not None and f.exists() else None
+
+
+def _classification_stored(store: Path | None, args: tuple) -> dict:
+    """Run one classification task and store its result (a run with the same ``--results`` resumes)."""
+    out = classification_task(*args)
+    f = _task_file(store, args)
+    if f is not None:
+        f.parent.mkdir(parents=True, exist_ok=True)
+        tmp = f.with_suffix(".tmp")
+        tmp.write_text(json.dumps(out))
+        tmp.replace(f)
+    return out
+
+
 def trial_specs(cats: list, seed: int, per_category: int, class_templates: int) -> list:
     """The trials as batch tasks (kind ``grasp``, YCB source): trial ``k`` of category ``ci`` has the
     spec seed ``seed * 10000 + 100 * ci + k`` (its placement and sensor noise) and held-out instance
@@ -239,7 +265,6 @@ def run_trials(specs: list, results: str | None, workers: int, ray: bool) -> lis
     import multiprocessing as mp
     import tempfile
     from concurrent.futures import ProcessPoolExecutor
-    from pathlib import Path
 
     from rich.console import Console
 
@@ -294,7 +319,7 @@ def bench_grasping(quick: bool, trials: bool, per_category: int, trial_categorie
     classification on ``seed`` (and each of ``class_seeds``) as independent tasks on ``workers`` forked
     processes (the setup made once, before the fork)."""
     import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures import ProcessPoolExecutor, as_completed
 
     from robointel.batch.kinds.grasp import setup
     from robointel.learning.grasp import classifying_templates, ycb_teaching_set
@@ -338,18 +363,22 @@ def bench_grasping(quick: bool, trials: bool, per_category: int, trial_categorie
               flush=True)
     tasks = []
     if classification:
-        tasks += [(classification_task, (s, ci, cat, per_category, False)) for s in (seed, *class_seeds)
-                  for ci, cat in enumerate(cats)]
-    if workers > 1 and tasks:
+        tasks += [(s, ci, cat, per_category, False) for s in (seed, *class_seeds) for ci, cat in enumerate(cats)]
+    store = Path(results) / "classification" if results else None
+    results_ = [r for r in (_stored(store, a) for a in tasks) if r is not None]
+    todo = [a for a in tasks if _stored(store, a) is None]
+    if store is not None and results_:
+        print(f"[grasp] {len(results_)}/{len(tasks)} classification tasks resumed from {store}", file=sys.stderr,
+              flush=True)
+    if workers > 1 and todo:
         with ProcessPoolExecutor(workers, mp_context=mp.get_context("fork")) as ex:
-            futs = [ex.submit(f, *a) for f, a in tasks]
-            results_ = []
-            for i, f_ in enumerate(futs):
+            futs = {ex.submit(_classification_stored, store, a): a for a in todo}
+            for i, f_ in enumerate(as_completed(futs)):
                 results_.append(f_.result())
-                print(f"[grasp] task {i + 1}/{len(tasks)} done at {time.perf_counter() - t_start:.0f} s: "
+                print(f"[grasp] classification task {i + 1}/{len(todo)} done at {time.perf_counter() - t_start:.0f} s: "
                       f"{json.dumps(results_[-1])}", file=sys.stderr, flush=True)
     else:
-        results_ = [f(*a) for f, a in tasks]
+        results_ += [_classification_stored(store, a) for a in todo]
     cls_res = []
     for s_ in (seed, *class_seeds):  # one result per seed, the categories' tasks joined
         parts = [r for r in results_ if "pred" in r and r["seed"] == s_]

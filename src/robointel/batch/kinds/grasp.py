@@ -88,7 +88,8 @@ def grasp(spec: TaskSpec) -> TrialOutcome:
         ``classified_right`` (1 when the planner classified the object into its category),
         ``wide_gripper`` (1 when the plan chose the 85 mm gripper), ``gripper_fallback`` (1 when the
         wide one was taken because the narrow one had no feasible grasp) and ``grip_width_m`` (the
-        jaw opening after closing, NaN when nothing was grasped). ``detail``: the object, the gripper
+        jaw opening after closing, NaN when nothing was grasped) and ``settle_s`` (simulated time the
+        object took to come to rest before the cameras looked). ``detail``: the object, the gripper
         and the trial's reason. Timings: ``setup_s``, ``trial_s`` and ``plan_s`` (the planner's
         classify-register-transfer-score-search time, when it ran).
 
@@ -113,7 +114,7 @@ def grasp(spec: TaskSpec) -> TrialOutcome:
     figures = {"final_height_m": float(r.final_height), "classified_right": float(r.category == cat),
                "wide_gripper": float(r.gripper == "wide_85mm"),
                "gripper_fallback": float(r.plan is not None and r.plan.gripper_fallback),
-               "grip_width_m": float(closed)}
+               "grip_width_m": float(closed), "settle_s": float(r.settle_s)}
     timings = {"setup_s": t1 - t0, "trial_s": time.perf_counter() - t1}
     if r.plan is not None:
         timings["plan_s"] = float(r.plan.timings["total"])

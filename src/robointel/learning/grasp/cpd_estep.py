@@ -187,8 +187,15 @@ class _FastEstep:
         y = [np.ascontiguousarray(TY[:, i], dtype=np.float32) if i < D else np.zeros(M, np.float32)
              for i in range(3)]
         c = (2.0 * np.pi * sigma2) ** (D / 2.0) * w / (1.0 - w) * M / N
-        _estep_chunks(*self.x, *y, np.float32(1.0 / (2.0 * sigma2)), np.float32(c), self.pt1, self.S,  # type: ignore[call-arg, arg-type]
-                      self.KB, self.IB)
+        if self.S.shape[0] == 1:
+            # one chunk: the serial kernel, no parallel launch (its end waits for every numba thread to
+            # have been scheduled: on a loaded machine that wait, per E-step, was ~15x the arithmetic)
+            S = self.S[0]
+            _estep_kernel(*self.x, *y, np.float32(1.0 / (2.0 * sigma2)), np.float32(c), self.pt1,  # type: ignore[call-arg, arg-type]
+                          S[0], S[1], S[2], S[3], self.KB[0], self.IB[0], 0, N)
+        else:
+            _estep_chunks(*self.x, *y, np.float32(1.0 / (2.0 * sigma2)), np.float32(c), self.pt1,  # type: ignore[call-arg, arg-type]
+                          self.S, self.KB, self.IB)
         Ssum = self.S.sum(axis=0, dtype=np.float64)
         P1 = Ssum[0]
         PX = Ssum[1:1 + D].T.copy()

@@ -24,7 +24,8 @@ from robointel.learning.grasp.quality import (
 )
 from robointel.learning.grasp.scene import ARM_KP, ARM_KV, Placement, arm_scene, scene_xml
 
-__all__ = ["HOVER_CLEARANCE", "LIFT_MIN", "PHASES", "Q_PARK", "GraspTrialResult", "grasp_trial"]
+__all__ = ["HOVER_CLEARANCE", "LIFT_MIN", "PHASES", "Q_PARK", "SETTLE_MAX", "GraspTrialResult", "grasp_trial",
+           "settle_until_at_rest"]
 
 
 @dataclass
@@ -33,7 +34,8 @@ class GraspTrialResult:
 
     One lift-and-shake trial: ``success``, the planned ``plan`` (None if perception failed),
     the predicted ``category``, the object's final height (m), a ``reason`` and a ``log``: the state at
-    the end of each phase (:data:`PHASES`; see :func:`_phase_state`).
+    the end of each phase (:data:`PHASES`; see :func:`_phase_state`) and ``settle_s``: the simulated
+    time (s) the object took to come to rest before the cameras looked.
     """
 
     success: bool
@@ -43,6 +45,7 @@ class GraspTrialResult:
     final_height: float = float("nan")
     cloud: np.ndarray | None = None
     log: list[dict[str, Any]] = field(default_factory=list)
+    settle_s: float = float("nan")
 
     @property
     def gripper(self) -> str | None:
@@ -104,6 +107,44 @@ HOVER_CLEARANCE = 0.15
 Q_PARK = np.radians([90.0, -20.0, 10.0, 0.0, -60.0, 0.0])
 
 
+#: The object is at rest when its linear speed stays below :data:`REST_SPEED` (m/s) and its angular speed
+#: below :data:`REST_SPIN` (rad/s) for :data:`REST_HOLD` (s); the cameras look then, at the latest after
+#: :data:`SETTLE_MAX` (s).
+REST_SPEED, REST_SPIN, REST_HOLD, SETTLE_MAX = 0.002, 0.05, 0.1, 5.0
+
+
+def settle_until_at_rest(m: mujoco.MjModel, d: mujoco.MjData, body: int, least: float,
+                         most: float = SETTLE_MAX) -> float:
+    """Step the scene until the object ``body`` has come to rest; return the simulated time (s).
+
+    The cameras of a trial look at a resting object: a toy arm set on its base falls over and is
+    still tipping 0.3 s after it was placed (1-2 s to rest), and a plan from a cloud of the falling
+    arm puts the jaws where it no longer is.
+
+    Args:
+        m: The scene's model.
+        d: Its data (stepped in place).
+        body: The object's body id.
+        least: Least simulated time to step (s).
+        most: Most simulated time to step (s).
+
+    Returns:
+        The simulated time stepped (s): at least ``least``; then until the object's speeds
+        (``d.cvel``: angular, linear) stayed below :data:`REST_SPIN` (rad/s) and :data:`REST_SPEED` (m/s)
+        for :data:`REST_HOLD` s, or ``most`` s have passed.
+    """
+    dt = m.opt.timestep
+    still, t = 0, 0.0
+    while t < most:
+        mujoco.mj_step(m, d)
+        t += dt
+        w, v = d.cvel[body][:3], d.cvel[body][3:]
+        still = still + 1 if np.linalg.norm(v) < REST_SPEED and np.linalg.norm(w) < REST_SPIN else 0
+        if t >= least and still * dt >= REST_HOLD:
+            break
+    return t
+
+
 def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *,
                 rng: np.random.Generator | int | None = None, cameras: list[DepthCamera] | None = None,
                 shake_amplitude: float = 0.15, settle: float = 0.3, arm: bool = True) -> GraspTrialResult:
@@ -129,7 +170,9 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
         rng: Seed or generator of the sensor noise.
         cameras: The depth cameras (default :func:`default_cameras`).
         shake_amplitude: Amplitude of the J6 shake (rad; J1 shakes by 0.06 rad), both at 2 Hz for 1.5 s.
-        settle: Time the object settles before the cameras look (s).
+        settle: Least time the object settles before the cameras look (s); they look once it is at
+            rest (its speeds below :data:`REST_SPEED` and :data:`REST_SPIN` for :data:`REST_HOLD`), at the
+            latest after :data:`SETTLE_MAX`.
         arm: Simulate the whole arm (else the gripper alone).
 
     Returns:
@@ -181,14 +224,13 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
     bgs = [depth_image(m, d, c, rng) for c in cams]
     d.qpos[qadr:qadr + 7] = saved
     mujoco.mj_forward(m, d)
-    for _ in range(int(settle / m.opt.timestep)):
-        mujoco.mj_step(m, d)
+    settled_s = settle_until_at_rest(m, d, m.body("obj0").id, settle)
     clouds = perceive(m, d, cams, bgs, rng=rng)
     if not clouds:
-        return GraspTrialResult(False, "nothing perceived")
+        return GraspTrialResult(False, "nothing perceived", settle_s=settled_s)
     cloud = clouds[0]
     if len(cloud) < 20:
-        return GraspTrialResult(False, "cloud too small", cloud=cloud)
+        return GraspTrialResult(False, "cloud too small", cloud=cloud, settle_s=settled_s)
     if plan is None:
         plan = planner.plan(cloud, exclude=(obj.name,))
         if plan.gripper != g:  # the same placement and draws, the chosen gripper on the flange
@@ -200,7 +242,7 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
     if not res.feasible or res.q is None:
         why = plan.search.detail.reason if plan.search.detail else "-"
         return GraspTrialResult(False, f"no feasible grasp ({why})",
-                           cat, plan, cloud=cloud)
+                                cat, plan, cloud=cloud, settle_s=settled_s)
     G = res.grasp.pose
     pre = G.copy()
     pre[:3, 3] -= 0.08 * res.grasp.approach
@@ -213,7 +255,7 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
         q_pre = robot.ik(np.linalg.inv(Tb) @ pre, q_ref=q_grasp)[0]
         q_up = robot.ik(np.linalg.inv(Tb) @ up, q_ref=q_grasp)[0]
     except IKFailure:
-        return GraspTrialResult(False, "approach or lift unreachable", cat, plan, cloud=cloud)
+        return GraspTrialResult(False, "approach or lift unreachable", cat, plan, cloud=cloud, settle_s=settled_s)
     q_hover = q_pre  # when no raised pose is reachable, the swing ends at the pre-grasp itself
     for clearance in (HOVER_CLEARANCE, HOVER_CLEARANCE / 2):
         hover = pre.copy()
@@ -288,4 +330,4 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
     else:
         reason = (f"dropped: slipped during shake (moved {moved:.3f} m in hand, "
                   f"grip {2 * (g.max_width / 2 - closed):.3f} m)")
-    return GraspTrialResult(bool(held), reason, cat, plan, h, cloud, log)
+    return GraspTrialResult(bool(held), reason, cat, plan, h, cloud, log, settled_s)
