@@ -358,12 +358,16 @@ def main(conn_fd: int, shm_fd: int) -> None:
     mm = mmap.mmap(shm_fd, SHM_BYTES)
     buf = np.frombuffer(mm, dtype=np.float64)
     host, policy, base_ns, period, stall_periods = conn.recv()
+    # Before bring-up: the driver's Python threads (supervisor watch at 50 Hz, heartbeat, RMI reader)
+    # inherit the policy. At normal priority one of them, preempted while it holds this process's
+    # interpreter lock, would delay the main thread by a scheduling latency (the inversion this
+    # process exists to avoid). The core's real-time thread sets its own FIFO 80.
+    _set_fifo(PRIORITY)
     try:
         driver = FanucDriver(host, policy)
     except FanucError as exc:
         conn.send((False, (type(exc).__name__, str(exc))))
         return
-    _set_fifo(PRIORITY)  # after bring-up: the driver's own threads keep their policy
     gc.collect()
     gc.freeze()
     sys.setswitchinterval(0.0005)
