@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from airo_fanuc import FanucDriver
+from airo_fanuc.exceptions import FanucError
 
 NDOF = 6
 RING = 1024
@@ -197,8 +199,6 @@ class Player:
         self.driver.hold()
 
     def _submit(self, q: npt.NDArray[np.float64], tick: int) -> None:
-        from airo_fanuc.exceptions import FanucError
-
         c = self.counters
         try:
             self.driver.servo_j(q, self.period)
@@ -351,9 +351,6 @@ def _request(name: str, args: tuple, kwargs: dict, driver: Any, player: Player, 
 
 def main(conn_fd: int, shm_fd: int) -> None:
     """Entry point of the child: bring the driver up, report, serve until closed."""
-    from airo_fanuc import FanucDriver
-    from airo_fanuc.exceptions import FanucError
-
     conn = Connection(conn_fd)
     mm = mmap.mmap(shm_fd, SHM_BYTES)
     buf = np.frombuffer(mm, dtype=np.float64)
