@@ -370,7 +370,10 @@ class FanucRobot(Backend):
             self._mode, self._why, self._faults, self._last_cmd = RobotMode.IDLE, "", (), None
 
     def timing_stats(self) -> dict[str, Any]:
-        """The driver's real-time core statistics (tick intervals, TX counts, missed RX ticks)."""
+        """The driver's real-time core statistics (tick intervals, TX counts, missed RX ticks).
+
+        With the streaming process, also its window counters: ``stream_windows``, ``stream_fresh``,
+        ``stream_starved`` (the caller late by more than the look-ahead), ``stream_late`` (the
+        streaming process after the tick), ``stream_submits`` and ``lookahead_s``.
+        """
         return dict(self.driver.timing_stats())
-
-
