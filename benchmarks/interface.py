@@ -274,9 +274,12 @@ def main() -> None:
         peer = _peer_run(fake, args.seconds)
         n_peer = len(fake.call("violations")) - n_fan
         est = _estop_run(fake)
+        n_est = len(fake.call("violations"))
     finally:
         violations = fake.close()
     peer_violations = violations[n_fan:n_fan + n_peer]  # the bare driver's session (its close included)
+    by_session = {"streaming": n_proc, "in_process": n_fan - n_proc, "peer": n_peer,
+                  "estop": n_est - n_fan - n_peer, "close_of_emulator": len(violations) - n_est}
     inproc_violations = violations[n_proc:n_fan]  # the in-process session's
     violations = violations[:n_proc] + violations[n_fan + n_peer:]
     core = fan["core"]
@@ -315,6 +318,7 @@ def main() -> None:
                                                                "stream_submits")},
         "violations": violations + v2, "peer_violations": peer_violations,
         "in_process_violations": inproc_violations,
+        "violations_by_session": {**by_session, "frmp": len(v2)},
     })
     print(json.dumps(out, indent=None if args.json else 1))
 

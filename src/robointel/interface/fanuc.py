@@ -432,7 +432,12 @@ class FanucRobot(Backend):
         return self.driver.rmi
 
     def timing_stats(self) -> dict[str, Any]:
-        """The driver's real-time core statistics (tick intervals, TX counts, missed RX ticks)."""
+        """The driver's real-time core statistics (tick intervals, TX counts, missed RX ticks).
+
+        With the streaming process, also its window counters: ``stream_windows``, ``stream_fresh``,
+        ``stream_starved`` (the caller late by more than the look-ahead), ``stream_late`` (the
+        streaming process after the tick), ``stream_submits`` and ``lookahead_s``.
+        """
         return dict(self.driver.timing_stats())
 
 
@@ -444,4 +449,3 @@ def _register_number(number: int, reserved: tuple[int, ...]) -> int:
         raise InvalidInput(f"R[{number}] belongs to the gripper dispatcher (R[{reserved[0]}]-R[{reserved[-1]}]) "
                            "while the gripper is up", value=number)
     return int(number)
-

@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from airo_fanuc import FanucDriver
+from airo_fanuc.exceptions import FanucConnectionError, FanucError
 
 NDOF = 6
 RING = 1024
@@ -197,8 +199,6 @@ class Player:
         self.driver.hold()
 
     def _submit(self, q: npt.NDArray[np.float64], tick: int) -> None:
-        from airo_fanuc.exceptions import FanucError
-
         c = self.counters
         try:
             self.driver.servo_j(q, self.period)
@@ -346,24 +346,32 @@ def _request(name: str, args: tuple, kwargs: dict, driver: Any, player: Player, 
         return None if r is None else r.value
     if name == "timing_stats":
         return dict(driver.timing_stats())
+    if name in ("rmi_write_register", "rmi_read_register"):
+        if driver.rmi is None:
+            raise FanucConnectionError("no RMI session")
+        if name == "rmi_write_register":
+            driver.rmi.write_register(*args)
+            return None
+        return driver.rmi.read_register(*args)
     raise ValueError(f"unknown request {name!r}")
 
 
 def main(conn_fd: int, shm_fd: int) -> None:
     """Entry point of the child: bring the driver up, report, serve until closed."""
-    from airo_fanuc import FanucDriver
-    from airo_fanuc.exceptions import FanucError
-
     conn = Connection(conn_fd)
     mm = mmap.mmap(shm_fd, SHM_BYTES)
     buf = np.frombuffer(mm, dtype=np.float64)
     host, policy, base_ns, period, stall_periods = conn.recv()
+    # Before bring-up: the driver's Python threads (supervisor watch at 50 Hz, heartbeat, RMI reader)
+    # inherit the policy. At normal priority one of them, preempted while it holds this process's
+    # interpreter lock, would delay the main thread by a scheduling latency (the inversion this
+    # process exists to avoid). The core's real-time thread sets its own FIFO 80.
+    _set_fifo(PRIORITY)
     try:
         driver = FanucDriver(host, policy)
     except FanucError as exc:
         conn.send((False, (type(exc).__name__, str(exc))))
         return
-    _set_fifo(PRIORITY)  # after bring-up: the driver's own threads keep their policy
     gc.collect()
     gc.freeze()
     sys.setswitchinterval(0.0005)

@@ -31,7 +31,14 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 from airo_fanuc import MotionResult
-from airo_fanuc.exceptions import FanucConnectionError, FanucError, RobotFaultedError, TrajectoryValidationError
+from airo_fanuc.exceptions import (
+    FanucConnectionError,
+    FanucError,
+    RmiError,
+    RmiSessionDown,
+    RobotFaultedError,
+    TrajectoryValidationError,
+)
 
 from robointel.errors import InvalidInput
 from robointel.interface import stream_child as sc
@@ -41,14 +48,16 @@ START_TIMEOUT_S = 60.0
 REPLY_TIMEOUT_S = 30.0
 """A request to the child (recovery ladders included), s."""
 
-_ERRORS: dict[str, type[FanucError]] = {"TrajectoryValidationError": TrajectoryValidationError,
-                                         "RobotFaultedError": RobotFaultedError,
-                                         "FanucConnectionError": FanucConnectionError}
+_ERRORS: dict[str, type[Exception]] = {"TrajectoryValidationError": TrajectoryValidationError,
+                                       "RobotFaultedError": RobotFaultedError,
+                                       "FanucConnectionError": FanucConnectionError,
+                                       "RmiSessionDown": RmiSessionDown,
+                                       "RmiError": RmiError}
 _CHILD = ("import runpy, sys; sys.path.pop(0); sys.argv = sys.argv[1:]; "
           "runpy.run_path(sys.argv[0], run_name='__main__')")
 
 
-def _error(kind: str, message: str) -> FanucError:
+def _error(kind: str, message: str) -> Exception:
     """The ``airo_fanuc`` exception the child reported (``FanucError`` for any other kind)."""
     return _ERRORS.get(kind, FanucError)(f"{message}" if kind in _ERRORS else f"{kind}: {message}")
 
@@ -90,6 +99,21 @@ _R = {name: sl.start - sc.S_OFF for name, sl in sc.STATE_INDEX.items()}
 _FLAGS = ("e_stopped", "in_error", "tp_enabled", "motion_possible", "wrench_valid", "stalled", "refused")
 _INTS = ("mode", "fault", "cmd_tick", "active_motion_id", "active_motion_status")
 _VECTORS = ("q_meas", "qd_est", "q_cmd")
+
+
+class _RmiView:
+    """The child's RMI session: numeric register reads and writes (``FanucDriver.rmi``'s surface)."""
+
+    def __init__(self, owner: StreamProcess) -> None:
+        self._owner = owner
+
+    def write_register(self, number: int, value: float) -> None:
+        """Write R[number] in the child (raises ``RmiError`` / ``RmiSessionDown`` as the driver does)."""
+        self._owner.call("rmi_write_register", int(number), value)
+
+    def read_register(self, number: int) -> float:
+        """Read R[number] in the child."""
+        return float(self._owner.call("rmi_read_register", int(number)))
 
 
 class _Handle:
@@ -153,6 +177,7 @@ class StreamProcess:
         finally:
             os.close(fd)
         self.core = _CoreView(self)
+        self.rmi = _RmiView(self)
         try:
             self._conn.send((host, policy, self.base_ns, self.period, int(stall_periods)))
             self._reply(START_TIMEOUT_S, "bring-up")
