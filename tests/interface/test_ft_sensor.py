@@ -1,7 +1,7 @@
 """Lead-through on the FANUC emulator with a wrist F/T sensor over Net F/T RDT (UDP, 127.0.0.1)."""
+import multiprocessing
 import socket
 import struct
-import threading
 import time
 
 import numpy as np
@@ -19,18 +19,23 @@ CPF = 1e6
 
 
 class SimulatedNetFT:
-    """A Net F/T box on 127.0.0.1: after the RDT start command it streams ``wrench_of(t)`` at 500 Hz."""
+    """A Net F/T box on 127.0.0.1: after the RDT start command it streams ``wrench_of(t)`` at 500 Hz.
+
+    The box runs in a forked process of its own, like the real sensor: a thread here would wait for
+    the interpreter lock behind the real-time loop it feeds and send stale readings on a loaded machine.
+    """
 
     def __init__(self, wrench_of, status=0):
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
         self.sock.settimeout(0.002)  # the record rate: one per receive timeout
         self.port = self.sock.getsockname()[1]
-        self.wrench_of, self.status = wrench_of, status
-        self.started = threading.Event()
-        self._stop = threading.Event()
-        self._th = threading.Thread(target=self._run, daemon=True)
-        self._th.start()
+        ctx = multiprocessing.get_context("fork")
+        self.wrench_of, self._status = wrench_of, ctx.Value("q", status)
+        self.started = ctx.Event()
+        self._stop = ctx.Event()
+        self._proc = ctx.Process(target=self._run, daemon=True)
+        self._proc.start()
 
     def _run(self):
         peer, seq, t0 = None, 0, 0.0
@@ -50,9 +55,20 @@ class SimulatedNetFT:
                 seq += 1
                 self.sock.sendto(RDT_RECORD.pack(seq, seq, self.status, *counts.tolist()), peer)
 
+    @property
+    def status(self):
+        """The RDT status word the box sends (shared with its process)."""
+        return self._status.value
+
+    @status.setter
+    def status(self, value):
+        self._status.value = value
+
     def close(self):
         self._stop.set()
-        self._th.join(timeout=5)
+        self._proc.join(timeout=5)
+        if self._proc.is_alive():
+            self._proc.kill()
         self.sock.close()
 
 
@@ -87,7 +103,7 @@ def test_lead_through_on_the_emulator_follows_a_push_on_the_wrist_sensor():
     q0 = np.array([0.0, 0.2, -0.3, 0.0, -0.8, 0.0])
     R0 = robot.frame_pose(q0, robot.flange_frame)[:3, :3]
     push = R0.T @ np.array([0.0, 20.0, 0.0])  # 20 N along world +y, in the sensor frame
-    released = threading.Event()
+    released = multiprocessing.get_context("fork").Event()  # set here, read by the box's process
 
     def wrench_of(t):
         return np.concatenate([push, np.zeros(3)]) if not released.is_set() else np.zeros(6)
