@@ -15,7 +15,10 @@ runs in one process, each run into a fresh result folder:
   trials, the median over ``--repeats`` such pairs (each pair run back to back, so the shared
   machine's drift mostly cancels; every repeat is printed), and ``overhead_per_task_ms_empty_tasks``
   the same on ``--empty`` zero-work synthetic tasks (Ray's dispatch and the store alone, without
-  the trials' noise on a shared machine);
+  the trials' noise on a shared machine); ``overhead_between_tasks_ms`` and ``overhead_inside_tasks_ms``
+  split it (medians over the pairs): the run's wall outside the tasks' own time inside ``execute``
+  (dispatch, transfer, store writes), and the tasks' own time, Ray worker against driver;
+  ``per_task_repeats`` gives each pair's per-task medians by kind (wall and CPU seconds);
   ``cores_used_*`` = the tasks' CPU seconds over the run's wall time (what the run actually got of
   the 2 cores while other jobs ran);
 * Ray with 2 workers on the insertion trials again, with the worker of one task killed (SIGKILL)
@@ -114,6 +117,12 @@ def main() -> None:
         cmd = "ip link set lo up && exec " + " ".join([sys.executable, *map(str, sys.argv)])
         sys.exit(subprocess.call(["unshare", "--net", "sh", "-c", cmd], env=env))
 
+    json_fd = None
+    if args.json:  # Ray's driver prints notices (a worker died) on stdout: keep it for the one JSON object
+        sys.stdout.flush()
+        json_fd = os.dup(1)
+        os.dup2(2, 1)
+
     import ray
 
     from robointel.batch.ray_engine import start_ray
@@ -193,8 +202,10 @@ def main() -> None:
     out["load_average_end"] = os.getloadavg()[0]
     out["wall_s"] = time.perf_counter() - t_all
     shutil.rmtree(root, ignore_errors=True)
-    if args.json:
-        print(json.dumps(out))
+    if json_fd is not None:
+        sys.stdout.flush()
+        os.dup2(json_fd, 1)
+        print(json.dumps(out), flush=True)
     else:
         for k, v in out.items():
             print(f"{k:36s} {v}")
