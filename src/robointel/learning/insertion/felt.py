@@ -76,7 +76,7 @@ class FeltStrategy:
         centre: Distance (m) from the F/T sensor to the ball tip's centre along the tool axis.
         aside: Lateral move (m) from the start onto the face beside the hole.
         circle_radius: Radius (m) of the felt circle.
-        circle_hz: Frequency (Hz) of the felt circle (one turn).
+        circle_hz: Frequency (Hz) of the felt circle (half a turn spiralling out, one turn at the radius).
         feel_push: Axial speed (m/s) while feeling: a push of ``AXIAL_DAMPING`` x this (N).
         touch_force: Axial force (N) that ends the touch.
         lift: Lift (m) off the face before turning.
@@ -93,8 +93,8 @@ class FeltStrategy:
     """
 
     centre: float
-    aside: float = 0.0185
-    circle_radius: float = 0.002
+    aside: float = 0.0187
+    circle_radius: float = 0.0015
     circle_hz: float = 0.75
     feel_push: float = 0.0015
     touch_force: float = 1.0
@@ -177,15 +177,17 @@ class FeltStrategy:
                 self._next("feel")
                 self._circle = (R.T @ c)[:2]
         elif self.stage == "feel":
+            # a circle centred on the touch point, its radius growing over the first half turn
             om = 2 * np.pi * self.circle_hz
             ph = om * st
-            goal = self._circle + self.circle_radius * np.array([np.cos(ph) - 1.0, np.sin(ph)])
+            rad = self.circle_radius * min(1.0, 2.0 * self.circle_hz * st)
+            goal = self._circle + rad * np.array([np.cos(ph), np.sin(ph)])
             pos = (R.T @ c)[:2]
-            tw[:2] = om * self.circle_radius * np.array([-np.sin(ph), np.cos(ph)]) + 2 * self.k_pos * (goal - pos)
+            tw[:2] = om * rad * np.array([-np.sin(ph), np.cos(ph)]) + 2 * self.k_pos * (goal - pos)
             tw[2] = self.feel_push
             if st > 0.15 and push > 0.7 * AXIAL_DAMPING * self.feel_push:
                 self._points.append(c.copy())
-            if st > 1.0 / self.circle_hz + 0.15:
+            if st > 1.5 / self.circle_hz + 0.15:
                 self.normal = face_normal(np.array(self._points)) if len(self._points) >= 3 else np.array([0, 0, -1.0])
                 self._hold = c + self.normal * self.lift
                 self._next("lift")

@@ -28,7 +28,7 @@ from robointel.learning.insertion.peg_hole import R_DOWN, PegHole, tip_point
 #: the strategy's stage -> the demonstration phase label (feeling is approach, turning square is rotation)
 STAGE_PHASE = {"aside": 0, "touch": 0, "feel": 0, "lift": 1, "align": 1, "return": 2, "insert": 2}
 #: strategy parameters each person draws (uniform bounds) and the skill takes as the demonstrations' median
-PERSON_RANGES = {"aside": (0.017, 0.020), "circle_radius": (0.0018, 0.0022), "circle_hz": (0.6, 0.9),
+PERSON_RANGES = {"aside": (0.0183, 0.0191), "circle_radius": (0.0014, 0.0016), "circle_hz": (0.6, 0.9),
                  "feel_push": (0.0012, 0.0018), "k_align": (2.5, 3.5), "w_max": (0.06, 0.10),
                  "v_insert": (0.008, 0.012)}
 
