@@ -28,8 +28,6 @@ import argparse
 import json
 import os
 import re
-import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -37,6 +35,7 @@ from collections import defaultdict
 
 import numpy as np
 
+from _netns import reexec_in_loopback_netns
 from robointel.batch import TaskSpec, run_batch
 from robointel.batch.store import ResultStore
 from robointel.geometry import obstacle_from_dict
@@ -134,12 +133,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=4000)
     ap.add_argument("--workers", type=int, default=1, help="> 1: Ray workers (in a loopback-only namespace)")
     a = ap.parse_args()
-    if a.workers > 1 and os.environ.get("ROBOINTEL_NETNS") != "1":
-        if shutil.which("unshare") is None:
-            sys.exit("unshare not found: run as root on Linux, or use --workers 1")
-        env = {**os.environ, "ROBOINTEL_NETNS": "1", "RAY_USAGE_STATS_ENABLED": "0"}
-        cmd = "ip link set lo up && exec " + " ".join([sys.executable, *map(str, sys.argv)])
-        sys.exit(subprocess.call(["unshare", "--net", "sh", "-c", cmd], env=env))
+    if a.workers > 1:
+        reexec_in_loopback_netns()
     load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
     out = {"program": a.program}

@@ -28,6 +28,7 @@ from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 from sklearn.svm import SVC
 
+from _netns import reexec_in_loopback_netns
 from robointel.batch import ResultStore, TaskSpec, run_batch
 from robointel.batch.kinds.insertion import felt_skill, learned_skill
 from robointel.learning import grinding as G
@@ -88,9 +89,13 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0, help="seed of the demonstrations")
     ap.add_argument("--start-seed", type=int, default=2026, help="seed of the trial starts (never used in tuning)")
     ap.add_argument("--time-limit", type=float, default=15.0, help="insertion trial time limit (s)")
+    ap.add_argument("--workers", type=int, default=1,
+                    help="> 1: the insertion trials on a local Ray with N workers (in a loopback-only namespace)")
     ap.add_argument("--insertion-gains", default="{}",
                     help='JSON of ImpedanceGains fields for the impedance trials, e.g. \'{"rot_stiffness": 300}\'')
     args = ap.parse_args()
+    if args.workers > 1:
+        reexec_in_loopback_netns()
 
     out: dict[str, Any] = {}
     t_all = time.perf_counter()
@@ -148,11 +153,14 @@ def main() -> None:
     specs = [TaskSpec("insertion", k, {"controller": "impedance", **common, **params}, category=name or "_skill")
              for k in range(len(starts)) for name, params in groups.items()]
     with tempfile.TemporaryDirectory() as folder:
-        run_batch(specs, folder, progress=sys.stderr.isatty() and not args.json)
+        # on Ray each worker learns the same felt skill itself (same demonstrations and seed)
+        run_batch(specs, folder, progress=sys.stderr.isatty() and not args.json,
+                  **({"engine": "ray", "workers": args.workers} if args.workers > 1 else {}))
         rows = sorted(ResultStore(folder).rows(), key=lambda r: int(r["seed"]))
     res: dict[str, list[TrialOutcome]] = {name: [TrialOutcome.from_record(r) for r in rows
                                                  if r["category"] == (name or "_skill")] for name in groups}
     out["insertion_trials"] = len(starts)
+    out["insertion_workers"] = args.workers
     for name, rs in res.items():
         out[f"insertion_success{name}"] = int(sum(r.success for r in rs))
         out[f"insertion_failures{name}"] = dict(Counter(r.reason.value for r in rs if not r.success))
