@@ -4,7 +4,7 @@ in the simulated cell, with a planner running in another thread; e-stop reaction
     python benchmarks/interface.py --json [--seconds 60]
 
 A *missed cycle* on the FANUC is a controller window that got no fresh command from robointel: the
-streaming process (``FanucRobot(stream_process=True)``, the default) counts every window of a
+streaming process (``FanucRobot(stream_process=True)``) counts every window of a
 stream as fresh (a target interpolated at the tick's time, submitted before the tick), starved (the
 caller had not delivered a target for it: late by more than the look-ahead) or late (the streaming
 process itself submitted after the tick). ``fanuc_missed_cycles`` = starved + late. Windows the
@@ -172,7 +172,7 @@ def _estop_run(fake):
     from robointel.interface import open_robot
     from robointel.interface.realtime import sleep_until
 
-    robot = open_robot(fake.url)
+    robot = open_robot(fake.url, stream_process=True)
     try:
         targets = _targets(robot.state().q, 3.0)
         t0, t_press, err, submits0 = time.perf_counter(), None, None, 0
@@ -218,7 +218,7 @@ def _frmp_run():
     tr = res.trajectory
     fake = EmulatorProcess(tr.q[0])
     try:
-        with open_robot(fake.url) as robot:
+        with open_robot(fake.url, stream_process=True) as robot:
             ex = robot.execute(tr)
             time.sleep(1.0)
             final = robot.state().q
@@ -266,7 +266,7 @@ def main() -> None:
                  "process_nice": os.nice(0), "load_avg_1min_at_start": os.getloadavg()[0]}
     fake = EmulatorProcess()
     try:
-        fan = _streaming_run(lambda: open_robot(fake.url, lookahead_s=args.lookahead), args.seconds)
+        fan = _streaming_run(lambda: open_robot(fake.url, stream_process=True, lookahead_s=args.lookahead), args.seconds)
         n_proc = len(fake.call("violations"))
         inproc = (_streaming_run(lambda: open_robot(fake.url, stream_process=False), args.seconds)
                   if args.in_process else None)

@@ -76,8 +76,10 @@ class FanucRobot(Backend):
             none (a :class:`~robointel.interface.ft_sensor.WrenchSource`, or a ``netft://HOST[:PORT]``
             URL opened here and closed with the robot); None: no wrench (lead-through is refused).
         stream_process: run the driver in a streaming process of its own, fed through a look-ahead
-            queue (:class:`~robointel.interface.stream_process.StreamProcess`); False: in this process,
-            each target submitted by the caller's thread as it comes.
+            queue (:class:`~robointel.interface.stream_process.StreamProcess`): for position streaming
+            beside heavy work in the caller's process (a planner); it delays every target by
+            ``lookahead_s``, so force loops (lead-through, skills) keep the default False: the driver
+            in this process, each target submitted by the caller's thread as it comes.
         lookahead_s: the streaming process plays a target this long after it arrived, s: a stall of
             the streaming caller shorter than this costs no controller window; it is added latency.
 
@@ -90,7 +92,7 @@ class FanucRobot(Backend):
                  profile: RobotProfile | None = None, robot: Any = None, stall_periods: int | None = 10,
                  recorder: Recorder | None = None, connect_timeout: float = 5.0,
                  lock_path: str | None = None, deadman_s: float = 0.5, sched_fifo: bool = True,
-                 gripper: bool = False, ft_sensor: WrenchSource | str | None = None, stream_process: bool = True,
+                 gripper: bool = False, ft_sensor: WrenchSource | str | None = None, stream_process: bool = False,
                  lookahead_s: float = DEFAULT_LOOKAHEAD_S) -> None:
         if robot is None:
             from robointel.robot import Robot
