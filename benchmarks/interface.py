@@ -266,7 +266,8 @@ def main() -> None:
                  "process_nice": os.nice(0), "load_avg_1min_at_start": os.getloadavg()[0]}
     fake = EmulatorProcess()
     try:
-        fan = _streaming_run(lambda: open_robot(fake.url, stream_process=True, lookahead_s=args.lookahead), args.seconds)
+        fan = _streaming_run(lambda: open_robot(fake.url, stream_process=True, lookahead_s=args.lookahead),
+                             args.seconds)
         n_proc = len(fake.call("violations"))
         inproc = (_streaming_run(lambda: open_robot(fake.url, stream_process=False), args.seconds)
                   if args.in_process else None)

@@ -4,7 +4,7 @@ import dataclasses
 import pytest
 
 from robointel.interface import open_robot
-from robointel.interface.emulator import EmulatorProcess
+from robointel.interface.emulator import EmulatorProcess, protocol_violations
 
 
 @pytest.fixture(scope="session")
@@ -32,6 +32,8 @@ class FakeProxy:
         return self._emu.timed(name, *args)
 
     def __getattr__(self, name):
+        if name == "violations":
+            return protocol_violations(self._emu.call(name))
         if name in self.PROPERTIES:
             return self._emu.call(name)
         return lambda *args: self._emu.call(name, *args)
@@ -58,7 +60,7 @@ def fake_controller():
     try:
         yield FakeProxy(emu)
     finally:
-        violations = emu.close()
+        violations = protocol_violations(emu.close())
     assert violations == []
 
 

@@ -76,7 +76,8 @@ def test_the_streaming_process_stops_when_its_caller_dies(fake_controller):
         import os, sys, time
         import numpy as np
         from robointel.interface.fanuc import FanucRobot
-        robot = FanucRobot("127.0.0.1", rmi_port={fake_controller.rmi_port}, sm_port={fake_controller.sm_port}, stream_process=True)
+        robot = FanucRobot("127.0.0.1", rmi_port={fake_controller.rmi_port}, sm_port={fake_controller.sm_port},
+                           stream_process=True)
         print(robot.driver._proc.pid, flush=True)
         q = robot.state().q_cmd
         for k in range(50):

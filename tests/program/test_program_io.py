@@ -6,7 +6,7 @@ from typer.testing import CliRunner
 
 from robointel.cli import app
 from robointel.interface import open_robot
-from robointel.interface.emulator import EmulatorProcess
+from robointel.interface.emulator import EmulatorProcess, protocol_violations
 from robointel.outcome import Failure
 from robointel.program import InterfaceCell, ProgramRejected, program_from_dict, run_program
 
@@ -32,7 +32,7 @@ def test_set_io_writes_numeric_registers_on_the_fanuc_emulator():
             # read back from the controller over RMI, not from the cell's own record
             assert arm.read_register(11) == 0.0 and arm.read_register(12) == 2.5
             assert cell.io == {"R[11]": 0.0, "R[12]": 2.5}
-        violations = emu.close()
+        violations = protocol_violations(emu.close())
     assert violations == []
 
 
@@ -57,7 +57,7 @@ def test_outputs_a_fanuc_controller_cannot_write_are_refused_before_moving(tmp_p
         res = CliRunner().invoke(app, ["run", str(path), "--robot", emu.url, "--report", str(tmp_path / "rep")])
         out = " ".join(res.output.split())
         assert res.exit_code == 2 and "refused before moving" in out and "'gripper'" in out
-        violations = emu.close()
+        violations = protocol_violations(emu.close())
     assert violations == []
 
 
@@ -70,5 +70,5 @@ def test_a_register_write_the_controller_refuses_fails_the_step_and_stops():
             assert not run.success and run.steps[-1].name == "signal" and len(run.steps) == 2
             assert run.outcome.reason is Failure.FAULT and "R[20]" in run.outcome.detail
         np.testing.assert_allclose(np.radians(emu.call("q_meas_deg"))[:6], np.radians(HOME), atol=1e-3)
-        violations = emu.close()
+        violations = protocol_violations(emu.close())
     assert violations == []
