@@ -35,7 +35,6 @@ import argparse
 import json
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -45,6 +44,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
+from _netns import reexec_in_loopback_netns
 from robointel.batch import Fault, ResultStore, TaskSpec, run_batch
 
 GRASP_CATEGORIES = ("cup", "can", "box", "ball", "long_tool")
@@ -110,12 +110,8 @@ def main() -> None:
     ap.add_argument("--worker-niceness", type=int, default=0, help="niceness of the local Ray's workers")
     ap.add_argument("--no-netns", action="store_true", help="do not re-execute inside unshare --net")
     args = ap.parse_args()
-    if not args.no_netns and os.environ.get("ROBOINTEL_NETNS") != "1":
-        if shutil.which("unshare") is None:
-            sys.exit("unshare not found: run as root on Linux, or pass --no-netns")
-        env = {**os.environ, "ROBOINTEL_NETNS": "1", "RAY_USAGE_STATS_ENABLED": "0"}
-        cmd = "ip link set lo up && exec " + " ".join([sys.executable, *map(str, sys.argv)])
-        sys.exit(subprocess.call(["unshare", "--net", "sh", "-c", cmd], env=env))
+    if not args.no_netns:
+        reexec_in_loopback_netns(hint="pass --no-netns")
 
     json_fd = None
     if args.json:  # Ray's driver prints notices (a worker died) on stdout: keep it for the one JSON object
