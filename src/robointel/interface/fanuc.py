@@ -4,7 +4,8 @@ Targets go out with ``FanucDriver.servo_j(q, period)`` (the driver's compiled re
 the 8 ms Stream Motion timeline). By default the driver runs in a streaming process of its own
 (:class:`~robointel.interface.stream_process.StreamProcess`) that plays the streamed targets at the
 controller's ticks ``lookahead_s`` after they arrive, so the caller's interpreter lock (a planner
-thread) cannot delay a controller window. The controller is polled every period by the interface's
+thread) cannot delay a controller window; inside :meth:`FanucRobot.low_latency` (the force loops,
+teleoperation) it submits each target as soon as it arrives. The controller is polled every period by the interface's
 watchdog thread and before every target: an e-stop, an alarm or a lost status stream stops
 commanding at once (``stop_j``), and the next call raises :class:`~robointel.errors.ControllerFault`
 (:class:`~robointel.errors.ConnectionLost` for a lost link) with the last known state. The
@@ -78,10 +79,11 @@ class FanucRobot(Backend):
             none (a :class:`~robointel.interface.ft_sensor.WrenchSource`, or a ``netft://HOST[:PORT]``
             URL opened here and closed with the robot); None: no wrench (lead-through is refused).
         stream_process: run the driver in a streaming process of its own, fed through a look-ahead
-            queue (:class:`~robointel.interface.stream_process.StreamProcess`): for position streaming
-            beside heavy work in the caller's process (a planner); it delays every target by
-            ``lookahead_s``, so force loops (lead-through, skills) keep the default False: the driver
-            in this process, each target submitted by the caller's thread as it comes.
+            queue (:class:`~robointel.interface.stream_process.StreamProcess`), so heavy work in the
+            caller's process (a planner) cannot delay a controller window; a plain stream is delayed
+            by ``lookahead_s``, the force loops and teleoperation stream inside :meth:`low_latency`
+            (each target at once). False: the driver in this process, each target submitted by the
+            caller's thread.
         lookahead_s: the streaming process plays a target this long after it arrived, s: a stall of
             the streaming caller shorter than this costs no controller window; it is added latency.
             0: every target is submitted as soon as it arrives.
@@ -97,7 +99,7 @@ class FanucRobot(Backend):
                  profile: RobotProfile | None = None, robot: Any = None, stall_periods: int | None = 10,
                  recorder: Recorder | None = None, connect_timeout: float = 5.0,
                  lock_path: str | None = None, deadman_s: float = 0.5, sched_fifo: bool = True,
-                 gripper: bool = False, ft_sensor: WrenchSource | str | None = None, stream_process: bool = False,
+                 gripper: bool = False, ft_sensor: WrenchSource | str | None = None, stream_process: bool = True,
                  lookahead_s: float = DEFAULT_LOOKAHEAD_S, force_lookahead_s: float = 0.0) -> None:
         if robot is None:
             from robointel.robot import Robot
