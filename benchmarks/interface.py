@@ -116,7 +116,8 @@ def _streaming_run(make_robot, seconds, planner=True):
         robot.hold()
         extra = robot.timing_stats() if hasattr(robot, "timing_stats") else {}
         if getattr(robot, "stream_process", False):  # the missed windows, for locating them
-            extra["missed_events"] = [(kind, round(t, 4), tick) for kind, t, tick in robot.driver.missed_events()]
+            extra["missed_events"] = [(kind, round(t, 4), tick, round(gap_ms, 2))
+                                      for kind, t, tick, gap_ms in robot.driver.missed_events()]
     finally:
         stop.set()
         if planner:

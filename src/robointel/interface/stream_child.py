@@ -60,8 +60,9 @@ SLOT_WIDTH = 2 + NDOF
 """A ring slot: play time, arrival time (s after the base), the (6,) target in rad."""
 SHM_DOUBLES = RING_OFF + RING * SLOT_WIDTH
 SHM_BYTES = SHM_DOUBLES * 8
-PRIORITY = 45
-"""SCHED_FIFO priority of this process's main thread (below the core's 80, above a streaming thread's 40)."""
+PRIORITY = 60
+"""SCHED_FIFO priority of this process's threads (below the core's 80, above the emulator's 50 and a
+streaming thread's 40)."""
 
 CORE_LATE_MARGIN_S, CATCH_UP_S = 0.0002, 0.001
 """A tick not there this long after it was due, and the next within CATCH_UP_S of that poll: core-late, s."""
@@ -93,10 +94,11 @@ class Player:
         self.last_tick = -1
         self.last_tick_s = 0.0
         self.empty_poll_s = -math.inf  # the last wake-up that found no new tick
+        self.wake_s = self.prev_wake_s = 0.0  # this wake-up's time and the previous one's
         self.consec_starved = 0
         self._read_upto = 0
         self._last_arrival = -math.inf
-        self.events: list[tuple[str, float, int]] = []
+        self.events: list[tuple[str, float, int, float]] = []
         self.counters = {"windows": 0, "fresh": 0, "starved": 0, "late": 0, "submits": 0, "last_submit_s": 0.0,
                          "stalled": 0, "stall_gap_s": 0.0, "refused": 0, "core_late": 0, "direct_submits": 0,
                          "direct_latency_max_s": 0.0, "direct_latency_sum_s": 0.0}
@@ -143,7 +145,7 @@ class Player:
         self.consec_starved = 0
 
     def _event(self, kind: str, t: float, tick: int) -> None:
-        self.events.append((kind, t, tick))
+        self.events.append((kind, t, tick, (self.wake_s - self.prev_wake_s) * 1e3))  # + the wake-up gap, ms
         del self.events[:-EVENTS]
 
     # ------------------------------------------------------------------ one controller window
@@ -384,6 +386,7 @@ def serve_forever(conn: Connection, buf: npt.NDArray[np.float64], driver: Any, b
         while True:
             running = core is not None and core.running
             t_read = player.rel(time.monotonic_ns())  # before the read: no tick by then, if none in it
+            player.prev_wake_s, player.wake_s = player.wake_s, t_read
             snap = core.get_snapshot() if core is not None else {}
             if running and int(snap["cmd_tick"]) != seen:
                 player.serve(snap)

@@ -350,8 +350,12 @@ class StreamProcess:
         out["lookahead_s"] = self.lookahead_s
         return out
 
-    def missed_events(self) -> list[tuple[str, float, int]]:
-        """The last missed windows: (kind, time s after ``base_ns``, cmd_tick), kind starved/late/core_late."""
+    def missed_events(self) -> list[tuple[str, float, int, float]]:
+        """The last missed windows: (kind, time s after ``base_ns``, cmd_tick, wake-up gap ms).
+
+        ``kind`` is starved, late or core_late; the gap is between the streaming process's wake-up
+        that counted the window and its previous one.
+        """
         return [tuple(e) for e in self.call("missed_events")]  # type: ignore[misc]
 
     def last_submit_ns(self) -> int:
