@@ -43,7 +43,9 @@ def test_a_target_is_played_no_earlier_than_the_lookahead(fake_controller):
     moved = [t for t, q_cmd in seen if np.max(np.abs(q_cmd - q0)) > 1e-9]
     assert moved, "the commanded position never moved"
     assert moved[0] >= t0 + 0.3 - 2 * PERIOD  # the first target was played a look-ahead after it came
-    assert stats["stream_fresh"] > 0 and stats["stream_submits"] == stats["stream_fresh"]
+    # every window is counted once; a submission that missed its tick on a loaded machine counts as late
+    assert stats["stream_fresh"] > 0 and stats["stream_submits"] >= stats["stream_fresh"]
+    assert stats["stream_windows"] == sum(stats[f"stream_{k}"] for k in ("fresh", "starved", "late", "core_late"))
 
 
 def test_a_caller_stall_shorter_than_the_lookahead_costs_no_window(fake_controller):
