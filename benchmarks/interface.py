@@ -9,7 +9,9 @@ stream as fresh (a target interpolated at the tick's time, submitted before the 
 caller had not delivered a target for it: late by more than the look-ahead) or late (the streaming
 process itself submitted after the tick). ``fanuc_missed_cycles`` = starved + late. Windows the
 airo-fanuc core itself skipped (its real-time thread stalled by the machine) are reported apart
-(``fanuc_core_skipped_windows``). The same stream with the driver in the caller's process
+(``fanuc_core_skipped_windows``), and so are windows whose tick the core sent late while the
+streaming process was awake polling for it (``fanuc_core_late_windows``: the tick was not there
+after its due time, then came together with the next one). The same stream with the driver in the caller's process
 (``stream_process=False``, a target per ``stream()`` call) is measured in the same run: there a
 cycle is missed when ``stream()`` returned after the end of its period.
 
@@ -113,6 +115,9 @@ def _streaming_run(make_robot, seconds, planner=True):
             cyc, missed, late, stalls = _stream(robot.stream, targets, robot)
         robot.hold()
         extra = robot.timing_stats() if hasattr(robot, "timing_stats") else {}
+        if getattr(robot, "stream_process", False):  # the missed windows, for locating them
+            extra["missed_events"] = [(kind, round(t, 4), tick, round(gap_ms, 2))
+                                      for kind, t, tick, gap_ms in robot.driver.missed_events()]
     finally:
         stop.set()
         if planner:
@@ -264,7 +269,7 @@ def main() -> None:
                  "process_policy": {os.SCHED_OTHER: "SCHED_OTHER", os.SCHED_RR: "SCHED_RR",
                                     os.SCHED_FIFO: "SCHED_FIFO"}.get(os.sched_getscheduler(0), "other"),
                  "process_nice": os.nice(0), "load_avg_1min_at_start": os.getloadavg()[0]}
-    fake = EmulatorProcess()
+    fake = EmulatorProcess(record_arrivals=True)  # each flagged command with the arrivals around it
     try:
         fan = _streaming_run(lambda: open_robot(fake.url, stream_process=True, lookahead_s=args.lookahead),
                              args.seconds)
@@ -276,6 +281,7 @@ def main() -> None:
         n_peer = len(fake.call("violations")) - n_fan
         est = _estop_run(fake)
         n_est = len(fake.call("violations"))
+        arrivals = fake.call("arrival_context")
     finally:
         violations = fake.close()
     peer_violations = violations[n_fan:n_fan + n_peer]  # the bare driver's session (its close included)
@@ -291,6 +297,7 @@ def main() -> None:
         "fanuc_missed_cycles": int(core["stream_starved"] + core["stream_late"]),
         "fanuc_windows": core["stream_windows"], "fanuc_fresh_windows": core["stream_fresh"],
         "fanuc_starved_windows": core["stream_starved"], "fanuc_late_windows": core["stream_late"],
+        "fanuc_core_late_windows": core["stream_core_late"], "fanuc_missed_events": core["missed_events"],
         "fanuc_core_skipped_windows": core.get("skipped_tick_windows"),
         "fanuc_lookahead_ms": core["lookahead_s"] * 1e3,
         "fanuc_caller_late_cycles": fan["missed_cycles"], "fanuc_caller_late_over_100ms": fan["late_over_100ms"],
@@ -320,6 +327,7 @@ def main() -> None:
         "violations": violations + v2, "peer_violations": peer_violations,
         "in_process_violations": inproc_violations,
         "violations_by_session": {**by_session, "frmp": len(v2)},
+        "violation_arrivals": arrivals,
     })
     print(json.dumps(out, indent=None if args.json else 1))
 

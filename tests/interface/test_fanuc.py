@@ -143,7 +143,9 @@ def test_stalled_stream_stops_the_robot(fake_controller):
         q0 = robot.state().q
         exc, _ = _stream_until_error(robot, _ramp(q0, 0.1, 0.3))
         assert exc is None
-        time.sleep(0.2)  # > 5 periods without a target
+        deadline = time.monotonic() + 10.0  # > 5 periods (and the look-ahead) without a target
+        while robot.state().mode is not RobotMode.STOPPED and time.monotonic() < deadline:
+            time.sleep(0.01)
         st = robot.state()
         assert st.mode is RobotMode.STOPPED and "stalled" in st.why_stopped
         assert st.faults == ("stream_stalled",)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import contextlib
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from types import TracebackType
 from typing import Protocol
@@ -289,6 +289,24 @@ class Backend:
                                    fraction=fraction, period=self.period, joint_names=self.joint_names)
         return self.execute(move)
 
+    @contextlib.contextmanager
+    def low_latency(self, lookahead_s: float | None = None) -> Iterator[None]:
+        """Stream the targets of the ``with`` block with the look-ahead of a force loop.
+
+        A force loop closed over the stream (lead-through, the skills' admittance, teleoperation)
+        must see its target go out at once, not after a look-ahead queue. Backends without a
+        look-ahead (``sim``, the FANUC driver in this process) stream that way always; this does
+        nothing there.
+
+        Args:
+            lookahead_s: the look-ahead for the block, s (0: each target at once); None: the
+                backend's own for force loops (``FanucRobot(force_lookahead_s=...)``, default 0).
+
+        Yields:
+            None.
+        """
+        yield
+
     def hold(self) -> None:
         """Hold the last commanded position; the stall watchdog disarms."""
         with self._lock:
@@ -363,11 +381,14 @@ class Backend:
         :data:`MONITOR_PERIODS` periods without a stall watchdog.
         """
         period = self.period
-        limit = (self.stall_periods * period + self._stall_extra_s if self.stall_periods is not None
-                 else MONITOR_PERIODS * period)
-        timeout = limit
+
+        def stall_limit() -> float:  # read each turn: low_latency() changes the look-ahead
+            return (self.stall_periods * period + self._stall_extra_s if self.stall_periods is not None
+                    else MONITOR_PERIODS * period)
+
+        timeout = stall_limit()
         while not self._watch_stop.wait(timeout):
-            timeout = limit
+            timeout = limit = stall_limit()
             if not self._lock.acquire(timeout=period):
                 continue  # a command (with its own fault check) is going out right now
             try:

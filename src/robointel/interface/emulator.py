@@ -8,9 +8,11 @@ window (a strict-conformance violation that is the test rig's, not the driver's)
 """
 from __future__ import annotations
 
+import collections
 import gc
 import multiprocessing as mp
 import os
+import struct
 import sys
 import time
 from multiprocessing.connection import Connection
@@ -45,7 +47,35 @@ def protocol_violations(violations: list[str]) -> list[str]:
     return [v for v in violations if ARRIVAL_GAP_FLAG not in v]
 
 
-def _serve(conn: Connection, q0_deg: list[float] | None) -> None:
+def _record_arrivals(fake: Any, keep: int = 200_000) -> None:
+    """Log every CommandPacket's kernel arrival time and sequence number (the arrival-gap flag's diagnostic).
+
+    ``fake.arrival_context()`` then gives, for each flagged packet, the arrival gaps (ms) and the
+    sequence numbers of the three packets before it and the three after.
+    """
+    sm = fake.sm
+    log: collections.deque[tuple[int, int, bool]] = collections.deque(maxlen=keep)
+    flagged: list[list[tuple[int, int, bool]]] = []
+    original = sm._on_command
+
+    def on_command(buf: bytes, kernel_ns: int | None = None) -> None:
+        n = len(sm._violations)
+        original(buf, kernel_ns)
+        log.append((int(kernel_ns or 0), struct.unpack_from(">I", buf, 8)[0], len(sm._violations) > n))
+        if log[-1][2]:
+            flagged.append(list(log)[-4:])
+        elif flagged and len(flagged[-1]) < 7:
+            flagged[-1].append(log[-1])
+
+    def arrival_context() -> list[dict[str, list[float]]]:
+        return [{"gaps_ms": [(b[0] - a[0]) * 1e-6 for a, b in zip(ctx, ctx[1:], strict=False)],
+                 "seq": [float(c[1]) for c in ctx], "flag": [float(c[2]) for c in ctx]} for ctx in flagged]
+
+    sm._on_command = on_command
+    fake.arrival_context = arrival_context
+
+
+def _serve(conn: Connection, q0_deg: list[float] | None, record_arrivals: bool = False) -> None:
     from airo_fanuc.testing import FakeCRXConfig, FakeCRXController, WallClock
 
     try:
@@ -54,6 +84,8 @@ def _serve(conn: Connection, q0_deg: list[float] | None) -> None:
         pass
     fake = FakeCRXController(FakeCRXConfig(strict=True), host="127.0.0.1", clock=WallClock(),
                              initial_q_deg=None if q0_deg is None else q0_deg + [0.0] * 3).start()
+    if record_arrivals:
+        _record_arrivals(fake)
     gc.collect()
     gc.freeze()  # the emulator's status loop must not stall in a full collection of its start-up heap
     sys.setswitchinterval(0.0005)
@@ -80,16 +112,17 @@ class EmulatorProcess:
 
     Args:
         q0: (6,) initial joint positions of the emulated arm, rad (default zeros).
+        record_arrivals: log every command's arrival for ``call("arrival_context")`` (a diagnostic).
 
     Attributes:
         url: the ``fanuc://`` URL for :func:`~robointel.interface.open_robot`.
     """
 
-    def __init__(self, q0: npt.ArrayLike | None = None) -> None:
+    def __init__(self, q0: npt.ArrayLike | None = None, *, record_arrivals: bool = False) -> None:
         ctx = mp.get_context("spawn")
         self._conn, child = ctx.Pipe()
         q0_deg = None if q0 is None else np.degrees(np.asarray(q0, dtype=float)).tolist()
-        self._proc = ctx.Process(target=_serve, args=(child, q0_deg), daemon=True)
+        self._proc = ctx.Process(target=_serve, args=(child, q0_deg, bool(record_arrivals)), daemon=True)
         self._proc.start()
         self.rmi_port, self.sm_port = self._conn.recv()
         self.url = f"fanuc://127.0.0.1:{self.rmi_port}?sm_port={self.sm_port}"

@@ -4,7 +4,8 @@ Targets go out with ``FanucDriver.servo_j(q, period)`` (the driver's compiled re
 the 8 ms Stream Motion timeline). By default the driver runs in a streaming process of its own
 (:class:`~robointel.interface.stream_process.StreamProcess`) that plays the streamed targets at the
 controller's ticks ``lookahead_s`` after they arrive, so the caller's interpreter lock (a planner
-thread) cannot delay a controller window. The controller is polled every period by the interface's
+thread) cannot delay a controller window; inside :meth:`FanucRobot.low_latency` (the force loops,
+teleoperation) it submits each target as soon as it arrives. The controller is polled every period by the interface's
 watchdog thread and before every target: an e-stop, an alarm or a lost status stream stops
 commanding at once (``stop_j``), and the next call raises :class:`~robointel.errors.ControllerFault`
 (:class:`~robointel.errors.ConnectionLost` for a lost link) with the last known state. The
@@ -13,7 +14,9 @@ re-arms motion.
 """
 from __future__ import annotations
 
+import contextlib
 import time
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -37,7 +40,7 @@ from robointel.interface.protocol import CycleCallback
 from robointel.interface.realtime import realtime_thread
 from robointel.interface.state import RobotMode, RobotState
 from robointel.interface.stream_child import stop_core_between_ticks
-from robointel.interface.stream_process import StreamProcess
+from robointel.interface.stream_process import StreamProcess, check_lookahead
 from robointel.trajectory import Trajectory
 
 DEFAULT_RMI_PORT = 16001
@@ -76,12 +79,16 @@ class FanucRobot(Backend):
             none (a :class:`~robointel.interface.ft_sensor.WrenchSource`, or a ``netft://HOST[:PORT]``
             URL opened here and closed with the robot); None: no wrench (lead-through is refused).
         stream_process: run the driver in a streaming process of its own, fed through a look-ahead
-            queue (:class:`~robointel.interface.stream_process.StreamProcess`): for position streaming
-            beside heavy work in the caller's process (a planner); it delays every target by
-            ``lookahead_s``, so force loops (lead-through, skills) keep the default False: the driver
-            in this process, each target submitted by the caller's thread as it comes.
+            queue (:class:`~robointel.interface.stream_process.StreamProcess`), so heavy work in the
+            caller's process (a planner) cannot delay a controller window; a plain stream is delayed
+            by ``lookahead_s``, the force loops and teleoperation stream inside :meth:`low_latency`
+            (each target at once). False: the driver in this process, each target submitted by the
+            caller's thread.
         lookahead_s: the streaming process plays a target this long after it arrived, s: a stall of
             the streaming caller shorter than this costs no controller window; it is added latency.
+            0: every target is submitted as soon as it arrives.
+        force_lookahead_s: the look-ahead inside :meth:`low_latency` (the force loops and
+            teleoperation), s; 0 (default): each target is submitted as soon as it arrives.
 
     Raises:
         InvalidInput: a bad look-ahead, stall count or profile.
@@ -92,8 +99,8 @@ class FanucRobot(Backend):
                  profile: RobotProfile | None = None, robot: Any = None, stall_periods: int | None = 10,
                  recorder: Recorder | None = None, connect_timeout: float = 5.0,
                  lock_path: str | None = None, deadman_s: float = 0.5, sched_fifo: bool = True,
-                 gripper: bool = False, ft_sensor: WrenchSource | str | None = None, stream_process: bool = False,
-                 lookahead_s: float = DEFAULT_LOOKAHEAD_S) -> None:
+                 gripper: bool = False, ft_sensor: WrenchSource | str | None = None, stream_process: bool = True,
+                 lookahead_s: float = DEFAULT_LOOKAHEAD_S, force_lookahead_s: float = 0.0) -> None:
         if robot is None:
             from robointel.robot import Robot
 
@@ -124,10 +131,11 @@ class FanucRobot(Backend):
         self._snap: dict[str, Any] = {}
         self._last_state: RobotState | None = None
         self.stream_process = bool(stream_process) and not gripper
-        if not (np.isfinite(lookahead_s) and 0 < lookahead_s <= 1.0):
-            raise InvalidInput(f"lookahead_s must be in (0, 1] s, got {lookahead_s}", value=lookahead_s)
+        check_lookahead(lookahead_s)
         self.lookahead_s = float(lookahead_s) if self.stream_process else 0.0
         self._stall_extra_s = self.lookahead_s  # a target is played lookahead_s after it arrived
+        check_lookahead(force_lookahead_s)
+        self.force_lookahead_s = float(force_lookahead_s)
         self.rmi_port = int(rmi_port)
         self.driver: Any = self._open_driver()
 
@@ -226,6 +234,39 @@ class FanucRobot(Backend):
         except FanucConnectionError as exc:
             self._latch_fault(RobotMode.DISCONNECTED, f"connection lost: {exc}", ("disconnected",))
             raise ConnectionLost(self._why, value=self._read(), reason=self._why) from exc
+
+    @contextlib.contextmanager
+    def low_latency(self, lookahead_s: float | None = None) -> Iterator[None]:
+        """Stream the ``with`` block's targets with a force loop's look-ahead (default ``force_lookahead_s``).
+
+        With the streaming process a stream that is running is held first (its queue plays out), the
+        streaming process then submits every target of the block as soon as it arrives (look-ahead 0)
+        or with the look-ahead asked, and the look-ahead given at construction comes back after the
+        block (a running stream is held again). With the driver in this process targets always go
+        out at once: nothing changes.
+
+        Raises:
+            InvalidInput: ``lookahead_s`` outside [0, 1] s.
+        """
+        lookahead_s = self.force_lookahead_s if lookahead_s is None else lookahead_s
+        check_lookahead(lookahead_s)
+        if not self.stream_process:
+            yield
+            return
+        with self._lock:
+            if self._mode is RobotMode.STREAMING:
+                self.hold()
+            self.driver.set_lookahead(lookahead_s)
+            self._stall_extra_s = float(lookahead_s)
+        try:
+            yield
+        finally:
+            with self._lock:
+                if self._mode is RobotMode.STREAMING:
+                    self.hold()
+                if not self._closed:
+                    self.driver.set_lookahead(self.lookahead_s)
+                self._stall_extra_s = self.lookahead_s
 
     def _hold(self) -> None:
         try:

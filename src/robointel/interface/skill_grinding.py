@@ -8,6 +8,7 @@ through the interface's safety gate; force, torque and speed limits as for the i
 """
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -19,6 +20,7 @@ import numpy.typing as npt
 from robointel.errors import InvalidInput
 from robointel.geometry.rotations import so3_log
 from robointel.interface.backend import Backend, sleep_until
+from robointel.interface.realtime import realtime_thread
 from robointel.interface.skill_insertion import SkillLimits, over_limits, read_wrench, tool_wrench, twist_step
 from robointel.interface.state import RobotState
 from robointel.interface.wrench_source import StateWrench, WrenchSource
@@ -109,34 +111,36 @@ def run_grinding(arm: Backend, robot: Any, setpoint: SetPoint, start: npt.ArrayL
     w_last = np.zeros(6)
     outcome = TrialOutcome(True)
     t0 = time.perf_counter()
-    try:
-        for k in range(K):
-            if arm.paced:
-                sleep_until(t0 + k * dt)
-            st = arm.state()
-            w, missing = read_wrench(src, st, missing, lim, arm)
-            w = w_last if w is None else w
-            w_last = w
-            push = -float(tool_wrench(robot, w)[2])  # the surface pushes back against the tool axis
-            f_filt += alpha * (push - f_filt)
-            p_meas = robot.fk(st.q)[:3, 3]
-            f_set = float(setpoint(p_meas))
-            ts[k], ps[k], fs[k], sps[k], on[k] = st.t, p_meas, push, f_set, k * dt >= t_touch
-            why = over_limits(w, lim)
-            if why:
-                arm.stop(f"grinding skill: {why}")
-                outcome = TrialOutcome(False, Failure.FORCE_LIMIT, why)
-                break
-            s = float(np.clip((k * dt - t_touch) * speed / L, 0.0, 1.0)) if L > 0 else 1.0
-            z += k_force * (f_set - f_filt) * dt  # press deeper while the felt force is below the set-point
-            target = p_line + s * lateral + axis * z
-            Tc = robot.fk(q_cmd)
-            V = np.concatenate([(target - Tc[:3, 3]) / dt, so3_log(R0 @ Tc[:3, :3].T) / dt])
-            q_cmd = twist_step(robot, q_cmd, V, dt, lim)
-            arm.stream(q_cmd)
-            if on_cycle is not None:
-                on_cycle(k, st)
-    finally:
-        arm.hold()
+    # paced: a real-time section (as lead-through); a force loop: each target goes out at once, no queue
+    with realtime_thread() if arm.paced else contextlib.nullcontext(), arm.low_latency():
+        try:
+            for k in range(K):
+                if arm.paced:
+                    sleep_until(t0 + k * dt)
+                st = arm.state()
+                w, missing = read_wrench(src, st, missing, lim, arm)
+                w = w_last if w is None else w
+                w_last = w
+                push = -float(tool_wrench(robot, w)[2])  # the surface pushes back against the tool axis
+                f_filt += alpha * (push - f_filt)
+                p_meas = robot.fk(st.q)[:3, 3]
+                f_set = float(setpoint(p_meas))
+                ts[k], ps[k], fs[k], sps[k], on[k] = st.t, p_meas, push, f_set, k * dt >= t_touch
+                why = over_limits(w, lim)
+                if why:
+                    arm.stop(f"grinding skill: {why}")
+                    outcome = TrialOutcome(False, Failure.FORCE_LIMIT, why)
+                    break
+                s = float(np.clip((k * dt - t_touch) * speed / L, 0.0, 1.0)) if L > 0 else 1.0
+                z += k_force * (f_set - f_filt) * dt  # press deeper while the felt force is below the set-point
+                target = p_line + s * lateral + axis * z
+                Tc = robot.fk(q_cmd)
+                V = np.concatenate([(target - Tc[:3, 3]) / dt, so3_log(R0 @ Tc[:3, :3].T) / dt])
+                q_cmd = twist_step(robot, q_cmd, V, dt, lim)
+                arm.stream(q_cmd)
+                if on_cycle is not None:
+                    on_cycle(k, st)
+        finally:
+            arm.hold()
     m = k + 1
     return GrindingRun(outcome, ts[:m], ps[:m], fs[:m], sps[:m], on[:m])

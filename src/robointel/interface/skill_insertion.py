@@ -13,6 +13,7 @@ limits stops the robot (``stop`` with the reason); a wrench that stops arriving 
 """
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -24,6 +25,7 @@ import numpy.typing as npt
 from robointel.control.admittance import AdmittanceGains, admittance_twist, damped_pinv
 from robointel.errors import InvalidInput, SafetyStop
 from robointel.interface.backend import Backend, sleep_until
+from robointel.interface.realtime import realtime_thread
 from robointel.interface.state import RobotState
 from robointel.interface.wrench_source import StateWrench, WrenchSource
 from robointel.outcome import Failure, TrialOutcome
@@ -195,39 +197,41 @@ def run_insertion(arm: Backend, robot: Any, policy: Policy, depth: float, *, sou
     outcome = TrialOutcome(False, Failure.TIMEOUT, f"time limit {time_limit:g} s")
     missing, k, t0 = 0, 0, time.perf_counter()
     w_last = np.zeros(6)
-    try:
-        for k in range(K):
-            if arm.paced:
-                sleep_until(t0 + k * arm.period)
-            st = arm.state()
-            w, missing = read_wrench(src, st, missing, lim, arm)
-            w = w_last if w is None else w
-            w_last = w
-            a = float(axis @ (robot.fk(st.q)[:3, 3] - p0))
-            ts[k], qs[k], qc[k], ws[k], adv[k] = st.t, st.q, q_cmd, tool_wrench(robot, w), a
-            why = over_limits(w, lim)
-            if why:
-                arm.stop(f"insertion skill: {why}")
-                outcome = TrialOutcome(False, Failure.FORCE_LIMIT, why)
-                break
-            if a >= depth - tolerance:
-                outcome = TrialOutcome(True, figures={"time_s": float(k * arm.period)})
-                break
-            tw = np.asarray(policy(ws[k]), dtype=float)
-            if tw.shape != (5,) or not np.all(np.isfinite(tw)):
-                raise InvalidInput(f"the skill must return 5 finite numbers [vx, vy, vz, wx, wy], got {tw}",
-                                   value=tw)
-            tws[k] = tw
-            R = robot.fk(q_cmd)[:3, :3]
-            V = np.concatenate([R @ tw[:3], R @ np.array([tw[3], tw[4], 0.0])])
-            V += admittance_twist(world_wrench_at_tcp(robot, st.q, w), g)
-            q_cmd = twist_step(robot, q_cmd, V, arm.period, lim)
-            arm.stream(q_cmd)
-            qc[k] = q_cmd
-            if on_cycle is not None:
-                on_cycle(k, st)
-    finally:
-        arm.hold()
+    # paced: a real-time section (as lead-through); a force loop: each target goes out at once, no queue
+    with realtime_thread() if arm.paced else contextlib.nullcontext(), arm.low_latency():
+        try:
+            for k in range(K):
+                if arm.paced:
+                    sleep_until(t0 + k * arm.period)
+                st = arm.state()
+                w, missing = read_wrench(src, st, missing, lim, arm)
+                w = w_last if w is None else w
+                w_last = w
+                a = float(axis @ (robot.fk(st.q)[:3, 3] - p0))
+                ts[k], qs[k], qc[k], ws[k], adv[k] = st.t, st.q, q_cmd, tool_wrench(robot, w), a
+                why = over_limits(w, lim)
+                if why:
+                    arm.stop(f"insertion skill: {why}")
+                    outcome = TrialOutcome(False, Failure.FORCE_LIMIT, why)
+                    break
+                if a >= depth - tolerance:
+                    outcome = TrialOutcome(True, figures={"time_s": float(k * arm.period)})
+                    break
+                tw = np.asarray(policy(ws[k]), dtype=float)
+                if tw.shape != (5,) or not np.all(np.isfinite(tw)):
+                    raise InvalidInput(f"the skill must return 5 finite numbers [vx, vy, vz, wx, wy], got {tw}",
+                                       value=tw)
+                tws[k] = tw
+                R = robot.fk(q_cmd)[:3, :3]
+                V = np.concatenate([R @ tw[:3], R @ np.array([tw[3], tw[4], 0.0])])
+                V += admittance_twist(world_wrench_at_tcp(robot, st.q, w), g)
+                q_cmd = twist_step(robot, q_cmd, V, arm.period, lim)
+                arm.stream(q_cmd)
+                qc[k] = q_cmd
+                if on_cycle is not None:
+                    on_cycle(k, st)
+        finally:
+            arm.hold()
     m = k + 1
     figs = dict(outcome.figures, max_force_n=float(np.max(np.linalg.norm(ws[:m, :3], axis=1))),
                 advance_m=float(adv[m - 1]))

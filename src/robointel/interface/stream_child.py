@@ -1,24 +1,25 @@
 """The FANUC streaming process: owns the airo-fanuc driver and plays time-stamped targets at the ticks.
 
-This file runs as a script in a child process (see :mod:`robointel.interface.stream_process`, which
-starts it and talks to it). It imports only the standard library, numpy and ``airo_fanuc``: the
-child has its own interpreter lock, so a planner thread in the caller's process can never hold it.
-
-The caller's process writes joint targets into a ring in shared memory, each stamped with the time
-it is to be played (its *slot*: arrival + the look-ahead, then one period apart). Once per
-controller tick (the core's ``cmd_tick``) this process interpolates the targets linearly at the next
-tick's time and submits the result with ``servo_j``. A controller window is *fresh* when a target
-with a slot at or after its time was there to interpolate; it is *starved* when the caller had not
-delivered one (its lateness exceeded the look-ahead), and *late* when this process itself submitted
-after the tick. The state of the core (snapshot), the counters and a stall flag go back through a
-seqlock block in the same shared memory.
+This file runs as a script in a child process (:mod:`robointel.interface.stream_process` starts it and
+talks to it); it imports only the standard library, numpy and ``airo_fanuc``, and has its own
+interpreter lock. The caller writes targets into a ring in shared memory, each stamped with its
+arrival and the time it is to be played (its *slot*: arrival + the look-ahead, then one period
+apart). At each core tick (``cmd_tick``) this process interpolates them at the next tick's time
+and submits the result (``servo_j``). A window is *fresh* (a target to interpolate was there),
+*starved* (the caller was late by more than the look-ahead), *late* (this process submitted after
+the tick) or *core-late* (the core sent the tick late while this process polled for it, counted
+apart). A *direct* target (slot = arrival: look-ahead 0, a force loop) is submitted as soon as the
+caller's eventfd wakes this process, the newest first. The core's snapshot, the counters and a
+stall flag go back through a seqlock block in the same memory.
 """
 from __future__ import annotations
 
+import contextlib
 import gc
 import math
 import mmap
 import os
+import select
 import sys
 import time
 from multiprocessing.connection import Connection
@@ -34,9 +35,8 @@ RING = 1024
 """Ring capacity, targets (8.2 s at 8 ms)."""
 
 H_WRITE, H_CUT, H_HOLD, H_READ, H_VERSION, H_HOLD_GEN = 0, 1, 2, 3, 4, 5
-"""Header slots: targets written (caller), discard below this index (caller, on stop), targets
-written when the last hold was asked (caller), targets consumed (child), state seqlock version
-(child), holds asked so far (caller)."""
+"""Header: targets written, discard below (on stop), written at the last hold (caller); consumed,
+seqlock version (child); holds asked (caller)."""
 
 STATE_FIELDS: tuple[tuple[str, int], ...] = (
     ("published_s", 1), ("rx_s", 1), ("tick_s", 1), ("cmd_tick", 1), ("mode", 1), ("fault", 1),
@@ -45,6 +45,7 @@ STATE_FIELDS: tuple[tuple[str, int], ...] = (
     ("q_meas", NDOF), ("qd_est", NDOF), ("q_cmd", NDOF), ("wrench", NDOF),
     ("stalled", 1), ("stall_gap_s", 1), ("refused", 1),
     ("windows", 1), ("fresh", 1), ("starved", 1), ("late", 1), ("submits", 1), ("last_submit_s", 1),
+    ("core_late", 1), ("direct_submits", 1), ("direct_latency_max_s", 1), ("direct_latency_sum_s", 1),
 )
 """The state block: name and length. Times are seconds after the session's base (CLOCK_MONOTONIC)."""
 
@@ -55,11 +56,17 @@ for _name, _n in STATE_FIELDS:
     STATE_INDEX[_name] = slice(_o, _o + _n)
     _o += _n
 RING_OFF = _o
-SLOT_WIDTH = 1 + NDOF
+SLOT_WIDTH = 2 + NDOF
+"""A ring slot: play time, arrival time (s after the base), the (6,) target in rad."""
 SHM_DOUBLES = RING_OFF + RING * SLOT_WIDTH
 SHM_BYTES = SHM_DOUBLES * 8
-PRIORITY = 45
-"""SCHED_FIFO priority of this process's main thread (below the core's 80, above a streaming thread's 40)."""
+PRIORITY = 60
+"""SCHED_FIFO priority of this process's threads (below the core's 80, above the emulator's 50 and a
+streaming thread's 40)."""
+
+CORE_LATE_MARGIN_S, CATCH_UP_S = 0.0002, 0.001
+"""A tick not there this long after it was due, and the next within CATCH_UP_S of that poll: core-late, s."""
+EVENTS = 64  # missed windows remembered for the ``missed_events`` request
 
 _SNAP_SCALARS = ("cmd_tick", "mode", "fault", "e_stopped", "in_error", "tp_enabled", "motion_possible",
                  "wrench_valid", "active_motion_id", "active_motion_status")
@@ -80,14 +87,21 @@ class Player:
                  driver: Any) -> None:
         self.buf, self.base_ns, self.period = buf, int(base_ns), float(period)
         self.stall_periods, self.driver = int(stall_periods), driver
-        self.pending: list[tuple[int, float, npt.NDArray[np.float64]]] = []
-        self.active = False
+        self.pending: list[tuple[int, float, float, npt.NDArray[np.float64]]] = []
+        self.active = False  # a queued (look-ahead) segment plays
+        self.direct = False  # a direct segment plays
         self.hold_gen = 0
         self.last_tick = -1
+        self.last_tick_s = 0.0
+        self.empty_poll_s = -math.inf  # the last wake-up that found no new tick
+        self.wake_s = self.prev_wake_s = 0.0  # this wake-up's time and the previous one's
         self.consec_starved = 0
         self._read_upto = 0
+        self._last_arrival = -math.inf
+        self.events: list[tuple[str, float, int, float]] = []
         self.counters = {"windows": 0, "fresh": 0, "starved": 0, "late": 0, "submits": 0, "last_submit_s": 0.0,
-                         "stalled": 0, "stall_gap_s": 0.0, "refused": 0}
+                         "stalled": 0, "stall_gap_s": 0.0, "refused": 0, "core_late": 0, "direct_submits": 0,
+                         "direct_latency_max_s": 0.0, "direct_latency_sum_s": 0.0}
 
     def rel(self, ns: int) -> float:
         """Seconds after the base."""
@@ -118,7 +132,7 @@ class Player:
         w, cut = int(b[H_WRITE]), int(b[H_CUT])
         for idx in range(max(self._read_upto, cut), w):
             o = RING_OFF + (idx % RING) * SLOT_WIDTH
-            self.pending.append((idx, float(b[o]), np.array(b[o + 1:o + SLOT_WIDTH])))
+            self.pending.append((idx, float(b[o]), float(b[o + 1]), np.array(b[o + 2:o + SLOT_WIDTH])))
         self._read_upto = max(self._read_upto, w)
         if cut > 0 and self.pending and self.pending[0][0] < cut:
             self.pending = [p for p in self.pending if p[0] >= cut]
@@ -127,8 +141,12 @@ class Player:
         """Drop every pending target and end the segment (a stop, a fault, a trajectory)."""
         self.consume()
         self.pending.clear()
-        self.active = False
+        self.active = self.direct = False
         self.consec_starved = 0
+
+    def _event(self, kind: str, t: float, tick: int) -> None:
+        self.events.append((kind, t, tick, (self.wake_s - self.prev_wake_s) * 1e3))  # + the wake-up gap, ms
+        del self.events[:-EVENTS]
 
     # ------------------------------------------------------------------ one controller window
     def serve(self, snap: dict[str, Any]) -> None:
@@ -136,16 +154,20 @@ class Player:
         tick = int(snap["cmd_tick"])
         self.consume()
         if _faulted(snap):
-            if self.active or self.pending:
+            if self.active or self.direct or self.pending:
                 self.discard()
                 self.driver.stop_j()
-            self.last_tick = tick
+            self._seen(tick, snap)
+            return
+        if self.direct or (not self.active and self.pending and _is_direct(self.pending[0])):
+            self._direct_tick(snap, tick)
+            self.serve_direct(snap)
             return
         tau = self.rel(int(snap["tick_mono_ns"])) + self.period  # the next tick's time
         gen, hold_at = int(self.buf[H_HOLD_GEN]), int(self.buf[H_HOLD])
         hold = gen > self.hold_gen  # a hold after the target hold_at - 1 is pending
         seg_end = hold_at - 1 if hold else math.inf
-        seg = [p for p in self.pending if p[0] <= seg_end]
+        seg = [p for p in self.pending if p[0] <= seg_end and not _is_direct(p)]
         if not self.active:
             if seg and seg[0][1] <= tau + 1e-9:
                 self.active = True
@@ -153,14 +175,10 @@ class Player:
             elif hold and not seg:
                 self._hold(gen, hold_at)
             if not self.active:
-                self.last_tick = tick
+                self._seen(tick, snap)
                 return
         c = self.counters
-        gap = tick - self.last_tick
-        if gap > 1:  # this process slept through whole windows: no fresh command went into them
-            c["late"] += gap - 1
-            c["windows"] += gap - 1
-        self.last_tick = tick
+        self._count_skipped(tick, snap)
         if not seg:  # the segment ended with a hold
             self._hold(gen, hold_at)
             return
@@ -171,34 +189,104 @@ class Player:
         if len(seg) >= 2:
             b_ = seg[1]
             s = min(1.0, max(0.0, (tau - a[1]) / (b_[1] - a[1])))
-            q = a[2] + (b_[2] - a[2]) * s
+            q = a[3] + (b_[3] - a[3]) * s
         elif a[1] >= tau - 1e-9:
-            q = a[2]
+            q = a[3]
         elif hold:  # the last target before a hold has been played
             self._hold(gen, hold_at)
             return
         else:  # starved: the caller has not delivered the target for this window
             c["windows"] += 1
             c["starved"] += 1
-            self.consec_starved += 1
-            if self.consec_starved >= self.stall_periods:
-                self.driver.stop_j()
-                c["stalled"], c["stall_gap_s"] = 1, tau - a[1]
-                self.discard()
+            self._event("starved", tau, tick)
+            self._starved(1, tau - a[1])
             return  # the servo keeps heading for the last target
         c["windows"] += 1
         c["fresh"] += 1
         self.consec_starved = 0
         self._submit(q, tick)
 
+    def _seen(self, tick: int, snap: dict[str, Any]) -> None:
+        self.last_tick, self.last_tick_s = tick, self.rel(int(snap["tick_mono_ns"]))
+
+    def _count_skipped(self, tick: int, snap: dict[str, Any]) -> None:
+        """Count the windows between the last tick served and ``tick`` (slept through, or core-late)."""
+        c = self.counters
+        gap = tick - self.last_tick - 1
+        if gap > 0 and self.last_tick >= 0:
+            # tick j was due at last_tick_s + j periods: when a poll after that found it missing and the
+            # tick now seen came within CATCH_UP_S of that poll, the core sent both in one burst
+            due = [self.last_tick_s + j * self.period for j in range(1, gap + 1)]
+            burst = self.rel(int(snap["tick_mono_ns"])) - self.empty_poll_s <= CATCH_UP_S
+            core = sum(1 for d in due if self.empty_poll_s > d + CORE_LATE_MARGIN_S) if burst else 0
+            c["core_late"] += core
+            c["late"] += gap - core
+            c["windows"] += gap
+            self._event("late" if gap > core else "core_late", self.rel(int(snap["tick_mono_ns"])), tick)
+        self._seen(tick, snap)
+
+    def _starved(self, n: int, gap_s: float) -> None:
+        self.consec_starved += n
+        if self.consec_starved >= self.stall_periods:
+            self.driver.stop_j()
+            self.counters["stalled"], self.counters["stall_gap_s"] = 1, gap_s
+            self.discard()
+
     def _hold(self, gen: int, hold_at: int) -> None:
         self.pending = [p for p in self.pending if p[0] >= hold_at]
         self.hold_gen = gen
-        self.active = False
+        self.active = self.direct = False
         self.consec_starved = 0
         self.driver.hold()
 
-    def _submit(self, q: npt.NDArray[np.float64], tick: int) -> None:
+    # ------------------------------------------------------------------ the direct stream
+    def _direct_tick(self, snap: dict[str, Any], tick: int) -> None:
+        """Count the window that ended at ``tick`` of a direct stream (before submitting what arrived)."""
+        if not self.direct:
+            self._seen(tick, snap)
+            return
+        c = self.counters
+        t_tick = self.rel(int(snap["tick_mono_ns"]))
+        prev_s = self.last_tick_s
+        self._count_skipped(tick, snap)
+        c["windows"] += 1
+        if c["last_submit_s"] > prev_s:
+            c["fresh"] += 1
+            self.consec_starved = 0
+        elif any(p[2] <= t_tick for p in self.pending if _is_direct(p)):
+            c["late"] += 1  # a target had arrived: this process submitted it after the tick
+            self._event("late", t_tick, tick)
+        else:
+            c["starved"] += 1
+            self._event("starved", t_tick, tick)
+            self._starved(1, t_tick - self._last_arrival)
+
+    def serve_direct(self, snap: dict[str, Any]) -> None:
+        """Submit the newest direct target that arrived (called at every wake-up); hold at a hold mark."""
+        if self.active or not self.pending and not self.direct:
+            return
+        if _faulted(snap):
+            return  # the tick's serve stops the robot
+        gen, hold_at = int(self.buf[H_HOLD_GEN]), int(self.buf[H_HOLD])
+        hold = gen > self.hold_gen
+        if hold and self.pending and self.pending[0][0] >= hold_at and not self.direct:
+            self.hold_gen = gen  # a hold before this segment: nothing of it is left to play
+            hold = False
+        run = []
+        for p in self.pending:
+            if not _is_direct(p) or (hold and p[0] >= hold_at):
+                break
+            run.append(p)
+        if run:
+            del self.pending[:len(run)]
+            newest = run[-1]
+            self.direct = True
+            self._last_arrival = newest[2]
+            self._submit(newest[3], int(snap["cmd_tick"]), arrival=newest[2])
+        if hold and self.direct and not any(p[0] < hold_at for p in self.pending):
+            self._hold(gen, hold_at)
+
+    def _submit(self, q: npt.NDArray[np.float64], tick: int, arrival: float | None = None) -> None:
         c = self.counters
         try:
             self.driver.servo_j(q, self.period)
@@ -209,11 +297,28 @@ class Player:
         now = time.monotonic_ns()
         c["submits"] += 1
         c["last_submit_s"] = self.rel(now)
-        after = int(self.driver.core.get_snapshot()["cmd_tick"])
+        if arrival is not None:
+            lat = c["last_submit_s"] - arrival
+            c["direct_submits"] += 1
+            c["direct_latency_sum_s"] += lat
+            c["direct_latency_max_s"] = max(c["direct_latency_max_s"], lat)
+            return
+        snap = self.driver.core.get_snapshot()
+        after = int(snap["cmd_tick"])
         if after != tick:  # the tick this target was for went out before it arrived
-            c["late"] += 1
             c["fresh"] -= 1
-            self.last_tick = after
+            if self.rel(int(snap["tick_mono_ns"])) - self.last_tick_s < 0.5 * self.period:
+                c["core_late"] += 1  # the served tick came late, its successor on time: the core's catch-up
+                self._event("core_late", self.last_tick_s, tick)
+            else:
+                c["late"] += 1
+                self._event("late", self.last_tick_s, tick)
+            self._seen(after, snap)
+
+
+def _is_direct(p: tuple[int, float, float, npt.NDArray[np.float64]]) -> bool:
+    """A target of a direct stream: its play time is its arrival (look-ahead 0)."""
+    return p[1] <= p[2]
 
 
 def _faulted(snap: dict[str, Any]) -> bool:
@@ -225,10 +330,8 @@ def _faulted(snap: dict[str, Any]) -> bool:
 def stop_core_between_ticks(driver: Any, period: float, attempts: int = 25) -> None:
     """End the Stream Motion session with its terminal packet in the middle of a tick window.
 
-    ``FanucDriver.close`` ends the session from the calling thread while the core's real-time
-    thread may send its own command for the same window (a strict-conformance double send). The
-    core is quiesced (``stop_j``), and stopped just after one of its ticks, half a period before
-    the next.
+    ``FanucDriver.close`` from another thread may race the core's own command for the window (a
+    double send): the core is quiesced (``stop_j``) and stopped half a period after one of its ticks.
 
     Args:
         driver: the ``FanucDriver``.
@@ -262,17 +365,12 @@ def stop_core_between_ticks(driver: Any, period: float, attempts: int = 25) -> N
     core.stop()
 
 
-def _set_fifo(priority: int) -> None:
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except (PermissionError, OSError):
-        pass
-
-
 def serve_forever(conn: Connection, buf: npt.NDArray[np.float64], driver: Any, base_ns: int, period: float,
-                  stall_periods: int) -> None:
+                  stall_periods: int, wake_fd: int = -1) -> None:
     """The streaming process's loop: one :meth:`Player.serve` per tick, requests from the caller between.
 
+    Every wake-up (a tick, a request, the caller's eventfd ``wake_fd`` after a direct target, or the
+    2 ms publishing timer) submits the newest direct target that arrived (:meth:`Player.serve_direct`).
     Returns when the caller asks to close or its end of the connection is gone (it died): the core
     is stopped between ticks and the driver closed either way.
     """
@@ -280,21 +378,37 @@ def serve_forever(conn: Connection, buf: npt.NDArray[np.float64], driver: Any, b
     handles: dict[int, Any] = {}
     core = driver.core
     seen = -1
+    poller = select.poll()
+    poller.register(conn.fileno(), select.POLLIN)
+    if wake_fd >= 0:
+        poller.register(wake_fd, select.POLLIN)
     try:
         while True:
             running = core is not None and core.running
+            t_read = player.rel(time.monotonic_ns())  # before the read: no tick by then, if none in it
+            player.prev_wake_s, player.wake_s = player.wake_s, t_read
             snap = core.get_snapshot() if core is not None else {}
             if running and int(snap["cmd_tick"]) != seen:
                 player.serve(snap)
                 snap = core.get_snapshot()
                 seen = int(snap["cmd_tick"])
+            elif running:
+                player.empty_poll_s = t_read
+                player.consume()
+                player.serve_direct(snap)
             player.publish(snap, running)
             if running:  # wake 0.3 ms after the next tick, and every 2 ms to publish the state
                 nxt = int(snap["tick_mono_ns"]) + int(period * 1e9) + 300_000
                 wait = min(0.002, max(0.0002, (nxt - time.monotonic_ns()) * 1e-9))
             else:
                 wait = period
-            if not conn.poll(wait):
+            ready = {fd for fd, _ in poller.poll(wait * 1e3)}
+            if wake_fd in ready:
+                try:
+                    os.eventfd_read(wake_fd)
+                except BlockingIOError:
+                    pass
+            if conn.fileno() not in ready:
                 continue
             try:
                 name, args, kwargs, reply = conn.recv()
@@ -346,6 +460,8 @@ def _request(name: str, args: tuple, kwargs: dict, driver: Any, player: Player, 
         return None if r is None else r.value
     if name == "timing_stats":
         return dict(driver.timing_stats())
+    if name == "missed_events":
+        return list(player.events)
     if name in ("rmi_write_register", "rmi_read_register"):
         if driver.rmi is None:
             raise FanucConnectionError("no RMI session")
@@ -356,7 +472,7 @@ def _request(name: str, args: tuple, kwargs: dict, driver: Any, player: Player, 
     raise ValueError(f"unknown request {name!r}")
 
 
-def main(conn_fd: int, shm_fd: int) -> None:
+def main(conn_fd: int, shm_fd: int, wake_fd: int = -1) -> None:
     """Entry point of the child: bring the driver up, report, serve until closed."""
     conn = Connection(conn_fd)
     mm = mmap.mmap(shm_fd, SHM_BYTES)
@@ -366,7 +482,8 @@ def main(conn_fd: int, shm_fd: int) -> None:
     # inherit the policy. At normal priority one of them, preempted while it holds this process's
     # interpreter lock, would delay the main thread by a scheduling latency (the inversion this
     # process exists to avoid). The core's real-time thread sets its own FIFO 80.
-    _set_fifo(PRIORITY)
+    with contextlib.suppress(OSError):  # PermissionError without CAP_SYS_NICE
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(PRIORITY))
     try:
         driver = FanucDriver(host, policy)
     except FanucError as exc:
@@ -376,8 +493,8 @@ def main(conn_fd: int, shm_fd: int) -> None:
     gc.freeze()
     sys.setswitchinterval(0.0005)
     conn.send((True, None))
-    serve_forever(conn, buf, driver, base_ns, period, stall_periods)
+    serve_forever(conn, buf, driver, base_ns, period, stall_periods, wake_fd)
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]), int(sys.argv[2]))
+    main(*(int(a) for a in sys.argv[1:4]))

@@ -9,7 +9,9 @@ with the time it is to be played, ``lookahead_s`` after it arrived (then one per
 previous one), and written into a ring in shared memory. At each controller tick the child
 interpolates the targets at the tick's time and submits the result, so a stall of the caller
 shorter than the look-ahead costs no controller window; the price is ``lookahead_s`` of added
-latency between a target and its command.
+latency between a target and its command. With a look-ahead of 0 (:meth:`StreamProcess.set_lookahead`,
+what a force loop asks for) each target is submitted as soon as the child wakes for it (an eventfd
+the caller writes): no queue, no interpolation, one wake-up of latency.
 
 The class offers the part of ``FanucDriver``'s surface that :class:`~robointel.interface.fanuc.FanucRobot`
 uses (``servo_j``, ``hold``, ``stop_j``, ``kick``, ``recover``, ``arm``, ``move_trajectory``,
@@ -139,7 +141,8 @@ class StreamProcess:
         host: controller address.
         policy: the ``airo_fanuc.DriverPolicy`` (sent to the child).
         period: controller period, s.
-        lookahead_s: delay between a target's arrival and its play time, s (> 0).
+        lookahead_s: delay between a target's arrival and its play time, s (0: direct, each target
+            submitted at once; else > 0, at most 1).
         stall_periods: the child stops the robot after this many consecutive controller windows
             without a target to play.
 
@@ -152,17 +155,18 @@ class StreamProcess:
     """No gripper dispatcher in the streaming process (``FanucRobot(gripper=True)`` keeps the driver in-process)."""
 
     def __init__(self, host: str, policy: Any, *, period: float, lookahead_s: float, stall_periods: int) -> None:
-        if not (np.isfinite(lookahead_s) and 0 < lookahead_s <= 1.0):
-            raise InvalidInput(f"lookahead_s must be in (0, 1] s, got {lookahead_s}", value=lookahead_s)
+        check_lookahead(lookahead_s)
         if int(stall_periods) < 1:
             raise InvalidInput(f"stall_periods must be >= 1, got {stall_periods}", value=stall_periods)
         self.period, self.lookahead_s = float(period), float(lookahead_s)
+        self._stream_lookahead = self.lookahead_s  # the running stream's (set_lookahead applies at the next)
         self.base_ns = time.monotonic_ns()
         self._lock = threading.Lock()
         self._closed = False
         self._last_slot: float | None = None
         self._prev_slot = -np.inf
         fd = os.memfd_create("robointel-stream")
+        self._wake = os.eventfd(0, os.EFD_NONBLOCK | os.EFD_CLOEXEC)  # a direct target is waiting
         try:
             os.ftruncate(fd, sc.SHM_BYTES)
             self._mm = mmap.mmap(fd, sc.SHM_BYTES)
@@ -171,7 +175,7 @@ class StreamProcess:
             self._conn = Connection(ours.detach())
             try:
                 self._proc = subprocess.Popen([sys.executable, "-c", _CHILD, sc.__file__, str(theirs.fileno()),
-                                               str(fd)], pass_fds=(theirs.fileno(), fd))
+                                               str(fd), str(self._wake)], pass_fds=(theirs.fileno(), fd, self._wake))
             finally:
                 theirs.close()
         finally:
@@ -234,13 +238,25 @@ class StreamProcess:
             return self._reply(REPLY_TIMEOUT_S, name)
 
     # ------------------------------------------------------------------ the driver's surface
+    def set_lookahead(self, lookahead_s: float) -> None:
+        """The look-ahead of the next stream (after a hold or a stop), s: 0 submits each target at once.
+
+        Raises:
+            InvalidInput: outside [0, 1] s or not finite.
+        """
+        check_lookahead(lookahead_s)
+        self.lookahead_s = float(lookahead_s)
+        if self._last_slot is None:
+            self._stream_lookahead = self.lookahead_s
+
     def servo_j(self, q: npt.NDArray[np.float64], duration: float) -> None:
         """Queue target ``q`` (6,) rad; it is played ``lookahead_s`` after the stream's start.
 
         The target's slot is one period after the previous one, or ``lookahead_s`` from now when the
         stream (re)starts or the previous slot has already passed (the caller fell behind by more
         than the look-ahead). A caller faster than the period replaces its last queued slot once the
-        queue holds twice the look-ahead.
+        queue holds twice the look-ahead. With a look-ahead of 0 the slot is the arrival and the
+        child is woken to submit the target at once.
 
         Raises:
             FanucConnectionError: the child is gone or no longer takes targets.
@@ -250,20 +266,27 @@ class StreamProcess:
         b = self._buf
         now = (time.monotonic_ns() - self.base_ns) * 1e-9
         last = self._last_slot
-        if last is None or now > last:
-            slot = max(now + self.lookahead_s, self._prev_slot + self.period)
+        if last is None:
+            self._stream_lookahead = self.lookahead_s
+        look = self._stream_lookahead
+        if look == 0.0:
+            slot = now
+        elif last is None or now > last:
+            slot = max(now + look, self._prev_slot + self.period)
         else:
             slot = last + self.period
-            if slot > now + 2 * self.lookahead_s + self.period:
+            if slot > now + 2 * look + self.period:
                 slot = last
         w = int(b[sc.H_WRITE])
         if w - int(b[sc.H_READ]) >= sc.RING - 1:
             raise FanucConnectionError(f"the streaming process took no target for {sc.RING} targets")
         o = sc.RING_OFF + (w % sc.RING) * sc.SLOT_WIDTH
-        b[o] = slot
-        b[o + 1:o + sc.SLOT_WIDTH] = q
+        b[o], b[o + 1] = slot, now
+        b[o + 2:o + sc.SLOT_WIDTH] = q
         b[sc.H_WRITE] = w + 1  # published last: the child reads the count, then the slot
         self._last_slot = self._prev_slot = slot
+        if look == 0.0:
+            os.eventfd_write(self._wake, 1)
 
     def hold(self) -> None:
         """Hold after the targets already queued have been played."""
@@ -311,14 +334,29 @@ class StreamProcess:
 
         ``stream_windows``: controller windows while a stream played; ``stream_fresh``: windows that got
         a freshly interpolated target in time; ``stream_starved``: windows the caller left without a
-        target (late by more than the look-ahead); ``stream_late``: windows this process itself missed.
+        target (late by more than the look-ahead); ``stream_late``: windows this process itself missed;
+        ``stream_core_late``: windows whose tick the core sent late while this process polled for it;
+        ``direct_submits`` and ``direct_latency_{mean,max}_ms``: targets of direct streams and the time
+        from their arrival to their submission to the core.
         """
         out = dict(self.call("timing_stats"))
         s = self.read_state()
-        for k in ("windows", "fresh", "starved", "late", "submits"):
+        for k in ("windows", "fresh", "starved", "late", "submits", "core_late"):
             out[f"stream_{k}"] = int(s[k])
+        n = int(s["direct_submits"])
+        out["direct_submits"] = n
+        out["direct_latency_mean_ms"] = float(s["direct_latency_sum_s"]) / n * 1e3 if n else 0.0
+        out["direct_latency_max_ms"] = float(s["direct_latency_max_s"]) * 1e3
         out["lookahead_s"] = self.lookahead_s
         return out
+
+    def missed_events(self) -> list[tuple[str, float, int, float]]:
+        """The last missed windows: (kind, time s after ``base_ns``, cmd_tick, wake-up gap ms).
+
+        ``kind`` is starved, late or core_late; the gap is between the streaming process's wake-up
+        that counted the window and its previous one.
+        """
+        return [tuple(e) for e in self.call("missed_events")]  # type: ignore[misc]
 
     def last_submit_ns(self) -> int:
         """CLOCK_MONOTONIC time of the child's last target submission to the core, ns (0: none yet)."""
@@ -346,3 +384,13 @@ class StreamProcess:
             self._proc.kill()
             self._proc.wait(5.0)
         self._conn.close()
+        if self._wake >= 0:
+            os.close(self._wake)
+            self._wake = -1
+
+
+def check_lookahead(lookahead_s: float) -> None:
+    """InvalidInput unless 0 <= lookahead_s <= 1 s."""
+    if not (np.isfinite(lookahead_s) and 0 <= lookahead_s <= 1.0):
+        raise InvalidInput(f"lookahead_s must be in [0, 1] s (0: each target at once), got {lookahead_s}",
+                           value=lookahead_s)

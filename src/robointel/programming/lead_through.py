@@ -103,7 +103,8 @@ def lead_through(arm: Backend, robot: Any, duration: float, *, obstacles: Sequen
     out = LeadThroughResult(np.zeros(K), np.zeros((K, n)), np.zeros((K, n)), np.zeros((K, 6)), np.zeros(K),
                             np.zeros(K, dtype=bool))
     q_cmd = (st.q_cmd if st.q_cmd is not None else st.q).copy()
-    with realtime_thread() if arm.paced else contextlib.nullcontext():  # paced: a real-time section
+    # paced: a real-time section; every target goes out at once (no look-ahead queue in the force loop)
+    with realtime_thread() if arm.paced else contextlib.nullcontext(), arm.low_latency():
         t0 = time.perf_counter()
         try:
             for k in range(K):

@@ -431,7 +431,12 @@ class StreamingController:
         self.stop_began, self.rest_at = time.perf_counter(), None
 
     def _loop(self) -> None:
-        with realtime_thread() if self.interface is not None else contextlib.nullcontext():
+        if self.interface is None:
+            self._run_loop()
+            return
+        # teleoperation: each target goes out at once (no look-ahead queue between the operator and the arm)
+        low_latency = getattr(self.interface, "low_latency", None)
+        with realtime_thread(), low_latency() if low_latency is not None else contextlib.nullcontext():
             self._run_loop()
 
     def _run_loop(self) -> None:
