@@ -45,14 +45,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import shlex
-import shutil
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+from _netns import reexec_in_loopback_netns
 
 PAPER = {"cpd_ms_933": 549.0, "classification_accuracy": 113 / 120, "grasp_success": 18.8 / 20}
 
@@ -422,13 +421,9 @@ def main() -> None:
                     help="comma list: 'classification' and/or trial categories (e.g. can,box: CPD and "
                          "classification skipped, those categories' trials only, on the same placements as a full run)")
     args = ap.parse_args()
-    if args.ray and not args.no_netns and os.environ.get("ROBOINTEL_NETNS") != "1":
+    if args.ray and not args.no_netns:
         # a local Ray binds the machine's routable address: run it where only loopback exists
-        if shutil.which("unshare") is None:
-            sys.exit("unshare not found: run as root on Linux, or pass --no-netns")
-        env = {**os.environ, "ROBOINTEL_NETNS": "1", "RAY_USAGE_STATS_ENABLED": "0"}
-        cmd = "ip link set lo up && exec " + " ".join(shlex.quote(a) for a in [sys.executable, *sys.argv])
-        sys.exit(subprocess.call(["unshare", "--net", "sh", "-c", cmd], env=env))
+        reexec_in_loopback_netns("pass --no-netns")
     only = set(args.only.split(",")) if args.only else None
     if only:
         args.skip_cpd = True

@@ -277,3 +277,46 @@ def test_flat_pad_normal_on_rounded_sides_but_not_on_a_wedge():
     qt = grasp_quality(wall, gt, pad_reach=0.003, edge_normals=True, table_z=0.0)
     qn = grasp_quality(wall, gt, pad_reach=0.003, table_z=0.0)
     assert qt.quality == qn.quality
+
+
+def test_refine_position_slides_a_grasp_toward_the_centroid():
+    """A grasp on a 25 cm bar lying on the table, 8 cm from its middle: with ``toward`` (the cloud's
+    centroid) and ``com_weight`` the best refined candidate lies nearer the middle (gravity's lever on
+    the grip shorter); without, it stays near where it was transferred."""
+    import trimesh
+
+    from robointel.learning.grasp.search import refine_position
+
+    bar = trimesh.creation.box(extents=[0.25, 0.02, 0.02])
+    bar.apply_translation([0.5, 0.0, 0.01])
+    P = np.asarray(trimesh.sample.sample_surface_even(bar, 4000, seed=0)[0])
+    P = P[P[:, 2] > 0.004]
+    g = grasp_from_axis([0.58, 0.0, 0.012], [0.0, 1.0, 0.0], [0, 0, -1], 0.02)
+    gripper = ParallelGripper()
+    centroid = P.mean(axis=0)
+    plain = refine_position(g, P, gripper=gripper, table_z=0.0)
+    toward = refine_position(g, P, gripper=gripper, table_z=0.0, toward=centroid, com_weight=2.0)
+    assert abs(plain[1].centre[0] - 0.58) < 0.02
+    assert abs(toward[1].centre[0] - 0.5) < abs(plain[1].centre[0] - 0.5) - 0.03
+    assert grasp_quality(P, toward[1], gripper=gripper, table_z=0.0).quality > 0
+
+
+def test_orientation_search_needs_the_pre_grasp_reachable(lrmate):
+    """A grasp approached horizontally toward the LR Mate's base at 0.5 m, 5 cm up: the grasp and the
+    pose 10 cm above it are reachable, the pre-grasp 8 cm back along the approach (farther out) is not
+    (the closed-form IK has no solution there), and the search calls it infeasible unless the pre-grasp
+    is left out of the check."""
+    from robointel.learning.grasp.pipeline import lrmate_with_gripper
+    from robointel.learning.grasp.search import PRE_GRASP
+
+    gripper = ParallelGripper()
+    robot = lrmate_with_gripper(gripper)
+    g = grasp_from_axis([0.50, 0.0, 0.05], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], 0.02)
+    import trimesh
+
+    cube = trimesh.creation.box(extents=[0.02, 0.02, 0.02])
+    P = np.asarray(trimesh.sample.sample_surface_even(cube, 2000, seed=0)[0]) + g.centre
+    kw = dict(gripper=gripper, angles=[0.0])
+    assert orientation_search(g, P, robot, pre_grasp=None, **kw).feasible
+    r = orientation_search(g, P, robot, **kw)
+    assert not r.feasible and PRE_GRASP == pytest.approx(0.08)

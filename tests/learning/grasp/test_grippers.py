@@ -1,4 +1,5 @@
 """The two parallel grippers (48 mm and 85 mm stroke): choice by grasp width, quality, MuJoCo trial."""
+import mujoco
 import numpy as np
 import pytest
 import trimesh
@@ -81,3 +82,22 @@ def test_holdable_is_a_grasp_found_by_either_gripper():
     assert not sampled_grasps(mid, 1, gripper=NARROW_GRIPPER) and sampled_grasps(mid, 1, gripper=WIDE_GRIPPER)
     assert holdable(mid) and not holdable(mid, (NARROW_GRIPPER,))
     assert not holdable(big)
+
+
+@pytest.mark.parametrize("gripper", [NARROW_GRIPPER, WIDE_GRIPPER], ids=lambda g: g.name)
+def test_the_closing_drive_squeezes_with_the_grip_force_at_any_width(gripper):
+    """Commanded closed, each finger's drive pushes with the gripper's grip force on a 2 mm and on a
+    40 mm part (a force-controlled electric gripper), not with a force that fades near the closed end."""
+    from robointel.learning.grasp.scene import FINGER_KP, close_command, scene_xml
+
+    m = mujoco.MjModel.from_xml_string(scene_xml([], dynamic=True, gripper=gripper))
+    d = mujoco.MjData(m)
+    adr = [m.jnt_qposadr[m.joint(n).id] for n in ("fp", "fn")]
+    for part in (0.002, 0.040):
+        d.qpos[adr] = (gripper.max_width - part) / 2  # finger travel when the jaws touch the part
+        d.ctrl[-2:] = close_command(gripper)
+        mujoco.mj_forward(m, d)
+        assert d.actuator_force[-2:] == pytest.approx([gripper.grip_force] * 2)
+        d.ctrl[-2:] = gripper.max_width / 2  # the closed end as a position: weaker on thin parts
+        mujoco.mj_forward(m, d)
+        assert d.actuator_force[-1] == pytest.approx(min(gripper.grip_force, FINGER_KP * part / 2))

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import mujoco
 import numpy as np
@@ -37,7 +37,12 @@ from robointel.learning.grasp.search import SearchResult, orientation_search, re
 from robointel.learning.grasp.transfer import Grasp, transfer_grasp
 from robointel.robot import Robot
 
-__all__ = ["GraspPlan", "GraspPlanner", "carve_above_seen", "lrmate_with_gripper", "perceived_template"]
+__all__ = ["COM_WEIGHT", "GraspPlan", "GraspPlanner", "carve_above_seen", "lrmate_with_gripper", "perceived_template"]
+
+
+#: Default :attr:`GraspPlanner.com_weight` (cost per metre of a grasp's horizontal distance from the
+#: perceived centroid).
+COM_WEIGHT = 0.0
 
 
 def lrmate_with_gripper(gripper: ParallelGripper = NARROW_GRIPPER) -> Robot:
@@ -129,6 +134,10 @@ class GraspPlanner:
             narrow ``gripper`` when the part fits it, else the wide one) and tried as well when the
             narrow one finds no feasible grasp. Used only with ``robot="lrmate"`` or ``robot=None``
             (the LR Mate is loaded with each gripper's tool).
+        com_weight: cost per metre of horizontal distance between a grasp's centre and the perceived
+            cloud's centroid (the centre of mass as far as the cameras tell; gravity's lever on the grip),
+            added to the (6.21) cost of each candidate; :func:`refine_position` also slides the
+            re-heighted grasps along the part toward the centroid. 0: off.
     """
 
     def __init__(self, templates: list[Template], *, gripper: ParallelGripper = NARROW_GRIPPER,
@@ -137,7 +146,7 @@ class GraspPlanner:
                  refine: bool = True, seen_contacts: bool = False,
                  classifiers: list[Template] | None = None, edge_normals: bool = True, carve: bool = True,
                  pad_reach: float | None = 0.003, rest_height: bool = True,
-                 wide_gripper: ParallelGripper | None = WIDE_GRIPPER) -> None:
+                 wide_gripper: ParallelGripper | None = WIDE_GRIPPER, com_weight: float = COM_WEIGHT) -> None:
         if not templates:
             raise InvalidInput("GraspPlanner needs at least one template", value=templates)
         self.templates = templates
@@ -161,6 +170,7 @@ class GraspPlanner:
         self.carve = carve
         self.pad_reach = pad_reach
         self.rest_height = rest_height
+        self.com_weight = com_weight
         self.q_ref = np.radians([0, 20, -10, 0, -70, 0]) if q_ref is None else np.asarray(q_ref, float)
 
     def robot_for(self, gripper: ParallelGripper) -> Robot | None:
@@ -274,6 +284,7 @@ class GraspPlanner:
         """
         robot = self.robot_for(gripper)
         best: SearchResult | None = None
+        centroid = cloud.mean(axis=0)
         # contacts on perceived points only (off by default, see ``seen_contacts``)
         seen = cKDTree(cloud) if self.seen_contacts else None
         for (full, tree), gs in zip(fulls, per_fit):
@@ -281,12 +292,16 @@ class GraspPlanner:
             for g in gs:
                 cands += (refine_position(g, full, gripper=gripper, tree=tree, table_z=self.table_z,
                                           observed=cloud, edge_normals=self.edge_normals,
-                                          pad_reach=self.pad_reach, rest_height=self.rest_height)
+                                          pad_reach=self.pad_reach, rest_height=self.rest_height,
+                                          toward=centroid, com_weight=self.com_weight)
                           if self.refine else [g])
             for g in cands:
                 r = orientation_search(g, full, robot, gripper=gripper, table_z=self.table_z,
                                        base_pose=self.base_pose, q_ref=self.q_ref, tree=tree, observed=seen,
                                        edge_normals=self.edge_normals, pad_reach=self.pad_reach)
+                if self.com_weight:
+                    r = replace(r, cost=r.cost + self.com_weight * float(np.linalg.norm(r.grasp.centre[:2]
+                                                                                         - centroid[:2])))
                 if best is None or r.cost < best.cost:
                     best = r
         if best is None:

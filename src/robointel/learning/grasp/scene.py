@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from robointel.geometry.obstacles import Obstacle
     from robointel.robot import Robot
 
-__all__ = ["Placement", "scene_xml", "TABLE_CENTRE", "TABLE_HALF", "random_placements"]
+__all__ = ["FINGER_KP", "Placement", "scene_xml", "TABLE_CENTRE", "TABLE_HALF", "close_command", "random_placements"]
 
 TABLE_CENTRE = np.array([0.5, 0.0])
 TABLE_HALF = np.array([0.35, 0.45])
@@ -68,6 +68,30 @@ def random_placements(objects: Sequence[ObjectModel], rng: np.random.Generator |
                 break
         out.append(Placement(o, float(x), float(y), float(rng.uniform(-np.pi, np.pi))))
     return out
+
+
+#: Position gain of each finger's drive (N/m); its force is limited to the gripper's ``grip_force``.
+FINGER_KP = 3000.0
+
+
+def close_command(gripper: ParallelGripper, grip_force: float | None = None) -> float:
+    """The finger travel command (m) that closes the jaws with the full grip force on any part.
+
+    A real electric gripper closes until its set force is reached and holds it, whatever the part's
+    width. A position drive commanded to the closed end (``max_width / 2``) pushes with
+    ``FINGER_KP`` x the travel left, which falls below ``grip_force`` on thin parts (15 N instead of 20 N
+    on a 10 mm spoon handle in the 48 mm gripper); the command lies ``grip_force / FINGER_KP`` past the
+    closed end, so the drive saturates at ``grip_force`` until the fingers meet.
+
+    Args:
+        gripper: The gripper.
+        grip_force: The drive's force limit (N per finger; default ``gripper.grip_force``).
+
+    Returns:
+        The command (m of travel per finger; the joints stop at ``max_width / 2``).
+    """
+    force = gripper.grip_force if grip_force is None else grip_force
+    return gripper.max_width / 2 + force / FINGER_KP
 
 
 def _fmt(a: npt.ArrayLike) -> str:
@@ -122,7 +146,7 @@ def scene_xml(placements: list[Placement], *, dynamic: bool = False, gripper: Pa
                 f'<geom type="box" pos="0 0 {palm_z:.6g}" mass="{g.mass:.4g}" '
                 f'size="{_fmt(palm)}" rgba=".4 .4 .4 1" contype="0" conaffinity="0"/>{fingers}</body>')
         act = ("<actuator>" + "".join(
-            f'<position name="a{n}" joint="{n}" kp="3000" ctrlrange="0 {g.max_width / 2:.6g}" '
+            f'<position name="a{n}" joint="{n}" kp="{FINGER_KP:g}" ctrlrange="0 {close_command(g, grip_force):.6g}" '
             f'forcerange="{-grip_force} {grip_force}"/>' for n in ("fp", "fn")) + "</actuator>")
         act += ('<equality><joint joint1="fp" joint2="fn" polycoef="0 1 0 0 0" solref="0.005 1"/>'
                 '<weld body1="target" body2="gripper" solref="0.004 1"/></equality>')
@@ -161,7 +185,8 @@ def arm_scene(placements: list[Placement], robot: Robot, gripper: ParallelGrippe
     (``kp``, ``kv``; torque limited to the URDF effort limits) with the arm's gravity compensated
     (MuJoCo ``gravcomp``, the controller's gravity feed-forward); the held object is a real payload.
     Actuators: ``arm/joint_1..6`` (joint angle, rad) then ``arm/afp``, ``arm/afn`` (finger travel, m;
-    0 = open); each finger's drive force is limited to ``grip_force`` (N, default the gripper's
+    0 = open, :func:`close_command` = closed with the full grip force); each finger's drive force is
+    limited to ``grip_force`` (N, default the gripper's
     ``grip_force``). Any :class:`ParallelGripper` fits (the 48 mm or the 85 mm one). ``obstacles``:
     ``robointel.geometry`` shapes added as static bodies ``obstacle/<name>`` (fixtures the arm and the
     objects collide with). Returns the compiled ``MjModel``.
@@ -205,8 +230,8 @@ def arm_scene(placements: list[Placement], robot: Robot, gripper: ParallelGrippe
         f.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=fb, mass=0.05, friction=[friction, 0.02, 0.001], condim=6,
                    rgba=[0.2, 0.2, 0.2, 1])
         a = rs.add_actuator(name="a" + name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
-        a.set_to_position(kp=3000.0)
-        a.ctrlrange = [0, g.max_width / 2]
+        a.set_to_position(kp=FINGER_KP)
+        a.ctrlrange = [0, close_command(g, grip_force)]
         a.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
         a.forcerange = [-grip_force, grip_force]
         a.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE

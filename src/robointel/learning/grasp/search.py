@@ -26,9 +26,13 @@ from robointel.learning.grasp.transfer import Grasp, grasp_from_axis
 if TYPE_CHECKING:
     from robointel.robot import Robot
 
-__all__ = ["SearchResult", "orientation_search", "refine_position", "PENALTY"]
+__all__ = ["SearchResult", "orientation_search", "refine_position", "PENALTY", "PRE_GRASP"]
 
 PENALTY = 10.0
+
+#: Distance (m) of the pre-grasp pose back along the approach from the grasp: the trial moves the jaws
+#: in from there (:func:`robointel.learning.grasp.grasp_trial`), so the search requires it reachable.
+PRE_GRASP = 0.08
 
 
 #: Default turns of :func:`refine_position` (rad): -30, -15, 0, 15, 30 deg.
@@ -58,8 +62,9 @@ def orientation_search(grasp: Grasp, cloud: npt.ArrayLike, robot: Robot | None =
                        gripper: ParallelGripper = NARROW_GRIPPER, angles: npt.ArrayLike | None = None,
                        weight: float = 0.05, table_z: float | None = None, q_ref: npt.ArrayLike | None = None,
                        base_pose: np.ndarray | None = None, lift: float = 0.10,
-                       tree: cKDTree | None = None, observed: cKDTree | None = None,
-                       edge_normals: bool = False, pad_reach: float | None = None) -> SearchResult:
+                       pre_grasp: float | None = PRE_GRASP, tree: cKDTree | None = None,
+                       observed: cKDTree | None = None, edge_normals: bool = False,
+                       pad_reach: float | None = None) -> SearchResult:
     """(6.21) search rotations of ``grasp`` about its closing axis.
 
     Args:
@@ -73,6 +78,8 @@ def orientation_search(grasp: Grasp, cloud: npt.ArrayLike, robot: Robot | None =
         q_ref: preferred joint configuration (IK solutions sorted by distance to it).
         base_pose: 4x4 world pose of the robot root (default identity).
         lift: the grasp is only feasible if the pose ``lift`` metres above is reachable too.
+        pre_grasp: ... and the pre-grasp pose ``pre_grasp`` metres back along the approach, from which
+            the jaws move in (None: not checked).
         observed: KD-tree of the perceived points when ``cloud`` is completed (see
             :func:`grasp_quality`: contacts must have been seen).
         edge_normals: rim normals at contacts on thin parts seen face-on (see :func:`grasp_quality`).
@@ -116,6 +123,10 @@ def orientation_search(grasp: Grasp, cloud: npt.ArrayLike, robot: Robot | None =
                 up = g.pose.copy()
                 up[2, 3] += lift
                 robot.ik(Tb_inv @ up, q_ref=sols[0])
+                if pre_grasp is not None:
+                    pre = g.pose.copy()
+                    pre[:3, 3] -= pre_grasp * g.approach
+                    robot.ik(Tb_inv @ pre, q_ref=sols[0])
                 q = sols[0]
             except IKFailure:
                 ik_ok = False
@@ -136,7 +147,9 @@ def refine_position(grasp: Grasp, cloud: npt.ArrayLike, *, gripper: ParallelGrip
                     column_radius: float = 0.008, clearance: float = 0.003,
                     slide: Sequence[float] = (-0.018, -0.012, 0.012, 0.018), observed: npt.ArrayLike | None = None,
                     edge_normals: bool = False,
-                    pad_reach: float | None = None, rest_height: bool = False) -> list[Grasp]:
+                    pad_reach: float | None = None, rest_height: bool = False,
+                    toward: npt.ArrayLike | None = None, com_weight: float = 0.0,
+                    com_reach: float = 0.06) -> list[Grasp]:
     """Refine a transferred grasp's position locally (our addition before (6.21)).
 
     Our addition before (6.21): a small local search around a transferred grasp, for when the warp
@@ -162,6 +175,11 @@ def refine_position(grasp: Grasp, cloud: npt.ArrayLike, *, gripper: ParallelGrip
     the table (not below the fingertip clearance): the middle of a part lying on the table, whose
     underside the cameras never see (the lowest seen point of a fork's 12 mm thick scan was 4 mm up,
     which put the jaws 1 mm over its widest section).
+
+    ``toward`` (world, m; the perceived cloud's centroid, a stand-in for the centre of mass) with
+    ``com_weight`` > 0: the re-heighted grasps are also tried slid along the part toward it (by at most
+    ``com_reach`` m), and every candidate's score loses ``com_weight`` per metre of horizontal distance
+    between its centre and ``toward`` (gravity's lever on the grip).
     """
     P = np.asarray(cloud, float)
     Pobs = P if observed is None else np.asarray(observed, float)
@@ -176,7 +194,12 @@ def refine_position(grasp: Grasp, cloud: npt.ArrayLike, *, gripper: ParallelGrip
         if table_z is not None:
             z_clear = table_z + gripper.tip_depth + clearance
             along = np.cross([0.0, 0.0, 1.0], up.axis)  # horizontal, across the closing axis
-            for b in (0.0,) + tuple(slide):
+            slides = (0.0,) + tuple(slide)
+            if toward is not None and com_weight > 0:
+                b_com = float(np.clip((np.asarray(toward, float) - grasp.centre) @ along, -com_reach, com_reach))
+                if min(abs(b_com - b_) for b_ in slides) > 0.003:
+                    slides += (b_com,)
+            for b in slides:
                 c = grasp.centre + b * along
                 col = Pobs[np.linalg.norm(Pobs[:, :2] - c[:2], axis=1) < column_radius]
                 if len(col) >= 3 and np.percentile(col[:, 2], 95) > z_clear:
@@ -203,6 +226,9 @@ def refine_position(grasp: Grasp, cloud: npt.ArrayLike, *, gripper: ParallelGrip
                     q = grasp_quality(P, g, gripper=gripper, tree=tree, observed=obs_tree, edge_normals=edge_normals,
                                       pad_reach=pad_reach, table_z=table_z)
                     score = q.quality - weight * float(np.linalg.norm(off)) - 0.05 * abs(yaw)
+                    if toward is not None and com_weight > 0:
+                        gc = q.grasp.centre if q.grasp is not None else g.centre
+                        score -= com_weight * float(np.linalg.norm(gc[:2] - np.asarray(toward, float)[:2]))
                     scored.append((score, q.grasp if q.grasp is not None and q.quality > 0 else g))
     scored.sort(key=lambda t: -t[0])
     out = [grasp]

@@ -22,7 +22,8 @@ from robointel.learning.grasp.pipeline import GraspPlan, GraspPlanner
 from robointel.learning.grasp.quality import (
     ParallelGripper,
 )
-from robointel.learning.grasp.scene import ARM_KP, ARM_KV, Placement, arm_scene, scene_xml
+from robointel.learning.grasp.scene import ARM_KP, ARM_KV, Placement, arm_scene, close_command, scene_xml
+from robointel.learning.grasp.search import PRE_GRASP
 
 __all__ = ["HOVER_CLEARANCE", "LIFT_MIN", "PHASES", "Q_PARK", "SETTLE_MAX", "GraspTrialResult", "grasp_trial",
            "settle_until_at_rest"]
@@ -245,7 +246,7 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
                                 cat, plan, cloud=cloud, settle_s=settled_s)
     G = res.grasp.pose
     pre = G.copy()
-    pre[:3, 3] -= 0.08 * res.grasp.approach
+    pre[:3, 3] -= PRE_GRASP * res.grasp.approach
     # the gripper comes in from above: the pre-grasp pose raised to HOVER_CLEARANCE above the
     # perceived top of the object, then straight down to the pre-grasp
     up = G.copy()
@@ -266,20 +267,20 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
         except IKFailure:
             continue
     dt = m.opt.timestep
-    open_w = g.max_width / 2 - 0.0  # finger joint 0 = open
+    shut = close_command(g)  # finger travel command 0 = open; closed: squeeze with the grip force at any width
     approach = (np.vstack([_smooth(Q_PARK, q_hover, int(1.5 / dt)), _smooth(q_hover, q_pre, int(0.5 / dt))]) if arm
                 else _smooth(q_pre, q_pre, int(0.1 / dt)))
     path = [(approach, 0.0)]
     path.append((_smooth(q_pre, q_grasp, int(0.8 / dt)), 0.0))
-    path.append((_smooth(q_grasp, q_grasp, int(0.6 / dt)), open_w))
-    path.append((_smooth(q_grasp, q_up, int(1.0 / dt)), open_w))
+    path.append((_smooth(q_grasp, q_grasp, int(0.6 / dt)), shut))
+    path.append((_smooth(q_grasp, q_up, int(1.0 / dt)), shut))
     n_sh = int(1.5 / dt)
     tt = np.arange(n_sh) * dt
     shake = np.tile(q_up, (n_sh, 1))
     shake[:, 0] += 0.06 * np.sin(2 * np.pi * 2.0 * tt)
     shake[:, 5] += shake_amplitude * np.sin(2 * np.pi * 2.0 * tt)
-    path.append((shake, open_w))
-    path.append((_smooth(q_up, q_up, int(0.4 / dt)), open_w))
+    path.append((shake, shut))
+    path.append((_smooth(q_up, q_up, int(0.4 / dt)), shut))
     body = m.body("obj0").id
     if not arm:
         gadr = m.jnt_qposadr[m.joint("gripper").id]
