@@ -42,6 +42,7 @@ class PlaneFit:
         kept: Fraction of the positions kept (the rest: moments of lost contact or rolling over an edge).
         n: Number of positions kept.
         spread: Smaller in-plane standard deviation (m) of the kept positions (a line gives no plane).
+        point: (3,) mean of the kept positions (m): a point of the plane (the ball centre resting on the face).
     """
 
     normal: npt.NDArray[np.float64]
@@ -49,6 +50,7 @@ class PlaneFit:
     kept: float
     n: int
     spread: float
+    point: npt.NDArray[np.float64]
 
 
 def fit_face(points: npt.NDArray[np.float64]) -> PlaneFit:
@@ -86,7 +88,7 @@ def fit_face(points: npt.NDArray[np.float64]) -> PlaneFit:
     n = vt[2]
     rms = float(np.sqrt(np.mean(((P - m) @ n) ** 2)))
     n = -n if n[2] > 0 else n
-    return PlaneFit(n, rms, len(P) / n_all, len(P), float(sv[1] / np.sqrt(len(P))))
+    return PlaneFit(n, rms, len(P) / n_all, len(P), float(sv[1] / np.sqrt(len(P))), m)
 
 
 def face_normal(points: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
@@ -121,17 +123,23 @@ class FeltStrategy:
         aside: Lateral move (m) from the start onto the face beside the hole.
         circle_radius: Radius (m) of the felt circle.
         circle_hz: Frequency (Hz) of the felt circle (half a turn spiralling out, one turn at the radius).
-        feel_push: Axial speed (m/s) while feeling: a push of ``AXIAL_DAMPING`` x this (N).
+        feel_push: Axial speed (m/s) while feeling: a push of ``AXIAL_DAMPING`` x this (N); the touch goes
+            down at 4 x this.
         touch_force: Axial force (N) that ends the touch.
         lift: Lift (m) off the face before turning.
         k_align: Rotation rate per tilt (1/s) of the person's reflex.
         w_max: Largest rotation rate (rad/s).
         align_tol: Remaining tilt (rad) that ends the alignment.
         v_insert: Axial speed (m/s) while inserting.
+        v_mouth: Axial speed (m/s) while the ball tip centres in the mouth: from the first push felt there
+            (``touch_force``) or the ball centre going below where it rested on the face, whichever is first,
+            until it is ``mouth_depth`` below (a lighter push and a slower arrival on the rim's edge).
+        mouth_depth: Depth (m) of the ball centre below its resting height on the face that ends the mouth.
         k_force: Lateral admittance (m/s per N) while inserting.
         speed: Free-air speed (m/s).
         k_pos: Position gain (1/s).
         stage_timeout: Longest alignment or return (s).
+        return_tol: Distance (m) from the start point that ends the return (the start is off the hole anyway).
         dt: Call period (s).
         max_rms: Largest RMS distance (m) of the felt positions from their plane for a trusted fit.
         min_kept: Smallest fraction of the felt positions on the plane for a trusted fit.
@@ -151,14 +159,17 @@ class FeltStrategy:
     w_max: float = 0.08
     align_tol: float = float(np.radians(0.03))
     v_insert: float = 0.010
+    v_mouth: float = 0.006
+    mouth_depth: float = 0.014
     k_force: float = 1e-3
     speed: float = 0.03
     k_pos: float = 5.0
     stage_timeout: float = 2.0
+    return_tol: float = 1e-3
     dt: float = 0.01
-    max_rms: float = 4e-6
+    max_rms: float = 2e-6
     min_kept: float = 0.7
-    min_spread: float = 0.4
+    min_spread: float = 0.1
     refeel: bool = True
     rotation_model: RotationModel | None = None
     proprioceptive: bool = field(default=True, init=False)
@@ -181,9 +192,10 @@ class FeltStrategy:
         self.normal: npt.NDArray[np.float64] | None = None
         self._c0: npt.NDArray[np.float64] | None = None
         self._side = 1.0
+        self._face = np.zeros(3)
+        self._rim = False
         self.fits: list[PlaneFit] = []
         self._hold = np.zeros(3)
-        self._circle = np.zeros(2)
         self.tilt_error = np.zeros(2)
 
     def rotation(self, tilt_error: npt.NDArray[np.float64], wrench: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
@@ -214,7 +226,15 @@ class FeltStrategy:
         self.stage, self._t_stage = stage, self.t
 
     def trusted(self, fit: PlaneFit) -> bool:
-        """Whether a plane fit is good enough to align to (residual, contact samples, spread)."""
+        """Whether a plane fit is good enough to align to.
+
+        Args:
+            fit: The plane fit of one feel.
+
+        Returns:
+            RMS residual below ``max_rms``, at least ``min_kept`` of the positions and 20 of them on the plane,
+            in-plane spread above ``min_spread`` x ``circle_radius``.
+        """
         return (fit.rms < self.max_rms and fit.kept >= self.min_kept and fit.n >= 20
                 and fit.spread > self.min_spread * self.circle_radius)
 
@@ -230,6 +250,7 @@ class FeltStrategy:
         good = [f for f in self.fits if self.trusted(f)]
         best = good[-1] if good else min(self.fits, key=lambda f: f.rms) if self.fits else None
         self.normal = best.normal if best is not None else np.array([0.0, 0.0, -1.0])
+        self._face = best.point if best is not None else c.copy()
         self._hold = c + self.normal * self.lift
         self._next("lift")
 
@@ -247,12 +268,12 @@ class FeltStrategy:
         goal = self._c0 + np.array([self._side * self.aside, 0.0, 0.0])  # on the face beside the hole
         if self.stage in ("aside", "cross"):
             tw[:3], d = self._goto(c, goal, R, self.speed)
-            if d < 5e-4:
-                self._next("touch")
+            if d < 5e-4 or (self.stage == "cross" and np.linalg.norm((R.T @ (goal - c))[:2]) < 5e-4):
+                self._next("touch")  # after crossing: over the target is enough, the touch goes down
         elif self.stage == "touch":
             # down onto the face, holding the aside target: the equilibrium does not run on past it
             tw[:2] = self._goto(c, goal, R, self.speed)[0][:2]
-            tw[2] = 2.5 * self.feel_push
+            tw[2] = 4.0 * self.feel_push
             if push > self.touch_force:
                 self._next("feel")
         elif self.stage == "feel":
@@ -283,9 +304,12 @@ class FeltStrategy:
                     self._next("return")
             elif self.stage == "return":
                 tw[:3], d = self._goto(c, self._c0, R, self.speed)
-                if d < 5e-4 or st > self.stage_timeout:
+                if d < self.return_tol or st > self.stage_timeout:
                     self._next("insert")
             else:
                 tw[:2] = self.k_force * w[:2]
-                tw[2] = self.v_insert
+                self._rim = self._rim or push > self.touch_force
+                h = float((c - self._face) @ self.normal)  # ball centre above its resting height on the face
+                in_mouth = (self._rim or h < 0) and h > -self.mouth_depth
+                tw[2] = min(self.v_mouth, self.v_insert) if in_mouth else self.v_insert
         return tw
