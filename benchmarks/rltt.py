@@ -142,7 +142,7 @@ def main() -> None:
                                    "from the start pose")
     out["insertion_gains"] = json.loads(args.insertion_gains)
     out["insertion_start_seed"] = args.start_seed
-    out["insertion_tuning_seeds"] = {"starts": [100], "demonstrations": [0]}
+    out["insertion_tuning_seeds"] = {"starts": [100, 101, 102], "demonstrations": [0]}
     starts = I.random_start_errors(np.random.default_rng(args.start_seed), args.trials)
     out["insertion_start_errors"] = {"lateral_mm": 2.0, "tilt_deg": 5.0}
     common = {"start_seed": args.start_seed, "time_limit": args.time_limit}

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from robointel.errors import InvalidInput, NotFinite, ShapeError
-from robointel.learning.gmr import GaussianMixtureRegression, regularize_covariances
+from robointel.learning.gmr import GaussianMixtureRegression, held_out_r2, regularize_covariances
 
 
 @pytest.fixture(scope="module")
@@ -62,3 +62,24 @@ def test_bad_input(data):
         m.predict(np.zeros((3, 3)))
     with pytest.raises(InvalidInput):
         GaussianMixtureRegression(2).predict(X)
+
+
+def test_held_out_r2_over_groups(data):
+    X, Y = data
+    G = np.repeat(np.arange(6), 100)
+    r2 = held_out_r2(X, Y, G, n_components=8, folds=3)
+    assert r2.shape == (2,) and np.all(r2 > 0.8)  # a smooth map, held-out groups of the same range
+    noise = np.random.default_rng(1).normal(size=(600, 1))  # an output the input does not predict
+    assert held_out_r2(X, noise, G, n_components=4)[0] < 0.1
+    # the two baselines differ only in the mean the held-out errors are compared with
+    r_test = held_out_r2(X, Y, G, n_components=8, folds=3, sst_about="test", x_eps=1e-12)
+    assert np.all(np.abs(r_test - r2) < 0.05)
+    # one group: no held-out check (the caller's fill); an output that never varies: the caller's value or the ratio
+    assert np.all(np.isinf(held_out_r2(X, Y, np.zeros(600), n_components=2)))
+    assert np.all(np.isnan(held_out_r2(X, Y, np.zeros(600), n_components=2, single_group=np.nan)))
+    Yc = np.column_stack([Y[:, 0], np.full(600, 2.0)])
+    assert held_out_r2(X, Yc, G, n_components=4)[1] == 0.0
+    with pytest.raises(InvalidInput):
+        held_out_r2(X, Y, G, n_components=2, sst_about="median")
+    with pytest.raises(InvalidInput):
+        held_out_r2(X, Y, G, n_components=2, folds=1)

@@ -40,6 +40,51 @@ def test_strategy_starts_by_moving_aside_and_the_reflex_saturates():
     assert np.isclose(np.linalg.norm(s.rotation(np.array([0.05, 0.05]), np.zeros(6))), s.w_max)
 
 
+def _circle(n_face, centre, radius=1.5e-3, n=150):
+    u = np.cross(n_face, [1.0, 0.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(n_face, u)
+    ph = np.linspace(0, 2 * np.pi, n)
+    return centre + radius * (np.outer(np.cos(ph), u) + np.outer(np.sin(ph), v))
+
+
+def test_plane_fit_quality_tells_a_face_from_an_edge():
+    rng = np.random.default_rng(4)
+    s = I.FeltStrategy(centre=0.09)
+    flat = _circle(np.array([0.0, 0.0, -1.0]), np.zeros(3)) + 1e-6 * rng.standard_normal((150, 3))
+    fit = I.fit_face(flat)
+    assert s.trusted(fit) and fit.rms < 2e-6 and fit.kept > 0.9 and fit.spread > 1e-3
+    # the ball rolling over the face's edge at x = 0.5 mm: its centre drops on a circle of the ball's radius
+    r = 0.0127
+    edge = flat.copy()
+    beyond = np.clip(edge[:, 0] - 0.5e-3, 0, None)
+    edge[:, 2] += r - np.sqrt(r ** 2 - beyond ** 2)  # down is +z in the tool frame
+    assert not s.trusted(I.fit_face(edge))
+    line = np.column_stack([np.linspace(-1e-3, 1e-3, 50), np.zeros(50), np.zeros(50)])
+    line += 1e-9 * rng.standard_normal((50, 3))
+    assert not s.trusted(I.fit_face(line))  # no spread: no plane
+
+
+def test_strategy_holds_the_aside_target_and_feels_again_across_the_hole_after_a_bad_fit():
+    s = I.FeltStrategy(centre=0.09)
+    s(np.zeros(6), np.eye(4))  # the start
+    T = np.eye(4)
+    T[0, 3] = s.aside + 4e-3  # the arm ran 4 mm past the aside target
+    s.stage = "touch"
+    tw = s(np.zeros(6), T)
+    assert tw[0] < 0 and tw[2] > 0  # pulled back while going down
+    s.stage = "feel"
+    s._points = list(np.array([[s.aside, 0.0, 0.0]]) + 1e-4 * np.random.default_rng(0).standard_normal((40, 3)))
+    s._felt(np.array([s.aside, 0.0, 0.09]))
+    assert s.stage == "cross" and s.normal is None and len(s.fits) == 1
+    tw = s(np.zeros(6), T)
+    assert tw[0] < 0  # over the hole to the other side
+    s.stage = "feel"
+    s._points = list(_circle(np.array([0.0, 0.0, -1.0]), np.array([-s.aside, 0.0, 0.09])))
+    s._felt(np.array([-s.aside, 0.0, 0.09]))
+    assert s.stage == "lift" and np.allclose(s.normal, [0.0, 0.0, -1.0]) and len(s.fits) == 2
+
+
 @pytest.fixture(scope="module")
 def felt():
     task = I.PegHole()

@@ -13,7 +13,7 @@
 """
 
 from robointel.learning.insertion.demonstrator import PHASES, Demonstrator, demonstrate, seated_demonstrations
-from robointel.learning.insertion.felt import STAGES, FeltStrategy, face_normal
+from robointel.learning.insertion.felt import STAGES, FeltStrategy, PlaneFit, face_normal, fit_face
 from robointel.learning.insertion.felt_skill import FeltSkill, demonstrate_felt
 from robointel.learning.insertion.hdd_scene import HDDScene
 from robointel.learning.insertion.impedance import CartesianImpedance, ImpedanceGains
@@ -32,6 +32,7 @@ from robointel.learning.insertion.skill import PERCEPTION, POLICY, InsertionSkil
 
 __all__ = [
     "seated_demonstrations", "STAGES", "FeltStrategy", "FeltSkill", "demonstrate_felt", "face_normal",
+    "fit_face", "PlaneFit",
     "ARMATURE", "PERCEPTION", "PHASES", "POLICY", "R_DOWN", "R_FLANGE_TOOL", "CartesianImpedance",
     "ConstantPush", "Demonstrator", "HDDScene", "HandTunedAdmittance", "ImpedanceGains", "InsertionSkill",
     "InsertionTrial", "PegHole", "Policy", "PressResult", "RobotCell", "demonstrate", "press_test",

@@ -19,14 +19,14 @@ import numpy.typing as npt
 from robointel.errors import InvalidInput
 from robointel.geometry.rotations import rotation_about, so3_exp, so3_log
 from robointel.learning.demonstration import Demonstration
-from robointel.learning.gmr import GaussianMixtureRegression
+from robointel.learning.gmr import GaussianMixtureRegression, held_out_r2
 from robointel.learning.insertion.demonstrator import PHASES, Demonstrator
 from robointel.learning.insertion.felt import AXIAL_DAMPING, STAGES, FeltStrategy, RotationModel
 from robointel.learning.insertion.hdd_scene import HDDScene
 from robointel.learning.insertion.peg_hole import R_DOWN, PegHole, tip_point
 
 #: the strategy's stage -> the demonstration phase label (feeling is approach, turning square is rotation)
-STAGE_PHASE = {"aside": 0, "touch": 0, "feel": 0, "lift": 1, "align": 1, "return": 2, "insert": 2}
+STAGE_PHASE = {"aside": 0, "touch": 0, "feel": 0, "cross": 0, "lift": 1, "align": 1, "return": 2, "insert": 2}
 #: strategy parameters each person draws (uniform bounds) and the skill takes as the demonstrations' median
 PERSON_RANGES = {"aside": (0.0183, 0.0191), "circle_radius": (0.0014, 0.0016), "circle_hz": (0.6, 0.9),
                  "feel_push": (0.0012, 0.0018), "k_align": (2.5, 3.5), "w_max": (0.06, 0.10),
@@ -205,28 +205,12 @@ class FeltSkill:
         self.y_lo_, self.y_hi_ = Y.min(0), Y.max(0)
         self.gmr.fit((X - self.x_mean_) / self.x_scale_, (Y - self.y_mean_) / self.y_scale_)
         self.params_ = {k: float(np.median([d.meta["params"][k] for d in demos])) for k in PERSON_RANGES}
-        self.r2_ = self._held_out_r2(X, Y, G)
+        self.r2_ = held_out_r2(X, Y, G, n_components=self.gmr.n_components, folds=self.cv_folds,
+                               random_state=self.random_state, x_eps=1e-12, sst_about="test",
+                               single_group=np.nan, constant_output=None)
         self.n_demos_ = len(demos)
         self.n_samples_ = len(X)
         return self
-
-    def _held_out_r2(self, X: npt.NDArray[np.float64], Y: npt.NDArray[np.float64],
-                     G: npt.NDArray[np.int_]) -> npt.NDArray[np.float64]:
-        ids = np.unique(G)
-        if len(ids) < 2:
-            return np.full(Y.shape[1], np.nan)
-        folds = np.array_split(np.random.default_rng(0).permutation(ids), min(self.cv_folds, len(ids)))
-        sse, sst = np.zeros(Y.shape[1]), np.zeros(Y.shape[1])
-        for held in folds:
-            te = np.isin(G, held)
-            xm, xs = X[~te].mean(0), X[~te].std(0) + 1e-12
-            ym, ys = Y[~te].mean(0), Y[~te].std(0) + 1e-12
-            gmr = GaussianMixtureRegression(self.gmr.n_components, random_state=self.random_state)
-            gmr.fit((X[~te] - xm) / xs, (Y[~te] - ym) / ys)
-            pred = gmr.predict((np.clip(X[te], X[~te].min(0), X[~te].max(0)) - xm) / xs) * ys + ym
-            sse += ((Y[te] - pred) ** 2).sum(0)
-            sst += ((Y[te] - Y[te].mean(0)) ** 2).sum(0)
-        return np.asarray(1.0 - sse / np.maximum(sst, 1e-300), float)
 
     def predict(self, tilt_error: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Commanded rotation rate [wx, wy] (rad/s) for remaining tilts (2,) or (n, 2) (rad), no extrapolation.

@@ -10,7 +10,7 @@ import numpy.typing as npt
 from robointel.errors import InvalidInput
 from robointel.geometry.rotations import so3_log
 from robointel.learning.demonstration import Demonstration
-from robointel.learning.gmr import GaussianMixtureRegression
+from robointel.learning.gmr import GaussianMixtureRegression, held_out_r2
 from robointel.learning.insertion.demonstrator import PHASES
 
 PERCEPTION = (0, 1, 2, 3, 4)  # fx fy fz tx ty (tool frame)
@@ -120,29 +120,10 @@ class InsertionSkill:
         self.y_mean_, self.y_scale_ = Y.mean(0), Y.std(0) + 1e-12
         self.gmr.fit((X - self.x_mean_) / self.x_scale_, (Y - self.y_mean_) / self.y_scale_)
         self.X_, self.Y_ = X, Y
-        self.r2_ = self._held_out_r2(X, Y, G)
+        # an output that never varied gets 0 (nothing to follow); one demonstration: inf (no check)
+        self.r2_ = held_out_r2(X, Y, G, n_components=self.gmr.n_components, folds=self.cv_folds)
         self.y_supported_ = self.r2_ >= self.min_r2
         return self
-
-    def _held_out_r2(self, X: npt.NDArray[np.float64], Y: npt.NDArray[np.float64],
-                     G: npt.NDArray[np.int_]) -> npt.NDArray[np.float64]:
-        """Per-output R^2 (5,) of the GMR on held-out demonstrations (``inf`` with a single demonstration)."""
-        ids = np.unique(G)
-        if len(ids) < 2:
-            return np.full(Y.shape[1], np.inf)
-        folds = np.array_split(np.random.default_rng(0).permutation(ids), min(self.cv_folds, len(ids)))
-        sse, sst = np.zeros(Y.shape[1]), np.zeros(Y.shape[1])
-        for held in folds:
-            te = np.isin(G, held)
-            xm, xs = X[~te].mean(0), X[~te].std(0) + 1e-9
-            ym, ys = Y[~te].mean(0), Y[~te].std(0) + 1e-12
-            gmr = GaussianMixtureRegression(self.gmr.n_components, random_state=0)
-            gmr.fit((X[~te] - xm) / xs, (Y[~te] - ym) / ys)
-            pred = gmr.predict((np.clip(X[te], X[~te].min(0), X[~te].max(0)) - xm) / xs) * ys + ym
-            sse += ((Y[te] - pred) ** 2).sum(0)
-            sst += ((Y[te] - ym) ** 2).sum(0)
-        r2 = 1.0 - sse / np.maximum(sst, 1e-300)
-        return np.asarray(np.where(sst > 1e-12 * len(Y), r2, 0.0), float)  # an output never varied: nothing to follow
 
     def predict(self, wrench: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Corrective tool twist for felt wrenches, saturated to the demonstrated ranges (no extrapolation).
