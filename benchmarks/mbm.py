@@ -221,7 +221,8 @@ def main() -> None:
     ap.add_argument("--summary-only", action="store_true",
                     help="with --jsonl: summarise the rows of that file (problems not in it are left out)")
     ap.add_argument("--families", nargs="*", default=None)
-    ap.add_argument("--peers", nargs="*", default=["ompl", "vamp"], choices=["ompl", "vamp"])
+    ap.add_argument("--peers", nargs="*", default=["ompl", "vamp"], choices=["ompl", "vamp"],
+                    help="peers to run beside ours (default both); a bare --peers runs none")
     ap.add_argument("--no-ours", action="store_true", help="run the peers and the checker only")
     ap.add_argument("--ompl-timeout", type=float, default=10.0, help="OMPL time limit per problem, s")
     ap.add_argument("--check-polylines", action="store_true",

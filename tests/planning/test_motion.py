@@ -79,6 +79,35 @@ def test_kernel_kinematics_match_pinocchio(mbm):
         assert np.allclose(s.C, env.spheres.positions(q)[order], atol=1e-12)
 
 
+def test_edge_check_keeps_its_guarantee(mbm):
+    """An accepted edge keeps clearance >= thresh - res / 2 at every point (dense samples), and an edge whose
+    dense samples all clear thresh by a margin is accepted, in both walk orders."""
+    from robointel.planning import _collision_kernels as K
+    from robointel.planning import _edge_kernels as E
+
+    env = _env(mbm, _first_valid(mbm, "cage"))
+    robot, s, W = env.robot, env.scratch, env.world
+    rng = np.random.default_rng(5)
+    thresh, res = 0.001, 0.02
+    accepted = rejected = 0
+    for _ in range(150):
+        q0, q1 = robot.random_configuration(rng), robot.random_configuration(rng)
+        if not (K.config_valid(q0, W, s.T, s.C, s.G, s.out, thresh) and K.config_valid(q1, W, s.T, s.C, s.G, s.out,
+                                                                                           thresh)):
+            continue
+        gap = 0.004  # largest sphere travel between two dense samples, m
+        k = int(np.ceil(K.travel(q0, q1, env.lever) / gap)) + 1
+        d = min(env.clearance(q, cap=0.3) for q in q0 + np.linspace(0, 1, k)[:, None] * (q1 - q0))
+        for check in (E.edge_valid, E.edge_valid_bisect):  # walked from q0; coarse to fine
+            if check(q0, q1, W, s.T, s.C, s.G, s.out, thresh, env.lever, res):
+                accepted += 1
+                assert d >= thresh - res / 2 - 1e-9
+            else:
+                rejected += 1
+                assert d < thresh + gap + 1e-9  # a checked point below thresh: a sample within gap / 2 of travel
+    assert accepted > 10 and rejected > 10
+
+
 @pytest.mark.parametrize("family", FAMILIES)
 def test_mbm_problem_planned_and_rechecked(mbm, family):
     p = _first_valid(mbm, family)

@@ -1,7 +1,7 @@
 """Compiled (numba) collision kernels of the motion planner.
 
 Chain kinematics, sphere clearance against primitives, a gridded point cloud and the robot
-itself, and motion (edge) checks.
+itself, and checks of sample sequences (the edge checks are in ``_edge_kernels``).
 
 The world is one tuple ``W`` of arrays built by :class:`robointel.planning.environment.Environment`:
 
@@ -250,137 +250,6 @@ def travel(q0, q1, lever):  # pragma: no cover - compiled
     for k in range(q0.shape[0]):
         s += lever[k] * abs(q1[k] - q0[k])
     return s
-
-
-@njit(cache=True, fastmath=FM)
-def _self_advance(C, G, W, thresh, res, dq, out, best, rate):  # pragma: no cover - compiled
-    """Largest path-parameter advance allowed by the self-collision pairs, at most ``best``.
-
-    Each sphere pair (i, j) limits it by its distance over its relative travel
-    ``rate[i, joint of j] + rate[j, joint of i]`` (``rate`` (m, nj): ``W[23]`` times |dq|); -1 when
-    a pair is below ``thresh``. A group pair whose bounding spheres alone allow an advance of
-    ``best`` (the obstacles' limit) under its relative lever ``W[20]`` is not looked into.
-    """
-    sr, gr, gs, gpairs, smask, rel, gj = W[21], W[22], W[11], W[14], W[15], W[20], W[8]
-    for p in range(gpairs.shape[0]):
-        L = 0.0
-        for k in range(dq.shape[0]):
-            L += rel[p, k] * dq[k]
-        a, b = gpairs[p, 0], gpairs[p, 1]
-        dx, dy, dz = G[a, 0] - G[b, 0], G[a, 1] - G[b, 1], G[a, 2] - G[b, 2]
-        db = math.sqrt(dx * dx + dy * dy + dz * dz) - gr[a] - gr[b]
-        lim = thresh + 0.5 * res + best * L  # pair distances above this do not limit the advance
-        if db >= lim:
-            continue
-        ja, jb = gj[a], gj[b]
-        for i in range(gs[a], gs[a + 1]):
-            for j in range(gs[b], gs[b + 1]):
-                if smask[i, j] == 0:
-                    continue
-                dx, dy, dz = C[i, 0] - C[j, 0], C[i, 1] - C[j, 1], C[i, 2] - C[j, 2]
-                d = math.sqrt(dx * dx + dy * dy + dz * dz) - sr[i] - sr[j]
-                if d < thresh:
-                    out[0], out[1], out[2] = SELF, i, j
-                    return -1.0
-                Lij = rate[i, jb] + rate[j, ja]
-                if Lij > 0.0:
-                    best = min(best, max(d - thresh + 0.5 * res, res) / Lij)
-    return best
-
-
-@njit(cache=True, fastmath=FM)
-def _env_advance(C, G, W, thresh, res, rate, out, cap):  # pragma: no cover - compiled
-    """Largest path-parameter advance allowed by the obstacles; -1 when a sphere is below ``thresh``.
-
-    Sphere i limits it by its clearance (capped at ``cap``) over its travel ``rate[i, 0]`` (m per
-    unit of the parameter); a group whose bounding sphere cannot limit it below the current best
-    is not looked into. Spheres fixed to the base are not checked (as in :func:`full_clearance`).
-    """
-    sr, gr, gs, types, params, cd, gj = W[7], W[10], W[11], W[12], W[13], W[19], W[8]
-    half = 0.5 * res
-    Lmax = 0.0
-    for i in range(rate.shape[0]):
-        Lmax = max(Lmax, rate[i, 0])
-    if Lmax <= 0.0:
-        Lmax = 1.0
-    best = (cap - thresh + half) / Lmax  # clearances are capped at cap: no sphere limits below this
-    for k in range(gr.shape[0]):
-        if gj[k] == 0:
-            continue
-        Rg = 0.0
-        for i in range(gs[k], gs[k + 1]):
-            Rg = max(Rg, rate[i, 0])
-        gx, gy, gz = G[k, 0], G[k, 1], G[k, 2]
-        for o in range(types.shape[0]):
-            db = _one(types[o], params[o], gx, gy, gz)[0] - gr[k]
-            if db >= thresh and min(db, cap) - thresh + half >= best * Rg:
-                continue
-            for i in range(gs[k], gs[k + 1]):
-                d = _one(types[o], params[o], C[i, 0], C[i, 1], C[i, 2])[0] - sr[i]
-                if d < thresh:
-                    out[0], out[1], out[2] = ENV, i, o
-                    return -1.0
-                if rate[i, 0] > 0.0:
-                    best = min(best, max(min(d, cap) - thresh + half, res) / rate[i, 0])
-        if cd[0] > 0 and _aabb_dist(gx, gy, gz, W) - gr[k] < max(thresh - half + best * Rg, thresh):
-            for i in range(gs[k], gs[k + 1]):
-                reach = min(cap, max(thresh - half + best * rate[i, 0], thresh))
-                d = _cloud_min(C[i, 0], C[i, 1], C[i, 2], reach + sr[i], W) - sr[i]
-                if d < thresh:
-                    out[0], out[1], out[2] = CLOUD, i, 0
-                    return -1.0
-                if rate[i, 0] > 0.0:
-                    best = min(best, max(min(d, cap) - thresh + half, res) / rate[i, 0])
-    return best
-
-
-@njit(cache=True)
-def _rates(dq, W, rate):  # pragma: no cover - compiled
-    """rate[i, J] = sum_k W[23][i, J, k] dq_k: the relative speed bounds of the spheres on an edge."""
-    slev = W[23]
-    for i in range(slev.shape[0]):
-        for J in range(slev.shape[1]):
-            v = 0.0
-            for k in range(dq.shape[0]):
-                v += slev[i, J, k] * dq[k]
-            rate[i, J] = v
-
-
-@njit(cache=True)
-def edge_valid(q0, q1, W, T, C, G, out, thresh, lever, res):  # pragma: no cover - compiled
-    """Check the straight joint-space motion q0 -> q1 (q1 excluded) by conservative advancement.
-
-    From a point with clearance c, every point within sphere-centre travel c - thresh + res / 2 keeps
-    clearance >= thresh - res / 2, so the next check is that far along (at least ``res`` of travel).
-    Obstacles bound the travel of each sphere, self-collision pairs the relative travel of their
-    two links.
-    """
-    n = q0.shape[0]
-    dq = np.empty(n)
-    for k in range(n):
-        dq[k] = abs(q1[k] - q0[k])
-    L = travel(q0, q1, lever)
-    if L <= 0.0:
-        return True
-    q = np.empty(n)
-    f = 0.0
-    cap = thresh + 0.25
-    gp = W[14]
-    rate = np.empty((W[23].shape[0], W[23].shape[1]))
-    _rates(dq, W, rate)
-    while f < 1.0:
-        for k in range(n):
-            q[k] = q0[k] + f * (q1[k] - q0[k])
-        sphere_centres(q, W, T, C, G)
-        step = _env_advance(C, G, W, thresh, res, rate, out, cap)
-        if step < 0.0:
-            return False
-        if gp.shape[0] > 0:
-            step = _self_advance(C, G, W, thresh, res, dq, out, step, rate)
-            if step < 0.0:
-                return False
-        f += step
-    return True
 
 
 @njit(cache=True)

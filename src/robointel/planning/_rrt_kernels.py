@@ -11,7 +11,8 @@ import math
 import numpy as np
 from numba import njit
 
-from robointel.planning._collision_kernels import config_valid, edge_valid
+from robointel.planning._collision_kernels import config_valid
+from robointel.planning._edge_kernels import edge_valid, edge_valid_bisect
 
 
 @njit(cache=True)
@@ -117,10 +118,11 @@ def _length(P, npts, L):  # pragma: no cover - compiled
 def _edge2(q0, q1, W, T, C, G, out, thresh, lever, res, coarse):  # pragma: no cover - compiled
     """``edge_valid`` at ``res``, after a pass at the coarser ``coarse`` that rejects most bad edges faster.
 
-    The coarse pass returns False only at a configuration below ``thresh``, so it never rejects an
-    edge that is valid; an edge is accepted only by the check at ``res``.
+    The coarse pass (coarse to fine along the edge: most shortcut candidates collide somewhere in
+    their middle) returns False only at a configuration below ``thresh``, so it never rejects an
+    edge that is valid; an edge is accepted only by the walk at ``res``.
     """
-    if coarse > res and not edge_valid(q0, q1, W, T, C, G, out, thresh, lever, coarse):
+    if coarse > res and not edge_valid_bisect(q0, q1, W, T, C, G, out, thresh, lever, coarse):
         return False
     return edge_valid(q0, q1, W, T, C, G, out, thresh, lever, res)
 

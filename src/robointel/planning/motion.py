@@ -21,6 +21,7 @@ import numpy.typing as npt
 from robointel.errors import IKFailure, InvalidInput
 from robointel.outcome import Failure
 from robointel.planning import _collision_kernels as K
+from robointel.planning import _edge_kernels as E
 from robointel.planning import _rrt_kernels as R
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
@@ -400,7 +401,7 @@ def _warmup(env: Environment) -> None:
                   s.out, 0.0, env.lever, 0.01, np.zeros(2, np.int64))
     P = np.array([q, q + 1e-3 * (env.robot.upper - q)])
     R.shortcut(P, 2, 0, W, W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, 0.02)
-    K.edge_valid(P[0], P[1], W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
+    E.edge_valid(P[0], P[1], W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
     K.samples_clearance(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1)
     K.samples_env_below(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0)
     if env.cover_meshes:  # the collision meshes and their hulls, loaded once per robot
@@ -419,7 +420,7 @@ def _path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: fl
     """
     s = env.scratch
     last = len(path) - 2
-    return all(K.edge_valid(a, b, Wr if k in (0, last) else W, s.T, s.C, s.G, s.out, float(d_min), env.lever,
+    return all(E.edge_valid(a, b, Wr if k in (0, last) else W, s.T, s.C, s.G, s.out, float(d_min), env.lever,
                             float(resolution))
                for k, (a, b) in enumerate(zip(path[:-1], path[1:])))
 
@@ -434,7 +435,7 @@ def _search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetti
     s = env.scratch
     thr, lever = float(st.d_min if thr is None else thr), env.lever
     for k, g in enumerate(goals):
-        if attempt == 0 and K.edge_valid(q0, g, Wr, s.T, s.C, s.G, s.out, thr, lever, res):
+        if attempt == 0 and E.edge_valid(q0, g, Wr, s.T, s.C, s.G, s.out, thr, lever, res):
             return np.array([q0, g]), k, ""
     n = len(q0)
     cap = int(st.max_nodes)
