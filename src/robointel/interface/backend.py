@@ -307,6 +307,19 @@ class Backend:
         """
         yield
 
+    @contextlib.contextmanager
+    def force_loop(self) -> Iterator[None]:
+        """The section a force loop closed over the stream runs in (lead-through, the skills' admittance).
+
+        Its targets go out at once (:meth:`low_latency`), and on a paced backend the calling thread
+        runs as a real-time thread (:func:`~robointel.interface.realtime.realtime_thread`).
+
+        Yields:
+            None.
+        """
+        with realtime_thread() if self.paced else contextlib.nullcontext(), self.low_latency():
+            yield
+
     def hold(self) -> None:
         """Hold the last commanded position; the stall watchdog disarms."""
         with self._lock:

@@ -8,7 +8,6 @@ through the interface's safety gate; force, torque and speed limits as for the i
 """
 from __future__ import annotations
 
-import contextlib
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -20,7 +19,6 @@ import numpy.typing as npt
 from robointel.errors import InvalidInput
 from robointel.geometry.rotations import so3_log
 from robointel.interface.backend import Backend, sleep_until
-from robointel.interface.realtime import realtime_thread
 from robointel.interface.skill_insertion import SkillLimits, over_limits, read_wrench, tool_wrench, twist_step
 from robointel.interface.state import RobotState
 from robointel.interface.wrench_source import StateWrench, WrenchSource
@@ -111,8 +109,8 @@ def run_grinding(arm: Backend, robot: Any, setpoint: SetPoint, start: npt.ArrayL
     w_last = np.zeros(6)
     outcome = TrialOutcome(True)
     t0 = time.perf_counter()
-    # paced: a real-time section (as lead-through); a force loop: each target goes out at once, no queue
-    with realtime_thread() if arm.paced else contextlib.nullcontext(), arm.low_latency():
+    # a force loop: each target goes out at once, no queue; paced: a real-time section
+    with arm.force_loop():
         try:
             for k in range(K):
                 if arm.paced:

@@ -13,7 +13,6 @@ limits stops the robot (``stop`` with the reason); a wrench that stops arriving 
 """
 from __future__ import annotations
 
-import contextlib
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -25,7 +24,6 @@ import numpy.typing as npt
 from robointel.control.admittance import AdmittanceGains, admittance_twist, damped_pinv
 from robointel.errors import InvalidInput, SafetyStop
 from robointel.interface.backend import Backend, sleep_until
-from robointel.interface.realtime import realtime_thread
 from robointel.interface.state import RobotState
 from robointel.interface.wrench_source import StateWrench, WrenchSource
 from robointel.outcome import Failure, TrialOutcome
@@ -197,8 +195,8 @@ def run_insertion(arm: Backend, robot: Any, policy: Policy, depth: float, *, sou
     outcome = TrialOutcome(False, Failure.TIMEOUT, f"time limit {time_limit:g} s")
     missing, k, t0 = 0, 0, time.perf_counter()
     w_last = np.zeros(6)
-    # paced: a real-time section (as lead-through); a force loop: each target goes out at once, no queue
-    with realtime_thread() if arm.paced else contextlib.nullcontext(), arm.low_latency():
+    # a force loop: each target goes out at once, no queue; paced: a real-time section
+    with arm.force_loop():
         try:
             for k in range(K):
                 if arm.paced:

@@ -8,7 +8,6 @@ interface's safety gate to the robot (``sim`` or ``fanuc``).
 """
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import time
 from collections.abc import Callable, Sequence
@@ -21,7 +20,7 @@ import numpy.typing as npt
 from robointel.control.payload import PayloadCompensation
 from robointel.errors import InvalidInput
 from robointel.interface.backend import Backend
-from robointel.interface.realtime import realtime_thread, sleep_until
+from robointel.interface.realtime import sleep_until
 from robointel.programming.guidance import GuidanceConfig, GuidanceController, GuidanceStep
 
 
@@ -103,8 +102,8 @@ def lead_through(arm: Backend, robot: Any, duration: float, *, obstacles: Sequen
     out = LeadThroughResult(np.zeros(K), np.zeros((K, n)), np.zeros((K, n)), np.zeros((K, 6)), np.zeros(K),
                             np.zeros(K, dtype=bool))
     q_cmd = (st.q_cmd if st.q_cmd is not None else st.q).copy()
-    # paced: a real-time section; every target goes out at once (no look-ahead queue in the force loop)
-    with realtime_thread() if arm.paced else contextlib.nullcontext(), arm.low_latency():
+    # a force loop: each target goes out at once, no queue; paced: a real-time section
+    with arm.force_loop():
         t0 = time.perf_counter()
         try:
             for k in range(K):

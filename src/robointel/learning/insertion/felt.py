@@ -72,12 +72,9 @@ def fit_face(points: npt.NDArray[np.float64]) -> PlaneFit:
     if P.ndim != 2 or P.shape[1] != 3 or len(P) < 3:
         raise InvalidInput(f"face_normal needs (n >= 3, 3) points, got {P.shape}", value=P.shape)
     n_all = len(P)
-    n = np.array([0.0, 0.0, -1.0])
-    sv = np.zeros(3)
     for _ in range(3):
         m = P.mean(0)
-        _, sv, vt = np.linalg.svd(P - m, full_matrices=False)
-        n = vt[2]
+        n = np.linalg.svd(P - m, full_matrices=False)[2][2]
         res = np.abs((P - m) @ n)
         keep = res < 4 * (np.median(res) + 1e-7)
         if keep.sum() < 3:
