@@ -14,7 +14,17 @@ import numpy as np
 from numba import njit
 
 from robointel.geometry._kernels import _one
-from robointel.planning._collision_kernels import CLOUD, ENV, FM, SELF, _aabb_dist, _cloud_min, sphere_centres, travel
+from robointel.planning._collision_kernels import (
+    CLOUD,
+    ENV,
+    FM,
+    SELF,
+    _aabb_dist,
+    _cloud_min,
+    config_valid,
+    sphere_centres,
+    travel,
+)
 
 
 @njit(cache=True, fastmath=FM)
@@ -224,4 +234,56 @@ def edge_valid_bisect(q0, q1, W, T, C, G, out, thresh, lever, res):  # pragma: n
             t = (head + size) % m
             glo[t], ghi[t] = f + r, b
             size += 1
+    return True
+
+
+@njit(cache=True)
+def edge_two_pass(q0, q1, W, T, C, G, out, thresh, lever, res, coarse):  # pragma: no cover - compiled
+    """:func:`edge_valid` at ``res``, after a coarse-to-fine pass at ``coarse`` (> res) that rejects faster.
+
+    The coarse pass returns False only at a configuration below ``thresh``, so it never rejects a
+    valid edge; an edge is accepted only by the walk at ``res``. ``coarse <= res``: the walk alone.
+    """
+    if coarse > res and not edge_valid_bisect(q0, q1, W, T, C, G, out, thresh, lever, coarse):
+        return False
+    return edge_valid(q0, q1, W, T, C, G, out, thresh, lever, res)
+
+
+@njit(cache=True)
+def root_edge(q0, q1, Wr, W, root0, root1, rcap, T, C, G, out, thresh, lever, res, coarse):  # pragma: no cover
+    """Check q0 -> q1 (q1 excluded, as :func:`edge_valid`) with the relaxed world ``Wr`` only near a root.
+
+    A root (q0 when ``root0``, q1 when ``root1``: a start or goal that may be valid only in ``Wr``)
+    relaxes the check for the first ``rcap`` rad (max |dq|) from it; the split point and the rest of
+    the edge are checked in ``W`` (each stretch with :func:`edge_two_pass`, so the walk's guarantee
+    holds per stretch: >= thresh - res / 2 in its world). An edge within ``rcap`` of a root at every
+    point is checked in ``Wr`` alone; ``rcap`` = inf checks every root edge in ``Wr`` whole.
+    """
+    n = q0.shape[0]
+    L = 0.0
+    for k in range(n):
+        L = max(L, abs(q1[k] - q0[k]))
+    if not root0 and not root1:
+        return edge_two_pass(q0, q1, W, T, C, G, out, thresh, lever, res, coarse)
+    if L <= 0.0:
+        return True
+    f = rcap / L
+    a = min(f, 1.0) if root0 else 0.0  # [0, a] relaxed
+    b = max(1.0 - f, 0.0) if root1 else 1.0  # [b, 1] relaxed
+    if a >= b:  # every point within rcap of a root
+        return edge_two_pass(q0, q1, Wr, T, C, G, out, thresh, lever, res, coarse)
+    qa = np.empty(n)
+    qb = np.empty(n)
+    for k in range(n):
+        qa[k] = q0[k] + a * (q1[k] - q0[k])
+        qb[k] = q0[k] + b * (q1[k] - q0[k])
+    if root0 and not edge_two_pass(q0, qa, Wr, T, C, G, out, thresh, lever, res, coarse):
+        return False
+    # the middle in W: its walk checks qa first; qb (its excluded end) is checked on its own
+    if not edge_two_pass(qa, qb, W, T, C, G, out, thresh, lever, res, coarse):
+        return False
+    if root1:
+        if not config_valid(qb, W, T, C, G, out, thresh):
+            return False
+        return edge_two_pass(qb, q1, Wr, T, C, G, out, thresh, lever, res, coarse)
     return True

@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 from robointel.planning._collision_kernels import config_valid
-from robointel.planning._edge_kernels import edge_valid, edge_valid_bisect
+from robointel.planning._edge_kernels import edge_two_pass, root_edge
 
 
 @njit(cache=True)
@@ -44,14 +44,15 @@ def _steer(a, b, dist, rng, out):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def rrt_connect(nodes, parent, count, lower, upper, iters, rng, W, Wr, nroot, T, C, G, out, thresh, lever, res,
-                link):  # pragma: no cover - compiled
+def rrt_connect(nodes, parent, count, lower, upper, iters, rng, W, Wr, nroot, rcap, T, C, G, out, thresh, lever,
+                res, link):  # pragma: no cover - compiled
     """Run up to ``iters`` RRT-Connect iterations.
 
     Returns 1 when the trees met (``link`` = (tree-0 node,
     tree-1 node)), 0 when not yet, -1 when a tree is full. Nodes are checked in world ``W``; edges
     leaving one of the ``nroot[t]`` roots of tree t are checked in world ``Wr`` (the roots may be
-    valid only there), all other edges in ``W``.
+    valid only there) for their first ``rcap`` rad (max |dq|) and in ``W`` beyond
+    (:func:`~robointel.planning._edge_kernels.root_edge`), all other edges in ``W``.
     """
     n = lower.shape[0]
     cap = nodes.shape[1]
@@ -68,7 +69,7 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, W, Wr, nroot, T,
         _steer(nodes[a, i], qr, d, rng, qn)
         if not config_valid(qn, W, T, C, G, out, thresh):
             continue
-        if not edge_valid(nodes[a, i], qn, Wr if i < nroot[a] else W, T, C, G, out, thresh, lever, res):
+        if not root_edge(nodes[a, i], qn, Wr, W, i < nroot[a], False, rcap, T, C, G, out, thresh, lever, res, 0.0):
             continue
         ia = count[a]
         nodes[a, ia] = qn
@@ -82,7 +83,8 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, W, Wr, nroot, T,
             reached = _steer(nodes[b, j], qn, d, rng, qr)
             if not reached and not config_valid(qr, W, T, C, G, out, thresh):
                 break
-            if not edge_valid(nodes[b, j], qr, Wr if j < nroot[b] else W, T, C, G, out, thresh, lever, res):
+            if not root_edge(nodes[b, j], qr, Wr, W, j < nroot[b], False, rcap, T, C, G, out, thresh, lever, res,
+                             0.0):
                 break
             if reached:
                 if a == 0:
@@ -115,26 +117,14 @@ def _length(P, npts, L):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _edge2(q0, q1, W, T, C, G, out, thresh, lever, res, coarse):  # pragma: no cover - compiled
-    """``edge_valid`` at ``res``, after a pass at the coarser ``coarse`` that rejects most bad edges faster.
-
-    The coarse pass (coarse to fine along the edge: most shortcut candidates collide somewhere in
-    their middle) returns False only at a configuration below ``thresh``, so it never rejects an
-    edge that is valid; an edge is accepted only by the walk at ``res``.
-    """
-    if coarse > res and not edge_valid_bisect(q0, q1, W, T, C, G, out, thresh, lever, coarse):
-        return False
-    return edge_valid(q0, q1, W, T, C, G, out, thresh, lever, res)
-
-
-@njit(cache=True)
-def shortcut(P, npts, iters, W, Wr, T, C, G, out, thresh, lever, res, coarse):  # pragma: no cover - compiled
+def shortcut(P, npts, iters, W, Wr, rcap, T, C, G, out, thresh, lever, res, coarse):  # pragma: no cover - compiled
     """Shorten the path P[:npts] in place.
 
     A greedy pass (each vertex joined to the farthest one
     it sees), then ``iters`` random shortcuts between points anywhere on the path. Returns the
-    new vertex count. Edges from the first or to the last vertex are checked in world ``Wr``, all
-    others in ``W``; every edge at resolution ``res`` after a rejecting pass at ``coarse``.
+    new vertex count. Edges from the first or to the last vertex are checked in world ``Wr`` within
+    ``rcap`` rad of that vertex and in ``W`` beyond (:func:`~robointel.planning._edge_kernels.root_edge`),
+    all others in ``W``; every edge at resolution ``res`` after a rejecting pass at ``coarse``.
     """
     n = P.shape[1]
     cap = P.shape[0]
@@ -145,8 +135,8 @@ def shortcut(P, npts, iters, W, Wr, T, C, G, out, thresh, lever, res, coarse):  
     i = 0
     while i < npts - 1:
         j = npts - 1
-        while j > i + 1 and not _edge2(P[i], P[j], Wr if (i == 0 or j == npts - 1) else W, T, C, G, out,
-                                       thresh, lever, res, coarse):
+        while j > i + 1 and not root_edge(P[i], P[j], Wr, W, i == 0, j == npts - 1, rcap, T, C, G, out, thresh,
+                                          lever, res, coarse):
             j -= 1
         Q[m] = P[j]
         m += 1
@@ -176,7 +166,7 @@ def shortcut(P, npts, iters, W, Wr, T, C, G, out, thresh, lever, res, coarse):  
         for k in range(n):
             qa[k] = P[s1, k] + f1 * (P[s1 + 1, k] - P[s1, k])
             qb[k] = P[s2, k] + f2 * (P[s2 + 1, k] - P[s2, k])
-        if not _edge2(qa, qb, W, T, C, G, out, thresh, lever, res, coarse):
+        if not edge_two_pass(qa, qb, W, T, C, G, out, thresh, lever, res, coarse):
             continue
         m = 0
         for r in range(s1 + 1):

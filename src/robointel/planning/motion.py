@@ -25,8 +25,9 @@ from robointel.planning import _edge_kernels as E
 from robointel.planning import _rrt_kernels as R
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
+from robointel.planning.hybrid_check import interior_check, timed_out
 from robointel.planning.jerk_limited import jerk_limited_polyline
-from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, check_dense, window_clearance
+from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, check_dense
 from robointel.planning.polyline_timing import polyline_timing
 from robointel.planning.temporal import temporal_optimize
 from robointel.planning.topp import topp_spline
@@ -43,7 +44,10 @@ class MotionSettings:
 
     Attributes:
         d_min: required clearance to the environment and between links, m.
-        time_budget_s: wall-time budget of the global search, s.
+        time_budget_s: wall-time budget of the call after the input checks, s: the search, and the
+            shortcut, timing and checks of each attempt (a path whose checks cannot finish within it
+            is a failure, ``Failure.TIMEOUT``; the overshoot is one stage step, e.g. one chunk of
+            the collision-mesh check).
         seed: seed of the sampler and the shortcutter.
         jerk_limited: time the path with ruckig (rest to rest per straight segment) instead of
             temporal optimization.
@@ -66,6 +70,9 @@ class MotionSettings:
         acceleration_limit: (n,) rad/s^2, or None for ``robot.acceleration_limit``.
         jerk_limit: (n,) rad/s^3, or None for 10 x the acceleration limit.
         check_dt: step of the dense check, s.
+        root_relaxed_rad: when the start or a goal is free only in the relaxed (partially grown)
+            spheres, an edge leaving it is checked in them for its first ``root_relaxed_rad`` rad
+            (max |dq|) and in the mesh-covering spheres beyond.
     """
 
     d_min: float = 0.0
@@ -85,6 +92,7 @@ class MotionSettings:
     acceleration_limit: tuple[float, ...] | None = None
     jerk_limit: tuple[float, ...] | None = None
     check_dt: float = 1e-3
+    root_relaxed_rad: float = 0.2
 
 
 @dataclass
@@ -189,9 +197,10 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
     st = settings
     if not (st.d_min >= 0 and st.time_budget_s > 0 and st.resolution > 0 and st.rrt_range > 0
             and 0 < st.velocity_scale <= 1 and st.knot_step > 0 and st.spline_step > 0 and st.check_dt > 0
-            and st.timing in ("topp", "temporal")):
+            and st.root_relaxed_rad > 0 and st.timing in ("topp", "temporal")):
         raise InvalidInput("settings need d_min >= 0, time_budget_s, resolution, rrt_range, knot_step, spline_step, "
-                           "check_dt > 0, 0 < velocity_scale <= 1 and timing 'topp' or 'temporal'", value=st)
+                           "check_dt, root_relaxed_rad > 0, 0 < velocity_scale <= 1 and timing 'topp' or 'temporal'",
+                           value=st)
     q0 = np.array(robot.check_q(np.asarray(start, float), "start", limits=True), dtype=float)  # writable
     goals = _goal_set(robot, goal, st.seed)
     env = environment
@@ -224,6 +233,7 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
         env.use("fitted", blend=lo)
     Wc = env.world_cover
     Wr = env.world if hybrid else Wc
+    rcap = float(st.root_relaxed_rad) if hybrid else float("inf")
     # the roots may be up to the dense check's tolerance closer than d_min, never below 0 (e.g. sphere
     # pairs of a folded wrist whose meshes are clear); the search then keeps the smallest root clearance
     floor = max(st.d_min - CLEARANCE_TOL, 0.0)
@@ -244,11 +254,14 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     deadline = time.perf_counter() + st.time_budget_s
     attempt = 0
     while True:
-        path, gi, traj, chk, why = _attempt(env, q0, goals, st, deadline, Wc, Wr, hybrid, vmax, amax, timings,
+        path, gi, traj, chk, why = _attempt(env, q0, goals, st, deadline, Wc, Wr, rcap, vmax, amax, timings,
                                             attempt, thr)
         if path is None:
             return _fail(f"no collision-free path found: {why}", Failure.TIMEOUT, t0, timings)
         assert chk is not None
+        if chk.kind == "timeout":
+            return _fail(f"{chk.reason} (attempt {attempt + 1})", Failure.TIMEOUT, t0, timings, path, traj,
+                         chk.min_clearance_m, int(goal_ids[gi]))
         # a start/goal edge that touches the real meshes: another tree may approach differently
         if chk.ok or not hybrid or chk.kind != "collision" or time.perf_counter() >= deadline:
             break
@@ -265,64 +278,32 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
                       chk.min_clearance_m, goal_index)
 
 
-def _interior(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, st: MotionSettings,
-              chk: DenseCheck) -> DenseCheck:
-    """Check a trajectory planned with partially grown spheres at the start/goal edges.
-
-    Between the first and the last inner vertex it must clear the mesh-covering spheres; before
-    and after them (the start and goal edges) the exact distance to the collision meshes
-    (:class:`MeshGeometry`: convex hulls, refined on the meshes) must be >= max(d_min - 1 mm, 0).
-    """
-    i0, i1 = len(traj.q) - 1, 0
-    if len(path) >= 3:
-        i0 = int(np.argmin(np.linalg.norm(traj.q - path[1], axis=1)))
-        i1 = len(traj.q) - 1 - int(np.argmin(np.linalg.norm(traj.q[::-1] - path[-2], axis=1)))
-        d = window_clearance(env, traj, Wc, float(traj.t[i0]), float(traj.t[i1]), d_min=st.d_min, dt=st.check_dt)
-        if d < st.d_min - CLEARANCE_TOL:
-            return DenseCheck(False, f"the covering spheres come {d * 1e3:.1f} mm from the obstacles between "
-                              f"t = {traj.t[i0]:.3f} s and {traj.t[i1]:.3f} s", "collision",
-                              min(d, chk.min_clearance_m), chk.samples)
-    mg = _mesh_geometry(env)
-    if mg.empty:
-        return chk
-    dense = traj if float(np.max(np.diff(traj.t))) <= st.check_dt * (1 + 1e-9) else traj.resample(st.check_dt)
-    t0, t1 = float(traj.t[i0]), float(traj.t[i1])
-    thr = max(st.d_min - CLEARANCE_TOL, 0.0)  # the real geometry may not be penetrated at all
-    s = env.scratch
-    for sel in (dense.t <= t0, dense.t >= t1):
-        Q = np.ascontiguousarray(dense.q[sel])
-        if len(Q) == 0:
-            continue
-        # the covering spheres contain the meshes: only samples they leave below thr need coal
-        doubt = K.samples_env_below(Q, Wc, s.T, s.C, s.G, s.out, env.lever, thr)
-        if not doubt.any():
-            continue
-        d, k, link, obs = mg.samples_clearance(Q, env.lever, thresh=thr, cap=st.d_min + 0.1, mask=doubt)
-        if d < thr:
-            return DenseCheck(False, f"collision-mesh check: link {link!r} is {d * 1e3:.2f} mm from {obs!r} at "
-                              f"t = {dense.t[sel][k]:.3f} s", "collision", min(d, chk.min_clearance_m), chk.samples)
-    return chk
-
-
 def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, deadline: float, Wc: tuple,
-             Wr: tuple, hybrid: bool, vmax: np.ndarray, amax: np.ndarray, timings: dict[str, float],
+             Wr: tuple, rcap: float, vmax: np.ndarray, amax: np.ndarray, timings: dict[str, float],
              attempt: int, thr: float) -> tuple[np.ndarray | None, int, Trajectory | None, DenseCheck | None, str]:
     """One search, shortcut, timing and dense check: (path, goal, trajectory, check, why not).
 
     The search and the shortcut keep sphere clearance ``thr`` (<= d_min); the dense check d_min - 1 mm.
+    Root edges are relaxed (``Wr``) for ``rcap`` rad (inf: not hybrid, ``Wr`` is ``Wc``). Past
+    ``deadline`` the check is a failed one of kind ``"timeout"`` (the stages look at the clock
+    between steps).
     """
     robot = env.robot
+    hybrid = rcap != float("inf")
     # global stage ----------------------------------------------------------------------------
     t1 = time.perf_counter()
     path, gi, why = None, -1, ""
     res = float(st.search_resolution)
     while path is None:
-        path, gi, why = _search(env, q0, goals, st, res, deadline, Wc, Wr, attempt, thr)
+        path, gi, why = _search(env, q0, goals, st, res, deadline, Wc, Wr, attempt, thr, rcap)
         if path is None:
             timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
             return None, -1, None, None, why
-        if _path_valid(env, path, thr, st.resolution, Wc, Wr):
+        if _path_valid(env, path, thr, st.resolution, Wc, Wr, rcap):
             break
+        if time.perf_counter() >= deadline:
+            timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
+            return None, -1, None, None, f"the time budget of {st.time_budget_s:g} s ran out re-checking a path"
         path, res = None, res / 4  # an edge failed the fine check: search again, finer
         if res < st.resolution:
             res = float(st.resolution)
@@ -332,7 +313,7 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     P = np.empty((max(len(path) * 2 + 64, 256), robot.nq))
     P[:len(path)] = path
     R.seed(int(st.seed) + 1 + 7 * attempt)
-    m = R.shortcut(P, len(path), int(st.shortcut_iters), Wc, Wr, s.T, s.C, s.G, s.out, float(thr), env.lever,
+    m = R.shortcut(P, len(path), int(st.shortcut_iters), Wc, Wr, rcap, s.T, s.C, s.G, s.out, float(thr), env.lever,
                    float(st.resolution), float(st.search_resolution))
     path = P[:m].copy()
     keep = np.concatenate([[True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-9])
@@ -347,6 +328,9 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     if st.smooth and not st.jerk_limited and len(path) > 2:
         steps = (st.knot_step,) if st.timing == "temporal" else (st.spline_step, st.spline_step / 4)
         for step in steps:  # a spline that leaves the checked polyline too far: knots closer together
+            if chk is not None and time.perf_counter() >= deadline:
+                chk = timed_out("the smoothing", chk)
+                break
             if st.timing == "temporal":
                 tt = temporal_optimize(_densify(path, float(step)), vmax, amax).trajectory
                 traj = Trajectory(tt.t, tt.q, tt.qd, tt.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
@@ -354,11 +338,13 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
                 traj = topp_spline(path, vmax, amax, step=float(step), dt=st.check_dt, joint_names=names)
             chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
             if chk.ok and hybrid:
-                chk = _interior(env, traj, path, Wc, st, chk)
+                chk = interior_check(env, traj, path, Wc, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
             if chk.ok or chk.kind != "collision":
                 break
         timings["smooth"] = (time.perf_counter() - t3) * 1e3
-    if chk is None or not chk.ok:  # rest to rest along the checked polyline
+    if chk is not None and chk.kind == "collision" and time.perf_counter() >= deadline:
+        chk = timed_out("the smoothing", chk)
+    if chk is None or (not chk.ok and chk.kind != "timeout"):  # rest to rest along the checked polyline
         t4 = time.perf_counter()
         if st.jerk_limited:
             jmax = np.asarray(st.jerk_limit if st.jerk_limit is not None else 10 * amax, float)
@@ -367,18 +353,9 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
             traj = polyline_timing(path, vmax, amax, dt=st.check_dt, joint_names=names)
         chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
         if chk.ok and hybrid:
-            chk = _interior(env, traj, path, Wc, st, chk)
+            chk = interior_check(env, traj, path, Wc, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
         timings["timing"] = (time.perf_counter() - t4) * 1e3
     return path, gi, traj, chk, ""
-
-
-def _mesh_geometry(env: Environment) -> MeshGeometry:
-    """The environment's exact (coal) geometry, built on first use and kept with it."""
-    mg = getattr(env, "_mesh_geometry", None)
-    if mg is None:
-        mg = MeshGeometry(env.robot, env.obstacles)
-        env._mesh_geometry = mg  # type: ignore[attr-defined]
-    return mg
 
 
 _WARM: set[int] = set()
@@ -397,10 +374,11 @@ def _warmup(env: Environment) -> None:
     nodes = np.zeros((2, 4, len(q)))
     parent = np.full((2, 4), -1, np.int64)
     count = np.array([1, 1], np.int64)
-    R.rrt_connect(nodes, parent, count, env.robot.lower, env.robot.upper, 0, 1.0, W, W, count, s.T, s.C, s.G,
+    R.rrt_connect(nodes, parent, count, env.robot.lower, env.robot.upper, 0, 1.0, W, W, count, 0.2, s.T, s.C, s.G,
                   s.out, 0.0, env.lever, 0.01, np.zeros(2, np.int64))
     P = np.array([q, q + 1e-3 * (env.robot.upper - q)])
-    R.shortcut(P, 2, 0, W, W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, 0.02)
+    R.shortcut(P, 2, 0, W, W, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, 0.02)
+    E.root_edge(P[0], P[1], W, W, True, True, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, 0.0)
     E.edge_valid(P[0], P[1], W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
     K.samples_clearance(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1)
     K.samples_env_below(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0)
@@ -413,29 +391,31 @@ def _warmup(env: Environment) -> None:
 
 
 def _path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: float, W: tuple,
-                Wr: tuple) -> bool:
+                Wr: tuple, rcap: float = float("inf")) -> bool:
     """Every edge of ``path`` passes the edge check at ``resolution``.
 
-    The first and last edge are checked in ``Wr``, the others in ``W``.
+    The first and last edge are checked in ``Wr`` within ``rcap`` rad (max |dq|) of the start and
+    the goal and in ``W`` beyond, the others in ``W``.
     """
     s = env.scratch
     last = len(path) - 2
-    return all(E.edge_valid(a, b, Wr if k in (0, last) else W, s.T, s.C, s.G, s.out, float(d_min), env.lever,
-                            float(resolution))
+    return all(E.root_edge(a, b, Wr, W, k == 0, k == last, float(rcap), s.T, s.C, s.G, s.out, float(d_min),
+                           env.lever, float(resolution), 0.0)
                for k, (a, b) in enumerate(zip(path[:-1], path[1:])))
 
 
 def _search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, res: float,
             deadline: float, W: tuple, Wr: tuple, attempt: int = 0,
-            thr: float | None = None) -> tuple[np.ndarray | None, int, str]:
+            thr: float | None = None, rcap: float = float("inf")) -> tuple[np.ndarray | None, int, str]:
     """RRT-Connect from q0 to the goal set (a direct edge first): (path, goal index, why not).
 
-    Nodes and edges are checked in ``W``, edges leaving the start or a goal in ``Wr``.
+    Nodes and edges are checked in ``W``, edges leaving the start or a goal in ``Wr`` for their
+    first ``rcap`` rad (max |dq|) and in ``W`` beyond.
     """
     s = env.scratch
     thr, lever = float(st.d_min if thr is None else thr), env.lever
     for k, g in enumerate(goals):
-        if attempt == 0 and E.edge_valid(q0, g, Wr, s.T, s.C, s.G, s.out, thr, lever, res):
+        if attempt == 0 and E.root_edge(q0, g, Wr, W, True, True, rcap, s.T, s.C, s.G, s.out, thr, lever, res, 0.0):
             return np.array([q0, g]), k, ""
     n = len(q0)
     cap = int(st.max_nodes)
@@ -455,7 +435,7 @@ def _search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetti
             count[:] = nroot
             parent[:] = -1
         status = R.rrt_connect(nodes, parent, count, robot.lower, robot.upper, 32, float(st.rrt_range), W, Wr, nroot,
-                               s.T, s.C, s.G, s.out, thr, lever, res, link)
+                               rcap, s.T, s.C, s.G, s.out, thr, lever, res, link)
     if status != 1:
         return None, -1, f"the time budget of {st.time_budget_s:g} s ran out ({grown + int(count.sum())} nodes)"
     a, b = [], []

@@ -1,0 +1,86 @@
+"""The checks of a trajectory planned with relaxed spheres at its start and goal edges.
+
+Between the first and the last inner vertex of the path the mesh-covering spheres decide; on the
+start and goal edges the exact distance to the collision meshes (:class:`MeshGeometry`, coal). The
+exact check looks at the clock so that a plan's time budget holds inside an attempt.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from robointel.planning import _collision_kernels as K
+from robointel.planning.environment import Environment
+from robointel.planning.exact_geometry import MeshGeometry
+from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, window_clearance
+from robointel.trajectory import Trajectory
+
+
+def mesh_geometry(env: Environment) -> MeshGeometry:
+    """The environment's exact (coal) geometry, built on first use and kept with it."""
+    mg = getattr(env, "_mesh_geometry", None)
+    if mg is None:
+        mg = MeshGeometry(env.robot, env.obstacles)
+        env._mesh_geometry = mg  # type: ignore[attr-defined]
+    return mg
+
+
+#: samples of the collision-mesh check between two looks at the clock
+MESH_CHUNK = 64
+
+
+def timed_out(what: str, chk: DenseCheck) -> DenseCheck:
+    """``chk`` turned into a failed check of kind ``"timeout"`` (the budget ran out during ``what``)."""
+    return DenseCheck(False, f"the time budget ran out during {what}", "timeout", chk.min_clearance_m, chk.samples)
+
+
+def interior_check(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, chk: DenseCheck, *,
+                   d_min: float, dt: float, deadline: float = float("inf")) -> DenseCheck:
+    """Check a trajectory planned with partially grown spheres at the start/goal edges.
+
+    Between the first and the last inner vertex it must clear the mesh-covering spheres; before
+    and after them (the start and goal edges) the exact distance to the collision meshes
+    (:class:`MeshGeometry`: convex hulls, refined on the meshes) must be >= max(d_min - 1 mm, 0).
+    The mesh check looks at the clock every ``MESH_CHUNK`` exact samples: past ``deadline`` it
+    returns a failed check of kind ``"timeout"``.
+    """
+    i0, i1 = len(traj.q) - 1, 0
+    if len(path) >= 3:
+        i0 = int(np.argmin(np.linalg.norm(traj.q - path[1], axis=1)))
+        i1 = len(traj.q) - 1 - int(np.argmin(np.linalg.norm(traj.q[::-1] - path[-2], axis=1)))
+        d = window_clearance(env, traj, Wc, float(traj.t[i0]), float(traj.t[i1]), d_min=d_min, dt=dt)
+        if d < d_min - CLEARANCE_TOL:
+            return DenseCheck(False, f"the covering spheres come {d * 1e3:.1f} mm from the obstacles between "
+                              f"t = {traj.t[i0]:.3f} s and {traj.t[i1]:.3f} s", "collision",
+                              min(d, chk.min_clearance_m), chk.samples)
+    mg = mesh_geometry(env)
+    if mg.empty:
+        return chk
+    dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
+    t0, t1 = float(traj.t[i0]), float(traj.t[i1])
+    thr = max(d_min - CLEARANCE_TOL, 0.0)  # the real geometry may not be penetrated at all
+    s = env.scratch
+    for sel in (dense.t <= t0, dense.t >= t1):
+        Q = np.ascontiguousarray(dense.q[sel])
+        if len(Q) == 0:
+            continue
+        # the covering spheres contain the meshes: only samples they leave below thr need coal
+        doubt = K.samples_env_below(Q, Wc, s.T, s.C, s.G, s.out, env.lever, thr)
+        if not doubt.any():
+            continue
+        idx = np.flatnonzero(doubt)
+        for c0 in range(0, len(idx), MESH_CHUNK):
+            if time.perf_counter() >= deadline:
+                return timed_out("the collision-mesh check", chk)
+            lo, hi = int(idx[c0]), int(idx[min(c0 + MESH_CHUNK, len(idx)) - 1]) + 1
+            d, k, link, obs = mg.samples_clearance(Q[lo:hi], env.lever, thresh=thr, cap=d_min + 0.1,
+                                                   mask=doubt[lo:hi])
+            if d < thr:
+                return DenseCheck(False, f"collision-mesh check: link {link!r} is {d * 1e3:.2f} mm from {obs!r} at "
+                                  f"t = {dense.t[sel][lo + k]:.3f} s", "collision", min(d, chk.min_clearance_m),
+                                  chk.samples)
+    return chk
+
+
+__all__ = ["MESH_CHUNK", "interior_check", "mesh_geometry", "timed_out"]
