@@ -94,6 +94,8 @@ class StreamingController:
             self-collision, :class:`CollisionGuard`).
         interface: a robot interface to stream to at its period instead of stepping ``workcell``
             (:func:`robointel.interface.open_robot`); the robot starts where the interface reports it.
+            A paced interface (a controller) is streamed to only while a target moves the arm; idle
+            or stopped it is told to hold once.
 
     Raises:
         InvalidInput: ``deadman`` outside (0, 5] s, ``q0`` outside the limits or in collision, both a
