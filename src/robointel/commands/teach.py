@@ -199,6 +199,8 @@ def register(app: typer.Typer) -> None:
             _close_robot(iface, rec)
             console.print("stopped" + (f" (the robot faulted: {fault})" if fault else "")
                           + (f"; recorded to {record}" if record is not None else ""))
+        if fault:  # the arm stopped following the operator: not a successful run
+            fail(f"the robot stopped during teleoperation: {fault}")
 
 
 TELEOP_START = np.array([0.0, 0.0, 0.0, 0.0, -np.pi / 2, 0.0])

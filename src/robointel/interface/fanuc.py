@@ -213,7 +213,7 @@ class FanucRobot(Backend):
             faults.append("faulted")
         if not faults and s.get("stalled"):
             why = (f"command stream stalled: no target to play for {float(s.get('stall_gap_s', 0.0)) * 1e3:.0f} ms "
-                   f"(> {self.stall_periods} periods; the look-ahead is {self.lookahead_s * 1e3:.0f} ms)")
+                   f"(> {self.stall_periods} periods; the look-ahead is {self._stall_extra_s * 1e3:.0f} ms)")
             return RobotMode.STOPPED, why, ("stream_stalled",)
         if not faults:
             return None

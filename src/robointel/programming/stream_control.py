@@ -94,6 +94,8 @@ class StreamingController:
             self-collision, :class:`CollisionGuard`).
         interface: a robot interface to stream to at its period instead of stepping ``workcell``
             (:func:`robointel.interface.open_robot`); the robot starts where the interface reports it.
+            A paced interface (a controller) is streamed to only while a target moves the arm; idle
+            or stopped it is told to hold once.
 
     Raises:
         InvalidInput: ``deadman`` outside (0, 5] s, ``q0`` outside the limits or in collision, both a
@@ -157,6 +159,8 @@ class StreamingController:
         self.rest_at: float | None = None     # ... and when the robot was at rest again
         self.on_applied: Callable[[Target, float], None] | None = None  # (target, sim time), control thread
         self.realtime = realtime
+        self._paced = bool(getattr(interface, "paced", False))  # a controller holds by itself between streams
+        self._held = False  # the interface was told to hold (idle or stopped): streaming resumes with a target
         self._thread: threading.Thread | None = None
         self._running = False
         self.steps = 0
@@ -406,8 +410,15 @@ class StreamingController:
                 self.wc.track(self.q_ref, self.qd_ref, self.qdd_ref)
                 t_robot = self.wc.time
             elif self.fault is None:
+                if self.mode not in ("tracking", "stopping") and self._paced:
+                    if not self._held:  # at rest with no target: the controller holds, nothing to stream
+                        self.interface.hold()
+                        self._held = True
+                    self.steps += 1
+                    continue
                 try:
                     t_robot = self.interface.stream(self.q_ref).t
+                    self._held = False
                 except SafetyStop as exc:  # e-stop, fault, lost link, refused target: stop commanding now
                     self._interface_fault(str(exc))
                     continue
@@ -434,9 +445,9 @@ class StreamingController:
         if self.interface is None:
             self._run_loop()
             return
-        # teleoperation: each target goes out at once (no look-ahead queue between the operator and the arm)
-        low_latency = getattr(self.interface, "low_latency", None)
-        with realtime_thread(), low_latency() if low_latency is not None else contextlib.nullcontext():
+        # not low_latency(): this thread shares the interpreter lock with the server's and the page's threads,
+        # and the interface's look-ahead queue is what absorbs their stalls (docs/decisions.md, session 23)
+        with realtime_thread():
             self._run_loop()
 
     def _run_loop(self) -> None:
