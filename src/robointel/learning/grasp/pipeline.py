@@ -322,8 +322,8 @@ class GraspPlanner:
 
 
 def closing_tilt(grasp: Grasp) -> float:
-    """The elevation (rad, 0..pi/2) of ``grasp``'s closing axis (its rotation's y column) from the horizontal."""
-    return float(np.arcsin(min(1.0, abs(float(grasp.rotation[2, 1])))))
+    """The elevation (rad, 0..pi/2) of ``grasp``'s closing axis (:attr:`Grasp.axis`) from the horizontal."""
+    return float(np.arcsin(min(1.0, abs(float(grasp.axis[2])))))
 
 
 def perceived_template(obj: ObjectModel, *, rng: np.random.Generator | int | None = 0,
