@@ -36,7 +36,7 @@ from robointel.learning.grasp import (
     ycb_object,
 )
 from robointel.learning.grasp.pipeline import lrmate_with_gripper
-from robointel.learning.grasp.scene import ARM_KP, ARM_KV, arm_scene
+from robointel.learning.grasp.scene import ARM_KP, ARM_KV, arm_scene, close_command
 from robointel.learning.grasp.trial import Q_PARK
 from robointel.outcome import Failure, TrialOutcome
 from robointel.program.format import OBJECT_CATEGORIES, Program
@@ -259,10 +259,14 @@ class GraspCell:
         self._step_for(0.3)
 
     def set_io(self, name: str, value: float) -> None:
-        """Set an output; ``gripper`` 1 closes the fingers, 0 opens them."""
+        """Set an output; ``gripper`` 1 closes the fingers, 0 opens them.
+
+        Closed, the fingers squeeze with the gripper's grip force at any width
+        (:func:`~robointel.learning.grasp.scene.close_command`), as in the grasp trials.
+        """
         self.io[name] = float(value)
         if name == "gripper":
-            self.data.ctrl[-2:] = (self.gripper.max_width / 2) if value >= 0.5 else 0.0
+            self.data.ctrl[-2:] = close_command(self.gripper) if value >= 0.5 else 0.0
             self._step_for(0.5)
 
     # ------------------------------------------------------------------ grasp and place

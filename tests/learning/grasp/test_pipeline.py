@@ -178,3 +178,19 @@ def test_planner_classifies_with_k_templates_and_excludes_the_target():
     assert plan.classification.category == "box"
     with pytest.raises(InvalidInput):
         planner.plan(cloud, exclude=("box_t", "box_b", "ball_t"))
+
+
+def test_closing_tilt_is_the_closing_axis_elevation_whatever_the_turn_about_it():
+    from robointel.learning.grasp.pipeline import closing_tilt
+    from robointel.learning.grasp.transfer import Grasp
+
+    def rot_x(a):
+        c, s = np.cos(a), np.sin(a)
+        return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+    down = np.diag([1.0, -1.0, -1.0])  # approach straight down, closing axis along -y: level
+    for deg in (0, 30, 45, 82, 90):
+        g = Grasp(np.zeros(3), rot_x(np.radians(deg)) @ down)  # the closing axis raised by deg about x
+        assert closing_tilt(g) == pytest.approx(np.radians(deg), abs=1e-9)
+        for turn in (-1.2, 0.4):  # the orientation search turns about the closing axis: same tilt
+            assert closing_tilt(g.rotated_about_axis(turn)) == pytest.approx(np.radians(deg), abs=1e-9)

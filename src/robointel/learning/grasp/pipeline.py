@@ -37,12 +37,17 @@ from robointel.learning.grasp.search import SearchResult, orientation_search, re
 from robointel.learning.grasp.transfer import Grasp, transfer_grasp
 from robointel.robot import Robot
 
-__all__ = ["COM_WEIGHT", "GraspPlan", "GraspPlanner", "carve_above_seen", "lrmate_with_gripper", "perceived_template"]
+__all__ = ["COM_WEIGHT", "TILT_WEIGHT", "GraspPlan", "GraspPlanner", "carve_above_seen", "closing_tilt",
+           "lrmate_with_gripper", "perceived_template"]
 
 
 #: Default :attr:`GraspPlanner.com_weight` (cost per metre of a grasp's horizontal distance from the
 #: perceived centroid).
 COM_WEIGHT = 0.0
+
+#: Default :attr:`GraspPlanner.tilt_weight` (cost per radian of a grasp's closing axis above or below
+#: the horizontal).
+TILT_WEIGHT = 0.0
 
 
 def lrmate_with_gripper(gripper: ParallelGripper = NARROW_GRIPPER) -> Robot:
@@ -138,6 +143,9 @@ class GraspPlanner:
             cloud's centroid (the centre of mass as far as the cameras tell; gravity's lever on the grip),
             added to the (6.21) cost of each candidate; :func:`refine_position` also slides the
             re-heighted grasps along the part toward the centroid. 0: off.
+        tilt_weight: cost per radian of elevation of a grasp's closing axis from the horizontal
+            (:func:`closing_tilt`), added to the (6.21) cost of each candidate: jaws closing level on a
+            part lying on the table rather than one above and one under it. 0: off.
     """
 
     def __init__(self, templates: list[Template], *, gripper: ParallelGripper = NARROW_GRIPPER,
@@ -146,7 +154,8 @@ class GraspPlanner:
                  refine: bool = True, seen_contacts: bool = False,
                  classifiers: list[Template] | None = None, edge_normals: bool = True, carve: bool = True,
                  pad_reach: float | None = 0.003, rest_height: bool = True,
-                 wide_gripper: ParallelGripper | None = WIDE_GRIPPER, com_weight: float = COM_WEIGHT) -> None:
+                 wide_gripper: ParallelGripper | None = WIDE_GRIPPER, com_weight: float = COM_WEIGHT,
+                 tilt_weight: float = TILT_WEIGHT) -> None:
         if not templates:
             raise InvalidInput("GraspPlanner needs at least one template", value=templates)
         self.templates = templates
@@ -171,6 +180,7 @@ class GraspPlanner:
         self.pad_reach = pad_reach
         self.rest_height = rest_height
         self.com_weight = com_weight
+        self.tilt_weight = tilt_weight
         self.q_ref = np.radians([0, 20, -10, 0, -70, 0]) if q_ref is None else np.asarray(q_ref, float)
 
     def robot_for(self, gripper: ParallelGripper) -> Robot | None:
@@ -302,11 +312,18 @@ class GraspPlanner:
                 if self.com_weight:
                     r = replace(r, cost=r.cost + self.com_weight * float(np.linalg.norm(r.grasp.centre[:2]
                                                                                          - centroid[:2])))
+                if self.tilt_weight:
+                    r = replace(r, cost=r.cost + self.tilt_weight * closing_tilt(r.grasp))
                 if best is None or r.cost < best.cost:
                     best = r
         if best is None:
             raise InvalidInput("the template has no taught grasps to transfer", value=len(per_fit))
         return best
+
+
+def closing_tilt(grasp: Grasp) -> float:
+    """The elevation (rad, 0..pi/2) of ``grasp``'s closing axis (:attr:`Grasp.axis`) from the horizontal."""
+    return float(np.arcsin(min(1.0, abs(float(grasp.axis[2])))))
 
 
 def perceived_template(obj: ObjectModel, *, rng: np.random.Generator | int | None = 0,
