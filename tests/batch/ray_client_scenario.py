@@ -7,6 +7,7 @@ small sweep with ``address="ray://127.0.0.1:10001"``, stops the head and prints 
 """
 import json
 import os
+import secrets
 import signal
 import subprocess
 import sys
@@ -19,8 +20,11 @@ PORT = 10001
 
 
 def main(root: Path) -> None:
-    env = {**os.environ, "RAY_AUTH_MODE": "token"}  # Ray Client sends the cluster's token only when told to
+    # Ray Client sends the cluster's token only when told to; Ray >= 2.60's `ray start` no longer makes a
+    # token itself, so the scenario makes one for its own cluster (never written to ~/.ray).
     os.environ["RAY_AUTH_MODE"] = "token"
+    os.environ.setdefault("RAY_AUTH_TOKEN", secrets.token_hex(32))
+    env = dict(os.environ)
     ray_cli = str(Path(sys.executable).with_name("ray"))
     log = open(root / "head.log", "w")
     head = subprocess.Popen([ray_cli, "start", "--head", "--block", "--node-ip-address", "127.0.0.1", "--port", "6390",
