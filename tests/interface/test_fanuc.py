@@ -31,6 +31,17 @@ def _stream_until_error(robot, targets, *, at=None, inject=None):
     return None, t_inj
 
 
+def _commands_after_the_stop_was_reported(robot, fake, t_inj):
+    """Commands this process sent after the emulator's first status that reported the stop injected at ``t_inj``.
+
+    The host can only know of a stop from a status packet; a loaded host may delay the emulator's next
+    tick, so the stop's report, not its injection, is when commanding must end (the cycle in flight
+    aside)."""
+    t_rep = fake.first_stop_status_after(t_inj)
+    assert t_rep is not None, "the emulator never reported the stop"
+    return [t for t in robot.sent_times if t > t_rep]
+
+
 def _ramp(q0, amplitude_rad=0.2, seconds=3.0):
     k = np.arange(int(seconds / PERIOD))
     return q0 + amplitude_rad * (1 - np.cos(2 * np.pi * 0.5 * k * PERIOD))[:, None] * np.ones(6) / 2
@@ -73,8 +84,8 @@ def test_estop_mid_stream_stops_commanding(fanuc, fake_controller):
     q0 = fanuc.state().q
     exc, t_inj = _stream_until_error(fanuc, _ramp(q0), at=60, inject=lambda: fake_controller.timed("press_estop")[1])
     assert exc is not None and not isinstance(exc, ConnectionLost)
-    late = [t for t in fanuc.sent_times if t > t_inj]
-    assert len(late) <= 2, f"{len(late)} commands after the e-stop"
+    late = _commands_after_the_stop_was_reported(fanuc, fake_controller, t_inj)
+    assert len(late) <= 2, f"{len(late)} commands after the e-stop was reported"
     st = fanuc.state()
     assert st.mode is RobotMode.FAULTED and "e_stop" in st.faults and "e-stop" in st.why_stopped
     assert isinstance(exc.value, type(st)) and exc.reason == st.why_stopped
@@ -82,6 +93,10 @@ def test_estop_mid_stream_stops_commanding(fanuc, fake_controller):
     with pytest.raises(ControllerFault, match="e-stop"):
         fanuc.stream(st.q_cmd)
     assert len(fanuc.sent_times) == n
+    # still pressed: the recovery ladder is retried until its deadline, then refused with the reason
+    with pytest.raises(ControllerFault, match="recovery failed.*e-stop"):
+        fanuc.recover()
+    assert len(fanuc.sent_times) == n and fanuc.state().mode is RobotMode.FAULTED
     # released and recovered: it streams again
     fake_controller.release_estop()
     time.sleep(0.1)
@@ -96,7 +111,7 @@ def test_fault_mid_stream_then_recover(fanuc, fake_controller):
     alarm = ("inject_alarm", "SRVO-050", "Collision detect")
     exc, t_inj = _stream_until_error(fanuc, _ramp(q0), at=40, inject=lambda: fake_controller.timed(*alarm)[1])
     assert exc is not None
-    assert len([t for t in fanuc.sent_times if t > t_inj]) <= 2
+    assert len(_commands_after_the_stop_was_reported(fanuc, fake_controller, t_inj)) <= 2
     st = fanuc.state()
     assert st.mode is RobotMode.FAULTED and "in_error" in st.faults
     fanuc.recover()  # the controller's alarm reset ladder

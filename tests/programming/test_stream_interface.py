@@ -77,13 +77,16 @@ def test_stream_drives_the_fanuc_emulator_and_its_estop_stops_it(lrmate):
                 time.sleep(0.3)
                 s = ctl.state(LOCAL)
                 assert s["mode"] == "faulted" and s["latched"] and "e-stop" in s["fault"]
-                assert len([t for t in iface.sent_times if t > t_inj]) <= 2
+                t_rep = emu.call("first_stop_status_after", t_inj)  # the first status reporting the e-stop
+                assert t_rep is not None
+                assert len([t for t in iface.sent_times if t > t_rep]) <= 2
                 n = len(iface.sent_times)
                 time.sleep(0.1)
                 assert len(iface.sent_times) == n
                 emu.call("release_estop")
                 time.sleep(0.1)
-                assert ctl.submit({"type": "resume"})["type"] == "ok"
+                reply = ctl.submit({"type": "resume"})
+                assert reply["type"] == "ok", reply
                 assert ctl.submit({"type": "joint_target", "q": READY.tolist()}) is None
                 time.sleep(2.5)
                 np.testing.assert_allclose(np.radians(emu.call("q_meas_deg")[:6]), READY, atol=np.radians(0.1))

@@ -75,6 +75,31 @@ def _record_arrivals(fake: Any, keep: int = 200_000) -> None:
     fake.arrival_context = arrival_context
 
 
+def _record_status(fake: Any, keep: int = 4096) -> None:
+    """Log the send time of every status packet and whether the controller allowed motion after it.
+
+    ``fake.first_stop_status_after(t)`` then gives the ``perf_counter`` time of the first status sent
+    after ``t`` on which motion is not possible (an e-stop, an alarm): the moment the host could first
+    know of the stop. The flag is read just after the packet leaves, so a stop injected between the
+    packet and the read is credited to the earlier packet (the conservative side).
+    """
+    sm = fake.sm
+    log: collections.deque[tuple[float, bool]] = collections.deque(maxlen=keep)
+    original = sm._send_status
+
+    def send_status(dt: float) -> None:
+        dropped = sm._drop_status_countdown > 0
+        original(dt)
+        if not dropped:
+            log.append((time.perf_counter(), not bool(fake.motion_possible)))
+
+    def first_stop_status_after(t: float) -> float | None:
+        return next((ts for ts, stopped in list(log) if ts > t and stopped), None)
+
+    sm._send_status = send_status
+    fake.first_stop_status_after = first_stop_status_after
+
+
 def _serve(conn: Connection, q0_deg: list[float] | None, record_arrivals: bool = False) -> None:
     from airo_fanuc.testing import FakeCRXConfig, FakeCRXController, WallClock
 
@@ -86,6 +111,7 @@ def _serve(conn: Connection, q0_deg: list[float] | None, record_arrivals: bool =
                              initial_q_deg=None if q0_deg is None else q0_deg + [0.0] * 3).start()
     if record_arrivals:
         _record_arrivals(fake)
+    _record_status(fake)
     gc.collect()
     gc.freeze()  # the emulator's status loop must not stall in a full collection of its start-up heap
     sys.setswitchinterval(0.0005)

@@ -50,6 +50,8 @@ DEFAULT_LOOKAHEAD_S = 0.1
 STALE_STATUS_PERIODS = 12
 """Status older than this many periods counts as a lost connection (the core's own RX-silence hold
 starts earlier)."""
+RECOVER_SETTLE_S = 0.5
+"""How long one recovery attempt waits for a status without the fault, s."""
 GRIPPER_REGISTERS = tuple(range(REG_CMD, REG_R3 + 1))
 """The numeric registers the gripper dispatcher (GRIPDISP) reads and clears: R[1]-R[3]."""
 
@@ -89,6 +91,8 @@ class FanucRobot(Backend):
             0: every target is submitted as soon as it arrives.
         force_lookahead_s: the look-ahead inside :meth:`low_latency` (the force loops and
             teleoperation), s; 0 (default): each target is submitted as soon as it arrives.
+        recover_timeout_s: :meth:`recover` retries the controller's recovery ladder until a status
+            shows no fault, for up to this long, s.
 
     Raises:
         InvalidInput: a bad look-ahead, stall count or profile.
@@ -100,7 +104,8 @@ class FanucRobot(Backend):
                  recorder: Recorder | None = None, connect_timeout: float = 5.0,
                  lock_path: str | None = None, deadman_s: float = 0.5, sched_fifo: bool = True,
                  gripper: bool = False, ft_sensor: WrenchSource | str | None = None, stream_process: bool = True,
-                 lookahead_s: float = DEFAULT_LOOKAHEAD_S, force_lookahead_s: float = 0.0) -> None:
+                 lookahead_s: float = DEFAULT_LOOKAHEAD_S, force_lookahead_s: float = 0.0,
+                 recover_timeout_s: float = 3.0) -> None:
         if robot is None:
             from robointel.robot import Robot
 
@@ -123,6 +128,9 @@ class FanucRobot(Backend):
         if not (np.isfinite(deadman_s) and deadman_s > 0):
             raise InvalidInput(f"deadman_s must be > 0 s, got {deadman_s}", value=deadman_s)
         self.deadman_s = float(deadman_s)
+        if not (np.isfinite(recover_timeout_s) and recover_timeout_s > 0):
+            raise InvalidInput(f"recover_timeout_s must be > 0 s, got {recover_timeout_s}", value=recover_timeout_s)
+        self.recover_timeout_s = float(recover_timeout_s)
         self._owns_ft = isinstance(ft_sensor, str)
         self.ft_sensor: WrenchSource | None = (open_ft_sensor(ft_sensor) if isinstance(ft_sensor, str)
                                                else ft_sensor)
@@ -278,12 +286,30 @@ class FanucRobot(Backend):
         self.driver.stop_j()  # never raises; the core brakes within one tick
 
     def _recover(self) -> None:
-        ok = self.driver.recover(escalate_reconnect=False)
-        self.driver.arm()
-        fault = self._fault_of(self._read())
-        if not ok or fault is not None:
-            why = fault[1] if fault is not None else "the recovery ladder did not reach streaming"
-            raise ControllerFault(f"recovery failed: {why}", value=self._read(), reason=why)
+        """Run the controller's recovery ladder until a status reports no fault, for up to ``recover_timeout_s``.
+
+        The status that shows the cleared fault can come a few periods after the ladder returns (more on
+        a loaded host), and a ladder can end early while the controller is still settling: both are
+        retried until the deadline, never past it.
+        """
+        deadline = time.perf_counter() + self.recover_timeout_s
+        why = "the recovery ladder did not reach streaming"
+        while True:
+            ok = self.driver.recover(escalate_reconnect=False)
+            self.driver.arm()
+            settle = min(deadline, time.perf_counter() + RECOVER_SETTLE_S)
+            while True:
+                fault = self._fault_of(self._read())
+                if ok and fault is None:
+                    return
+                if fault is not None:
+                    why = fault[1]
+                if time.perf_counter() >= settle:
+                    break
+                time.sleep(self.period)
+            if time.perf_counter() >= deadline:
+                raise ControllerFault(f"recovery failed after {self.recover_timeout_s:.1f} s: {why}",
+                                      value=self._read(), reason=why)
 
     def _close(self) -> None:
         try:

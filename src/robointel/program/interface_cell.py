@@ -30,6 +30,10 @@ from robointel.trajectory import Trajectory
 INTERFACE_KINDS = ("move", "path", "wait", "set_io")
 #: a FANUC numeric register as a ``set_io`` output name
 REGISTER = re.compile(r"R\[(\d+)\]")
+#: a motion ends in position (FANUC's FINE termination) when every joint is this close to its goal, rad
+IN_POSITION_RAD = 0.005
+#: the longest a motion waits for the arm to come into position before the next step checks it, s
+SETTLE_TIMEOUT_S = 2.0
 
 
 def interface_refusal(program: Program, start: int = 0) -> None:
@@ -122,8 +126,27 @@ class InterfaceCell:
             self.stopped = str(exc)
             return TrialOutcome(False, Failure.FAULT, f"the robot interface stopped: {exc}"), np.zeros((0, self.arm.n))
         figures = {"tracking_rms_rad": res.tracking_rms_rad, "missed_cycles": float(res.missed_cycles),
-                   "cycles": float(len(res.t))}
+                   "cycles": float(len(res.t)), "settle_s": self._settle(trajectory.q[-1])}
         return TrialOutcome(True, figures=figures), res.q
+
+    def _settle(self, goal: npt.NDArray[np.float64]) -> float:
+        """Hold until every joint is within ``IN_POSITION_RAD`` of ``goal`` or ``SETTLE_TIMEOUT_S`` passed.
+
+        A position-controlled arm lags its commands (the FANUC servo's first-order lag is ~0.125 s), so a
+        motion's last target is reached some time after it was sent; the next step starts from where the
+        arm is (its start check is the runner's). Returns the time waited, s (simulated time on an unpaced
+        ``sim``).
+        """
+        dt, t0, waited = float(self.arm.period), time.perf_counter(), 0.0
+        idle = getattr(self.arm, "idle", None) if not self.arm.paced else None
+        while float(np.max(np.abs(self.q - goal))) > IN_POSITION_RAD and waited < SETTLE_TIMEOUT_S:
+            if idle is not None:
+                idle(dt)
+                waited += dt
+            else:
+                time.sleep(dt)
+                waited = time.perf_counter() - t0
+        return waited
 
     def hold(self, seconds: float) -> None:
         """Hold the last target for ``seconds`` (simulated time on an unpaced ``sim``, wall time otherwise)."""
