@@ -153,8 +153,10 @@ def test_gate_refuses_before_the_controller(fanuc, fake_controller):
 
 
 def test_stalled_stream_stops_the_robot(fake_controller):
+    # 25 periods (200 ms beyond the 100 ms look-ahead): at load 13 the streaming test itself once stalled
+    # 5 periods past the look-ahead mid-ramp and was (rightly) stopped before the stall under test
     with FanucRobot("127.0.0.1", rmi_port=fake_controller.rmi_port, sm_port=fake_controller.sm_port,
-                    stall_periods=5) as robot:
+                    stall_periods=25) as robot:
         q0 = robot.state().q
         exc, _ = _stream_until_error(robot, _ramp(q0, 0.1, 0.3))
         assert exc is None
