@@ -158,3 +158,47 @@ def test_limit_failed_smoothing_honours_the_budget(monkeypatch, late):
     else:
         assert plan.success, plan.reason  # the rest-to-rest fallback along the checked polyline
         assert calls == {"check": 2, "polyline": 1}
+
+
+def test_covering_spheres_contain_the_relaxed_ones(thin70):
+    """What lets the dense check leave a hybrid path's middle to the covering spheres: at any
+    configuration their clearance is at most that of the fitted or partially grown spheres."""
+    p, env = thin70
+    model = env.model
+    rng = np.random.default_rng(3)
+    try:
+        for q in np.asarray(p.goals[0]) + rng.normal(0.0, 0.3, (30, 6)):
+            env.use("cover")
+            cover = env.clearance(q, cap=0.5)
+            for blend in (0.0, 0.4, 0.9):
+                env.use("fitted", blend=blend)
+                assert cover <= env.clearance(q, cap=0.5) + 1e-12
+    finally:
+        env.use(model)
+
+
+def test_dense_check_skips_only_the_window_it_is_given():
+    """scara2 sweeping link 1 through a post: the contact lies inside the skipped window, so the check
+    with ``skip`` passes (limits still checked) while the window's own check in the covering spheres
+    finds it; without ``skip`` the same trajectory fails."""
+    from robointel.planning.motion_check import window_clearance
+    from robointel.trajectory import Trajectory
+
+    robot = Robot.load("scara2")
+    env = Environment(robot, [Box(center=[0.0, 0.3, 0.3], size=[0.1, 0.1, 1.0], name="post")])
+    t = np.arange(0.0, 2.5 + 1e-9, 1e-3)
+    q = np.stack([t, np.zeros_like(t)], 1)  # joint 1 at 1 rad/s from 0 to 2.5 rad
+    tr = Trajectory(t, q, np.tile([1.0, 0.0], (len(t), 1)), np.zeros_like(q), list(robot.joint_names), {})
+    fast = np.full(2, 10.0)
+    full = check_dense(env, tr, d_min=0.0, vmax=fast, amax=fast)
+    assert not full.ok and full.kind == "collision"
+    hit = np.flatnonzero([env.clearance(x, cap=0.3) < -1e-3 for x in q])
+    t0, t1 = float(t[hit[0]]) - 0.05, float(t[hit[-1]]) + 0.05
+    skipped = check_dense(env, tr, d_min=0.0, vmax=fast, amax=fast, skip=(t0, t1))
+    assert skipped.ok and skipped.min_clearance_m >= -1e-3
+    assert window_clearance(env, tr, env.world_cover, t0, t1, d_min=0.0) < -1e-3
+    qd = tr.qd.copy()
+    qd[(t > t0) & (t < t1), 0] = 2.0  # too fast only inside the window: the limits are checked there too
+    fast_inside = Trajectory(t, q, qd, tr.qdd, list(robot.joint_names), {})
+    slow = check_dense(env, fast_inside, d_min=0.0, vmax=np.full(2, 1.5), amax=fast, skip=(t0, t1))
+    assert not slow.ok and slow.kind == "limit"
