@@ -35,18 +35,6 @@ def timed_out(what: str, chk: DenseCheck) -> DenseCheck:
     return DenseCheck(False, f"the time budget ran out during {what}", "timeout", chk.min_clearance_m, chk.samples)
 
 
-def window_times(traj: Trajectory, path: np.ndarray) -> tuple[float, float]:
-    """(t0, t1): the times at which ``traj`` passes the first and the last inner vertex of ``path``.
-
-    (t_end, 0), an empty window, when the path has no inner vertex.
-    """
-    if len(path) < 3:
-        return float(traj.t[-1]), 0.0
-    i0 = int(np.argmin(np.linalg.norm(traj.q - path[1], axis=1)))
-    i1 = len(traj.q) - 1 - int(np.argmin(np.linalg.norm(traj.q[::-1] - path[-2], axis=1)))
-    return float(traj.t[i0]), float(traj.t[i1])
-
-
 def interior_check(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, chk: DenseCheck, *,
                    d_min: float, dt: float, deadline: float = float("inf")) -> DenseCheck:
     """Check a trajectory planned with partially grown spheres at the start/goal edges.
@@ -57,18 +45,20 @@ def interior_check(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tup
     The mesh check looks at the clock every ``MESH_CHUNK`` exact samples: past ``deadline`` it
     returns a failed check of kind ``"timeout"``.
     """
-    t0, t1 = window_times(traj, path)
-    if t0 <= t1:
-        d = window_clearance(env, traj, Wc, t0, t1, d_min=d_min, dt=dt)
+    i0, i1 = len(traj.q) - 1, 0
+    if len(path) >= 3:
+        i0 = int(np.argmin(np.linalg.norm(traj.q - path[1], axis=1)))
+        i1 = len(traj.q) - 1 - int(np.argmin(np.linalg.norm(traj.q[::-1] - path[-2], axis=1)))
+        d = window_clearance(env, traj, Wc, float(traj.t[i0]), float(traj.t[i1]), d_min=d_min, dt=dt)
         if d < d_min - CLEARANCE_TOL:
             return DenseCheck(False, f"the covering spheres come {d * 1e3:.1f} mm from the obstacles between "
-                              f"t = {t0:.3f} s and {t1:.3f} s", "collision", min(d, chk.min_clearance_m),
-                              chk.samples)
-        chk = DenseCheck(chk.ok, chk.reason, chk.kind, min(d, chk.min_clearance_m), chk.samples)
+                              f"t = {traj.t[i0]:.3f} s and {traj.t[i1]:.3f} s", "collision",
+                              min(d, chk.min_clearance_m), chk.samples)
     mg = mesh_geometry(env)
     if mg.empty:
         return chk
     dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
+    t0, t1 = float(traj.t[i0]), float(traj.t[i1])
     thr = max(d_min - CLEARANCE_TOL, 0.0)  # the real geometry may not be penetrated at all
     s = env.scratch
     for sel in (dense.t <= t0, dense.t >= t1):
@@ -93,4 +83,4 @@ def interior_check(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tup
     return chk
 
 
-__all__ = ["MESH_CHUNK", "interior_check", "mesh_geometry", "timed_out", "window_times"]
+__all__ = ["MESH_CHUNK", "interior_check", "mesh_geometry", "timed_out"]

@@ -25,7 +25,7 @@ from robointel.planning import _edge_kernels as E
 from robointel.planning import _rrt_kernels as R
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
-from robointel.planning.hybrid_check import interior_check, timed_out, window_times
+from robointel.planning.hybrid_check import interior_check, timed_out
 from robointel.planning.jerk_limited import jerk_limited_polyline
 from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, check_dense
 from robointel.planning.polyline_timing import polyline_timing
@@ -336,9 +336,8 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
                 traj = Trajectory(tt.t, tt.q, tt.qd, tt.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
             else:
                 traj = topp_spline(path, vmax, amax, step=float(step), dt=st.check_dt, joint_names=names)
-            chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt,
-                              skip=window_times(traj, path) if hybrid else None)
-            if chk.ok and hybrid:  # the skipped window in the covering spheres, the root edges on the meshes
+            chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
+            if chk.ok and hybrid:
                 chk = interior_check(env, traj, path, Wc, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
             if chk.ok or chk.kind != "collision":
                 break
@@ -352,8 +351,7 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
             traj = jerk_limited_polyline(path, vmax, amax, jmax, dt=st.check_dt, joint_names=names)
         else:
             traj = polyline_timing(path, vmax, amax, dt=st.check_dt, joint_names=names)
-        chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt,
-                          skip=window_times(traj, path) if hybrid else None)
+        chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
         if chk.ok and hybrid:
             chk = interior_check(env, traj, path, Wc, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
         timings["timing"] = (time.perf_counter() - t4) * 1e3

@@ -50,7 +50,7 @@ class DenseCheck:
 
 
 def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.ArrayLike,
-                amax: npt.ArrayLike, dt: float = 1e-3, skip: tuple[float, float] | None = None) -> DenseCheck:
+                amax: npt.ArrayLike, dt: float = 1e-3) -> DenseCheck:
     """Resample ``traj`` every ``dt`` seconds and check limits and clearance.
 
     Args:
@@ -60,10 +60,6 @@ def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.A
         vmax: (n,) velocity limits, rad/s.
         amax: (n,) acceleration limits, rad/s^2.
         dt: resampling step, s (1 ms).
-        skip: (t0, t1): the clearance of the samples strictly between t0 and t1 is left to the
-            caller, who must check it in spheres that contain ``env``'s (e.g. the mesh-covering
-            ones, :func:`window_clearance`); their limits are checked here. ``min_clearance_m`` is
-            then over the other samples only.
 
     Returns:
         The :class:`DenseCheck`.
@@ -77,12 +73,8 @@ def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.A
     lo = np.flatnonzero(np.any(Q < robot.lower - 1e-9, 1) | np.any(Q > robot.upper + 1e-9, 1))
     cap = d_min + 0.1
     s = env.scratch
-    dmin, worst = cap, -1
-    for a, b in _outside(dense.t, skip):
-        d, k = K.samples_clearance(np.ascontiguousarray(Q[a:b]), env.world, s.T, s.C, s.G, s.out, env.lever,
-                                   d_min - CLEARANCE_TOL, cap)
-        if d < dmin:
-            dmin, worst = d, a + k
+    dmin, worst = K.samples_clearance(np.ascontiguousarray(Q), env.world, s.T, s.C, s.G, s.out, env.lever,
+                                      d_min - CLEARANCE_TOL, cap)
     n = len(Q)
     if lo.size:
         k = int(lo[0])
@@ -101,15 +93,6 @@ def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.A
         return DenseCheck(False, f"{c.message(f'trajectory sample at t = {dense.t[worst]:.3f} s')} "
                           f"(required {d_min * 1e3:.1f} mm - {CLEARANCE_TOL * 1e3:.0f} mm)", "collision", dmin, n)
     return DenseCheck(True, "", "", float(dmin), n)
-
-
-def _outside(t: np.ndarray, skip: tuple[float, float] | None) -> list[tuple[int, int]]:
-    """Index ranges [a, b) of the samples ``t`` not strictly inside ``skip`` (all when None)."""
-    if skip is None or not skip[0] < skip[1]:
-        return [(0, len(t))]
-    a = int(np.searchsorted(t, skip[0], side="right"))  # t[:a] <= t0
-    b = int(np.searchsorted(t, skip[1], side="left"))  # t[b:] >= t1
-    return [r for r in ((0, a), (b, len(t))) if r[1] > r[0]]
 
 
 def window_clearance(env: Environment, traj: Trajectory, W: tuple, t0: float, t1: float, *, d_min: float,
