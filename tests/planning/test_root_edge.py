@@ -114,3 +114,47 @@ def test_mesh_check_stops_at_the_deadline(thin70):
                           deadline=time.perf_counter() - 1.0)
     assert done.ok
     assert not late.ok and late.kind == "timeout" and "time budget" in late.reason
+
+
+@pytest.mark.parametrize("late", [False, True])
+def test_limit_failed_smoothing_honours_the_budget(monkeypatch, late):
+    """A smoothing check that failed on a limit (not a collision) falls back to rest-to-rest timing
+    before the deadline; past it the plan ends with ``Failure.TIMEOUT`` and the fallback never runs.
+
+    The smoothing's check is made to fail on a limit, and (``late``) the planner's clock is moved
+    past the deadline right after it, so the test does not depend on the machine's speed.
+    """
+    import robointel.planning.motion as M
+
+    robot = Robot.load("lrmate200id7l")
+    env = Environment(robot, [Box(center=[0.35, 0.0, 0.35], size=[0.1, 0.2, 0.7], name="post")], floor=0.0)
+    q0 = np.array([0.9, 0.3, 0.0, 0.0, -0.5, 0.0])
+    q1 = np.array([-0.9, 0.3, 0.0, 0.0, -0.5, 0.0])
+    calls = {"check": 0, "polyline": 0}
+    skew = [0.0]
+    real_check, real_polyline = M.check_dense, M.polyline_timing
+
+    def check(*args, **kwargs):  # type: ignore[no-untyped-def]
+        calls["check"] += 1
+        chk = real_check(*args, **kwargs)
+        if calls["check"] > 1:
+            return chk
+        skew[0] = 1e6 if late else 0.0
+        return M.DenseCheck(False, "velocity limit (made to fail)", "limit", chk.min_clearance_m, chk.samples)
+
+    def polyline(*args, **kwargs):  # type: ignore[no-untyped-def]
+        calls["polyline"] += 1
+        return real_polyline(*args, **kwargs)
+
+    monkeypatch.setattr(M, "check_dense", check)
+    monkeypatch.setattr(M, "polyline_timing", polyline)
+    monkeypatch.setattr(M, "time", type("Clock", (), {"perf_counter": staticmethod(
+        lambda: time.perf_counter() + skew[0])}))
+    plan = plan_motion(robot, env, q0, q1, settings=MotionSettings(d_min=0.01, time_budget_s=30.0))
+    assert plan.path is not None and len(plan.path) > 2  # the post makes corners: the path was smoothed
+    if late:
+        assert not plan.success and plan.failure is Failure.TIMEOUT and "time budget" in plan.reason
+        assert calls == {"check": 1, "polyline": 0}
+    else:
+        assert plan.success, plan.reason  # the rest-to-rest fallback along the checked polyline
+        assert calls == {"check": 2, "polyline": 1}

@@ -342,8 +342,8 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
             if chk.ok or chk.kind != "collision":
                 break
         timings["smooth"] = (time.perf_counter() - t3) * 1e3
-    if chk is not None and chk.kind == "collision" and time.perf_counter() >= deadline:
-        chk = timed_out("the smoothing", chk)
+    if chk is not None and not chk.ok and chk.kind != "timeout" and time.perf_counter() >= deadline:
+        chk = timed_out("the smoothing", chk)  # a collision or a limit: no rest-to-rest fallback past the budget
     if chk is None or (not chk.ok and chk.kind != "timeout"):  # rest to rest along the checked polyline
         t4 = time.perf_counter()
         if st.jerk_limited:
