@@ -362,7 +362,8 @@ class StreamProcess:
         target (late by more than the look-ahead); ``stream_late``: windows this process itself missed;
         ``stream_core_late``: windows whose tick the core sent late while this process polled for it;
         ``direct_submits`` and ``direct_latency_{mean,max}_ms``: targets of direct streams and the time
-        from their arrival to their submission to the core.
+        from their arrival to their submission to the core; ``gc_max_ms``: the longest collection of the
+        streaming process's serve loop.
         """
         out = dict(self.call("timing_stats"))
         s = self.read_state()
@@ -372,14 +373,17 @@ class StreamProcess:
         out["direct_submits"] = n
         out["direct_latency_mean_ms"] = float(s["direct_latency_sum_s"]) / n * 1e3 if n else 0.0
         out["direct_latency_max_ms"] = float(s["direct_latency_max_s"]) * 1e3
+        out["gc_max_ms"] = float(s["gc_max_s"]) * 1e3
         out["lookahead_s"] = self.lookahead_s
         return out
 
-    def missed_events(self) -> list[tuple[str, float, int, float]]:
-        """The last missed windows: (kind, time s after ``base_ns``, cmd_tick, wake-up gap ms).
+    def missed_events(self) -> list[tuple[str, float, int, float, float, float, int, float]]:
+        """The last missed windows: (kind, time s after ``base_ns``, cmd_tick, gap ms, cpu ms, runq ms, runs, wait ms).
 
-        ``kind`` is starved, late or core_late; the gap is between the streaming process's wake-up
-        that counted the window and its previous one.
+        ``kind`` is starved, late or core_late. The rest describe the streaming process's main thread
+        between the wake-up that counted the window and its previous one: the gap between them, its time
+        on a CPU and runnable but waiting for one over the gap (``/proc`` schedstat), how many times it
+        was scheduled in (1: the poll's wake-up alone), and the poll timeout it had asked for.
         """
         return [tuple(e) for e in self.call("missed_events")]  # type: ignore[misc]
 
