@@ -91,7 +91,7 @@ class Player:
         self.empty_poll_s = -math.inf  # the last wake-up that found no new tick
         self.wake_s = self.prev_wake_s = 0.0  # this wake-up's time and the previous one's
         self.sched: tuple[int, ...] = (0, 0, 0)  # schedstat at those wake-ups: on a CPU, runnable (ns), runs
-        self.prev_sched = self.sched
+        self.prev_sched: tuple[int, ...] = self.sched
         self.waited_s = 0.0  # the poll timeout asked for before this wake-up
         self.consec_starved = self._read_upto = 0
         self._last_arrival = -math.inf

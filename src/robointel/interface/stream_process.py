@@ -221,7 +221,7 @@ class StreamProcess:
         mv = self._mv
         for _ in range(1000):
             v0 = mv[sc.H_VERSION]
-            block = mv[sc.S_OFF:sc.RING_OFF].tolist()
+            block: list[float] = mv[sc.S_OFF:sc.RING_OFF].tolist()  # type: ignore[assignment]  # "d" format
             if v0 % 2 == 0 and mv[sc.H_VERSION] == v0:
                 break
         return block
