@@ -45,7 +45,8 @@ def test_the_fast_path_accepts_and_refuses_as_the_numpy_checks():
         cases.append((edge, prev))
     cases += [(UPPER.copy(), UPPER.copy()), (LOWER.copy(), None), (np.zeros(5), None), (np.zeros((6, 1)), None),
               ([[0.0] * 6], None), (["0.1"] * 6, None), (np.zeros(6, dtype=int), np.zeros(6)),
-              (np.zeros(6), np.full(6, np.nan)), ("abcdef", None)]
+              (np.zeros(6), np.full(6, np.nan)), ("abcdef", None), (np.float64(0.1), None),
+              (np.array(0.1), None)]
     accepted = refused = 0
     for q, prev in cases:
         fast = _outcome(lambda q=q, prev=prev: gate.check(q, prev))

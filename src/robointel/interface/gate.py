@@ -96,14 +96,14 @@ class SafetyGate:
 
         The same checks in plain Python floats, for the one shape a stream sends (a 1-D sequence of n
         numbers, a 1-D previous command): called once per controller period on a cache the rest of
-        the machine has evicted, a dozen numpy calls cost ~100-150 µs here, this ~30 µs
+        the machine has evicted, a dozen numpy calls cost ~75-155 µs here, this ~40-60 µs
         (docs/decisions.md, session 24). NaN fails every comparison and the limits are finite, so a
         non-finite target is never accepted here; whatever is not accepted goes through the numpy
         checks, which decide and word the refusal.
         """
         bounds = self._bounds
-        if (bounds is None or not isinstance(q_target, np.ndarray | list | tuple) or len(q_target) != self.n
-                or (isinstance(q_target, np.ndarray) and q_target.ndim != 1)):
+        if (bounds is None or not isinstance(q_target, np.ndarray | list | tuple)
+                or (isinstance(q_target, np.ndarray) and q_target.ndim != 1) or len(q_target) != self.n):
             return None
         try:
             q = [float(x) for x in q_target]
