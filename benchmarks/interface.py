@@ -116,8 +116,9 @@ def _streaming_run(make_robot, seconds, planner=True):
         robot.hold()
         extra = robot.timing_stats() if hasattr(robot, "timing_stats") else {}
         if getattr(robot, "stream_process", False):  # the missed windows, for locating them
-            extra["missed_events"] = [(kind, round(t, 4), tick, round(gap_ms, 2))
-                                      for kind, t, tick, gap_ms in robot.driver.missed_events()]
+            keys = ("kind", "t_s", "tick", "gap_ms", "cpu_ms", "runq_ms", "runs", "wait_ms")
+            extra["missed_events"] = [dict(zip(keys, (e[0], round(e[1], 4), *e[2:]), strict=True))
+                                      for e in robot.driver.missed_events()]
     finally:
         stop.set()
         if planner:
@@ -298,6 +299,7 @@ def main() -> None:
         "fanuc_windows": core["stream_windows"], "fanuc_fresh_windows": core["stream_fresh"],
         "fanuc_starved_windows": core["stream_starved"], "fanuc_late_windows": core["stream_late"],
         "fanuc_core_late_windows": core["stream_core_late"], "fanuc_missed_events": core["missed_events"],
+        "fanuc_child_gc_max_ms": core.get("gc_max_ms"),
         "fanuc_core_skipped_windows": core.get("skipped_tick_windows"),
         "fanuc_lookahead_ms": core["lookahead_s"] * 1e3,
         "fanuc_caller_late_cycles": fan["missed_cycles"], "fanuc_caller_late_over_100ms": fan["late_over_100ms"],

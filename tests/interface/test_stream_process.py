@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pytest
 
-from robointel.errors import InvalidInput
+from robointel.errors import ConnectionLost, InvalidInput
 from robointel.interface import RobotMode
 from robointel.interface.fanuc import FanucRobot
 
@@ -70,6 +70,28 @@ def test_a_caller_stall_shorter_than_the_lookahead_costs_no_window(fake_controll
     assert st.mode is RobotMode.HOLDING, st.why_stopped  # no stall stop: the queue never ran dry
     assert stats["stream_starved"] == 0, stats
     assert stats["stream_windows"] >= 140
+
+
+def test_a_killed_streaming_process_is_a_lost_connection_at_the_next_target(fake_controller):
+    """Liveness is read from the child's publish time without a system call; once that is stale the
+    interface asks waitpid, so a child killed mid-stream is reported, never streamed into silently."""
+    with _open(fake_controller) as robot:
+        q0 = robot.state().q_cmd
+        targets = _ramp(q0, 200)
+        t0 = time.perf_counter()
+        for k, q in enumerate(targets[:150]):  # > GC_TICKS windows: the serve loop has collected once
+            robot.stream(q)
+            time.sleep(max(0.0, t0 + (k + 1) * PERIOD - time.perf_counter()))
+        deadline = time.perf_counter() + 10.0
+        while time.perf_counter() < deadline and robot.timing_stats()["gc_max_ms"] == 0.0:
+            time.sleep(0.05)
+        assert robot.timing_stats()["gc_max_ms"] > 0.0
+        robot.driver._proc.kill()
+        robot.driver._proc.wait(10.0)
+        time.sleep(0.1)  # longer than ALIVE_FRESH_S: the last publish is stale
+        with pytest.raises(ConnectionLost, match="connection lost"):
+            robot.stream(targets[150])
+        assert robot.state().mode is RobotMode.DISCONNECTED
 
 
 def test_the_streaming_process_stops_when_its_caller_dies(fake_controller):

@@ -33,11 +33,9 @@ from airo_fanuc.exceptions import FanucConnectionError, FanucError
 NDOF = 6
 RING = 1024
 """Ring capacity, targets (8.2 s at 8 ms)."""
-
 H_WRITE, H_CUT, H_HOLD, H_READ, H_VERSION, H_HOLD_GEN = 0, 1, 2, 3, 4, 5
 """Header: targets written, discard below (on stop), written at the last hold (caller); consumed,
 seqlock version (child); holds asked (caller)."""
-
 STATE_FIELDS: tuple[tuple[str, int], ...] = (
     ("published_s", 1), ("rx_s", 1), ("tick_s", 1), ("cmd_tick", 1), ("mode", 1), ("fault", 1),
     ("e_stopped", 1), ("in_error", 1), ("tp_enabled", 1), ("motion_possible", 1), ("wrench_valid", 1),
@@ -46,9 +44,9 @@ STATE_FIELDS: tuple[tuple[str, int], ...] = (
     ("stalled", 1), ("stall_gap_s", 1), ("refused", 1),
     ("windows", 1), ("fresh", 1), ("starved", 1), ("late", 1), ("submits", 1), ("last_submit_s", 1),
     ("core_late", 1), ("direct_submits", 1), ("direct_latency_max_s", 1), ("direct_latency_sum_s", 1),
+    ("gc_max_s", 1),
 )
 """The state block: name and length. Times are seconds after the session's base (CLOCK_MONOTONIC)."""
-
 S_OFF = 8
 STATE_INDEX: dict[str, slice] = {}
 _o = S_OFF
@@ -61,12 +59,12 @@ SLOT_WIDTH = 2 + NDOF
 SHM_DOUBLES = RING_OFF + RING * SLOT_WIDTH
 SHM_BYTES = SHM_DOUBLES * 8
 PRIORITY = 60
-"""SCHED_FIFO priority of this process's threads (below the core's 80, above the emulator's 50 and a
-streaming thread's 40)."""
-
+"""SCHED_FIFO priority of this process's threads (below the core's 80, above the emulator's 50, a caller's 40)."""
 CORE_LATE_MARGIN_S, CATCH_UP_S = 0.0002, 0.001
 """A tick not there this long after it was due, and the next within CATCH_UP_S of that poll: core-late, s."""
 EVENTS = 64  # missed windows remembered for the ``missed_events`` request
+GC_TICKS = 125
+"""Automatic GC is off; the loop collects the young generations every this many ticks, just after one."""
 
 _SNAP_SCALARS = ("cmd_tick", "mode", "fault", "e_stopped", "in_error", "tp_enabled", "motion_possible",
                  "wrench_valid", "active_motion_id", "active_motion_status")
@@ -88,20 +86,19 @@ class Player:
         self.buf, self.base_ns, self.period = buf, int(base_ns), float(period)
         self.stall_periods, self.driver = int(stall_periods), driver
         self.pending: list[tuple[int, float, float, npt.NDArray[np.float64]]] = []
-        self.active = False  # a queued (look-ahead) segment plays
-        self.direct = False  # a direct segment plays
-        self.hold_gen = 0
-        self.last_tick = -1
-        self.last_tick_s = 0.0
+        self.active = self.direct = False  # a queued (look-ahead) / a direct segment plays
+        self.hold_gen, self.last_tick, self.last_tick_s = 0, -1, 0.0
         self.empty_poll_s = -math.inf  # the last wake-up that found no new tick
         self.wake_s = self.prev_wake_s = 0.0  # this wake-up's time and the previous one's
-        self.consec_starved = 0
-        self._read_upto = 0
+        self.sched: tuple[int, ...] = (0, 0, 0)  # schedstat at those wake-ups: on a CPU, runnable (ns), runs
+        self.prev_sched: tuple[int, ...] = self.sched
+        self.waited_s = 0.0  # the poll timeout asked for before this wake-up
+        self.consec_starved = self._read_upto = 0
         self._last_arrival = -math.inf
-        self.events: list[tuple[str, float, int, float]] = []
+        self.events: list[tuple[str, float, int, float, float, float, int, float]] = []
         self.counters = {"windows": 0, "fresh": 0, "starved": 0, "late": 0, "submits": 0, "last_submit_s": 0.0,
                          "stalled": 0, "stall_gap_s": 0.0, "refused": 0, "core_late": 0, "direct_submits": 0,
-                         "direct_latency_max_s": 0.0, "direct_latency_sum_s": 0.0}
+                         "direct_latency_max_s": 0.0, "direct_latency_sum_s": 0.0, "gc_max_s": 0.0}
 
     def rel(self, ns: int) -> float:
         """Seconds after the base."""
@@ -145,7 +142,11 @@ class Player:
         self.consec_starved = 0
 
     def _event(self, kind: str, t: float, tick: int) -> None:
-        self.events.append((kind, t, tick, (self.wake_s - self.prev_wake_s) * 1e3))  # + the wake-up gap, ms
+        """Remember a missed window with what this thread did over the gap before the wake-up that saw it."""
+        (c0, r0, n0), (c1, r1, n1) = self.prev_sched, self.sched
+        self.events.append((kind, t, tick, round((self.wake_s - self.prev_wake_s) * 1e3, 3),
+                            round((c1 - c0) * 1e-6, 3), round((r1 - r0) * 1e-6, 3), n1 - n0,
+                            round(self.waited_s * 1e3, 3)))
         del self.events[:-EVENTS]
 
     # ------------------------------------------------------------------ one controller window
@@ -382,16 +383,24 @@ def serve_forever(conn: Connection, buf: npt.NDArray[np.float64], driver: Any, b
     poller.register(conn.fileno(), select.POLLIN)
     if wake_fd >= 0:
         poller.register(wake_fd, select.POLLIN)
+    stat_fd = os.open("/proc/thread-self/schedstat", os.O_RDONLY)
+    served = 0
     try:
         while True:
             running = core is not None and core.running
             t_read = player.rel(time.monotonic_ns())  # before the read: no tick by then, if none in it
             player.prev_wake_s, player.wake_s = player.wake_s, t_read
+            player.prev_sched, player.sched = player.sched, tuple(map(int, os.pread(stat_fd, 96, 0).split()))
             snap = core.get_snapshot() if core is not None else {}
             if running and int(snap["cmd_tick"]) != seen:
                 player.serve(snap)
                 snap = core.get_snapshot()
                 seen = int(snap["cmd_tick"])
+                served += 1
+                if served % GC_TICKS == 0:  # just after a tick: the window's remaining ~7 ms are ahead
+                    g0 = time.perf_counter()
+                    gc.collect(1)
+                    player.counters["gc_max_s"] = max(player.counters["gc_max_s"], time.perf_counter() - g0)
             elif running:
                 player.empty_poll_s = t_read
                 player.consume()
@@ -402,12 +411,11 @@ def serve_forever(conn: Connection, buf: npt.NDArray[np.float64], driver: Any, b
                 wait = min(0.002, max(0.0002, (nxt - time.monotonic_ns()) * 1e-9))
             else:
                 wait = period
+            player.waited_s = wait
             ready = {fd for fd, _ in poller.poll(wait * 1e3)}
             if wake_fd in ready:
-                try:
+                with contextlib.suppress(BlockingIOError):
                     os.eventfd_read(wake_fd)
-                except BlockingIOError:
-                    pass
             if conn.fileno() not in ready:
                 continue
             try:
@@ -424,6 +432,7 @@ def serve_forever(conn: Connection, buf: npt.NDArray[np.float64], driver: Any, b
                 if reply:
                     conn.send((False, (type(exc).__name__, str(exc))))
     finally:
+        os.close(stat_fd)
         try:
             stop_core_between_ticks(driver, period)
         finally:
@@ -435,12 +444,10 @@ def serve_forever(conn: Connection, buf: npt.NDArray[np.float64], driver: Any, b
 def _request(name: str, args: tuple, kwargs: dict, driver: Any, player: Player, handles: dict[int, Any],
              core: Any) -> Any:
     """Carry out one request of the caller (see :class:`~robointel.interface.stream_process.StreamProcess`)."""
-    if name == "kick":
-        driver.kick()
-        return None
-    if name == "stop_j":
-        player.discard()
-        driver.stop_j()
+    if name in ("kick", "stop_j"):
+        if name == "stop_j":
+            player.discard()
+        getattr(driver, name)()
         return None
     if name == "recover":
         player.discard()
@@ -456,19 +463,13 @@ def _request(name: str, args: tuple, kwargs: dict, driver: Any, player: Player, 
     if name == "motion_done":
         return bool(handles[args[0]].done())
     if name == "motion_result":
-        r = handles[args[0]].result()
-        return None if r is None else r.value
-    if name == "timing_stats":
-        return dict(driver.timing_stats())
-    if name == "missed_events":
-        return list(player.events)
+        return getattr(handles[args[0]].result(), "value", None)  # None while it runs
+    if name in ("timing_stats", "missed_events"):
+        return dict(driver.timing_stats()) if name == "timing_stats" else list(player.events)
     if name in ("rmi_write_register", "rmi_read_register"):
         if driver.rmi is None:
             raise FanucConnectionError("no RMI session")
-        if name == "rmi_write_register":
-            driver.rmi.write_register(*args)
-            return None
-        return driver.rmi.read_register(*args)
+        return getattr(driver.rmi, name[4:])(*args)
     raise ValueError(f"unknown request {name!r}")
 
 
@@ -478,10 +479,8 @@ def main(conn_fd: int, shm_fd: int, wake_fd: int = -1) -> None:
     mm = mmap.mmap(shm_fd, SHM_BYTES)
     buf = np.frombuffer(mm, dtype=np.float64)
     host, policy, base_ns, period, stall_periods = conn.recv()
-    # Before bring-up: the driver's Python threads (supervisor watch at 50 Hz, heartbeat, RMI reader)
-    # inherit the policy. At normal priority one of them, preempted while it holds this process's
-    # interpreter lock, would delay the main thread by a scheduling latency (the inversion this
-    # process exists to avoid). The core's real-time thread sets its own FIFO 80.
+    # Before bring-up, so that the driver's Python threads inherit it (preempted at normal priority while
+    # holding the interpreter lock they would delay this thread); the core's thread sets its own FIFO 80.
     with contextlib.suppress(OSError):  # PermissionError without CAP_SYS_NICE
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(PRIORITY))
     try:
@@ -491,6 +490,7 @@ def main(conn_fd: int, shm_fd: int, wake_fd: int = -1) -> None:
         return
     gc.collect()
     gc.freeze()
+    gc.disable()  # the serve loop collects between ticks (GC_TICKS)
     sys.setswitchinterval(0.0005)
     conn.send((True, None))
     serve_forever(conn, buf, driver, base_ns, period, stall_periods, wake_fd)

@@ -21,8 +21,10 @@ checks (gate, faults, stall, recording) stay where they are.
 from __future__ import annotations
 
 import mmap
+import operator
 import os
 import socket
+import struct
 import subprocess
 import sys
 import threading
@@ -49,6 +51,9 @@ START_TIMEOUT_S = 60.0
 """Bring-up of the child (interpreter start, imports, driver bring-up), s."""
 REPLY_TIMEOUT_S = 30.0
 """A request to the child (recovery ladders included), s."""
+ALIVE_FRESH_S = 0.02
+"""A child that published its state this recently is running (it publishes at least every 2 ms while it
+serves); an older state is checked with ``waitpid``, s."""
 
 _ERRORS: dict[str, type[Exception]] = {"TrajectoryValidationError": TrajectoryValidationError,
                                        "RobotFaultedError": RobotFaultedError,
@@ -74,33 +79,39 @@ class _CoreView:
     def running(self) -> bool:
         """True while the child runs and its core streams."""
         o = self._owner
-        return o.alive() and bool(o.read_block()[_R["running"]])
+        return o.alive() and bool(o._mv[_RUNNING])  # one aligned double: no seqlock needed
 
     def get_snapshot(self) -> dict[str, Any]:
         """The core's snapshot as the child last published it (the keys ``FanucRobot`` reads)."""
         o = self._owner
-        v = o.read_block().tolist()
+        v = o.values()
         base = o.base_ns
-        snap: dict[str, Any] = {k: bool(v[_R[k]]) for k in _FLAGS}
-        snap.update({k: int(v[_R[k]]) for k in _INTS})
-        rx_ns = base + int(v[_R["rx_s"]] * 1e9)
+        # built by C-level calls (zip, map, itemgetter): this runs once per target on a cold cache
+        snap: dict[str, Any] = dict(zip(_FLAG_KEYS, map(bool, _FLAG_GET(v)), strict=True))
+        snap.update(zip(_INT_KEYS, map(int, _INT_GET(v)), strict=True))
+        rx_ns = base + int(v[_RX] * 1e9)
         snap["rx_mono_ns"] = rx_ns
-        snap["tick_mono_ns"] = base + int(v[_R["tick_s"]] * 1e9)
+        snap["tick_mono_ns"] = base + int(v[_TICK] * 1e9)
         snap["rx_age_ms"] = (time.monotonic_ns() - rx_ns) * 1e-6
-        for k in _VECTORS:
-            i = _R[k]
-            snap[k] = v[i:i + sc.NDOF]
-        i = _R["wrench"]
-        snap.update(zip(("fx", "fy", "fz", "mx", "my", "mz"), v[i:i + sc.NDOF], strict=True))
-        snap["stall_gap_s"] = v[_R["stall_gap_s"]]
+        snap["q_meas"], snap["qd_est"], snap["q_cmd"] = v[_QM:_QM + sc.NDOF], v[_QD:_QD + sc.NDOF], v[_QC:_QC + sc.NDOF]
+        snap.update(zip(_WRENCH_KEYS, v[_WR:_WR + sc.NDOF], strict=True))
+        snap["stall_gap_s"] = v[_STALL_GAP]
         return snap
 
 
 _R = {name: sl.start - sc.S_OFF for name, sl in sc.STATE_INDEX.items()}
 """Offset of each state field in the block :meth:`StreamProcess.read_block` returns."""
-_FLAGS = ("e_stopped", "in_error", "tp_enabled", "motion_possible", "wrench_valid", "stalled", "refused")
-_INTS = ("mode", "fault", "cmd_tick", "active_motion_id", "active_motion_status")
-_VECTORS = ("q_meas", "qd_est", "q_cmd")
+_FLAG_KEYS = ("e_stopped", "in_error", "tp_enabled", "motion_possible", "wrench_valid", "stalled", "refused")
+_INT_KEYS = ("mode", "fault", "cmd_tick", "active_motion_id", "active_motion_status")
+_WRENCH_KEYS = ("fx", "fy", "fz", "mx", "my", "mz")
+_FLAG_GET = operator.itemgetter(*(_R[k] for k in _FLAG_KEYS))
+_INT_GET = operator.itemgetter(*(_R[k] for k in _INT_KEYS))
+_RX, _TICK, _STALL_GAP = _R["rx_s"], _R["tick_s"], _R["stall_gap_s"]
+_QM, _QD, _QC, _WR = _R["q_meas"], _R["qd_est"], _R["q_cmd"], _R["wrench"]
+_PUBLISHED = sc.STATE_INDEX["published_s"].start
+_RUNNING = sc.STATE_INDEX["running"].start
+_SLOT = struct.Struct(f"={sc.SLOT_WIDTH}d")
+"""One ring slot as written by :meth:`StreamProcess.servo_j`: play time, arrival, the target."""
 
 
 class _RmiView:
@@ -171,6 +182,7 @@ class StreamProcess:
             os.ftruncate(fd, sc.SHM_BYTES)
             self._mm = mmap.mmap(fd, sc.SHM_BYTES)
             self._buf: npt.NDArray[np.float64] = np.frombuffer(self._mm, dtype=np.float64)
+            self._mv = memoryview(self._mm).cast("d")  # the per-target path: no numpy call (docs/decisions.md)
             ours, theirs = socket.socketpair()
             self._conn = Connection(ours.detach())
             try:
@@ -191,18 +203,32 @@ class StreamProcess:
 
     # ------------------------------------------------------------------ plumbing
     def alive(self) -> bool:
-        """True while the child process runs."""
-        return not self._closed and self._proc.poll() is None
+        """True while the child process runs.
 
-    def read_block(self) -> npt.NDArray[np.float64]:
-        """A consistent copy of the child's state block (seqlock read; fields at ``stream_process._R``)."""
-        b = self._buf
+        A state published within :data:`ALIVE_FRESH_S` answers without a system call: ``waitpid``
+        releases the interpreter lock, and another thread (a planner) that takes it then holds it for
+        at least a switch interval while the streaming thread waits. An older state (the child busy
+        with a request, or gone) is checked with ``waitpid``.
+        """
+        if self._closed or self._proc.returncode is not None:
+            return False
+        if (time.monotonic_ns() - self.base_ns) * 1e-9 - self._mv[_PUBLISHED] < ALIVE_FRESH_S:
+            return True
+        return self._proc.poll() is None
+
+    def values(self) -> list[float]:
+        """A consistent copy of the child's state block as floats (seqlock read; fields at ``stream_process._R``)."""
+        mv = self._mv
         for _ in range(1000):
-            v0 = b[sc.H_VERSION]
-            block = b[sc.S_OFF:sc.RING_OFF].copy()
-            if v0 % 2 == 0 and b[sc.H_VERSION] == v0:
+            v0 = mv[sc.H_VERSION]
+            block: list[float] = mv[sc.S_OFF:sc.RING_OFF].tolist()  # type: ignore[assignment]  # "d" format
+            if v0 % 2 == 0 and mv[sc.H_VERSION] == v0:
                 break
         return block
+
+    def read_block(self) -> npt.NDArray[np.float64]:
+        """:meth:`values` as a (fields,) array."""
+        return np.array(self.values())
 
     def read_state(self) -> dict[str, Any]:
         """The child's state block by field name (a float, or an array for vectors)."""
@@ -263,7 +289,7 @@ class StreamProcess:
         """
         if not self.alive():
             raise FanucConnectionError("the streaming process is not running")
-        b = self._buf
+        mv = self._mv
         now = (time.monotonic_ns() - self.base_ns) * 1e-9
         last = self._last_slot
         if last is None:
@@ -277,13 +303,12 @@ class StreamProcess:
             slot = last + self.period
             if slot > now + 2 * look + self.period:
                 slot = last
-        w = int(b[sc.H_WRITE])
-        if w - int(b[sc.H_READ]) >= sc.RING - 1:
+        w = int(mv[sc.H_WRITE])
+        if w - int(mv[sc.H_READ]) >= sc.RING - 1:
             raise FanucConnectionError(f"the streaming process took no target for {sc.RING} targets")
         o = sc.RING_OFF + (w % sc.RING) * sc.SLOT_WIDTH
-        b[o], b[o + 1] = slot, now
-        b[o + 2:o + sc.SLOT_WIDTH] = q
-        b[sc.H_WRITE] = w + 1  # published last: the child reads the count, then the slot
+        _SLOT.pack_into(self._mm, o * 8, slot, now, *(q.tolist() if isinstance(q, np.ndarray) else q))
+        mv[sc.H_WRITE] = w + 1  # published last: the child reads the count, then the slot
         self._last_slot = self._prev_slot = slot
         if look == 0.0:
             os.eventfd_write(self._wake, 1)
@@ -337,7 +362,8 @@ class StreamProcess:
         target (late by more than the look-ahead); ``stream_late``: windows this process itself missed;
         ``stream_core_late``: windows whose tick the core sent late while this process polled for it;
         ``direct_submits`` and ``direct_latency_{mean,max}_ms``: targets of direct streams and the time
-        from their arrival to their submission to the core.
+        from their arrival to their submission to the core; ``gc_max_ms``: the longest collection of the
+        streaming process's serve loop.
         """
         out = dict(self.call("timing_stats"))
         s = self.read_state()
@@ -347,14 +373,17 @@ class StreamProcess:
         out["direct_submits"] = n
         out["direct_latency_mean_ms"] = float(s["direct_latency_sum_s"]) / n * 1e3 if n else 0.0
         out["direct_latency_max_ms"] = float(s["direct_latency_max_s"]) * 1e3
+        out["gc_max_ms"] = float(s["gc_max_s"]) * 1e3
         out["lookahead_s"] = self.lookahead_s
         return out
 
-    def missed_events(self) -> list[tuple[str, float, int, float]]:
-        """The last missed windows: (kind, time s after ``base_ns``, cmd_tick, wake-up gap ms).
+    def missed_events(self) -> list[tuple[str, float, int, float, float, float, int, float]]:
+        """The last missed windows: (kind, time s after ``base_ns``, cmd_tick, gap ms, cpu ms, runq ms, runs, wait ms).
 
-        ``kind`` is starved, late or core_late; the gap is between the streaming process's wake-up
-        that counted the window and its previous one.
+        ``kind`` is starved, late or core_late. The rest describe the streaming process's main thread
+        between the wake-up that counted the window and its previous one: the gap between them, its time
+        on a CPU and runnable but waiting for one over the gap (``/proc`` schedstat), how many times it
+        was scheduled in (1: the poll's wake-up alone), and the poll timeout it had asked for.
         """
         return [tuple(e) for e in self.call("missed_events")]  # type: ignore[misc]
 
