@@ -26,7 +26,8 @@ if TYPE_CHECKING:
     from robointel.geometry.obstacles import Obstacle
     from robointel.robot import Robot
 
-__all__ = ["FINGER_KP", "FINGER_SOLREF", "Placement", "scene_xml", "TABLE_CENTRE", "TABLE_HALF", "close_command", "random_placements"]
+__all__ = ["FINGER_KP", "FINGER_SOLREF", "Placement", "scene_xml", "TABLE_CENTRE", "TABLE_HALF", "close_command",
+           "random_placements"]
 
 TABLE_CENTRE = np.array([0.5, 0.0])
 TABLE_HALF = np.array([0.35, 0.45])
