@@ -101,3 +101,44 @@ def test_the_closing_drive_squeezes_with_the_grip_force_at_any_width(gripper):
         d.ctrl[-2:] = gripper.max_width / 2  # the closed end as a position: weaker on thin parts
         mujoco.mj_forward(m, d)
         assert d.actuator_force[-1] == pytest.approx(min(gripper.grip_force, FINGER_KP * part / 2))
+
+
+def _squeeze_depth(gripper) -> float:
+    """Deepest finger-part penetration (m) of a 0.1 kg, 20 mm thick bar squeezed at mid-height by the
+    gripper (approach from above, gripper alone on its mocap weld) after 0.5 s closed."""
+    from robointel.learning.grasp.scene import close_command, scene_xml
+
+    mesh = trimesh.creation.box([0.02, 0.08, 0.02])
+    mesh.apply_translation([0, 0, 0.01])
+    bar = ObjectModel("bar", "long_tool", mesh, [mesh], 0.1)
+    m = mujoco.MjModel.from_xml_string(scene_xml([Placement(bar, 0.5, 0.0, 0.0)], dynamic=True, gripper=gripper))
+    d = mujoco.MjData(m)
+    top = [0.0, 1.0, 0.0, 0.0]  # the grasp frame's z (approach) pointing down
+    adr = m.jnt_qposadr[m.joint("gripper").id]
+    d.qpos[adr:adr + 7] = [0.5, 0.0, 0.01, *top]
+    d.mocap_pos[0], d.mocap_quat[0] = [0.5, 0.0, 0.01], top
+    body = m.body("obj0").id
+    fingers = {m.body("fp").id, m.body("fn").id}
+    deepest = 0.0
+    for k in range(int(0.6 / m.opt.timestep)):
+        d.ctrl[-2:] = close_command(gripper) if k * m.opt.timestep > 0.1 else 0.0
+        mujoco.mj_step(m, d)
+    for c in d.contact[:d.ncon]:
+        pair = {int(m.geom_bodyid[c.geom1]), int(m.geom_bodyid[c.geom2])}
+        if body in pair and pair & fingers:
+            deepest = max(deepest, -float(c.dist))
+    assert deepest > 0.0  # the jaws closed on the bar
+    return deepest
+
+
+@pytest.mark.parametrize("gripper", [NARROW_GRIPPER, WIDE_GRIPPER], ids=lambda g: g.name)
+def test_the_finger_pads_do_not_sink_into_a_light_part(gripper, monkeypatch):
+    """A light part squeezed with the full grip force is touched by rigid pads: under 1 mm of
+    penetration with the pads' contact stiffness (:data:`FINGER_SOLREF`; 0.68 mm with 20 N, 0.29 mm with
+    40 N per finger), where MuJoCo's default (0.02 s), which scales with the part's mass, lets them sink
+    in by more than 3 mm (7.3 mm, 3.7 mm)."""
+    from robointel.learning.grasp import scene
+
+    assert _squeeze_depth(gripper) < 0.001
+    monkeypatch.setattr(scene, "FINGER_SOLREF", (0.02, 1.0))
+    assert _squeeze_depth(gripper) > 0.003

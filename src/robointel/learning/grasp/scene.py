@@ -26,7 +26,8 @@ if TYPE_CHECKING:
     from robointel.geometry.obstacles import Obstacle
     from robointel.robot import Robot
 
-__all__ = ["FINGER_KP", "Placement", "scene_xml", "TABLE_CENTRE", "TABLE_HALF", "close_command", "random_placements"]
+__all__ = ["FINGER_KP", "FINGER_SOLREF", "Placement", "scene_xml", "TABLE_CENTRE", "TABLE_HALF", "close_command",
+           "random_placements"]
 
 TABLE_CENTRE = np.array([0.5, 0.0])
 TABLE_HALF = np.array([0.35, 0.45])
@@ -72,6 +73,13 @@ def random_placements(objects: Sequence[ObjectModel], rng: np.random.Generator |
 
 #: Position gain of each finger's drive (N/m); its force is limited to the gripper's ``grip_force``.
 FINGER_KP = 3000.0
+
+#: Contact time constant and damping ratio of the finger pads (MuJoCo ``solref``; the pads' geoms have
+#: priority, so their contacts with a part use it). MuJoCo's default (0.02 s, 1) scales the contact's
+#: stiffness with the part's mass: a 0.1 kg toy arm squeezed with 20 N let the pad corners sink 1.3-5.9 mm
+#: into it, and the part pivoted about the sunk edges in the lift and the shake. 0.004 s (twice the 2 ms step,
+#: the stiffest MuJoCo advises) leaves ~0.25 mm: rigid pads on a rigid part.
+FINGER_SOLREF = (0.004, 1.0)
 
 
 def close_command(gripper: ParallelGripper, grip_force: float | None = None) -> float:
@@ -140,7 +148,7 @@ def scene_xml(placements: list[Placement], *, dynamic: bool = False, gripper: Pa
                         f'<joint name="{name}" type="slide" axis="0 {-s:.0f} 0" '
                         f'range="0 {g.max_width / 2:.6g}" damping="200" armature="0.01"/>'
                         f'<geom type="box" size="{_fmt(fb)}" mass="0.05" friction="{friction} 0.02 0.001" condim="6" '
-                        f'rgba=".2 .2 .2 1"/></body>')
+                        f'solref="{_fmt(FINGER_SOLREF)}" priority="1" rgba=".2 .2 .2 1"/></body>')
         grip = (f'<body name="target" mocap="true" pos="0.5 0 1.6"/>'
                 f'<body name="gripper" pos="0.5 0 1.6"><freejoint name="gripper"/>'
                 f'<geom type="box" pos="0 0 {palm_z:.6g}" mass="{g.mass:.4g}" '
@@ -228,7 +236,7 @@ def arm_scene(placements: list[Placement], robot: Robot, gripper: ParallelGrippe
         f.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, -s, 0], range=[0, g.max_width / 2],
                     damping=200, armature=0.01)
         f.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=fb, mass=0.05, friction=[friction, 0.02, 0.001], condim=6,
-                   rgba=[0.2, 0.2, 0.2, 1])
+                   solref=list(FINGER_SOLREF), priority=1, rgba=[0.2, 0.2, 0.2, 1])
         a = rs.add_actuator(name="a" + name, target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         a.set_to_position(kp=FINGER_KP)
         a.ctrlrange = [0, close_command(g, grip_force)]
