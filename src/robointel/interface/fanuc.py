@@ -25,19 +25,18 @@ from airo_fanuc import DriverConfig, DriverPolicy, FanucDriver, FaultReason, Mot
 from airo_fanuc.exceptions import (
     FanucConnectionError,
     FanucError,
-    RmiError,
-    RmiSessionDown,
     RobotFaultedError,
     TrajectoryValidationError,
 )
-from airo_fanuc.gripper import REG_CMD, REG_R3
 
 from robointel.errors import ConnectionLost, ControllerFault, InvalidInput, UnsafeCommand
 from robointel.interface.backend import Backend, ExecutionResult, Recorder, sleep_until
+from robointel.interface.fanuc_registers import RegisterIO
 from robointel.interface.ft_sensor import WrenchSource, open_ft_sensor
 from robointel.interface.profile import lrmate_profile
 from robointel.interface.protocol import CycleCallback
 from robointel.interface.realtime import realtime_thread
+from robointel.interface.recovery import recover_until_clear
 from robointel.interface.state import RobotMode, RobotState
 from robointel.interface.stream_child import stop_core_between_ticks
 from robointel.interface.stream_process import StreamProcess, check_lookahead
@@ -50,13 +49,9 @@ DEFAULT_LOOKAHEAD_S = 0.1
 STALE_STATUS_PERIODS = 12
 """Status older than this many periods counts as a lost connection (the core's own RX-silence hold
 starts earlier)."""
-RECOVER_SETTLE_S = 0.5
-"""How long one recovery attempt waits for a status without the fault, s."""
-GRIPPER_REGISTERS = tuple(range(REG_CMD, REG_R3 + 1))
-"""The numeric registers the gripper dispatcher (GRIPDISP) reads and clears: R[1]-R[3]."""
 
 
-class FanucRobot(Backend):
+class FanucRobot(RegisterIO, Backend):
     """A :class:`~robointel.interface.protocol.RobotInterface` on a FANUC controller.
 
     Args:
@@ -286,30 +281,20 @@ class FanucRobot(Backend):
         self.driver.stop_j()  # never raises; the core brakes within one tick
 
     def _recover(self) -> None:
-        """Run the controller's recovery ladder until a status reports no fault, for up to ``recover_timeout_s``.
-
-        The status that shows the cleared fault can come a few periods after the ladder returns (more on
-        a loaded host), and a ladder can end early while the controller is still settling: both are
-        retried until the deadline, never past it.
-        """
-        deadline = time.perf_counter() + self.recover_timeout_s
-        why = "the recovery ladder did not reach streaming"
-        while True:
-            ok = self.driver.recover(escalate_reconnect=False)
+        """The controller's recovery ladder, retried until a status shows no fault (``recover_until_clear``)."""
+        def ladder() -> bool:
+            ok = bool(self.driver.recover(escalate_reconnect=False))
             self.driver.arm()
-            settle = min(deadline, time.perf_counter() + RECOVER_SETTLE_S)
-            while True:
-                fault = self._fault_of(self._read())
-                if ok and fault is None:
-                    return
-                if fault is not None:
-                    why = fault[1]
-                if time.perf_counter() >= settle:
-                    break
-                time.sleep(self.period)
-            if time.perf_counter() >= deadline:
-                raise ControllerFault(f"recovery failed after {self.recover_timeout_s:.1f} s: {why}",
-                                      value=self._read(), reason=why)
+            return ok
+
+        def fault() -> str | None:
+            f = self._fault_of(self._read())
+            return None if f is None else f[1]
+
+        why = recover_until_clear(ladder, fault, period=self.period, timeout_s=self.recover_timeout_s)
+        if why is not None:
+            raise ControllerFault(f"recovery failed after {self.recover_timeout_s:.1f} s: {why}",
+                                  value=self._read(), reason=why)
 
     def _close(self) -> None:
         try:
@@ -448,58 +433,6 @@ class FanucRobot(Backend):
                 raise ConnectionLost(self._why, value=self._read(), reason=self._why) from exc
             self._mode, self._why, self._faults, self._last_cmd = RobotMode.IDLE, "", (), None
 
-    @property
-    def gripper_registers(self) -> tuple[int, ...]:
-        """Numeric registers the gripper dispatcher owns while the gripper is up (empty otherwise)."""
-        return GRIPPER_REGISTERS if self.policy.enable_gripper else ()
-
-    def write_register(self, number: int, value: float) -> None:
-        """Write the numeric register R[number] over RMI (``FRC_WriteRegister``).
-
-        An integral value is written as an integer register value, anything else as a real. A TP or
-        background-logic program on the controller turns it into an output (e.g. ``DO[1]=(R[10]=1)``).
-
-        Args:
-            number: register number (>= 1; not one of :attr:`gripper_registers`).
-            value: the value (finite).
-
-        Raises:
-            InvalidInput: bad number or value. ConnectionLost: the RMI session is down.
-            ControllerFault: the controller refused the write.
-        """
-        n = _register_number(number, self.gripper_registers)
-        v = float(value)
-        if not np.isfinite(v):
-            raise InvalidInput(f"register R[{n}] needs a finite value, got {value!r}", value=value)
-        rmi = self._rmi()
-        try:
-            rmi.write_register(n, int(v) if v.is_integer() else v)
-        except RmiSessionDown as exc:
-            raise ConnectionLost(f"writing R[{n}]: the RMI session is down: {exc}", reason=str(exc)) from exc
-        except RmiError as exc:
-            raise ControllerFault(f"the controller refused writing R[{n}]: {exc}", value=v, reason=str(exc)) from exc
-
-    def read_register(self, number: int) -> float:
-        """Read the numeric register R[number] over RMI (``FRC_ReadRegister``).
-
-        Raises:
-            InvalidInput: bad number. ConnectionLost: the RMI session is down.
-            ControllerFault: the controller refused the read.
-        """
-        n = _register_number(number, ())
-        rmi = self._rmi()
-        try:
-            return float(rmi.read_register(n))
-        except RmiSessionDown as exc:
-            raise ConnectionLost(f"reading R[{n}]: the RMI session is down: {exc}", reason=str(exc)) from exc
-        except RmiError as exc:
-            raise ControllerFault(f"the controller refused reading R[{n}]: {exc}", reason=str(exc)) from exc
-
-    def _rmi(self) -> Any:
-        if self._closed or self.driver.rmi is None:
-            raise ConnectionLost("the robot interface is closed (no RMI session)", reason="closed")
-        return self.driver.rmi
-
     def timing_stats(self) -> dict[str, Any]:
         """The driver's real-time core statistics (tick intervals, TX counts, missed RX ticks).
 
@@ -508,13 +441,3 @@ class FanucRobot(Backend):
         streaming process after the tick), ``stream_submits`` and ``lookahead_s``.
         """
         return dict(self.driver.timing_stats())
-
-
-def _register_number(number: int, reserved: tuple[int, ...]) -> int:
-    """A numeric register number (>= 1, not reserved), or InvalidInput."""
-    if isinstance(number, bool) or not isinstance(number, (int, np.integer)) or number < 1:
-        raise InvalidInput(f"a numeric register number is an integer >= 1, got {number!r}", value=number)
-    if int(number) in reserved:
-        raise InvalidInput(f"R[{number}] belongs to the gripper dispatcher (R[{reserved[0]}]-R[{reserved[-1]}]) "
-                           "while the gripper is up", value=number)
-    return int(number)
