@@ -227,3 +227,12 @@ def test_an_aborted_execution_stops_the_core(frmp_segment):
 
             assert Mode(int(robot.driver.core.get_snapshot()["mode"])) != Mode.TRAJECTORY
         assert fake.violations == []
+
+
+def test_the_first_state_after_open_is_the_controllers():
+    """open_robot returns once a controller status was read: the first state is the arm's, never zeros."""
+    q0 = np.radians([0.0, 0.3, -23.8, 0.0, -65.8, 0.0])
+    for _ in range(3):  # the race it guards against showed in 1-3 of 8 opens
+        with running_fake(q0) as fake:
+            with open_robot(fanuc_url(fake)) as robot:
+                np.testing.assert_allclose(robot.state().q, q0, atol=1e-6)

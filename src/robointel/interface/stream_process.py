@@ -44,11 +44,13 @@ from airo_fanuc.exceptions import (
     TrajectoryValidationError,
 )
 
-from robointel.errors import InvalidInput
+from robointel.errors import ConnectionLost, InvalidInput
 from robointel.interface import stream_child as sc
 
 START_TIMEOUT_S = 60.0
 """Bring-up of the child (interpreter start, imports, driver bring-up), s."""
+FIRST_STATUS_TIMEOUT_S = 5.0
+"""After bring-up, the child must publish a state from a received controller status within this, s."""
 REPLY_TIMEOUT_S = 30.0
 """A request to the child (recovery ladders included), s."""
 ALIVE_FRESH_S = 0.02
@@ -197,9 +199,23 @@ class StreamProcess:
         try:
             self._conn.send((host, policy, self.base_ns, self.period, int(stall_periods)))
             self._reply(START_TIMEOUT_S, "bring-up")
+            self._await_first_status(FIRST_STATUS_TIMEOUT_S)
         except BaseException:
             self._kill()
             raise
+
+    def _await_first_status(self, timeout_s: float) -> None:
+        """Return once the child has published a state built from a received status (never the zeroed block).
+
+        Raises:
+            ConnectionLost: no such state within ``timeout_s`` (the child died or no status came).
+        """
+        deadline = time.monotonic() + timeout_s
+        while self.values()[_RX] <= 0.0:
+            if not self.alive() or time.monotonic() > deadline:
+                raise ConnectionLost(f"the streaming process published no controller status within {timeout_s:.0f} s "
+                                     "of bring-up", reason="no status")
+            time.sleep(0.001)
 
     # ------------------------------------------------------------------ plumbing
     def alive(self) -> bool:
