@@ -31,23 +31,10 @@ import time
 
 import numpy as np
 
+from _planner_load import planner_thread
 from robointel.interface.emulator import EmulatorProcess
 
 PERIOD = 0.008
-
-
-def _planner_thread(stop: threading.Event, counter: list):
-    from robointel.planning import make_planners
-    from robointel.planning.scene import load_scene
-
-    sc = load_scene("table71")
-    planners = make_planners(sc)
-    i = 0
-    while not stop.is_set():
-        seg = i % len(sc.steps)
-        planners[sc.steps[seg]].plan_segment(sc.waypoints[seg], sc.waypoints[seg + 1])
-        counter[0] += 1
-        i += 1
 
 
 def _wait_warm(counter, segments=5, timeout=120.0):
@@ -103,7 +90,7 @@ def _streaming_run(make_robot, seconds, planner=True):
     import os
 
     stop, counter = threading.Event(), [0]
-    th = threading.Thread(target=_planner_thread, args=(stop, counter), daemon=True)
+    th = threading.Thread(target=planner_thread, args=(stop, counter), daemon=True)
     robot = make_robot()
     load0 = os.getloadavg()[0]
     try:
@@ -154,7 +141,7 @@ def _peer_run(url_fake, seconds):
     from robointel.interface.fanuc import FanucRobot
 
     stop, counter = threading.Event(), [0]
-    th = threading.Thread(target=_planner_thread, args=(stop, counter), daemon=True)
+    th = threading.Thread(target=planner_thread, args=(stop, counter), daemon=True)
     robot = FanucRobot("127.0.0.1", rmi_port=url_fake.rmi_port, sm_port=url_fake.sm_port, stream_process=False)
     policy = robot.policy
     robot.close()

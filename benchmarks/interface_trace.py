@@ -29,24 +29,11 @@ from typing import Any
 
 import numpy as np
 
+from _planner_load import planner_thread
 from robointel.interface.emulator import EmulatorProcess
 
 PERIOD = 0.008
 BINS_US = (0, 100, 200, 300, 400, 500, 750, 1000, 1500, 2000, 5000, 10**9)
-
-
-def _planner(stop: threading.Event, counter: list[int]) -> None:
-    from robointel.planning import make_planners
-    from robointel.planning.scene import load_scene
-
-    sc = load_scene("table71")
-    planners = make_planners(sc)
-    i = 0
-    while not stop.is_set():
-        seg = i % len(sc.steps)
-        planners[sc.steps[seg]].plan_segment(sc.waypoints[seg], sc.waypoints[seg + 1])
-        counter[0] += 1
-        i += 1
 
 
 class _Phases:
@@ -94,7 +81,7 @@ def main() -> None:
 
     fake = EmulatorProcess()
     stop, counter = threading.Event(), [0]
-    th = threading.Thread(target=_planner, args=(stop, counter), daemon=True)
+    th = threading.Thread(target=planner_thread, args=(stop, counter), daemon=True)
     robot = open_robot(fake.url, stream_process=True)
     ph = _Phases()
     robot._read = ph.wrap("read", robot._read)

@@ -14,7 +14,8 @@ def recover_until_clear(ladder: Callable[[], bool], fault: Callable[[], str | No
 
     The status that shows a cleared fault can come a few controller periods after the ladder returns
     (more on a loaded host), and a ladder can end early while the controller is still settling: both
-    are retried until the deadline, never past it. Nothing is commanded here.
+    are retried until the deadline (no attempt starts after it; a ladder under way ends first). Nothing
+    is commanded here.
 
     Args:
         ladder: one run of the controller's recovery ladder; True when it reached streaming.
