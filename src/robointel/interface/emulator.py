@@ -80,18 +80,19 @@ def _record_status(fake: Any, keep: int = 4096) -> None:
 
     ``fake.first_stop_status_after(t)`` then gives the ``perf_counter`` time of the first status sent
     after ``t`` on which motion is not possible (an e-stop, an alarm): the moment the host could first
-    know of the stop. The flag is read just after the packet leaves, so a stop injected between the
-    packet and the read is credited to the earlier packet (the conservative side).
+    know of the stop. The controller state's (reentrant) lock is held from the packet's build to the
+    flag's read, so a stop injected meanwhile waits: the flag is exactly the packet's.
     """
-    sm = fake.sm
+    sm, state = fake.sm, fake.state
     log: collections.deque[tuple[float, bool]] = collections.deque(maxlen=keep)
     original = sm._send_status
 
     def send_status(dt: float) -> None:
-        dropped = sm._drop_status_countdown > 0
-        original(dt)
-        if not dropped:
-            log.append((time.perf_counter(), not bool(fake.motion_possible)))
+        with state.lock:
+            dropped = sm._drop_status_countdown > 0
+            original(dt)
+            if not dropped:
+                log.append((time.perf_counter(), not state.motion_possible()))
 
     def first_stop_status_after(t: float) -> float | None:
         return next((ts for ts, stopped in list(log) if ts > t and stopped), None)
