@@ -7,6 +7,7 @@ import os
 import shutil
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import pytest
@@ -56,3 +57,29 @@ def _failures(report: dict) -> list[str]:
 def doctor():
     """``doctor(root)`` -> (report, FAIL messages) of ``lerobot-doctor check root --json``."""
     return lambda root: (lambda r: (r, _failures(r)))(_run_doctor(root))
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_call(item):
+    """Run a test once more when it failed while a FANUC emulator it opened and closed had stalled.
+
+    The emulator (``robointel.interface.emulator``) logs every gap of over 50 ms between two of its own
+    125 Hz ticks: its process did not run (a loaded CI host, a paused VM). A real controller never does
+    that, and robointel's correct answer to 100 ms of controller silence is to stop (the airo-fanuc
+    core's blind hold, our connection-lost latch), so such a failure says nothing about robointel. The
+    second run must pass in full; a failure without an emulator stall, or a second failure, fails.
+    Tests on the ``fake_controller`` fixture are never run again (their emulator outlives the call).
+    """
+    from robointel.interface import emulator
+
+    mark = len(emulator.RIG_STALLS)
+    try:
+        return (yield)
+    except Exception as exc:
+        stalls = emulator.RIG_STALLS[mark:]
+        if not stalls or {"fake_controller", "fanuc"} & set(item.fixturenames):
+            raise
+        gaps = ", ".join(f"{g * 1e3:.0f} ms" for _, g in stalls)
+        warnings.warn(f"{item.nodeid}: run again: the FANUC emulator itself stalled ({gaps}) during a run that "
+                      f"failed with {type(exc).__name__}: {str(exc)[:300]}", pytest.PytestWarning, stacklevel=1)
+        return item.runtest()

@@ -26,6 +26,11 @@ from robointel.errors import InvalidInput
 
 ARRIVAL_GAP_FLAG = "two TXs in one host iteration (double-send), measured from kernel RX timestamps"
 """The text of the emulator's arrival-gap double-send flag."""
+RIG_STALL_S = 0.05
+"""A gap between two starts of the emulator's 125 Hz tick longer than this (over 6 periods of 8 ms) is the
+emulator's own stall (a descheduled process, a paused VM): the controller it emulates never does it."""
+RIG_STALLS: list[tuple[str, float]] = []
+"""``(url, gap s)`` of every rig stall of every emulator this process has closed (newest last)."""
 
 
 def protocol_violations(violations: list[str]) -> list[str]:
@@ -101,6 +106,29 @@ def _record_status(fake: Any, keep: int = 4096) -> None:
     fake.first_stop_status_after = first_stop_status_after
 
 
+def _record_ticks(fake: Any) -> None:
+    """Log the emulator's own stalls: gaps between two starts of its 125 Hz tick over :data:`RIG_STALL_S`.
+
+    The tick runs whether or not a session streams and whatever fault is injected, so a long gap is the
+    emulator process not running (a loaded or paused host), never the controller it emulates.
+    ``fake.rig_stalls()`` gives the gaps, s.
+    """
+    sm = fake.sm
+    stalls: list[float] = []
+    last = [0.0]
+    original = sm.tick
+
+    def tick(dt: float | None = None, **kwargs: Any) -> None:
+        t = time.perf_counter()
+        if last[0] and t - last[0] > RIG_STALL_S:
+            stalls.append(t - last[0])
+        last[0] = t
+        original(dt, **kwargs)
+
+    sm.tick = tick
+    fake.rig_stalls = lambda: list(stalls)
+
+
 def _serve(conn: Connection, q0_deg: list[float] | None, record_arrivals: bool = False) -> None:
     from airo_fanuc.testing import FakeCRXConfig, FakeCRXController, WallClock
 
@@ -113,6 +141,7 @@ def _serve(conn: Connection, q0_deg: list[float] | None, record_arrivals: bool =
     if record_arrivals:
         _record_arrivals(fake)
     _record_status(fake)
+    _record_ticks(fake)
     gc.collect()
     gc.freeze()  # the emulator's status loop must not stall in a full collection of its start-up heap
     sys.setswitchinterval(0.0005)
@@ -123,7 +152,7 @@ def _serve(conn: Connection, q0_deg: list[float] | None, record_arrivals: bool =
         if name == "__close__":
             fake.stop_realtime()
             fake.close()
-            conn.send(list(fake.violations))
+            conn.send((list(fake.violations), fake.rig_stalls()))
             return
         try:
             attr = getattr(fake, name)
@@ -154,6 +183,9 @@ class EmulatorProcess:
         self.rmi_port, self.sm_port = self._conn.recv()
         self.url = f"fanuc://127.0.0.1:{self.rmi_port}?sm_port={self.sm_port}"
         self.violations: list[str] | None = None
+        self.stalls: list[float] = []
+        """The emulator's own stalls: gaps (s) between its ticks over :data:`RIG_STALL_S` (known at
+        :meth:`close`; also appended to :data:`RIG_STALLS`)."""
 
     def call(self, name: str, *args: Any) -> Any:
         """Call ``FakeCRXController.name(*args)`` (or read the attribute ``name``) in the child.
@@ -178,7 +210,9 @@ class EmulatorProcess:
         """Stop the emulator; return its strict-conformance violations (idempotent)."""
         if self.violations is None:
             self._conn.send(("__close__", ()))
-            self.violations = list(self._conn.recv())
+            violations, stalls = self._conn.recv()
+            self.violations, self.stalls = list(violations), list(stalls)
+            RIG_STALLS.extend((self.url, g) for g in self.stalls)
             self._proc.join(5)
         return self.violations
 
