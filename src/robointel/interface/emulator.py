@@ -152,7 +152,7 @@ def _serve(conn: Connection, q0_deg: list[float] | None, record_arrivals: bool =
         if name == "__close__":
             fake.stop_realtime()
             fake.close()
-            conn.send((list(fake.violations), fake.rig_stalls()))
+            conn.send((list(fake.violations), fake.rig_stalls()))  # type: ignore[attr-defined]
             return
         try:
             attr = getattr(fake, name)
