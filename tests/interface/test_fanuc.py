@@ -10,6 +10,7 @@ from robointel.errors import ConnectionLost, ControllerFault, UnsafeCommand
 from robointel.interface import RobotInterface, RobotMode, open_robot
 from robointel.interface.fanuc import FanucRobot
 
+from ._waits import settled, wait_until
 from .conftest import fanuc_url, running_fake
 
 PERIOD = 0.008
@@ -56,7 +57,8 @@ def test_frmp_segment_follows_within_the_plant_lag(frmp_segment):
             res = robot.execute(tr)
             assert res.completed, res.extra
             assert len(res.q_cmd) >= len(tr.resample(PERIOD).t) - 2
-            time.sleep(1.0)  # 8 time constants of the plant
+            # the plant's first-order lag closes on the goal (8 time constants on time; longer when ticks are late)
+            wait_until(lambda: np.max(np.abs(robot.state().q - tr.q[-1])) <= math.radians(0.05))
             final = robot.state()
         assert fake.violations == []
     # the emulated joints reach the goal
@@ -193,13 +195,14 @@ def test_teleop_targets_through_the_follower_and_the_deadman_stop(fake_controlle
         for k in range(150):  # 1.2 s, the operator's target jumps at 0.6 s
             robot.stream(fol.step(goals[k // 75])[0])
             time.sleep(max(0.0, t0 + (k + 1) * PERIOD - time.perf_counter()))
-        time.sleep(0.3)  # deadman released: no targets
+        # deadman released: no targets; the stall stop comes 5 periods after the 100 ms look-ahead ran out
+        wait_until(lambda: robot.state().mode is not RobotMode.STREAMING, timeout=10.0)
         st = robot.state()
         assert st.mode is RobotMode.STOPPED and "stalled" in st.why_stopped
-        time.sleep(0.2)  # the core's brake (stop_j) has finished
-        cmd_a = robot.state().q_cmd
+        cmd_a = settled(lambda: robot.state().q_cmd, 0.0, 0.2)  # the core's brake (stop_j) has finished
         time.sleep(1.0)  # 8 time constants of the plant
         cmd_b = robot.state().q_cmd
+        wait_until(lambda: np.max(np.abs(np.radians(fake_controller.q_meas_deg[:6]) - cmd_b)) <= np.radians(0.05))
         q_b = np.radians(fake_controller.q_meas_deg[:6])
     np.testing.assert_allclose(cmd_b, cmd_a, atol=1e-9)  # the controller is commanded to stand still
     np.testing.assert_allclose(q_b, cmd_b, atol=np.radians(0.05))  # and the emulated arm stands there
@@ -218,8 +221,8 @@ def test_an_aborted_execution_stops_the_core(frmp_segment):
                 robot.execute(tr, on_cycle=boom)
             st = robot.state()
             assert st.mode is RobotMode.STOPPED and "operator abort" in st.why_stopped
-            time.sleep(1.5)  # the core brakes and re-anchors its command on the lagging arm
-            a = robot.state().q
+            # the core brakes and re-anchors its command on the lagging arm: wait for the arm at rest
+            a = settled(lambda: robot.state().q, 1e-3, 0.3)
             time.sleep(0.3)
             np.testing.assert_allclose(robot.state().q, a, atol=2e-3)  # the arm is at rest
             assert np.max(np.abs(a - tr.q[-1])) > 0.05  # well before the goal: playback stopped

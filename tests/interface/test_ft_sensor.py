@@ -13,6 +13,7 @@ from robointel.interface.ft_sensor import RDT_RECORD, NetFTSensor, WrenchSource,
 from robointel.programming.lead_through import lead_through
 from robointel.robot import Robot
 
+from ._waits import settled
 from .conftest import fanuc_url, running_fake
 
 CPF = 1e6
@@ -120,8 +121,7 @@ def test_lead_through_on_the_emulator_follows_a_push_on_the_wrist_sensor():
                         released.set()
 
                 res = lead_through(arm, robot, 1.0, on_cycle=on_cycle)
-                time.sleep(0.8)  # the emulated plant settles (first-order lag)
-                q_end = np.radians(fake.q_meas_deg[:6])
+                q_end = settled(lambda: np.radians(fake.q_meas_deg[:6]), 1e-5, 0.2)  # the plant's lag closes
             assert fake.violations == []
     finally:
         box.close()

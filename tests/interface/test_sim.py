@@ -8,6 +8,8 @@ from robointel.errors import ControllerFault, InvalidInput, UnsafeCommand
 from robointel.interface import RobotInterface, RobotMode, SafetyGate, open_robot
 from robointel.interface.sim import SimRobot
 
+from ._waits import wait_until
+
 
 @pytest.fixture(scope="module")
 def sim():
@@ -62,7 +64,7 @@ def test_stalled_stream_stops_the_simulated_robot():
         for k in range(20):
             robot.stream(q + 1e-3 * k)
             time.sleep(0.008)
-        time.sleep(0.15)
+        wait_until(lambda: robot.state().mode is not RobotMode.STREAMING, timeout=10.0)  # the watchdog's turn
         st = robot.state()
         assert st.mode is RobotMode.STOPPED and st.faults == ("stream_stalled",)
         with pytest.raises(ControllerFault, match="stalled"):

@@ -6,7 +6,7 @@ import pytest
 
 from robointel.errors import InvalidInput
 from robointel.interface import RobotMode, open_robot
-from robointel.interface.emulator import EmulatorProcess
+from robointel.interface.emulator import EmulatorProcess, protocol_violations
 from robointel.programming.stream_control import LOCAL, StreamingController
 
 READY = np.array([0.0, 0.0, 0.0, 0.0, -np.pi / 2, 0.0])
@@ -71,10 +71,10 @@ def test_stream_drives_the_fanuc_emulator_and_its_estop_stops_it(lrmate):
                 ctl.submit({"type": "acquire"})
                 tgt = _target()
                 assert ctl.submit({"type": "joint_target", "q": tgt.tolist()}) is None
-                time.sleep(2.5)
+                _wait_until(lambda: _near(emu, tgt))  # the follower and the plant's lag close on the target
                 np.testing.assert_allclose(np.radians(emu.call("q_meas_deg")[:6]), tgt, atol=np.radians(0.1))
                 t_inj = emu.timed("press_estop")[1]
-                time.sleep(0.3)
+                _wait_until(lambda: ctl.state(LOCAL)["mode"] == "faulted", timeout=5.0)  # the next status says so
                 s = ctl.state(LOCAL)
                 assert s["mode"] == "faulted" and s["latched"] and "e-stop" in s["fault"]
                 t_rep = emu.call("first_stop_status_after", t_inj)  # the first status reporting the e-stop
@@ -88,8 +88,21 @@ def test_stream_drives_the_fanuc_emulator_and_its_estop_stops_it(lrmate):
                 reply = ctl.submit({"type": "resume"})
                 assert reply["type"] == "ok", reply
                 assert ctl.submit({"type": "joint_target", "q": READY.tolist()}) is None
-                time.sleep(2.5)
+                _wait_until(lambda: _near(emu, READY))
                 np.testing.assert_allclose(np.radians(emu.call("q_meas_deg")[:6]), READY, atol=np.radians(0.1))
             finally:
                 ctl.stop()
-        assert emu.call("violations") == []
+        # every strict-conformance violation but the arrival-gap flag, as in tests/interface
+        assert protocol_violations(emu.call("violations")) == []
+
+
+def _near(emu, q):
+    """The emulated arm within 0.1 deg of ``q`` on every joint."""
+    return bool(np.max(np.abs(np.radians(emu.call("q_meas_deg")[:6]) - q)) <= np.radians(0.1))
+
+
+def _wait_until(condition, timeout=15.0):
+    """Poll until ``condition()`` holds or ``timeout`` s passed: a slow host stretches the plant's convergence."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and not condition():
+        time.sleep(0.02)

@@ -30,6 +30,7 @@ from airo_fanuc.exceptions import (
 )
 
 from robointel.errors import ConnectionLost, ControllerFault, InvalidInput, UnsafeCommand
+from robointel.interface import stream_state as ss
 from robointel.interface.backend import Backend, ExecutionResult, Recorder, sleep_until
 from robointel.interface.fanuc_registers import RegisterIO
 from robointel.interface.ft_sensor import WrenchSource, open_ft_sensor
@@ -131,7 +132,10 @@ class FanucRobot(RegisterIO, Backend):
                                                else ft_sensor)
         if self.ft_sensor is not None and not isinstance(self.ft_sensor, WrenchSource):
             raise InvalidInput("ft_sensor must have a read() method returning a (6,) wrench", value=ft_sensor)
-        self._snap: dict[str, Any] = {}
+        self._snap_d: dict[str, Any] | None = {}  # None: build it from _vals (the _snap property)
+        self._vals: tuple[float, ...] | None = None  # the streaming process's block at the last read
+        self._read_ns = 0
+        self._stale_ms = STALE_STATUS_PERIODS * self.period * 1e3
         self._last_state: RobotState | None = None
         self.stream_process = bool(stream_process) and not gripper
         check_lookahead(lookahead_s)
@@ -159,6 +163,8 @@ class FanucRobot(RegisterIO, Backend):
 
     # ------------------------------------------------------------------ backend hooks
     def _read(self) -> RobotState:
+        if self.stream_process and not self._closed:
+            return self._read_shared()
         core = self.driver.core if not self._closed else None
         if core is None:
             if self._last_state is not None:
@@ -167,7 +173,7 @@ class FanucRobot(RegisterIO, Backend):
             z = np.zeros(self.n)
             return self._make_state(0.0, z, z.copy(), None, None)
         s = core.get_snapshot()
-        self._snap = s  # type: ignore[assignment]
+        self._snap_d, self._vals = s, None
         wrench = (np.array([s["fx"], s["fy"], s["fz"], s["mx"], s["my"], s["mz"]], dtype=float)
                   if s.get("wrench_valid") else self._ft_wrench())
         st = self._make_state(int(s["rx_mono_ns"]) * 1e-9, np.array(s["q_meas"], dtype=float),  # type: ignore
@@ -175,6 +181,29 @@ class FanucRobot(RegisterIO, Backend):
                               np.array(s["q_cmd"], dtype=float))  # type: ignore[arg-type]
         self._last_state = st
         return st
+
+    def _read_shared(self) -> RobotState:
+        """:meth:`_read` from the streaming process's block, without building the snapshot dict.
+
+        The per-target path (docs/decisions.md, session 25): one seqlock copy, the state's arrays made
+        from it; :attr:`_snap` builds the dict from the same copy only when something asks for it.
+        """
+        v = self.driver.head()
+        base = self.driver.base_ns
+        self._vals, self._snap_d, self._read_ns = v, None, time.monotonic_ns()
+        wrench = np.array(v[ss.WR:ss.WR + 6]) if v[ss.WRENCH_VALID] else self._ft_wrench()
+        st = self._make_state((base + int(v[ss.RX] * 1e9)) * 1e-9, np.array(v[ss.QM:ss.QM + 6]),
+                              np.array(v[ss.QD:ss.QD + 6]), wrench, np.array(v[ss.QC:ss.QC + 6]))
+        self._last_state = st
+        return st
+
+    @property
+    def _snap(self) -> dict[str, Any]:
+        """The core's snapshot behind the last state read (``core.get_snapshot()``; {} before any)."""
+        if self._snap_d is None:
+            v = self._vals
+            self._snap_d = ss.snapshot(v, self.driver.base_ns, self._read_ns) if v is not None else {}
+        return self._snap_d
 
     def _ft_wrench(self) -> npt.NDArray[np.float64] | None:
         """The wrist sensor's (6,) wrench, or None (no sensor, no fresh reading, not six finite numbers)."""
@@ -192,13 +221,16 @@ class FanucRobot(RegisterIO, Backend):
         return self.ft_sensor is not None or bool(self._snap.get("wrench_valid", False))
 
     def _fault_of(self, state: RobotState) -> tuple[RobotMode, str, tuple[str, ...]] | None:
+        v = self._vals  # the streaming process's block: a quiet one (the usual case) needs no snapshot
+        if v is not None and ss.quiet(v, self.driver.base_ns, self._read_ns, self._stale_ms) and self.driver.alive():
+            return None
         s = self._snap
         core = self.driver.core
         if core is None or not core.running:
             return RobotMode.DISCONNECTED, "connection lost: the Stream Motion session is down", ("disconnected",)
         age = float(s.get("rx_age_ms", 0.0))
         fault = FaultReason(int(s.get("fault", 0)))  # type: ignore[call-overload]
-        if age > STALE_STATUS_PERIODS * self.period * 1e3 or fault == FaultReason.RX_SILENT:
+        if age > self._stale_ms or fault == FaultReason.RX_SILENT:
             return (RobotMode.DISCONNECTED, f"connection lost: no controller status for {age:.0f} ms",
                     ("rx_silent",))
         faults = []
@@ -432,6 +464,7 @@ class FanucRobot(RegisterIO, Backend):
                 self._latch_fault(RobotMode.DISCONNECTED, f"reconnect failed: {exc}", ("disconnected",))
                 raise ConnectionLost(self._why, value=self._read(), reason=self._why) from exc
             self._mode, self._why, self._faults, self._last_cmd = RobotMode.IDLE, "", (), None
+            self._vals, self._snap_d = None, {}
 
     def timing_stats(self) -> dict[str, Any]:
         """The driver's real-time core statistics (tick intervals, TX counts, missed RX ticks).

@@ -105,8 +105,8 @@ class SafetyGate:
         if (bounds is None or not isinstance(q_target, np.ndarray | list | tuple)
                 or (isinstance(q_target, np.ndarray) and q_target.ndim != 1) or len(q_target) != self.n):
             return None
-        try:
-            q = [float(x) for x in q_target]
+        try:  # an array's tolist() gives Python numbers at once: no numpy scalar per element
+            q = [float(x) for x in (q_target.tolist() if isinstance(q_target, np.ndarray) else q_target)]
         except (TypeError, ValueError):
             return None
         if q_previous is None:

@@ -21,7 +21,6 @@ checks (gate, faults, stall, recording) stay where they are.
 from __future__ import annotations
 
 import mmap
-import operator
 import os
 import socket
 import struct
@@ -46,6 +45,7 @@ from airo_fanuc.exceptions import (
 
 from robointel.errors import ConnectionLost, InvalidInput
 from robointel.interface import stream_child as sc
+from robointel.interface import stream_state
 
 START_TIMEOUT_S = 60.0
 """Bring-up of the child (interpreter start, imports, driver bring-up), s."""
@@ -86,32 +86,13 @@ class _CoreView:
     def get_snapshot(self) -> dict[str, Any]:
         """The core's snapshot as the child last published it (the keys ``FanucRobot`` reads)."""
         o = self._owner
-        v = o.values()
-        base = o.base_ns
-        # built by C-level calls (zip, map, itemgetter): this runs once per target on a cold cache
-        snap: dict[str, Any] = dict(zip(_FLAG_KEYS, map(bool, _FLAG_GET(v)), strict=True))
-        snap.update(zip(_INT_KEYS, map(int, _INT_GET(v)), strict=True))
-        rx_ns = base + int(v[_RX] * 1e9)
-        snap["rx_mono_ns"] = rx_ns
-        snap["tick_mono_ns"] = base + int(v[_TICK] * 1e9)
-        snap["rx_age_ms"] = (time.monotonic_ns() - rx_ns) * 1e-6
-        snap["q_meas"], snap["qd_est"], snap["q_cmd"] = v[_QM:_QM + sc.NDOF], v[_QD:_QD + sc.NDOF], v[_QC:_QC + sc.NDOF]
-        snap.update(zip(_WRENCH_KEYS, v[_WR:_WR + sc.NDOF], strict=True))
-        snap["stall_gap_s"] = v[_STALL_GAP]
-        return snap
+        return stream_state.snapshot(o.values(), o.base_ns, time.monotonic_ns())
 
 
-_R = {name: sl.start - sc.S_OFF for name, sl in sc.STATE_INDEX.items()}
-"""Offset of each state field in the block :meth:`StreamProcess.read_block` returns."""
-_FLAG_KEYS = ("e_stopped", "in_error", "tp_enabled", "motion_possible", "wrench_valid", "stalled", "refused")
-_INT_KEYS = ("mode", "fault", "cmd_tick", "active_motion_id", "active_motion_status")
-_WRENCH_KEYS = ("fx", "fy", "fz", "mx", "my", "mz")
-_FLAG_GET = operator.itemgetter(*(_R[k] for k in _FLAG_KEYS))
-_INT_GET = operator.itemgetter(*(_R[k] for k in _INT_KEYS))
-_RX, _TICK, _STALL_GAP = _R["rx_s"], _R["tick_s"], _R["stall_gap_s"]
-_QM, _QD, _QC, _WR = _R["q_meas"], _R["qd_est"], _R["q_cmd"], _R["wrench"]
+_R, _RX = stream_state.R, stream_state.RX
 _PUBLISHED = sc.STATE_INDEX["published_s"].start
 _RUNNING = sc.STATE_INDEX["running"].start
+_HEAD = struct.Struct(f"={stream_state.HEAD}d")
 _SLOT = struct.Struct(f"={sc.SLOT_WIDTH}d")
 """One ring slot as written by :meth:`StreamProcess.servo_j`: play time, arrival, the target."""
 
@@ -233,11 +214,25 @@ class StreamProcess:
         return self._proc.poll() is None
 
     def values(self) -> list[float]:
-        """A consistent copy of the child's state block as floats (seqlock read; fields at ``stream_process._R``)."""
+        """A consistent copy of the child's state block as floats (seqlock read; fields at ``stream_state.R``)."""
         mv = self._mv
         for _ in range(1000):
             v0 = mv[sc.H_VERSION]
             block: list[float] = mv[sc.S_OFF:sc.RING_OFF].tolist()  # type: ignore[assignment]  # "d" format
+            if v0 % 2 == 0 and mv[sc.H_VERSION] == v0:
+                break
+        return block
+
+    def head(self) -> tuple[float, ...]:
+        """The state block's first :data:`~robointel.interface.stream_state.HEAD` fields (seqlock read).
+
+        Everything the per-target path reads (the core's snapshot, the stop flags), unpacked in one
+        ``struct`` call: the per-target state read of ``FanucRobot`` (docs/decisions.md, session 25).
+        """
+        mv, mm = self._mv, self._mm
+        for _ in range(1000):
+            v0 = mv[sc.H_VERSION]
+            block = _HEAD.unpack_from(mm, sc.S_OFF * 8)
             if v0 % 2 == 0 and mv[sc.H_VERSION] == v0:
                 break
         return block
