@@ -37,6 +37,25 @@ def lrmate():
     return Robot.load("lrmate200id7l")
 
 
+@pytest.fixture(scope="session")
+def insertion_skill():
+    """The GMR insertion skill learned from four seated HDD demonstrations (Sec. 5.5).
+
+    Session-wide here, in the root conftest, so it is fitted once: a fixture imported into a second test
+    module is a second fixture definition and was fitted again there (~30 s each). Tests only predict with it.
+    """
+    import numpy as np
+
+    from robointel.interface.skill_cells import PegTool
+    from robointel.learning import insertion as ins
+
+    task = ins.PegHole()
+    scene = ins.HDDScene(task)
+    rng = np.random.default_rng(0)
+    demos = ins.seated_demonstrations(task, rng, 4, scene=scene)  # not every try seats at 20 um
+    return ins.InsertionSkill(4, centre=PegTool().centre).fit(demos)  # the twist moves the tip sphere's centre
+
+
 def _run_doctor(root: Path) -> dict:
     """``lerobot-doctor check ROOT --json`` (the dev extra installs it)."""
     exe = Path(sys.executable).with_name("lerobot-doctor")
