@@ -38,6 +38,23 @@ def lrmate():
 
 
 @pytest.fixture(scope="session")
+def hdd_demos():
+    """Two peg-in-hole demonstrations with the HDD in MuJoCo (seed 3, one scene), made once per session.
+
+    The first is the one ``demonstrate(PegHole(), default_rng(3), scene=HDDScene(...))`` returns on a fresh
+    scene; three test modules used to make it each (~10 s a demonstration). Take ``copy.deepcopy`` to change one.
+    """
+    import numpy as np
+
+    from robointel.learning import insertion as ins
+
+    task = ins.PegHole()
+    rng = np.random.default_rng(3)
+    scene = ins.HDDScene(task)
+    return tuple(ins.demonstrate(task, rng, scene=scene, name=f"demo_{i}") for i in range(2))
+
+
+@pytest.fixture(scope="session")
 def insertion_skill():
     """The GMR insertion skill learned from four seated HDD demonstrations (Sec. 5.5).
 
