@@ -38,6 +38,42 @@ def lrmate():
     return Robot.load("lrmate200id7l")
 
 
+@pytest.fixture(scope="session")
+def hdd_demos():
+    """Two peg-in-hole demonstrations with the HDD in MuJoCo (seed 3, one scene), made once per session.
+
+    The first is the one ``demonstrate(PegHole(), default_rng(3), scene=HDDScene(...))`` returns on a fresh
+    scene; three test modules used to make it each (~10 s a demonstration). Take ``copy.deepcopy`` to change one.
+    """
+    import numpy as np
+
+    from robointel.learning import insertion as ins
+
+    task = ins.PegHole()
+    rng = np.random.default_rng(3)
+    scene = ins.HDDScene(task)
+    return tuple(ins.demonstrate(task, rng, scene=scene, name=f"demo_{i}") for i in range(2))
+
+
+@pytest.fixture(scope="session")
+def insertion_skill():
+    """The GMR insertion skill learned from four seated HDD demonstrations (Sec. 5.5).
+
+    Session-wide here, in the root conftest, so it is fitted once: a fixture imported into a second test
+    module is a second fixture definition and was fitted again there (~30 s each). Tests only predict with it.
+    """
+    import numpy as np
+
+    from robointel.interface.skill_cells import PegTool
+    from robointel.learning import insertion as ins
+
+    task = ins.PegHole()
+    scene = ins.HDDScene(task)
+    rng = np.random.default_rng(0)
+    demos = ins.seated_demonstrations(task, rng, 4, scene=scene)  # not every try seats at 20 um
+    return ins.InsertionSkill(4, centre=PegTool().centre).fit(demos)  # the twist moves the tip sphere's centre
+
+
 def _run_doctor(root: Path) -> dict:
     """``lerobot-doctor check ROOT --json`` (the dev extra installs it)."""
     exe = Path(sys.executable).with_name("lerobot-doctor")

@@ -29,18 +29,6 @@ from robointel.sim import Workcell
 from robointel.sim.mjcf import Payload, SimObject
 
 
-@pytest.fixture(scope="session")
-def insertion_skill():
-    """The GMR insertion skill learned from four seated HDD demonstrations (Sec. 5.5)."""
-    from robointel.learning import insertion as ins
-
-    task = ins.PegHole()
-    scene = ins.HDDScene(task)
-    rng = np.random.default_rng(0)
-    demos = ins.seated_demonstrations(task, rng, 4, scene=scene)  # not every try seats at 20 um
-    return ins.InsertionSkill(4, centre=PegTool().centre).fit(demos)  # the twist moves the tip sphere's centre
-
-
 def _peg_arm(peg, hole, lateral=(0.0, 0.0), tilt=(0.0, 0.0)):
     wc, robot = peg_hole_workcell(peg, hole)
     wc.reset(ik_near(robot, hole.start_tcp(peg, lateral=lateral, tilt=tilt)))

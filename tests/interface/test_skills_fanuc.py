@@ -22,7 +22,6 @@ from robointel.io.mcap_log import COMMAND, JOINT_STATES, McapRecorder
 from robointel.robot import Robot
 
 from .conftest import fanuc_url, running_fake
-from .test_skills import insertion_skill  # noqa: F401 - the session fixture, fitted once
 
 PEG, HOLE = PegTool(), HoleTask()
 STALL = 50  # periods (0.4 s): a loaded CI machine deschedules this process for tens of ms; 10 stops the robot
@@ -38,8 +37,7 @@ def _wall(robot, q0, below=0.005):
     return VirtualWall(robot, p, (0.0, 0.0, 1.0), stiffness=1500.0, damping=30.0, noise=0.05)
 
 
-def test_the_learned_insertion_skill_streams_to_the_emulator_and_stops_at_the_contact(insertion_skill,  # noqa: F811
-                                                                                      tmp_path):
+def test_the_learned_insertion_skill_streams_to_the_emulator_and_stops_at_the_contact(insertion_skill, tmp_path):
     robot, q0 = _start()
     with running_fake(q0) as fake:
         rec = McapRecorder(tmp_path / "run.mcap", list(robot.joint_names))
@@ -65,7 +63,7 @@ def test_the_learned_insertion_skill_streams_to_the_emulator_and_stops_at_the_co
     assert counts[COMMAND] == len(res.q_cmd) and counts[JOINT_STATES] >= len(res.q_cmd)
 
 
-def test_an_estop_during_the_skill_stops_the_commands_at_once(insertion_skill):  # noqa: F811
+def test_an_estop_during_the_skill_stops_the_commands_at_once(insertion_skill):
     robot, q0 = _start()
     with running_fake(q0) as fake:
         with open_robot(fanuc_url(fake), stall_periods=STALL) as arm:

@@ -8,7 +8,6 @@ from robointel.errors import InvalidInput
 from robointel.io.episode import Episode
 from robointel.io.lerobot import read_lerobot, write_lerobot
 from robointel.io.robomimic import read_robomimic, write_robomimic
-from robointel.learning import insertion
 from robointel.learning.demonstration import load_demonstrations, save_demonstrations
 from robointel.learning.demonstration_episode import demonstration_to_episode, episode_to_demonstration
 
@@ -20,13 +19,10 @@ def assert_same(a, b):
 
 
 @pytest.fixture(scope="module")
-def demos(tmp_path_factory):
-    """Two peg-in-hole demonstrations with the HDD in MuJoCo, stored and re-read as the CLI does."""
-    task = insertion.PegHole()
-    rng = np.random.default_rng(3)
-    scene = insertion.HDDScene(task)
+def demos(tmp_path_factory, hdd_demos):
+    """Two peg-in-hole demonstrations with the HDD in MuJoCo (seed 3), stored and re-read as the CLI does."""
     path = tmp_path_factory.mktemp("demos") / "demos.h5"
-    save_demonstrations(path, [insertion.demonstrate(task, rng, scene=scene, name=f"demo_{i}") for i in range(2)])
+    save_demonstrations(path, list(hdd_demos))
     return load_demonstrations(path)
 
 
