@@ -133,9 +133,18 @@ class Environment:
             (:func:`robointel.robot.sphere_cover.cover_meshes`) and check obstacles against them
             (see :meth:`use`); self-collision always uses the spheres as given.
 
+    The robot side (the bound spheres, self-collision pairs, levers, covering radii) is packed once
+    per robot and set of these inputs and shared, read-only, by every environment built with them;
+    a spherized URDF is read again when its file changes.
+
     Raises:
         InvalidInput: bad obstacles, spheres, SRDF or attached objects.
     """
+
+    world: tuple
+    _spheres: tuple
+    _fitted: tuple
+    _cover: tuple
 
     def __init__(self, robot: Robot, obstacles: Iterable[Obstacle] = (), *, srdf: str | Path | None = None,
                  spheres: SphereModel | str | Path | None = None, floor: float | None = None,
