@@ -73,12 +73,11 @@ class MotionSettings:
         root_relaxed_rad: when the start or a goal is free only in the relaxed (partially grown)
             spheres, an edge leaving it is checked in them for its first ``root_relaxed_rad`` rad
             (max |dq|) and in the mesh-covering spheres beyond.
-        fitted_fallback: fraction of ``time_budget_s`` after which a search in the mesh-covering
-            spheres that has found no path gives way to a search in the spheres as given (they
-            may leave parts of the meshes uncovered, so every sample of that trajectory the covering
-            spheres leave in doubt is checked on the collision meshes); 1: never. Only for
-            environments with ``cover_meshes`` and without a point cloud (the mesh check measures
-            primitives only).
+        fitted_fallback: when the start or a goal is free only in the relaxed spheres: fraction of
+            ``time_budget_s`` after which a search that has found no path gives way to a search in
+            the spheres as given (they may leave parts of the meshes uncovered, so every sample of
+            that trajectory the covering spheres leave in doubt is checked on the collision
+            meshes); 1: never. Not with a point cloud (the mesh check measures primitives only).
     """
 
     d_min: float = 0.0
@@ -261,7 +260,7 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
 
     now = time.perf_counter()
     deadline = now + st.time_budget_s
-    fallback = env.cover_meshes and len(env._cloud[0]) == 0 and st.fitted_fallback < 1
+    fallback = hybrid and len(env._cloud[0]) == 0 and st.fitted_fallback < 1
     search_end = now + st.fitted_fallback * st.time_budget_s if fallback else deadline
     attempt, exact = 0, False
     while True:
