@@ -8,9 +8,11 @@ A configuration q is valid when every robot sphere keeps distance >= d_min to ev
 """
 from __future__ import annotations
 
+import weakref
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -46,6 +48,26 @@ def sphere_model_from_urdf(robot: Robot, path: str | Path) -> SphereModel:
     Raises:
         InvalidInput: the file cannot be read, has no spheres, or names a link ``robot`` lacks.
     """
+    links, centres, radii = _urdf_spheres(robot, path)
+    return SphereModel(links, centres, radii).bind(robot)
+
+
+def _urdf_spheres(robot: Robot, path: str | Path) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """Links, centres and radii of a spherized URDF's spheres (the file read once per path and version)."""
+    try:
+        st = Path(path).stat()
+    except OSError as exc:
+        raise InvalidInput(f"cannot read sphere URDF {path}: {exc}", value=str(path)) from None
+    key = (str(Path(path).resolve()), st.st_mtime_ns, st.st_size)
+    hit = _robot_cache(robot).get(key)
+    if hit is None:
+        hit = _read_urdf_spheres(robot, path)
+        _robot_cache(robot)[key] = hit
+    links, centres, radii = hit
+    return list(links), centres.copy(), radii.copy()
+
+
+def _read_urdf_spheres(robot: Robot, path: str | Path) -> tuple[list[str], np.ndarray, np.ndarray]:
     try:
         src = Robot.load(path)
     except (DescriptionError, OSError) as exc:
@@ -63,7 +85,15 @@ def sphere_model_from_urdf(robot: Robot, path: str | Path) -> SphereModel:
             radii.append(r)
     if not links:
         raise InvalidInput(f"sphere URDF {path} holds no <sphere> collision geometry", value=str(path))
-    return SphereModel(links, np.concatenate(centres), np.concatenate(radii)).bind(robot)
+    return links, np.concatenate(centres), np.concatenate(radii)
+
+
+#: per robot (weakly held): spherized-URDF reads and packed sphere models, keyed by their content
+_ROBOT_CACHE: weakref.WeakKeyDictionary[Robot, dict[tuple, Any]] = weakref.WeakKeyDictionary()
+
+
+def _robot_cache(robot: Robot) -> dict[tuple, Any]:
+    return _ROBOT_CACHE.setdefault(robot, {})
 
 
 @dataclass(frozen=True)
@@ -80,6 +110,10 @@ class Contact:
         kind = "link" if self.self_collision else "obstacle"
         return (f"{what} is in collision: robot link {self.link!r} is {self.distance * 1e3:.1f} mm from "
                 f"{kind} {self.other!r}")
+
+
+#: the attributes :meth:`Environment._pack_spheres` derives from the robot alone (cached per robot)
+_PACKED = ("spheres", "_chain", "sphere_links", "lever", "_self", "_rel", "_fitted", "_cover")
 
 
 class Environment:
@@ -99,9 +133,18 @@ class Environment:
             (:func:`robointel.robot.sphere_cover.cover_meshes`) and check obstacles against them
             (see :meth:`use`); self-collision always uses the spheres as given.
 
+    The robot side (the bound spheres, self-collision pairs, levers, covering radii) is packed once
+    per robot and set of these inputs and shared, read-only, by every environment built with them;
+    a spherized URDF is read again when its file changes.
+
     Raises:
         InvalidInput: bad obstacles, spheres, SRDF or attached objects.
     """
+
+    world: tuple
+    _spheres: tuple
+    _fitted: tuple
+    _cover: tuple
 
     def __init__(self, robot: Robot, obstacles: Iterable[Obstacle] = (), *, srdf: str | Path | None = None,
                  spheres: SphereModel | str | Path | None = None, floor: float | None = None,
@@ -111,13 +154,11 @@ class Environment:
             raise InvalidInput(f"robot must be a robointel Robot, got {type(robot).__name__}", value=robot)
         self.robot = robot
         self.cover_meshes = bool(cover_meshes)
-        if spheres is None:
-            sm = robot.spheres
-        elif isinstance(spheres, SphereModel):
-            sm = spheres
+        if spheres is None or isinstance(spheres, SphereModel):
+            sm = robot.spheres if spheres is None else spheres
+            links, centres, radii = list(sm.links), np.asarray(sm.centers, float), np.asarray(sm.radii, float)
         else:
-            sm = sphere_model_from_urdf(robot, spheres)
-        links, centres, radii = list(sm.links), np.asarray(sm.centers, float), np.asarray(sm.radii, float)
+            links, centres, radii = _urdf_spheres(robot, spheres)
         if attached:
             link = attach_link or robot.model.frames[robot._flange_id].name
             if attach_link is not None:
@@ -130,7 +171,6 @@ class Environment:
                 links += [link] * len(r)
                 centres = np.vstack([centres, c])
                 radii = np.append(radii, r)
-        self.spheres = SphereModel(links, centres, radii).bind(robot)
         self.disabled = disabled_pairs(srdf, robot.link_names) if srdf is not None else set()
         obs = list(obstacles)
         for k, o in enumerate(obs):
@@ -142,8 +182,19 @@ class Environment:
             obs.append(Box(center=np.array([0.0, 0.0, z - 0.5]), size=np.array([20.0, 20.0, 1.0]), name="floor"))
         self.obstacles = [o for o in obs if not isinstance(o, PointCloud)]
         self.labels = [o.label(k) for k, o in enumerate(self.obstacles)]
-        self._chain = _chain_arrays(robot)
-        self._pack_spheres()
+        # the robot side (bound spheres, joint tree, self-collision pairs, levers, covering radii) depends on the
+        # robot and these inputs only: packed once and shared by every environment of the robot (read-only)
+        key = ("pack", tuple(links), np.asarray(centres, float).tobytes(), np.asarray(radii, float).tobytes(),
+               frozenset(self.disabled), self.cover_meshes)
+        pack = _robot_cache(robot).get(key)
+        if pack is None:
+            self.spheres = SphereModel(links, centres, radii).bind(robot)
+            self._chain = _chain_arrays(robot)
+            self._pack_spheres()
+            pack = {k: getattr(self, k) for k in _PACKED}
+            _robot_cache(robot)[key] = pack
+        self.__dict__.update(pack)
+        self._spheres, self.model = self._cover, "cover"
         packed = [o._packed for o in self.obstacles]  # type: ignore[attr-defined]
         self._prims = (np.array([o._code for o in self.obstacles], np.int64),
                        np.array(packed, dtype=np.float64).reshape(-1, GK.NPARAM))

@@ -54,14 +54,32 @@ def interior_check(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tup
             return DenseCheck(False, f"the covering spheres come {d * 1e3:.1f} mm from the obstacles between "
                               f"t = {traj.t[i0]:.3f} s and {traj.t[i1]:.3f} s", "collision",
                               min(d, chk.min_clearance_m), chk.samples)
+    dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
+    t0, t1 = float(traj.t[i0]), float(traj.t[i1])
+    return _mesh_check(env, dense, (dense.t <= t0, dense.t >= t1), Wc, chk, d_min=d_min, deadline=deadline)
+
+
+def exact_check(env: Environment, traj: Trajectory, Wc: tuple, chk: DenseCheck, *, d_min: float, dt: float,
+                deadline: float = float("inf")) -> DenseCheck:
+    """Check a whole trajectory planned with spheres that may leave parts of the meshes uncovered.
+
+    Every ``dt`` sample that the mesh-covering spheres ``Wc`` leave closer than
+    max(d_min - 1 mm, 0) to the obstacles gets the exact distance to the collision meshes
+    (:class:`MeshGeometry`), which must be >= that bound. Clock and result as :func:`interior_check`.
+    """
+    dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
+    return _mesh_check(env, dense, (np.ones(len(dense.t), bool),), Wc, chk, d_min=d_min, deadline=deadline)
+
+
+def _mesh_check(env: Environment, dense: Trajectory, windows: tuple[np.ndarray, ...], Wc: tuple, chk: DenseCheck, *,
+                d_min: float, deadline: float) -> DenseCheck:
+    """The exact mesh check of the samples of ``dense`` each boolean mask in ``windows`` selects."""
     mg = mesh_geometry(env)
     if mg.empty:
         return chk
-    dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
-    t0, t1 = float(traj.t[i0]), float(traj.t[i1])
     thr = max(d_min - CLEARANCE_TOL, 0.0)  # the real geometry may not be penetrated at all
     s = env.scratch
-    for sel in (dense.t <= t0, dense.t >= t1):
+    for sel in windows:
         Q = np.ascontiguousarray(dense.q[sel])
         if len(Q) == 0:
             continue
@@ -83,4 +101,4 @@ def interior_check(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tup
     return chk
 
 
-__all__ = ["MESH_CHUNK", "interior_check", "mesh_geometry", "timed_out"]
+__all__ = ["MESH_CHUNK", "exact_check", "interior_check", "mesh_geometry", "timed_out"]

@@ -25,7 +25,7 @@ from robointel.planning import _edge_kernels as E
 from robointel.planning import _rrt_kernels as R
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
-from robointel.planning.hybrid_check import interior_check, timed_out
+from robointel.planning.hybrid_check import exact_check, interior_check, timed_out
 from robointel.planning.jerk_limited import jerk_limited_polyline
 from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, check_dense
 from robointel.planning.polyline_timing import polyline_timing
@@ -73,6 +73,11 @@ class MotionSettings:
         root_relaxed_rad: when the start or a goal is free only in the relaxed (partially grown)
             spheres, an edge leaving it is checked in them for its first ``root_relaxed_rad`` rad
             (max |dq|) and in the mesh-covering spheres beyond.
+        fitted_fallback: when the start or a goal is free only in the relaxed spheres: fraction of
+            ``time_budget_s`` after which a search that has found no path gives way to a search in
+            the spheres as given (they may leave parts of the meshes uncovered, so every sample of
+            that trajectory the covering spheres leave in doubt is checked on the collision
+            meshes); 1: never. Not with a point cloud (the mesh check measures primitives only).
     """
 
     d_min: float = 0.0
@@ -93,6 +98,7 @@ class MotionSettings:
     jerk_limit: tuple[float, ...] | None = None
     check_dt: float = 1e-3
     root_relaxed_rad: float = 0.2
+    fitted_fallback: float = 0.3
 
 
 @dataclass
@@ -197,9 +203,10 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
     st = settings
     if not (st.d_min >= 0 and st.time_budget_s > 0 and st.resolution > 0 and st.rrt_range > 0
             and 0 < st.velocity_scale <= 1 and st.knot_step > 0 and st.spline_step > 0 and st.check_dt > 0
-            and st.root_relaxed_rad > 0 and st.timing in ("topp", "temporal")):
+            and st.root_relaxed_rad > 0 and st.timing in ("topp", "temporal") and 0 < st.fitted_fallback <= 1):
         raise InvalidInput("settings need d_min >= 0, time_budget_s, resolution, rrt_range, knot_step, spline_step, "
-                           "check_dt, root_relaxed_rad > 0, 0 < velocity_scale <= 1 and timing 'topp' or 'temporal'",
+                           "check_dt, root_relaxed_rad > 0, 0 < velocity_scale, fitted_fallback <= 1 and timing "
+                           "'topp' or 'temporal'",
                            value=st)
     q0 = np.array(robot.check_q(np.asarray(start, float), "start", limits=True), dtype=float)  # writable
     goals = _goal_set(robot, goal, st.seed)
@@ -251,11 +258,21 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
         raise InvalidInput(f"acceleration_limit must be ({robot.nq},) positive", value=amax)
     timings["validate"] = (time.perf_counter() - t0) * 1e3
 
-    deadline = time.perf_counter() + st.time_budget_s
-    attempt = 0
+    now = time.perf_counter()
+    deadline = now + st.time_budget_s
+    fallback = hybrid and len(env._cloud[0]) == 0 and st.fitted_fallback < 1
+    search_end = now + st.fitted_fallback * st.time_budget_s if fallback else deadline
+    attempt, exact = 0, False
     while True:
-        path, gi, traj, chk, why = _attempt(env, q0, goals, st, deadline, Wc, Wr, rcap, vmax, amax, timings,
-                                            attempt, thr)
+        path, gi, traj, chk, why = _attempt(env, q0, goals, st, deadline, search_end, Wc, Wr, rcap, vmax, amax,
+                                            timings, attempt, thr, exact)
+        if path is None and not exact and fallback and time.perf_counter() < deadline:
+            # the covering spheres leave no way found in time: the spheres as given, checked on the meshes
+            env.use("fitted")
+            Wc = Wr = env.world
+            rcap, exact, search_end, attempt = float("inf"), True, deadline, attempt + 1
+            timings["fitted_after"] = (time.perf_counter() - now) * 1e3
+            continue
         if path is None:
             return _fail(f"no collision-free path found: {why}", Failure.TIMEOUT, t0, timings)
         assert chk is not None
@@ -263,7 +280,7 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
             return _fail(f"{chk.reason} (attempt {attempt + 1})", Failure.TIMEOUT, t0, timings, path, traj,
                          chk.min_clearance_m, int(goal_ids[gi]))
         # a start/goal edge that touches the real meshes: another tree may approach differently
-        if chk.ok or not hybrid or chk.kind != "collision" or time.perf_counter() >= deadline:
+        if chk.ok or not (hybrid or exact) or chk.kind != "collision" or time.perf_counter() >= deadline:
             break
         attempt += 1
     goal_index = int(goal_ids[gi])
@@ -278,15 +295,17 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
                       chk.min_clearance_m, goal_index)
 
 
-def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, deadline: float, Wc: tuple,
-             Wr: tuple, rcap: float, vmax: np.ndarray, amax: np.ndarray, timings: dict[str, float],
-             attempt: int, thr: float) -> tuple[np.ndarray | None, int, Trajectory | None, DenseCheck | None, str]:
+def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, deadline: float,
+             search_end: float, Wc: tuple, Wr: tuple, rcap: float, vmax: np.ndarray, amax: np.ndarray,
+             timings: dict[str, float], attempt: int, thr: float,
+             exact: bool = False) -> tuple[np.ndarray | None, int, Trajectory | None, DenseCheck | None, str]:
     """One search, shortcut, timing and dense check: (path, goal, trajectory, check, why not).
 
     The search and the shortcut keep sphere clearance ``thr`` (<= d_min); the dense check d_min - 1 mm.
     Root edges are relaxed (``Wr``) for ``rcap`` rad (inf: not hybrid, ``Wr`` is ``Wc``). Past
     ``deadline`` the check is a failed one of kind ``"timeout"`` (the stages look at the clock
-    between steps).
+    between steps); the search itself ends at ``search_end``. ``exact``: every sample the covering
+    spheres leave in doubt is checked on the collision meshes (:func:`exact_check`).
     """
     robot = env.robot
     hybrid = rcap != float("inf")
@@ -295,7 +314,7 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     path, gi, why = None, -1, ""
     res = float(st.search_resolution)
     while path is None:
-        path, gi, why = _search(env, q0, goals, st, res, deadline, Wc, Wr, attempt, thr, rcap)
+        path, gi, why = _search(env, q0, goals, st, res, search_end, Wc, Wr, attempt, thr, rcap)
         if path is None:
             timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
             return None, -1, None, None, why
@@ -337,8 +356,7 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
             else:
                 traj = topp_spline(path, vmax, amax, step=float(step), dt=st.check_dt, joint_names=names)
             chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
-            if chk.ok and hybrid:
-                chk = interior_check(env, traj, path, Wc, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
+            chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact)
             if chk.ok or chk.kind != "collision":
                 break
         timings["smooth"] = (time.perf_counter() - t3) * 1e3
@@ -352,10 +370,21 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
         else:
             traj = polyline_timing(path, vmax, amax, dt=st.check_dt, joint_names=names)
         chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
-        if chk.ok and hybrid:
-            chk = interior_check(env, traj, path, Wc, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
+        chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact)
         timings["timing"] = (time.perf_counter() - t4) * 1e3
     return path, gi, traj, chk, ""
+
+
+def _mesh_checks(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, chk: DenseCheck, st: MotionSettings,
+                 deadline: float, hybrid: bool, exact: bool) -> DenseCheck:
+    """The collision-mesh checks a passed dense check still needs: start/goal edges (hybrid) or all (exact)."""
+    if not chk.ok:
+        return chk
+    if exact:
+        return exact_check(env, traj, env.world_cover, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
+    if hybrid:
+        return interior_check(env, traj, path, Wc, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
+    return chk
 
 
 _WARM: set[int] = set()

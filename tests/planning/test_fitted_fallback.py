@@ -1,0 +1,75 @@
+"""The fallback to the spheres as given, every doubtful sample checked on the collision meshes: a goal
+whose only way out the mesh-covering spheres close (MotionBenchMaker table_pick 78), and the exact check
+refusing what the spheres let through."""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from robointel.errors import InvalidInput
+from robointel.geometry.obstacles import Sphere
+from robointel.io.mbm import load_mbm_problems
+from robointel.planning import Environment, MotionSettings, plan_motion
+from robointel.planning.exact_geometry import MeshGeometry
+from robointel.planning.hybrid_check import exact_check
+from robointel.planning.motion_check import check_dense
+from robointel.robot import Robot
+from robointel.robot.collision import SphereModel
+from robointel.trajectory import Trajectory
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+from _mbm_checker import MBMChecker  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def ur5(shared_data):
+    root = shared_data("mbm", "ur5")
+    return root, Robot.load(root / "ur5.urdf")
+
+
+def test_a_goal_the_covering_spheres_close_is_planned_in_the_given_spheres(ur5, tmp_path):
+    root, robot = ur5
+    data = json.loads((root / "problems.json").read_text())
+    raw = next(r for r in data["problems"]["table_pick"] if r["index"] == 78)
+    one = tmp_path / "one.json"  # the reader on this problem alone (reading all 689 is slow under load)
+    one.write_text(json.dumps({**data, "problems": {"table_pick": [raw]}}))
+    p = load_mbm_problems(one).select(index=78)[0]
+    env = Environment(robot, p.obstacles, srdf=root / "ur5.srdf", spheres=root / "ur5_spherized.urdf")
+    # a generous wall budget (the test must hold under load); the covering spheres get 2 % of it
+    st = MotionSettings(d_min=0.001, seed=7919 + 78, time_budget_s=60.0, fitted_fallback=0.02)
+    plan = plan_motion(robot, env, p.start, p.goals, settings=st)
+    assert plan.success, plan.reason
+    assert plan.trajectory.meta["collision_model"] == "fitted" and "fitted_after" in plan.timings
+    assert env.model != "fitted"  # the environment's own choice is restored
+    tr = plan.trajectory
+    # the independent coal checker every 5 ms (the planner's own mesh check took every 1 ms sample in doubt)
+    v = MBMChecker(root / "ur5.urdf", root / "ur5.srdf").check_trajectory(tr.t, tr.q, raw, qd=tr.qd, dt=5e-3,
+                                                                           amax=robot.acceleration_limit)
+    assert not v.collision and v.min_clearance >= 0.0, (v.pair, v.min_clearance)
+    with pytest.raises(InvalidInput):
+        plan_motion(robot, env, p.start, p.goals, settings=MotionSettings(fitted_fallback=0.0))
+
+
+def test_the_exact_check_refuses_what_the_given_spheres_let_through(ur5):
+    _, robot = ur5
+    # one 1 mm sphere per moving link at its origin: the meshes are left uncovered
+    links = [ln for ln in robot.link_names if robot.link_joint(ln) > 0]
+    tiny = SphereModel(links, np.zeros((len(links), 3)), np.full(len(links), 1e-3))
+    q = np.array([0.0, -1.2, 1.2, -1.5, -1.5, 0.0])
+    fore = next(part for part in MeshGeometry(robot, []).parts if part.link == "forearm_link")
+    pin.framesForwardKinematics(robot.model, robot.data, q)
+    T = robot.data.oMf[fore.frame].homogeneous
+    ball = Sphere(center=T[:3, :3] @ fore.centre + T[:3, 3], radius=0.06, name="ball")  # across the tube's wall
+    env = Environment(robot, [ball], spheres=tiny)
+    env.use("fitted")
+    n = robot.nq
+    tr = Trajectory(np.array([0.0, 1e-3]), np.array([q, q]), np.zeros((2, n)), np.zeros((2, n)))
+    chk = check_dense(env, tr, d_min=0.001, vmax=robot.velocity_limit, amax=robot.acceleration_limit)
+    assert chk.ok  # the tiny spheres are clear of the ball
+    out = exact_check(env, tr, env.world_cover, chk, d_min=0.001, dt=1e-3)
+    assert not out.ok and out.kind == "collision" and "forearm_link" in out.reason and "ball" in out.reason
