@@ -9,10 +9,10 @@ from __future__ import annotations
 import contextlib
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from types import TracebackType
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -306,6 +306,29 @@ class Backend:
             None.
         """
         yield
+
+    @contextlib.contextmanager
+    def _lookahead_section(self, ring: Callable[[], Any], lookahead_s: float, base_s: float) -> Iterator[None]:
+        """:meth:`low_latency`'s body for a backend fed through a streaming process's look-ahead ring.
+
+        A stream that is running is held first (its queue plays out), ``ring().set_lookahead(lookahead_s)``
+        applies to the block's targets (0: each at once), and ``base_s`` comes back after the block (a
+        running stream is held again). The stall watchdog's limit follows the look-ahead.
+        """
+        with self._lock:
+            if self._mode is RobotMode.STREAMING:
+                self.hold()
+            ring().set_lookahead(lookahead_s)
+            self._stall_extra_s = float(lookahead_s)
+        try:
+            yield
+        finally:
+            with self._lock:
+                if self._mode is RobotMode.STREAMING:
+                    self.hold()
+                if not self._closed:
+                    ring().set_lookahead(base_s)
+                self._stall_extra_s = float(base_s)
 
     @contextlib.contextmanager
     def force_loop(self) -> Iterator[None]:

@@ -16,7 +16,9 @@ def open_robot(url: str = "sim", *, recorder: Recorder | None = None, **kwargs: 
             controller over RMI + Stream Motion; ports default to 16001 and 60015).
         recorder: optional recorder of the run (e.g. :class:`robointel.io.mcap_log.McapRecorder`).
         **kwargs: passed to :class:`~robointel.interface.sim.SimRobot` or
-            :class:`~robointel.interface.fanuc.FanucRobot`.
+            :class:`~robointel.interface.fanuc.FanucRobot`; ``open_robot("sim", stream_process=True, ...)``
+            opens a :class:`~robointel.interface.sim_stream.SimStreamRobot` (the physics in a process of
+            its own, paced against wall time; ``stream_process=False`` or none: ``SimRobot``).
 
     Returns:
         The backend (a :class:`~robointel.interface.protocol.RobotInterface`).
@@ -28,6 +30,13 @@ def open_robot(url: str = "sim", *, recorder: Recorder | None = None, **kwargs: 
     if not isinstance(url, str):
         raise InvalidInput(f"robot URL must be a string, got {url!r}", value=url)
     if url == "sim" or url.startswith("sim:"):
+        if kwargs.pop("stream_process", False):
+            if not kwargs.pop("paced", True):
+                raise InvalidInput("the sim's streaming process is paced: stream_process=True needs paced=True",
+                                   value=url)
+            from robointel.interface.sim_stream import SimStreamRobot
+
+            return SimStreamRobot(recorder=recorder, **kwargs)
         from robointel.interface.sim import SimRobot
 
         return SimRobot(recorder=recorder, **kwargs)

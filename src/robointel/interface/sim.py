@@ -4,7 +4,9 @@ Each streamed target is one controller period: the workcell's 1 kHz joint contro
 straight line from the previous target to the new one (velocity feed-forward = the line's slope),
 as a robot controller interpolates between Stream Motion targets. Time only advances while
 targets arrive (or in :meth:`SimRobot.idle`); ``paced=True`` makes :meth:`execute` wait for wall
-time between targets, ``paced=False`` runs as fast as it can.
+time between targets, ``paced=False`` runs as fast as it can. The paced simulation whose physics runs
+in a process of its own, against wall time, is :class:`~robointel.interface.sim_stream.SimStreamRobot`
+(``open_robot("sim", stream_process=True)``).
 """
 from __future__ import annotations
 
@@ -18,6 +20,34 @@ from robointel.sim.workcell import Workcell
 
 BRAKE_S = 0.05
 """How long a stop holds the measured position to bring the simulated arm to rest, s."""
+
+
+def substeps_of(period: float, control_dt: float) -> int:
+    """The workcell's control periods per controller period.
+
+    Raises:
+        InvalidInput: ``period`` is not a positive multiple of ``control_dt``.
+    """
+    ratio = period / control_dt
+    if not (period > 0 and abs(ratio - round(ratio)) < 1e-6 and round(ratio) >= 1):
+        raise InvalidInput(f"period {period} s must be a multiple of the workcell's control period "
+                           f"{control_dt} s", value=period)
+    return int(round(ratio))
+
+
+def step_window(wc: Workcell, prev: npt.NDArray[np.float64], q: npt.NDArray[np.float64], period: float,
+                substeps: int) -> None:
+    """One controller window: track the straight line from target ``prev`` to ``q`` (n,) rad.
+
+    The velocity feed-forward is the line's slope, as a robot controller interpolates between Stream
+    Motion targets; ``prev == q`` holds.
+
+    Raises:
+        SafetyStop: the simulation diverged (the workcell is back at rest where it last was).
+    """
+    slope = (q - prev) / period
+    for i in range(1, substeps + 1):
+        wc.track(prev + (q - prev) * (i / substeps), slope)
 
 
 class SimRobot(Backend):
@@ -41,11 +71,7 @@ class SimRobot(Backend):
                  q0: npt.ArrayLike | None = None) -> None:
         self.workcell = workcell if workcell is not None else Workcell()
         wc = self.workcell
-        ratio = period / wc.control_dt
-        if not (period > 0 and abs(ratio - round(ratio)) < 1e-6 and round(ratio) >= 1):
-            raise InvalidInput(f"period {period} s must be a multiple of the workcell's control period "
-                               f"{wc.control_dt} s", value=period)
-        self.substeps = int(round(ratio))
+        self.substeps = substeps_of(period, wc.control_dt)
         robot = wc.robot
         super().__init__(robot.joint_names, robot.lower, robot.upper, robot.velocity_limit, period, paced=paced,
                          stall_periods=stall_periods, recorder=recorder)
@@ -61,12 +87,8 @@ class SimRobot(Backend):
 
     # ------------------------------------------------------------------ backend hooks
     def _send(self, q: npt.NDArray[np.float64]) -> None:
-        prev = self._target
-        slope = (q - prev) / self.period
-        m = self.substeps
         try:
-            for i in range(1, m + 1):
-                self.workcell.track(prev + (q - prev) * (i / m), slope)
+            step_window(self.workcell, self._target, q, self.period, self.substeps)
         except SafetyStop as exc:
             self._latch_fault(RobotMode.FAULTED, str(exc), ("sim_unstable",))
             raise ControllerFault(str(exc), value=self._read(), reason=str(exc)) from None

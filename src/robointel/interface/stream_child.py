@@ -1,16 +1,16 @@
-"""The FANUC streaming process: owns the airo-fanuc driver and plays time-stamped targets at the ticks.
+"""The streaming process: owns the robot's real-time side and plays time-stamped targets at the ticks.
 
-This file runs as a script in a child process (:mod:`robointel.interface.stream_process` starts it and
-talks to it); it imports only the standard library, numpy and ``airo_fanuc``, and has its own
-interpreter lock. The caller writes targets into a ring in shared memory, each stamped with its
-arrival and the time it is to be played (its *slot*: arrival + the look-ahead, then one period
-apart). At each core tick (``cmd_tick``) this process interpolates them at the next tick's time
-and submits the result (``servo_j``). A window is *fresh* (a target to interpolate was there),
-*starved* (the caller was late by more than the look-ahead), *late* (this process submitted after
-the tick) or *core-late* (the core sent the tick late while this process polled for it, counted
-apart). A *direct* target (slot = arrival: look-ahead 0, a force loop) is submitted as soon as the
-caller's eventfd wakes this process, the newest first. The core's snapshot, the counters and a
-stall flag go back through a seqlock block in the same memory.
+This file runs as a script in the FANUC driver's child process (:mod:`robointel.interface.stream_process`
+starts it and talks to it; it imports only the standard library, numpy and ``airo_fanuc``, and has its
+own interpreter lock); the sim's child (:mod:`robointel.interface.sim_child`) runs its loop too. The
+caller writes targets into a ring in shared memory, each stamped with its arrival and the time it is to be
+played (its *slot*: arrival + the look-ahead, then one period apart). At each core tick (``cmd_tick``) this
+process interpolates them at the next tick's time and submits the result (``servo_j``). A window is *fresh*
+(a target to interpolate was there), *starved* (the caller was late by more than the look-ahead), *late*
+(this process submitted after the tick) or *core-late* (the core sent the tick late while this process
+polled for it, counted apart). A *direct* target (slot = arrival: look-ahead 0, a force loop) is submitted
+as soon as the caller's eventfd wakes this process, the newest first. The snapshot, counters and stall
+flag go back through a seqlock block.
 """
 from __future__ import annotations
 
@@ -44,15 +44,14 @@ STATE_FIELDS: tuple[tuple[str, int], ...] = (
     ("stalled", 1), ("stall_gap_s", 1), ("refused", 1),
     ("windows", 1), ("fresh", 1), ("starved", 1), ("late", 1), ("submits", 1), ("last_submit_s", 1),
     ("core_late", 1), ("direct_submits", 1), ("direct_latency_max_s", 1), ("direct_latency_sum_s", 1),
-    ("gc_max_s", 1),
+    ("gc_max_s", 1), ("holds", 1),
 )
 """The state block: name and length. Times are seconds after the session's base (CLOCK_MONOTONIC)."""
 S_OFF = 8
 STATE_INDEX: dict[str, slice] = {}
 _o = S_OFF
 for _name, _n in STATE_FIELDS:
-    STATE_INDEX[_name] = slice(_o, _o + _n)
-    _o += _n
+    STATE_INDEX[_name], _o = slice(_o, _o + _n), _o + _n
 RING_OFF = _o
 SLOT_WIDTH = 2 + NDOF
 """A ring slot: play time, arrival time (s after the base), the (6,) target in rad."""
@@ -65,7 +64,6 @@ CORE_LATE_MARGIN_S, CATCH_UP_S = 0.0002, 0.001
 EVENTS = 64  # missed windows remembered for the ``missed_events`` request
 GC_TICKS = 125
 """Automatic GC is off; the loop collects the young generations every this many ticks, just after one."""
-
 _SNAP_SCALARS = ("cmd_tick", "mode", "fault", "e_stopped", "in_error", "tp_enabled", "motion_possible",
                  "wrench_valid", "active_motion_id", "active_motion_status")
 
@@ -79,11 +77,12 @@ class Player:
         period: controller period, s.
         stall_periods: stop the robot after this many consecutive starved windows.
         driver: the ``FanucDriver`` (anything with ``servo_j``, ``hold``, ``stop_j``, ``core``).
+        refusals: what the driver's ``servo_j`` raises when it refuses a target (the segment is dropped).
     """
 
     def __init__(self, buf: npt.NDArray[np.float64], base_ns: int, period: float, stall_periods: int,
-                 driver: Any) -> None:
-        self.buf, self.base_ns, self.period = buf, int(base_ns), float(period)
+                 driver: Any, refusals: tuple[type[Exception], ...] = (FanucError,)) -> None:
+        self.buf, self.base_ns, self.period, self.refusals = buf, int(base_ns), float(period), refusals
         self.stall_periods, self.driver = int(stall_periods), driver
         self.pending: list[tuple[int, float, float, npt.NDArray[np.float64]]] = []
         self.active = self.direct = False  # a queued (look-ahead) / a direct segment plays
@@ -98,7 +97,7 @@ class Player:
         self.events: list[tuple[str, float, int, float, float, float, int, float]] = []
         self.counters = {"windows": 0, "fresh": 0, "starved": 0, "late": 0, "submits": 0, "last_submit_s": 0.0,
                          "stalled": 0, "stall_gap_s": 0.0, "refused": 0, "core_late": 0, "direct_submits": 0,
-                         "direct_latency_max_s": 0.0, "direct_latency_sum_s": 0.0, "gc_max_s": 0.0}
+                         "direct_latency_max_s": 0.0, "direct_latency_sum_s": 0.0, "gc_max_s": 0.0, "holds": 0}
 
     def rel(self, ns: int) -> float:
         """Seconds after the base."""
@@ -235,7 +234,7 @@ class Player:
 
     def _hold(self, gen: int, hold_at: int) -> None:
         self.pending = [p for p in self.pending if p[0] >= hold_at]
-        self.hold_gen = gen
+        self.hold_gen = self.counters["holds"] = gen  # published: the caller's hold has been played
         self.active = self.direct = False
         self.consec_starved = 0
         self.driver.hold()
@@ -291,7 +290,7 @@ class Player:
         c = self.counters
         try:
             self.driver.servo_j(q, self.period)
-        except FanucError:
+        except self.refusals:
             c["refused"] = 1
             self.discard()
             return
@@ -367,15 +366,18 @@ def stop_core_between_ticks(driver: Any, period: float, attempts: int = 25) -> N
 
 
 def serve_forever(conn: Connection, buf: npt.NDArray[np.float64], driver: Any, base_ns: int, period: float,
-                  stall_periods: int, wake_fd: int = -1) -> None:
+                  stall_periods: int, wake_fd: int = -1, *, request: Any = None,
+                  refusals: tuple[type[Exception], ...] = (FanucError,)) -> None:
     """The streaming process's loop: one :meth:`Player.serve` per tick, requests from the caller between.
 
     Every wake-up (a tick, a request, the caller's eventfd ``wake_fd`` after a direct target, or the
     2 ms publishing timer) submits the newest direct target that arrived (:meth:`Player.serve_direct`).
     Returns when the caller asks to close or its end of the connection is gone (it died): the core
-    is stopped between ticks and the driver closed either way.
+    is stopped between ticks and the driver closed either way. ``request`` (``_request``'s signature;
+    default: the FANUC driver's) answers the caller's requests; ``refusals`` go to :class:`Player`.
     """
-    player = Player(buf, base_ns, period, stall_periods, driver)
+    player = Player(buf, base_ns, period, stall_periods, driver, refusals)
+    request = _request if request is None else request
     handles: dict[int, Any] = {}
     core = driver.core
     seen = -1
@@ -425,7 +427,7 @@ def serve_forever(conn: Connection, buf: npt.NDArray[np.float64], driver: Any, b
             if name == "close":
                 break
             try:
-                value = _request(name, args, kwargs, driver, player, handles, core)
+                value = request(name, args, kwargs, driver, player, handles, core)
                 if reply:
                     conn.send((True, value))
             except Exception as exc:  # reported to the caller; the stream goes on
@@ -475,9 +477,7 @@ def _request(name: str, args: tuple, kwargs: dict, driver: Any, player: Player, 
 
 def main(conn_fd: int, shm_fd: int, wake_fd: int = -1) -> None:
     """Entry point of the child: bring the driver up, report, serve until closed."""
-    conn = Connection(conn_fd)
-    mm = mmap.mmap(shm_fd, SHM_BYTES)
-    buf = np.frombuffer(mm, dtype=np.float64)
+    conn, buf = Connection(conn_fd), np.frombuffer(mmap.mmap(shm_fd, SHM_BYTES), dtype=np.float64)
     host, policy, base_ns, period, stall_periods = conn.recv()
     # Before bring-up, so that the driver's Python threads inherit it (preempted at normal priority while
     # holding the interpreter lock they would delay this thread); the core's thread sets its own FIFO 80.

@@ -1,17 +1,9 @@
 """The FANUC driver in a streaming process of its own, fed through a look-ahead queue in shared memory.
 
-A Python thread that streams one target per 8 ms shares its interpreter lock with every other
-thread of its process; a planner thread holding the lock while the kernel preempts it delays the
-stream by a scheduling latency (docs/decisions.md). :class:`StreamProcess` moves the per-tick work
-out of the caller's interpreter: the ``airo-fanuc`` driver and its real-time core live in a child
-process (:mod:`robointel.interface.stream_child`), and each target the caller streams is stamped
-with the time it is to be played, ``lookahead_s`` after it arrived (then one period after the
-previous one), and written into a ring in shared memory. At each controller tick the child
-interpolates the targets at the tick's time and submits the result, so a stall of the caller
-shorter than the look-ahead costs no controller window; the price is ``lookahead_s`` of added
-latency between a target and its command. With a look-ahead of 0 (:meth:`StreamProcess.set_lookahead`,
-what a force loop asks for) each target is submitted as soon as the child wakes for it (an eventfd
-the caller writes): no queue, no interpolation, one wake-up of latency.
+:class:`StreamProcess` is a :class:`~robointel.interface.stream_ring.RingProcess` (the ring, the
+seqlock block, the window counters: docs/decisions.md, sessions 21-25) whose child
+(:mod:`robointel.interface.stream_child` run as a script) owns the ``airo-fanuc`` driver and its
+real-time core, and submits the interpolated target at each of the core's ticks.
 
 The class offers the part of ``FanucDriver``'s surface that :class:`~robointel.interface.fanuc.FanucRobot`
 uses (``servo_j``, ``hold``, ``stop_j``, ``kick``, ``recover``, ``arm``, ``move_trajectory``,
@@ -20,16 +12,8 @@ checks (gate, faults, stall, recording) stay where they are.
 """
 from __future__ import annotations
 
-import mmap
-import os
-import socket
-import struct
-import subprocess
-import sys
-import threading
 import time
-from multiprocessing.connection import Connection
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -43,27 +27,25 @@ from airo_fanuc.exceptions import (
     TrajectoryValidationError,
 )
 
-from robointel.errors import ConnectionLost, InvalidInput
 from robointel.interface import stream_child as sc
 from robointel.interface import stream_state
+from robointel.interface.stream_ring import (
+    ALIVE_FRESH_S,
+    FIRST_STATUS_TIMEOUT_S,
+    REPLY_TIMEOUT_S,
+    START_TIMEOUT_S,
+    RingProcess,
+    check_lookahead,
+)
 
-START_TIMEOUT_S = 60.0
-"""Bring-up of the child (interpreter start, imports, driver bring-up), s."""
-FIRST_STATUS_TIMEOUT_S = 5.0
-"""After bring-up, the child must publish a state from a received controller status within this, s."""
-REPLY_TIMEOUT_S = 30.0
-"""A request to the child (recovery ladders included), s."""
-ALIVE_FRESH_S = 0.02
-"""A child that published its state this recently is running (it publishes at least every 2 ms while it
-serves); an older state is checked with ``waitpid``, s."""
+__all__ = ["StreamProcess", "check_lookahead", "ALIVE_FRESH_S", "FIRST_STATUS_TIMEOUT_S", "REPLY_TIMEOUT_S",
+           "START_TIMEOUT_S"]
 
 _ERRORS: dict[str, type[Exception]] = {"TrajectoryValidationError": TrajectoryValidationError,
                                        "RobotFaultedError": RobotFaultedError,
                                        "FanucConnectionError": FanucConnectionError,
                                        "RmiSessionDown": RmiSessionDown,
                                        "RmiError": RmiError}
-_CHILD = ("import runpy, sys; sys.path.pop(0); sys.argv = sys.argv[1:]; "
-          "runpy.run_path(sys.argv[0], run_name='__main__')")
 
 
 def _error(kind: str, message: str) -> Exception:
@@ -89,12 +71,7 @@ class _CoreView:
         return stream_state.snapshot(o.values(), o.base_ns, time.monotonic_ns())
 
 
-_R, _RX = stream_state.R, stream_state.RX
-_PUBLISHED = sc.STATE_INDEX["published_s"].start
 _RUNNING = sc.STATE_INDEX["running"].start
-_HEAD = struct.Struct(f"={stream_state.HEAD}d")
-_SLOT = struct.Struct(f"={sc.SLOT_WIDTH}d")
-"""One ring slot as written by :meth:`StreamProcess.servo_j`: play time, arrival, the target."""
 
 
 class _RmiView:
@@ -128,7 +105,7 @@ class _Handle:
         return None if v is None else MotionResult(v)
 
 
-class StreamProcess:
+class StreamProcess(RingProcess):
     """A FANUC driver in a child process, streamed through a look-ahead queue.
 
     Args:
@@ -145,210 +122,22 @@ class StreamProcess:
         FanucError: the child could not bring the controller up (the driver's own error class).
     """
 
+    LOST: ClassVar[type[Exception]] = FanucConnectionError
+    ERRORS: ClassVar[tuple[type[Exception], ...]] = (FanucError,)
     gripper = None
     """No gripper dispatcher in the streaming process (``FanucRobot(gripper=True)`` keeps the driver in-process)."""
 
     def __init__(self, host: str, policy: Any, *, period: float, lookahead_s: float, stall_periods: int) -> None:
-        check_lookahead(lookahead_s)
-        if int(stall_periods) < 1:
-            raise InvalidInput(f"stall_periods must be >= 1, got {stall_periods}", value=stall_periods)
-        self.period, self.lookahead_s = float(period), float(lookahead_s)
-        self._stream_lookahead = self.lookahead_s  # the running stream's (set_lookahead applies at the next)
-        self.base_ns = time.monotonic_ns()
-        self._lock = threading.Lock()
-        self._closed = False
-        self._last_slot: float | None = None
-        self._prev_slot = -np.inf
-        fd = os.memfd_create("robointel-stream")
-        self._wake = os.eventfd(0, os.EFD_NONBLOCK | os.EFD_CLOEXEC)  # a direct target is waiting
-        try:
-            os.ftruncate(fd, sc.SHM_BYTES)
-            self._mm = mmap.mmap(fd, sc.SHM_BYTES)
-            self._buf: npt.NDArray[np.float64] = np.frombuffer(self._mm, dtype=np.float64)
-            self._mv = memoryview(self._mm).cast("d")  # the per-target path: no numpy call (docs/decisions.md)
-            ours, theirs = socket.socketpair()
-            self._conn = Connection(ours.detach())
-            try:
-                self._proc = subprocess.Popen([sys.executable, "-c", _CHILD, sc.__file__, str(theirs.fileno()),
-                                               str(fd), str(self._wake)], pass_fds=(theirs.fileno(), fd, self._wake))
-            finally:
-                theirs.close()
-        finally:
-            os.close(fd)
         self.core = _CoreView(self)
         self.rmi = _RmiView(self)
-        try:
-            self._conn.send((host, policy, self.base_ns, self.period, int(stall_periods)))
-            self._reply(START_TIMEOUT_S, "bring-up")
-            self._await_first_status(FIRST_STATUS_TIMEOUT_S)
-        except BaseException:
-            self._kill()
-            raise
+        super().__init__(sc.__file__, (host, policy), period=period, lookahead_s=lookahead_s,
+                         stall_periods=stall_periods)
 
-    def _await_first_status(self, timeout_s: float) -> None:
-        """Return once the child has published a state built from a received status (never the zeroed block).
-
-        Raises:
-            ConnectionLost: no such state within ``timeout_s`` (the child died or no status came).
-        """
-        deadline = time.monotonic() + timeout_s
-        while self.values()[_RX] <= 0.0:
-            if not self.alive() or time.monotonic() > deadline:
-                raise ConnectionLost(f"the streaming process published no controller status within {timeout_s:.0f} s "
-                                     "of bring-up", reason="no status")
-            time.sleep(0.001)
-
-    # ------------------------------------------------------------------ plumbing
-    def alive(self) -> bool:
-        """True while the child process runs.
-
-        A state published within :data:`ALIVE_FRESH_S` answers without a system call: ``waitpid``
-        releases the interpreter lock, and another thread (a planner) that takes it then holds it for
-        at least a switch interval while the streaming thread waits. An older state (the child busy
-        with a request, or gone) is checked with ``waitpid``.
-        """
-        if self._closed or self._proc.returncode is not None:
-            return False
-        if (time.monotonic_ns() - self.base_ns) * 1e-9 - self._mv[_PUBLISHED] < ALIVE_FRESH_S:
-            return True
-        return self._proc.poll() is None
-
-    def values(self) -> list[float]:
-        """A consistent copy of the child's state block as floats (seqlock read; fields at ``stream_state.R``)."""
-        mv = self._mv
-        for _ in range(1000):
-            v0 = mv[sc.H_VERSION]
-            block: list[float] = mv[sc.S_OFF:sc.RING_OFF].tolist()  # type: ignore[assignment]  # "d" format
-            if v0 % 2 == 0 and mv[sc.H_VERSION] == v0:
-                break
-        return block
-
-    def head(self) -> tuple[float, ...]:
-        """The state block's first :data:`~robointel.interface.stream_state.HEAD` fields (seqlock read).
-
-        Everything the per-target path reads (the core's snapshot, the stop flags), unpacked in one
-        ``struct`` call: the per-target state read of ``FanucRobot`` (docs/decisions.md, session 25).
-        """
-        mv, mm = self._mv, self._mm
-        for _ in range(1000):
-            v0 = mv[sc.H_VERSION]
-            block = _HEAD.unpack_from(mm, sc.S_OFF * 8)
-            if v0 % 2 == 0 and mv[sc.H_VERSION] == v0:
-                break
-        return block
-
-    def read_block(self) -> npt.NDArray[np.float64]:
-        """:meth:`values` as a (fields,) array."""
-        return np.array(self.values())
-
-    def read_state(self) -> dict[str, Any]:
-        """The child's state block by field name (a float, or an array for vectors)."""
-        block = self.read_block()
-        return {name: block[_R[name]:_R[name] + sl.stop - sl.start] if sl.stop - sl.start > 1
-                else float(block[_R[name]]) for name, sl in sc.STATE_INDEX.items()}
-
-    def _reply(self, timeout: float, what: str) -> Any:
-        if not self._conn.poll(timeout):
-            raise FanucConnectionError(f"the streaming process did not answer {what} within {timeout:.0f} s")
-        try:
-            ok, value = self._conn.recv()
-        except (EOFError, OSError) as exc:
-            raise FanucConnectionError(f"the streaming process is gone ({what}): {exc}") from exc
-        if not ok:
-            raise _error(*value)
-        return value
-
-    def call(self, name: str, *args: Any, **kwargs: Any) -> Any:
-        """Run request ``name`` in the child and return its answer.
-
-        Raises:
-            FanucError: the child's driver raised (same class), or the child is gone
-                (``FanucConnectionError``).
-        """
-        with self._lock:
-            if not self.alive():
-                raise FanucConnectionError("the streaming process is not running")
-            try:
-                self._conn.send((name, args, kwargs, True))
-            except OSError as exc:
-                raise FanucConnectionError(f"the streaming process is gone: {exc}") from exc
-            return self._reply(REPLY_TIMEOUT_S, name)
+    def remote_error(self, kind: str, message: str) -> Exception:
+        """The ``airo_fanuc`` exception the child reported (``FanucError`` for any other kind)."""
+        return _error(kind, message)
 
     # ------------------------------------------------------------------ the driver's surface
-    def set_lookahead(self, lookahead_s: float) -> None:
-        """The look-ahead of the next stream (after a hold or a stop), s: 0 submits each target at once.
-
-        Raises:
-            InvalidInput: outside [0, 1] s or not finite.
-        """
-        check_lookahead(lookahead_s)
-        self.lookahead_s = float(lookahead_s)
-        if self._last_slot is None:
-            self._stream_lookahead = self.lookahead_s
-
-    def servo_j(self, q: npt.NDArray[np.float64], duration: float) -> None:
-        """Queue target ``q`` (6,) rad; it is played ``lookahead_s`` after the stream's start.
-
-        The target's slot is one period after the previous one, or ``lookahead_s`` from now when the
-        stream (re)starts or the previous slot has already passed (the caller fell behind by more
-        than the look-ahead). A caller faster than the period replaces its last queued slot once the
-        queue holds twice the look-ahead. With a look-ahead of 0 the slot is the arrival and the
-        child is woken to submit the target at once.
-
-        Raises:
-            FanucConnectionError: the child is gone or no longer takes targets.
-        """
-        if not self.alive():
-            raise FanucConnectionError("the streaming process is not running")
-        mv = self._mv
-        now = (time.monotonic_ns() - self.base_ns) * 1e-9
-        last = self._last_slot
-        if last is None:
-            self._stream_lookahead = self.lookahead_s
-        look = self._stream_lookahead
-        if look == 0.0:
-            slot = now
-        elif last is None or now > last:
-            slot = max(now + look, self._prev_slot + self.period)
-        else:
-            slot = last + self.period
-            if slot > now + 2 * look + self.period:
-                slot = last
-        w = int(mv[sc.H_WRITE])
-        if w - int(mv[sc.H_READ]) >= sc.RING - 1:
-            raise FanucConnectionError(f"the streaming process took no target for {sc.RING} targets")
-        o = sc.RING_OFF + (w % sc.RING) * sc.SLOT_WIDTH
-        _SLOT.pack_into(self._mm, o * 8, slot, now, *(q.tolist() if isinstance(q, np.ndarray) else q))
-        mv[sc.H_WRITE] = w + 1  # published last: the child reads the count, then the slot
-        self._last_slot = self._prev_slot = slot
-        if look == 0.0:
-            os.eventfd_write(self._wake, 1)
-
-    def hold(self) -> None:
-        """Hold after the targets already queued have been played."""
-        b = self._buf
-        b[sc.H_HOLD] = b[sc.H_WRITE]
-        b[sc.H_HOLD_GEN] += 1
-        self._last_slot = None
-
-    def stop_j(self) -> None:
-        """Drop the queued targets and brake at once (never raises)."""
-        self._buf[sc.H_CUT] = self._buf[sc.H_WRITE]
-        self._last_slot = None
-        try:
-            self.call("stop_j")
-        except FanucError:
-            pass  # the child is gone: its core stopped with it
-
-    def kick(self) -> None:
-        """Feed the core's trajectory deadman (no answer awaited)."""
-        with self._lock:
-            if self.alive():
-                try:
-                    self._conn.send(("kick", (), {}, False))
-                except OSError:
-                    pass
-
     def recover(self, timeout_s: float | None = None, *, escalate_reconnect: bool = False) -> bool:
         """The driver's recovery ladder and ARM gate in the child; the queue starts empty."""
         self._last_slot = None
@@ -366,71 +155,9 @@ class StreamProcess:
         return _Handle(self, mid)
 
     def timing_stats(self) -> dict[str, Any]:
-        """The core's timing statistics plus the streaming process's window counters.
-
-        ``stream_windows``: controller windows while a stream played; ``stream_fresh``: windows that got
-        a freshly interpolated target in time; ``stream_starved``: windows the caller left without a
-        target (late by more than the look-ahead); ``stream_late``: windows this process itself missed;
-        ``stream_core_late``: windows whose tick the core sent late while this process polled for it;
-        ``direct_submits`` and ``direct_latency_{mean,max}_ms``: targets of direct streams and the time
-        from their arrival to their submission to the core; ``gc_max_ms``: the longest collection of the
-        streaming process's serve loop.
-        """
+        """The core's timing statistics plus the streaming process's window counters (:meth:`window_stats`)."""
         out = dict(self.call("timing_stats"))
-        s = self.read_state()
-        for k in ("windows", "fresh", "starved", "late", "submits", "core_late"):
-            out[f"stream_{k}"] = int(s[k])
-        n = int(s["direct_submits"])
-        out["direct_submits"] = n
-        out["direct_latency_mean_ms"] = float(s["direct_latency_sum_s"]) / n * 1e3 if n else 0.0
-        out["direct_latency_max_ms"] = float(s["direct_latency_max_s"]) * 1e3
-        out["gc_max_ms"] = float(s["gc_max_s"]) * 1e3
-        out["lookahead_s"] = self.lookahead_s
+        out.update(self.window_stats())
         return out
 
-    def missed_events(self) -> list[tuple[str, float, int, float, float, float, int, float]]:
-        """The last missed windows: (kind, time s after ``base_ns``, cmd_tick, gap ms, cpu ms, runq ms, runs, wait ms).
 
-        ``kind`` is starved, late or core_late. The rest describe the streaming process's main thread
-        between the wake-up that counted the window and its previous one: the gap between them, its time
-        on a CPU and runnable but waiting for one over the gap (``/proc`` schedstat), how many times it
-        was scheduled in (1: the poll's wake-up alone), and the poll timeout it had asked for.
-        """
-        return [tuple(e) for e in self.call("missed_events")]  # type: ignore[misc]
-
-    def last_submit_ns(self) -> int:
-        """CLOCK_MONOTONIC time of the child's last target submission to the core, ns (0: none yet)."""
-        s = float(self.read_state()["last_submit_s"])
-        return self.base_ns + int(round(s * 1e9)) if s > 0 else 0
-
-    def close(self) -> None:
-        """Stop the core between two ticks, close the driver and end the child (idempotent)."""
-        if self._closed:
-            return
-        try:
-            if self.alive():
-                with self._lock:
-                    self._conn.send(("close", (), {}, True))
-                    self._reply(REPLY_TIMEOUT_S, "close")
-                self._proc.wait(10.0)
-        except (FanucError, OSError, subprocess.TimeoutExpired):
-            pass
-        finally:
-            self._kill()
-
-    def _kill(self) -> None:
-        self._closed = True
-        if self._proc.poll() is None:
-            self._proc.kill()
-            self._proc.wait(5.0)
-        self._conn.close()
-        if self._wake >= 0:
-            os.close(self._wake)
-            self._wake = -1
-
-
-def check_lookahead(lookahead_s: float) -> None:
-    """InvalidInput unless 0 <= lookahead_s <= 1 s."""
-    if not (np.isfinite(lookahead_s) and 0 <= lookahead_s <= 1.0):
-        raise InvalidInput(f"lookahead_s must be in [0, 1] s (0: each target at once), got {lookahead_s}",
-                           value=lookahead_s)
