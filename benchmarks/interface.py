@@ -15,6 +15,13 @@ after its due time, then came together with the next one). The same stream with 
 (``stream_process=False``, a target per ``stream()`` call) is measured in the same run: there a
 cycle is missed when ``stream()`` returned after the end of its period.
 
+The ``sim`` backend is measured the same way: ``open_robot("sim", stream_process=True)``
+(:class:`~robointel.interface.sim_stream.SimStreamRobot`: the workcell stepped at wall-clock ticks in a
+process of its own, fed through the same look-ahead ring) counts each window fresh, starved or late in
+its child, and ``sim_missed_cycles`` = starved + late. The paced sim stepped inside the caller's
+``stream()`` (``SimRobot(paced=True)``, the figure of sessions 20-25) is measured after it, as
+``sim_in_process_*``: there a cycle is missed when ``stream()`` returned after the end of its period.
+
 The emulator (airo_fanuc.testing.FakeCRXController, strict conformance, 127.0.0.1) runs in a child
 process (robointel.interface.emulator) so that its Python real-time loop does not share our
 interpreter lock. Peer: the same
@@ -241,7 +248,7 @@ def main() -> None:
     ap.add_argument("--fifo", action=argparse.BooleanOptionalAction, default=True,
                     help="stream from a SCHED_FIFO thread (needs CAP_SYS_NICE; else normal priority)")
     ap.add_argument("--lookahead", type=float, default=0.1,
-                    help="look-ahead of the FANUC streaming process, s (FanucRobot(lookahead_s=...))")
+                    help="look-ahead of the FANUC and sim streaming processes, s (lookahead_s=...)")
     ap.add_argument("--in-process", action=argparse.BooleanOptionalAction, default=True,
                     help="also stream with the driver in this process (stream_process=False)")
     args = ap.parse_args()
@@ -279,7 +286,10 @@ def main() -> None:
     violations = violations[:n_proc] + violations[n_fan + n_peer:]
     core = fan["core"]
     frmp, v2 = _frmp_run()
-    sim = _streaming_run(lambda: SimRobot(paced=True, stall_periods=10), args.seconds)
+    sim = _streaming_run(lambda: open_robot("sim", stream_process=True, stall_periods=10, lookahead_s=args.lookahead),
+                         args.seconds)
+    score = sim["core"]
+    sim_in = _streaming_run(lambda: SimRobot(paced=True, stall_periods=10), args.seconds)
     out.update({
         "fanuc_cycles": fan["cycles"],
         "fanuc_missed_cycles": int(core["stream_starved"] + core["stream_late"]),
@@ -305,8 +315,18 @@ def main() -> None:
         **frmp,
         "fanuc_stall_stops": fan["stall_stops"], "fanuc_max_late_ms": fan["max_late_ms"],
         "peer_max_late_ms": peer["max_late_ms"],
-        "sim_cycles": sim["cycles"], "sim_missed_cycles": sim["missed_cycles"], "sim_per_cycle_us": sim["per_cycle_us"],
+        "sim_cycles": sim["cycles"], "sim_missed_cycles": int(score["stream_starved"] + score["stream_late"]),
+        "sim_windows": score["stream_windows"], "sim_fresh_windows": score["stream_fresh"],
+        "sim_starved_windows": score["stream_starved"], "sim_late_windows": score["stream_late"],
+        "sim_missed_events": score["missed_events"], "sim_lookahead_ms": score["lookahead_s"] * 1e3,
+        "sim_step_max_ms": score["step_max_ms"], "sim_catch_up_max_windows": score["catch_up_max_windows"],
+        "sim_child_gc_max_ms": score["gc_max_ms"], "sim_caller_late_cycles": sim["missed_cycles"],
+        "sim_per_cycle_us": sim["per_cycle_us"], "sim_load_avg_1min": sim["load_avg_1min"],
         "sim_stall_stops": sim["stall_stops"], "sim_max_late_ms": sim["max_late_ms"],
+        "sim_in_process_cycles": sim_in["cycles"], "sim_in_process_missed_cycles": sim_in["missed_cycles"],
+        "sim_in_process_per_cycle_us": sim_in["per_cycle_us"], "sim_in_process_stall_stops": sim_in["stall_stops"],
+        "sim_in_process_max_late_ms": sim_in["max_late_ms"], "sim_in_process_load_avg_1min": sim_in["load_avg_1min"],
+        "planner_segments_during_sim_in_process_stream": sim_in["planner_segments_meanwhile"],
         "estop": est, "planner_segments_during_fanuc_stream": fan["planner_segments_meanwhile"],
         "planner_segments_during_sim_stream": sim["planner_segments_meanwhile"],
         "fanuc_core_timing": {k: fan["core"].get(k) for k in ("tx_count", "tick_count", "skipped_tick_windows",

@@ -1,6 +1,6 @@
 """Where the paced sim stream's late cycles go (issue 14): waking late vs a slow ``stream()``.
 
-    PYTHONPATH=src:benchmarks python benchmarks/sim_pacing.py [--seconds 20] [--profile]
+    PYTHONPATH=src:benchmarks python benchmarks/sim_pacing.py [--seconds 20] [--profile] [--stream-process]
 
 The stream of ``benchmarks/interface.py`` (``SimRobot(paced=True, stall_periods=10)``, the same
 targets, ``sleep_until`` pacing in a ``realtime_thread(40)`` section, the table71 planner thread
@@ -12,6 +12,11 @@ the streaming thread got the interpreter lock back after its sleep) and its *sen
 profiler events (calls and returns, C calls included): one C call that held the interpreter lock
 that long (or during which the thread holding it was off the CPU). The hook slows the planner.
 Run under ``chrt -r 5`` to put the planner thread at a real-time priority too.
+
+``--stream-process`` streams to ``open_robot("sim", stream_process=True)`` instead (the workcell stepped
+in a process of its own from a look-ahead ring, ``--lookahead`` s): ``missed_cycles`` is then the child's
+starved + late windows, and ``caller_late_cycles`` the cycles whose wake + send exceeded the period (what
+``missed_cycles`` counts for the in-process sim; with the look-ahead they cost no window).
 """
 from __future__ import annotations
 
@@ -26,6 +31,7 @@ import numpy as np
 
 import interface as bench
 from _planner_load import planner_thread
+from robointel.interface import open_robot
 from robointel.interface.realtime import realtime_thread, sleep_until
 from robointel.interface.sim import SimRobot
 
@@ -50,11 +56,14 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--profile", action="store_true", help="record the planner thread's long C calls")
+    ap.add_argument("--stream-process", action="store_true", help="the sim's streaming process (SimStreamRobot)")
+    ap.add_argument("--lookahead", type=float, default=0.1, help="its look-ahead, s")
     args = ap.parse_args()
     gaps: list = []
     if args.profile:
         threading.setprofile(_gap_hook(gaps))
-    robot = SimRobot(paced=True, stall_periods=10)
+    robot = (open_robot("sim", stream_process=True, stall_periods=10, lookahead_s=args.lookahead)
+             if args.stream_process else SimRobot(paced=True, stall_periods=10))
     stop, counter = threading.Event(), [0]
     th = threading.Thread(target=planner_thread, args=(stop, counter), daemon=True)
     th.start()
@@ -73,6 +82,8 @@ def main() -> None:
                 robot.stream(targets[k])
                 c1 = time.perf_counter()
                 wake[k], send[k] = c0 - (t0 + k * bench.PERIOD), c1 - c0
+        robot.hold()
+        child = robot.timing_stats() if args.stream_process else {}
     finally:
         stop.set()
         th.join()
@@ -83,12 +94,18 @@ def main() -> None:
         return [round(float(v), 3) for v in np.percentile(x * 1e3, [50, 90, 99, 100])]
 
     during = [g for g in gaps if g[0] > t0]
-    out = {"cycles": K, "missed_cycles": int(late.sum()), "policy": rt.policy,
+    out = {"cycles": K, "missed_cycles": int(late.sum()), "policy": rt.policy, "stream_process": args.stream_process,
            "process_policy": rt.process_policy, "wake_ms_p50_p90_p99_max": pct(wake),
            "send_ms_p50_p90_p99_max": pct(send),
            "missed_wake_ms": np.round(wake[late] * 1e3, 1).tolist(),
            "missed_send_ms": np.round(send[late] * 1e3, 1).tolist(),
            "planner_segments_meanwhile": counter[0], "load_avg_1min": [load0, os.getloadavg()[0]]}
+    if args.stream_process:
+        out["caller_late_cycles"] = out["missed_cycles"]
+        out["missed_cycles"] = int(child["stream_starved"] + child["stream_late"])
+        out["child"] = {k: child[k] for k in ("stream_windows", "stream_fresh", "stream_starved", "stream_late",
+                                              "stream_core_late", "step_max_ms", "catch_up_max_windows",
+                                              "gc_max_ms", "lookahead_s")}
     if args.profile:
         out["planner_gaps_over_4ms"] = len(during)
         out["planner_gap_ms_max"] = round(max((g[1] for g in during), default=0.0) * 1e3, 1)

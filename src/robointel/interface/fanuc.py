@@ -288,20 +288,8 @@ class FanucRobot(RegisterIO, Backend):
         if not self.stream_process:
             yield
             return
-        with self._lock:
-            if self._mode is RobotMode.STREAMING:
-                self.hold()
-            self.driver.set_lookahead(lookahead_s)
-            self._stall_extra_s = float(lookahead_s)
-        try:
+        with self._lookahead_section(lambda: self.driver, lookahead_s, self.lookahead_s):
             yield
-        finally:
-            with self._lock:
-                if self._mode is RobotMode.STREAMING:
-                    self.hold()
-                if not self._closed:
-                    self.driver.set_lookahead(self.lookahead_s)
-                self._stall_extra_s = self.lookahead_s
 
     def _hold(self) -> None:
         try:

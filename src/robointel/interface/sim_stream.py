@@ -31,9 +31,11 @@ from robointel.interface import stream_child as sc
 from robointel.interface import stream_state as ss
 from robointel.interface.backend import Backend, ExecutionResult, Recorder
 from robointel.interface.protocol import CycleCallback
+from robointel.interface.sim import substeps_of
 from robointel.interface.state import RobotMode, RobotState
 from robointel.interface.stream_ring import RingProcess, check_lookahead
 from robointel.robot import Robot
+from robointel.sim.workcell import CONTROL_DT
 from robointel.trajectory import Trajectory
 
 DEFAULT_LOOKAHEAD_S = 0.1
@@ -87,8 +89,11 @@ class SimStreamProcess(RingProcess):
         self.call("recover")
 
     def timing_stats(self) -> dict[str, Any]:
-        """The child's physics figures (``tick_count``, ``step_max_ms``, ``catch_up_max_windows``) and
-        its window counters (:meth:`~robointel.interface.stream_ring.RingProcess.window_stats`)."""
+        """The child's physics figures and window counters.
+
+        ``tick_count``, ``step_max_ms`` (the longest window's physics), ``catch_up_max_windows`` (the most
+        windows stepped at one wake-up), and :meth:`~robointel.interface.stream_ring.RingProcess.window_stats`.
+        """
         out = dict(self.call("timing_stats"))
         out.update(self.window_stats())
         return out
@@ -137,6 +142,9 @@ class SimStreamRobot(Backend):
                          stall_periods=stall_periods, recorder=recorder)
         check_lookahead(lookahead_s)
         check_lookahead(force_lookahead_s)
+        timestep = kw.get("timestep", CONTROL_DT)  # the workcell's control period, as Workcell sets it
+        if isinstance(timestep, float | int) and timestep > 0:
+            substeps_of(self.period, max(float(timestep), CONTROL_DT))  # refused here, before a child starts
         self.stream_process = True
         self.lookahead_s, self.force_lookahead_s = float(lookahead_s), float(force_lookahead_s)
         self._stall_extra_s = self.lookahead_s  # a target is played lookahead_s after it arrived

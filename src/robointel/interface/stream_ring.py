@@ -338,13 +338,14 @@ class RingProcess:
         """Stop the robot side between two ticks, close it and end the child (idempotent)."""
         if self._closed:
             return
+        quiet: tuple[type[BaseException], ...] = (*self.ERRORS, OSError, subprocess.TimeoutExpired)
         try:
             if self.alive():
                 with self._lock:
                     self._conn.send(("close", (), {}, True))
                     self._reply(REPLY_TIMEOUT_S, "close")
                 self._proc.wait(10.0)
-        except (*self.ERRORS, OSError, subprocess.TimeoutExpired):
+        except quiet:
             pass
         finally:
             self._kill()
