@@ -108,6 +108,10 @@ def _streaming_run(make_robot, seconds, planner=True):
         with _fifo():
             cyc, missed, late, stalls = _stream(robot.stream, targets, robot)
         robot.hold()
+        if hasattr(getattr(robot, "driver", None), "held"):  # the sim stream: count its queued targets too
+            deadline = time.monotonic() + 30.0
+            while not robot.driver.held() and time.monotonic() < deadline:
+                time.sleep(0.01)
         extra = robot.timing_stats() if hasattr(robot, "timing_stats") else {}
         if getattr(robot, "stream_process", False):  # the missed windows, for locating them
             keys = ("kind", "t_s", "tick", "gap_ms", "cpu_ms", "runq_ms", "runs", "wait_ms")
