@@ -40,6 +40,9 @@ from robointel.trajectory import Trajectory
 
 DEFAULT_LOOKAHEAD_S = 0.1
 """Look-ahead of the sim's streaming process, s (the FANUC's default)."""
+START_TIMEOUT_S = 300.0
+"""The child's bring-up (an interpreter importing MuJoCo, Pinocchio and robointel, the workcell built):
+~3 s on an idle machine, 14 s measured at load 6, s."""
 SETTLE_TIMEOUT_S = 30.0
 """How long :meth:`SimStreamRobot.execute` waits for its queue to be played, beyond the look-ahead, s."""
 _SCRIPT = str(Path(__file__).with_name("sim_child.py"))
@@ -67,6 +70,7 @@ class SimStreamProcess(RingProcess):
 
     LOST: ClassVar[type[Exception]] = ConnectionLost
     ERRORS: ClassVar[tuple[type[Exception], ...]] = (RobointelError,)
+    START_S: ClassVar[float] = START_TIMEOUT_S
 
     def __init__(self, workcell_kwargs: Mapping[str, Any], q0: npt.ArrayLike | None, *, period: float,
                  lookahead_s: float, stall_periods: int) -> None:

@@ -80,6 +80,8 @@ class RingProcess:
     """Raised when the child is gone or does not answer."""
     ERRORS: ClassVar[tuple[type[Exception], ...]] = (ConnectionLost,)
     """What :meth:`call` may raise (:meth:`stop_j` swallows these)."""
+    START_S: ClassVar[float] = START_TIMEOUT_S
+    """How long the child's bring-up may take, s."""
 
     def __init__(self, script: str, hello: tuple[Any, ...], *, period: float, lookahead_s: float,
                  stall_periods: int, path: str | None = None) -> None:
@@ -116,7 +118,7 @@ class RingProcess:
             os.close(fd)
         try:
             self._conn.send((*hello, self.base_ns, self.period, int(stall_periods)))
-            self.hello_reply = self._reply(START_TIMEOUT_S, "bring-up")
+            self.hello_reply = self._reply(self.START_S, "bring-up")
             """What the child answered at bring-up (None for the FANUC driver)."""
             self._await_first_status(FIRST_STATUS_TIMEOUT_S)
         except BaseException:
