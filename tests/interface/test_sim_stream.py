@@ -188,3 +188,17 @@ def test_bad_setups_are_refused():
         open_robot("sim", stream_process=True, paced=False)
     with pytest.raises(InvalidInput, match="timestep"):
         SimStreamRobot(workcell_kwargs={"timestep": 0.0003})
+
+
+def test_a_child_that_dies_while_it_plays_the_queue_fails_the_execution(frmp_segment):
+    tr = frmp_segment
+    K = len(tr.resample(PERIOD).q)
+    with SimStreamRobot(q0=tr.q[0]) as robot:
+        def kill_at_the_end(k, st):
+            if k == K - 1:  # every target queued, ~100 ms of them not played yet
+                os.kill(robot.driver._proc.pid, signal.SIGKILL)
+
+        with pytest.raises(ConnectionLost, match="execution stopped") as err:
+            robot.execute(tr, on_cycle=kill_at_the_end)
+        st, res = err.value.value
+        assert st.mode is RobotMode.DISCONNECTED and res.completed and len(res.q_cmd) == K

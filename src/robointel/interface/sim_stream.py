@@ -26,7 +26,7 @@ from typing import Any, ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from robointel.errors import ConnectionLost, InvalidInput, RobointelError
+from robointel.errors import ConnectionLost, ControllerFault, InvalidInput, RobointelError
 from robointel.interface import stream_child as sc
 from robointel.interface import stream_state as ss
 from robointel.interface.backend import Backend, ExecutionResult, Recorder
@@ -227,10 +227,21 @@ class SimStreamRobot(Backend):
         once the child has played the last one (or after the look-ahead plus
         :data:`SETTLE_TIMEOUT_S`). ``ExecutionResult.q`` holds the state read as each target was
         queued, so it lags the targets by the look-ahead.
+
+        Raises:
+            As :meth:`Backend.execute <robointel.interface.backend.Backend.execute>`; a stop of the child
+            while it plays the queue (a divergence, its death) raises ``ControllerFault`` /
+            ``ConnectionLost`` with ``.value`` = (state, result).
         """
         res = super().execute(trajectory, on_cycle=on_cycle)
         deadline = time.monotonic() + self.lookahead_s + SETTLE_TIMEOUT_S
-        while not self.driver.held() and self.driver.alive() and time.monotonic() < deadline:
+        while not self.driver.held() and time.monotonic() < deadline:
+            with self._lock:
+                fault = self._fault_of(self._read()) if self._mode is RobotMode.HOLDING else None
+                if fault is not None:  # the child stopped while it played the queue
+                    self._latch_fault(*fault)
+                    cls = ConnectionLost if self._mode is RobotMode.DISCONNECTED else ControllerFault
+                    raise cls(f"execution stopped: {self._why}", value=(self._read(), res), reason=self._why)
             time.sleep(self.period)
         return res
 

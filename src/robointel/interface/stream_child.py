@@ -270,7 +270,7 @@ class Player:
         gen, hold_at = int(self.buf[H_HOLD_GEN]), int(self.buf[H_HOLD])
         hold = gen > self.hold_gen
         if hold and self.pending and self.pending[0][0] >= hold_at and not self.direct:
-            self.hold_gen = gen  # a hold before this segment: nothing of it is left to play
+            self.hold_gen = self.counters["holds"] = gen  # a hold before this segment: nothing of it to play
             hold = False
         run = []
         for p in self.pending:
