@@ -48,7 +48,7 @@ def test_a_trajectory_ends_where_the_in_process_paced_sim_ends(frmp_segment):
     with SimRobot(q0=tr.q[0], paced=True) as ref:
         ref.execute(tr)
         q_ref = ref.idle(0.5).q
-    with open_robot("sim", stream_process=True, q0=tr.q[0]) as robot:
+    with open_robot("sim", stream_process=True, q0=tr.q[0], stall_periods=None) as robot:
         assert isinstance(robot, (RobotInterface, SimStreamRobot))
         np.testing.assert_allclose(robot.state().q, tr.q[0], atol=1e-9)
         res = robot.execute(tr)
@@ -89,7 +89,8 @@ def test_the_child_stops_a_stalled_stream_by_itself():
 
 
 def test_a_stalled_stream_stops_the_robot_with_a_named_fault():
-    with SimStreamRobot(stall_periods=5, lookahead_s=0.05) as robot:
+    # a caller stall under load shorter than 10 periods + the 0.3 s look-ahead stops nothing mid-stream
+    with SimStreamRobot(stall_periods=10, lookahead_s=0.3) as robot:
         _stream_paced(robot, _ramp(robot.state().q, 20))
         assert wait_until(lambda: robot.state().mode is not RobotMode.STREAMING, timeout=15.0)
         st = robot.state()
@@ -102,7 +103,8 @@ def test_a_stalled_stream_stops_the_robot_with_a_named_fault():
 
 
 def test_stop_reaches_the_child_and_refuses_until_recover():
-    with SimStreamRobot(lookahead_s=0.3) as robot:  # at the stop, ~0.3 s of targets are queued, not played
+    # at the stop, ~0.3 s of targets are queued, not played; no stall stop (a loaded caller's pause)
+    with SimStreamRobot(lookahead_s=0.3, stall_periods=None) as robot:
         targets = _ramp(robot.state().q, 60, rate=0.5)
         _stream_paced(robot, targets[:40])
         robot.stop("operator pressed stop")
@@ -126,7 +128,7 @@ def test_stop_reaches_the_child_and_refuses_until_recover():
 
 
 def test_a_dead_child_is_a_lost_connection_with_the_last_state():
-    with SimStreamRobot(lookahead_s=0.05) as robot:
+    with SimStreamRobot(stall_periods=None) as robot:  # no stall stop: a loaded caller's pause must not stop it
         targets = _ramp(robot.state().q, 30)
         _stream_paced(robot, targets[:20])
         last = robot.state()
@@ -143,7 +145,7 @@ def test_a_dead_child_is_a_lost_connection_with_the_last_state():
 
 
 def test_close_leaves_no_process():
-    robot = SimStreamRobot()
+    robot = SimStreamRobot(stall_periods=None)
     pid = robot.driver._proc.pid
     _stream_paced(robot, _ramp(robot.state().q, 10))
     robot.close()
@@ -169,7 +171,7 @@ def test_the_child_ends_when_its_caller_dies(tmp_path):
 
 
 def test_a_force_loop_submits_each_target_at_once():
-    with SimStreamRobot() as robot:
+    with SimStreamRobot(stall_periods=None) as robot:
         q0 = robot.state().q
         with robot.low_latency():
             _stream_paced(robot, _ramp(q0, 20))
@@ -193,7 +195,7 @@ def test_bad_setups_are_refused():
 def test_a_child_that_dies_while_it_plays_the_queue_fails_the_execution(frmp_segment):
     tr = frmp_segment
     K = len(tr.resample(PERIOD).q)
-    with SimStreamRobot(q0=tr.q[0]) as robot:
+    with SimStreamRobot(q0=tr.q[0], stall_periods=None) as robot:
         def kill_at_the_end(k, st):
             if k == K - 1:  # every target queued, ~100 ms of them not played yet
                 os.kill(robot.driver._proc.pid, signal.SIGKILL)
