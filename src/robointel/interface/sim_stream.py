@@ -33,7 +33,7 @@ from robointel.interface.backend import Backend, ExecutionResult, Recorder
 from robointel.interface.protocol import CycleCallback
 from robointel.interface.sim import substeps_of
 from robointel.interface.state import RobotMode, RobotState
-from robointel.interface.stream_ring import RingProcess, check_lookahead
+from robointel.interface.stream_ring import REPLY_TIMEOUT_S, RingProcess, check_lookahead
 from robointel.robot import Robot
 from robointel.sim.workcell import CONTROL_DT
 from robointel.trajectory import Trajectory
@@ -50,6 +50,7 @@ _ROOT = str(Path(__file__).resolve().parents[2])  # the directory holding this r
 _SETUP_ERRORS = ("InvalidInput", "ShapeError", "NotFinite", "LimitViolation", "UnknownRobot", "DataMissing",
                  "DescriptionError", "TypeError", "ValueError")
 _TICK, _FAULT, _STALLED, _REFUSED = ss.R["cmd_tick"], ss.R["fault"], ss.R["stalled"], ss.R["refused"]
+_PUBLISHED = sc.STATE_INDEX["published_s"].start
 
 
 class SimStreamProcess(RingProcess):
@@ -88,9 +89,17 @@ class SimStreamProcess(RingProcess):
         return ConnectionLost(f"the simulation process failed: {kind}: {message}", reason=message)
 
     def recover(self) -> None:
-        """Clear a divergence and the stall flag in the child; the queue starts empty, the arm holds."""
+        """Clear a divergence and the stall flag in the child; the queue starts empty, the arm holds.
+
+        Returns once the child has published its state after the recovery (it answers first), so the
+        next read does not see the flags it cleared.
+        """
         self._last_slot = None
         self.call("recover")
+        answered = (time.monotonic_ns() - self.base_ns) * 1e-9
+        deadline = time.monotonic() + REPLY_TIMEOUT_S
+        while self._mv[_PUBLISHED] <= answered and self.alive() and time.monotonic() < deadline:
+            time.sleep(0.0005)
 
     def timing_stats(self) -> dict[str, Any]:
         """The child's physics figures and window counters.
