@@ -250,7 +250,11 @@ def topp_spline(path: npt.ArrayLike, vmax: npt.ArrayLike, amax: npt.ArrayLike, *
         r = _sample(ts, tg, s, sd, u, knots, c, vmax, amax, q, qd, qdd)
         if r <= ratio * (1 + 1e-9):
             break
-        ratio = r * (1 + 1e-6)
+        stretched = r * (1 + 1e-6)
+        if float(np.max(np.diff(ts))) * stretched <= dt:  # the same samples, stretched, stay dt apart
+            ratio = stretched
+            break
+        ratio = stretched
     q[0], q[-1] = P[0], P[-1]
     qd[0], qd[-1] = 0.0, 0.0
     T = ts * ratio
