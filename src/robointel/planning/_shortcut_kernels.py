@@ -18,7 +18,8 @@ from robointel.planning._rrt_kernels import _length
 
 
 @njit(cache=True)
-def edge_fine(q0, q1, W, T, C, G, out, thresh, lever, res):  # pragma: no cover - compiled
+def edge_fine(q0: np.ndarray, q1: np.ndarray, W: tuple, T: np.ndarray, C: np.ndarray, G: np.ndarray, out: np.ndarray,
+              thresh: float, lever: np.ndarray, res: float) -> bool:  # pragma: no cover - compiled
     """The straight motion q0 -> q1 in world ``W``, q1 included, checked coarse to fine at ``res``.
 
     True when q1 keeps ``thresh`` and every point of the edge keeps thresh - res / 2 (a point
@@ -30,7 +31,9 @@ def edge_fine(q0, q1, W, T, C, G, out, thresh, lever, res):  # pragma: no cover 
 
 
 @njit(cache=True)
-def root_edge_fine(q0, q1, Wr, W, root0, root1, rcap, T, C, G, out, thresh, lever, res):  # pragma: no cover
+def root_edge_fine(q0: np.ndarray, q1: np.ndarray, Wr: tuple, W: tuple, root0: bool, root1: bool, rcap: float,
+                   T: np.ndarray, C: np.ndarray, G: np.ndarray, out: np.ndarray, thresh: float, lever: np.ndarray,
+                   res: float) -> bool:  # pragma: no cover - compiled
     """:func:`~robointel.planning._edge_kernels.root_edge` with every stretch checked by :func:`edge_fine`.
 
     Within ``rcap`` rad (max |dq|) of a root (q0 when ``root0``, q1 when ``root1``) the edge is
@@ -62,7 +65,9 @@ def root_edge_fine(q0, q1, Wr, W, root0, root1, rcap, T, C, G, out, thresh, leve
 
 
 @njit(cache=True)
-def shortcut(P, npts, iters, W, Wr, rcap, T, C, G, out, thresh, lever, res):  # pragma: no cover - compiled
+def shortcut(P: np.ndarray, npts: int, iters: int, W: tuple, Wr: tuple, rcap: float, T: np.ndarray, C: np.ndarray,
+             G: np.ndarray, out: np.ndarray, thresh: float, lever: np.ndarray,
+             res: float) -> int:  # pragma: no cover - compiled
     """Shorten the path P[:npts] in place; returns the new vertex count.
 
     A greedy pass (each vertex joined to the farthest one it sees), then ``iters`` random
