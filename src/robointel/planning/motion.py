@@ -429,7 +429,8 @@ def _warmup(env: Environment) -> None:
         MeshGeometry(env.robot, [])
     lim = np.ones(env.robot.nq)
     e = 0.1 * np.eye(env.robot.nq)
-    topp_spline(np.array([q, q + e[0], q + e[0] + e[-1]]), lim, lim)  # a path with a corner
+    tr = topp_spline(np.array([q, q + e[0], q + e[0] + e[-1]]), lim, lim)  # a path with a corner
+    check_dense(env, tr, d_min=0.0, vmax=lim, amax=lim)
     _WARM.add(key)
 
 
