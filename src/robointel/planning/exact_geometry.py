@@ -60,6 +60,7 @@ class MeshGeometry:
         self._lo = np.array([o[3] for o in self.obstacles], float).reshape(-1, 3)
         self._hi = np.array([o[4] for o in self.obstacles], float).reshape(-1, 3)
         self.reach = max((p.radius + float(np.linalg.norm(p.centre)) for p in self.parts), default=0.0)
+        self.lever = _mesh_levers(robot, self.parts)
         # per part: its link frame (as an index into the distinct frames), bounding-sphere centre and radius
         self._frames = sorted({p.frame for p in self.parts})
         self._part_frame = np.array([self._frames.index(p.frame) for p in self.parts], int)
@@ -129,7 +130,8 @@ class MeshGeometry:
         """Smallest clearance over nearby samples Q (K, n).
 
         Samples that the last measured clearance minus the travel since
-        (sum_k (lever_k + reach) |dq_k|) keeps >= thresh are skipped, and so are the samples
+        (sum_k L_k |dq_k|, L the larger of ``lever`` and the meshes' own :attr:`lever`) keeps >= thresh
+        are skipped, and so are the samples
         ``mask`` (K,) leaves False (already known to be clear, e.g. by conservative spheres).
 
         Returns:
@@ -139,7 +141,7 @@ class MeshGeometry:
         K = len(Q)
         if K == 0:
             return best, worst, bl, bo
-        lev = np.asarray(lever, float) + self.reach
+        lev = np.maximum(np.asarray(lever, float), self.lever)
         moved = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(Q, axis=0)) @ lev)])  # travel bound from Q[0]
         todo = np.flatnonzero(mask) if mask is not None else np.arange(K)
         i = 0
@@ -157,6 +159,27 @@ class MeshGeometry:
 
 
 _PARTS: dict[tuple[int, str], list[_Part]] = {}
+
+
+def _mesh_levers(robot: Robot, parts: list[_Part]) -> np.ndarray:
+    """(n,) bound of the speed of any mesh point per unit speed of each joint, m/rad (1 for a prismatic joint).
+
+    A point moved by revolute joint k moves at most |dq_k| times its distance from the joint's origin,
+    bounded by the part's bounding sphere (centre distance + radius) plus the joint offsets down the chain.
+    """
+    m = robot.model
+    lev = np.zeros(robot.nq)
+    for p in parts:
+        f = m.frames[p.frame]
+        j = int(f.parentJoint)
+        reach = float(np.linalg.norm(f.placement.act(p.centre))) + p.radius
+        while j > 0:
+            k = int(m.joints[j].idx_q)
+            prismatic = m.joints[j].shortname().startswith("JointModelP") and "Planar" not in m.joints[j].shortname()
+            lev[k] = max(lev[k], 1.0 if prismatic else reach)
+            reach += float(np.linalg.norm(m.jointPlacements[j].translation))
+            j = int(m.parents[j])
+    return lev
 
 
 def _parts(robot: Robot) -> list[_Part]:
