@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.interpolate import CubicHermiteSpline
+from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
 from robointel.errors import InvalidInput
-from robointel.planning.topp import densify, topp_spline
+from robointel.planning.topp import densify, natural_spline, topp_spline
 
 VMAX = np.array([0.5, 0.5, 0.5, 0.8, 0.8, 1.0])
 AMAX = np.array([1.5, 1.5, 1.5, 3.0, 3.0, 4.0])
@@ -74,3 +74,12 @@ def test_bad_input():
         topp_spline(np.zeros((3, 6)), VMAX, AMAX)  # no length
     with pytest.raises(InvalidInput):
         topp_spline(_path(0), VMAX, AMAX[:3])
+
+
+@pytest.mark.parametrize("k", [2, 3, 40])
+def test_natural_spline_matches_scipy(k):
+    rng = np.random.default_rng(k)
+    x = np.concatenate([[0.0], np.cumsum(rng.uniform(0.01, 0.2, k - 1))])
+    y = rng.normal(0.0, 1.0, (k, 6))
+    c = natural_spline(x, y)
+    np.testing.assert_allclose(c, CubicSpline(x, y, bc_type="natural").c, rtol=1e-9, atol=1e-9)

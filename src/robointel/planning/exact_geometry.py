@@ -60,6 +60,12 @@ class MeshGeometry:
         self._lo = np.array([o[3] for o in self.obstacles], float).reshape(-1, 3)
         self._hi = np.array([o[4] for o in self.obstacles], float).reshape(-1, 3)
         self.reach = max((p.radius + float(np.linalg.norm(p.centre)) for p in self.parts), default=0.0)
+        self.lever = _mesh_levers(robot, self.parts)
+        # per part: its link frame (as an index into the distinct frames), bounding-sphere centre and radius
+        self._frames = sorted({p.frame for p in self.parts})
+        self._part_frame = np.array([self._frames.index(p.frame) for p in self.parts], int)
+        self._centres = np.array([p.centre for p in self.parts], float).reshape(-1, 3)
+        self._radii = np.array([p.radius for p in self.parts], float)
 
     @property
     def empty(self) -> bool:
@@ -70,7 +76,10 @@ class MeshGeometry:
         """Smallest distance (capped at ``cap``) between a moving link mesh and an obstacle.
 
         Hull distances >= ``thresh`` are taken as they are (lower bounds of the mesh distance);
-        below it the exact mesh distance replaces them.
+        below it the exact mesh distance replaces them. The (part, obstacle) pairs are measured in
+        the order of a lower bound (the part's bounding sphere to the obstacle's box) and not at
+        all once that bound reaches the smallest distance found: the result is the minimum over
+        every pair.
 
         Args:
             q: (n,) configuration, rad.
@@ -81,28 +90,39 @@ class MeshGeometry:
             (distance m, link, obstacle label); negative distances are penetration depths.
         """
         robot = self.robot
-        pin.framesForwardKinematics(robot.model, robot.data, q)
         best, bl, bo = cap, "", ""
+        if not self.parts or not self.obstacles:
+            return best, bl, bo
+        pin.framesForwardKinematics(robot.model, robot.data, q)
+        Tl = np.array([robot.data.oMf[f].homogeneous for f in self._frames])  # (F, 4, 4)
+        Tf = Tl[self._part_frame]  # (P, 4, 4) each part's link placement
+        centre = np.einsum("pij,pj->pi", Tf[:, :3, :3], self._centres) + Tf[:, :3, 3]
+        # broad phase: every part's bounding sphere against every obstacle's box at once
+        gap = np.maximum(0.0, np.maximum(self._lo[None] - centre[:, None], centre[:, None] - self._hi[None]))
+        bound = np.sqrt(np.einsum("poi,poi->po", gap, gap)) - self._radii[:, None]  # (P, O)
+        flat = bound.ravel()
+        cand = np.flatnonzero(flat < best)
+        if cand.size == 0:
+            return best, bl, bo
+        order = cand[np.argsort(flat[cand], kind="stable")]
+        nobs = bound.shape[1]
         req = coal.DistanceRequest()
-        for part in self.parts:
-            Tl = robot.data.oMf[part.frame].homogeneous
-            centre = Tl[:3, :3] @ part.centre + Tl[:3, 3]
-            # broad phase: the part's bounding sphere against every obstacle's box at once
-            bound = np.linalg.norm(np.maximum(0.0, np.maximum(self._lo - centre, centre - self._hi)), axis=1)
-            bound -= part.radius
-            Tp = None
-            for o in np.argsort(bound):
-                if bound[o] >= best:
-                    break
-                label, g, To = self.obstacles[o][:3]
-                if Tp is None:
-                    T = Tl @ part.placement
-                    Tp = coal.Transform3s(T[:3, :3], T[:3, 3])
-                d = coal.distance(part.hull, Tp, g, To, req, coal.DistanceResult())
-                if d < thresh:
-                    d = coal.distance(part.mesh, Tp, g, To, req, coal.DistanceResult())
-                if d < best:
-                    best, bl, bo = float(d), part.link, label
+        placed: dict[int, Any] = {}
+        for k in order:
+            if flat[k] >= best:
+                break
+            p, o = divmod(int(k), nobs)
+            part = self.parts[p]
+            Tp = placed.get(p)
+            if Tp is None:
+                T = Tf[p] @ part.placement
+                Tp = placed[p] = coal.Transform3s(T[:3, :3], T[:3, 3])
+            label, g, To = self.obstacles[o][:3]
+            d = coal.distance(part.hull, Tp, g, To, req, coal.DistanceResult())
+            if d < thresh and d < best:  # (a hull at or beyond the best cannot hold a closer mesh)
+                d = coal.distance(part.mesh, Tp, g, To, req, coal.DistanceResult())
+            if d < best:
+                best, bl, bo = float(d), part.link, label
         return best, bl, bo
 
     def samples_clearance(self, Q: np.ndarray, lever: np.ndarray, *, thresh: float, cap: float = 0.1,
@@ -110,7 +130,8 @@ class MeshGeometry:
         """Smallest clearance over nearby samples Q (K, n).
 
         Samples that the last measured clearance minus the travel since
-        (sum_k (lever_k + reach) |dq_k|) keeps >= thresh are skipped, and so are the samples
+        (sum_k L_k |dq_k|, L the larger of ``lever`` and the meshes' own :attr:`lever`) keeps >= thresh
+        are skipped, and so are the samples
         ``mask`` (K,) leaves False (already known to be clear, e.g. by conservative spheres).
 
         Returns:
@@ -120,7 +141,7 @@ class MeshGeometry:
         K = len(Q)
         if K == 0:
             return best, worst, bl, bo
-        lev = np.asarray(lever, float) + self.reach
+        lev = np.maximum(np.asarray(lever, float), self.lever)
         moved = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(Q, axis=0)) @ lev)])  # travel bound from Q[0]
         todo = np.flatnonzero(mask) if mask is not None else np.arange(K)
         i = 0
@@ -138,6 +159,27 @@ class MeshGeometry:
 
 
 _PARTS: dict[tuple[int, str], list[_Part]] = {}
+
+
+def _mesh_levers(robot: Robot, parts: list[_Part]) -> np.ndarray:
+    """(n,) bound of the speed of any mesh point per unit speed of each joint, m/rad (1 for a prismatic joint).
+
+    A point moved by revolute joint k moves at most |dq_k| times its distance from the joint's origin,
+    bounded by the part's bounding sphere (centre distance + radius) plus the joint offsets down the chain.
+    """
+    m = robot.model
+    lev = np.zeros(robot.nq)
+    for p in parts:
+        f = m.frames[p.frame]
+        j = int(f.parentJoint)
+        reach = float(np.linalg.norm(f.placement.act(p.centre))) + p.radius
+        while j > 0:
+            k = int(m.joints[j].idx_q)
+            prismatic = m.joints[j].shortname().startswith("JointModelP") and "Planar" not in m.joints[j].shortname()
+            lev[k] = max(lev[k], 1.0 if prismatic else reach)
+            reach += float(np.linalg.norm(m.jointPlacements[j].translation))
+            j = int(m.parents[j])
+    return lev
 
 
 def _parts(robot: Robot) -> list[_Part]:

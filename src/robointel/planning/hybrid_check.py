@@ -9,6 +9,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from numba import njit
 
 from robointel.planning import _collision_kernels as K
 from robointel.planning.environment import Environment
@@ -35,6 +36,20 @@ def timed_out(what: str, chk: DenseCheck) -> DenseCheck:
     return DenseCheck(False, f"the time budget ran out during {what}", "timeout", chk.min_clearance_m, chk.samples)
 
 
+@njit(cache=True)
+def _nearest(Q: np.ndarray, q: np.ndarray, last: bool) -> int:  # pragma: no cover - compiled
+    """Index of the sample of Q (K, n) nearest to q (Euclidean): the first of equals, or the last."""
+    best, bi = np.inf, 0
+    for k in range(Q.shape[0]):
+        d = 0.0
+        for j in range(Q.shape[1]):
+            e = Q[k, j] - q[j]
+            d += e * e
+        if d < best or (last and d == best):
+            best, bi = d, k
+    return bi
+
+
 def interior_check(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, chk: DenseCheck, *,
                    d_min: float, dt: float, deadline: float = float("inf")) -> DenseCheck:
     """Check a trajectory planned with partially grown spheres at the start/goal edges.
@@ -47,8 +62,9 @@ def interior_check(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tup
     """
     i0, i1 = len(traj.q) - 1, 0
     if len(path) >= 3:
-        i0 = int(np.argmin(np.linalg.norm(traj.q - path[1], axis=1)))
-        i1 = len(traj.q) - 1 - int(np.argmin(np.linalg.norm(traj.q[::-1] - path[-2], axis=1)))
+        Q = np.ascontiguousarray(traj.q)
+        i0 = _nearest(Q, np.ascontiguousarray(path[1], dtype=float), False)
+        i1 = _nearest(Q, np.ascontiguousarray(path[-2], dtype=float), True)
         d = window_clearance(env, traj, Wc, float(traj.t[i0]), float(traj.t[i1]), d_min=d_min, dt=dt)
         if d < d_min - CLEARANCE_TOL:
             return DenseCheck(False, f"the covering spheres come {d * 1e3:.1f} mm from the obstacles between "

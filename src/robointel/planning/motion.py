@@ -23,6 +23,7 @@ from robointel.outcome import Failure
 from robointel.planning import _collision_kernels as K
 from robointel.planning import _edge_kernels as E
 from robointel.planning import _rrt_kernels as R
+from robointel.planning import _shortcut_kernels as S
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
 from robointel.planning.hybrid_check import exact_check, interior_check, timed_out
@@ -307,8 +308,6 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     between steps); the search itself ends at ``search_end``. ``exact``: every sample the covering
     spheres leave in doubt is checked on the collision meshes (:func:`exact_check`).
     """
-    robot = env.robot
-    hybrid = rcap != float("inf")
     # global stage ----------------------------------------------------------------------------
     t1 = time.perf_counter()
     path, gi, why = None, -1, ""
@@ -327,13 +326,28 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
         if res < st.resolution:
             res = float(st.resolution)
     timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
+    path, traj, chk = _finish(env, path, st, deadline, Wc, Wr, rcap, vmax, amax, timings, attempt, thr, exact)
+    return path, gi, traj, chk, ""
+
+
+def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: float, Wc: tuple, Wr: tuple,
+            rcap: float, vmax: np.ndarray, amax: np.ndarray, timings: dict[str, float], attempt: int, thr: float,
+            exact: bool) -> tuple[np.ndarray, Trajectory | None, DenseCheck | None]:
+    """The stages after the search: shortcut, timing and the dense (and mesh) checks of one attempt.
+
+    Args and clock as :func:`_attempt`; ``path`` (k, n) is the search's path, every edge valid at
+    ``st.resolution`` in ``Wc`` (``Wr`` within ``rcap`` of a root). Returns (shortened path,
+    trajectory, check).
+    """
+    robot = env.robot
+    hybrid = rcap != float("inf")
     t2 = time.perf_counter()
     s = env.scratch
     P = np.empty((max(len(path) * 2 + 64, 256), robot.nq))
     P[:len(path)] = path
     R.seed(int(st.seed) + 1 + 7 * attempt)
-    m = R.shortcut(P, len(path), int(st.shortcut_iters), Wc, Wr, rcap, s.T, s.C, s.G, s.out, float(thr), env.lever,
-                   float(st.resolution), float(st.search_resolution))
+    m = S.shortcut(P, len(path), int(st.shortcut_iters), Wc, Wr, rcap, s.T, s.C, s.G, s.out, float(thr), env.lever,
+                   float(st.resolution))
     path = P[:m].copy()
     keep = np.concatenate([[True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-9])
     keep[-1] = True
@@ -372,7 +386,7 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
         chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
         chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact)
         timings["timing"] = (time.perf_counter() - t4) * 1e3
-    return path, gi, traj, chk, ""
+    return path, traj, chk
 
 
 def _mesh_checks(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, chk: DenseCheck, st: MotionSettings,
@@ -406,7 +420,7 @@ def _warmup(env: Environment) -> None:
     R.rrt_connect(nodes, parent, count, env.robot.lower, env.robot.upper, 0, 1.0, W, W, count, 0.2, s.T, s.C, s.G,
                   s.out, 0.0, env.lever, 0.01, np.zeros(2, np.int64))
     P = np.array([q, q + 1e-3 * (env.robot.upper - q)])
-    R.shortcut(P, 2, 0, W, W, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, 0.02)
+    S.shortcut(P, 2, 0, W, W, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
     E.root_edge(P[0], P[1], W, W, True, True, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, 0.0)
     E.edge_valid(P[0], P[1], W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
     K.samples_clearance(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1)

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from numba import njit
 
 from robointel.outcome import Failure
 from robointel.planning import _collision_kernels as K
@@ -49,6 +50,31 @@ class DenseCheck:
         return {"collision": Failure.COLLISION, "limit": Failure.LIMIT}.get(self.kind, Failure.NONE)
 
 
+@njit(cache=True)
+def _limit_ratios(Q: np.ndarray, QD: np.ndarray, QDD: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                  vmax: np.ndarray, amax: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:  # pragma: no cover
+    """The limits of every sample in one pass: (first sample index out of [lower, upper], rv, ra).
+
+    The index is -1 when every sample is within the position limits (1e-9 rad tolerance); rv, ra
+    (n,) are per joint max |qd| / vmax and max |qdd| / amax (NaN propagates, as in ``np.max``).
+    """
+    K, n = Q.shape
+    first = -1
+    rv = np.zeros(n)
+    ra = np.zeros(n)
+    for k in range(K):
+        for j in range(n):
+            if first < 0 and (Q[k, j] < lower[j] - 1e-9 or Q[k, j] > upper[j] + 1e-9):
+                first = k
+            v = abs(QD[k, j]) / vmax[j]
+            a = abs(QDD[k, j]) / amax[j]
+            if v > rv[j] or v != v:
+                rv[j] = v
+            if a > ra[j] or a != a:
+                ra[j] = a
+    return first, rv, ra
+
+
 def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.ArrayLike,
                 amax: npt.ArrayLike, dt: float = 1e-3) -> DenseCheck:
     """Resample ``traj`` every ``dt`` seconds and check limits and clearance.
@@ -68,19 +94,17 @@ def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.A
     # knots already on a grid at least as fine as dt are checked as given (their qdd is exact)
     dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
     Q, QD, QDD = dense.q, dense.qd, dense.qdd
-    vmax = np.asarray(vmax, float)
-    amax = np.asarray(amax, float)
-    lo = np.flatnonzero(np.any(Q < robot.lower - 1e-9, 1) | np.any(Q > robot.upper + 1e-9, 1))
+    vmax = np.ascontiguousarray(vmax, dtype=float)
+    amax = np.ascontiguousarray(amax, dtype=float)
+    first, rv, ra = _limit_ratios(Q, QD, QDD, np.asarray(robot.lower, float), np.asarray(robot.upper, float),
+                                  vmax, amax)
     cap = d_min + 0.1
     s = env.scratch
     dmin, worst = K.samples_clearance(np.ascontiguousarray(Q), env.world, s.T, s.C, s.G, s.out, env.lever,
                                       d_min - CLEARANCE_TOL, cap)
     n = len(Q)
-    if lo.size:
-        k = int(lo[0])
-        return DenseCheck(False, f"joint position limit exceeded at t = {dense.t[k]:.3f} s", "limit", dmin, n)
-    rv = np.max(np.abs(QD) / vmax, axis=0)
-    ra = np.max(np.abs(QDD) / amax, axis=0)
+    if first >= 0:
+        return DenseCheck(False, f"joint position limit exceeded at t = {dense.t[first]:.3f} s", "limit", dmin, n)
     if rv.max() > 1 + LIMIT_TOL:
         j = int(np.argmax(rv))
         return DenseCheck(False, f"velocity limit of {robot.joint_names[j]} exceeded {rv[j]:.4f}x", "limit", dmin, n)

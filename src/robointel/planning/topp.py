@@ -21,13 +21,12 @@ import math
 import numpy as np
 import numpy.typing as npt
 from numba import njit
-from scipy.interpolate import CubicSpline
 
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
 from robointel.trajectory import Trajectory
 
-__all__ = ["topp_spline", "densify"]
+__all__ = ["topp_spline", "densify", "natural_spline"]
 
 #: grid points per spline knot interval (at least)
 GRID_PER_KNOT = 32
@@ -43,6 +42,64 @@ def densify(path: npt.ArrayLike, step: float) -> np.ndarray:
         k = max(1, int(np.ceil(np.max(np.abs(b - a)) / step)))
         out.append(a + (b - a) * (np.arange(1, k + 1) / k)[:, None])
     return np.concatenate(out)
+
+
+@njit(cache=True)
+def natural_spline(x: np.ndarray, y: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """The natural cubic spline through (x_k, y_k): coefficients c (4, K, n) on the K intervals.
+
+    On [x_k, x_{k+1}], with z = s - x_k, y(s) = ((c0 z + c1) z + c2) z + c3 (scipy's ``PPoly``
+    layout, as ``CubicSpline(x, y, bc_type="natural").c``). The second derivatives M solve the
+    tridiagonal system h_{k-1} M_{k-1} + 2 (h_{k-1} + h_k) M_k + h_k M_{k+1} = 6 (slope_k -
+    slope_{k-1}) with M_0 = M_K = 0 (Thomas' algorithm). x (K+1,) strictly increasing, y (K+1, n).
+    """
+    K = x.shape[0] - 1
+    n = y.shape[1]
+    M = np.zeros((K + 1, n))
+    if K >= 2:
+        cp = np.empty(K + 1)  # forward sweep: M_k = dp_k - cp_k M_{k+1}
+        dp = np.zeros((K + 1, n))
+        for k in range(1, K):
+            h0, h1 = x[k] - x[k - 1], x[k + 1] - x[k]
+            den = 2.0 * (h0 + h1) - (h0 * cp[k - 1] if k > 1 else 0.0)
+            cp[k] = h1 / den
+            for j in range(n):
+                r = 6.0 * ((y[k + 1, j] - y[k, j]) / h1 - (y[k, j] - y[k - 1, j]) / h0)
+                dp[k, j] = (r - (h0 * dp[k - 1, j] if k > 1 else 0.0)) / den
+        for j in range(n):
+            M[K - 1, j] = dp[K - 1, j]
+        for k in range(K - 2, 0, -1):
+            for j in range(n):
+                M[k, j] = dp[k, j] - cp[k] * M[k + 1, j]
+    c = np.empty((4, K, n))
+    for k in range(K):
+        h = x[k + 1] - x[k]
+        for j in range(n):
+            c[0, k, j] = (M[k + 1, j] - M[k, j]) / (6.0 * h)
+            c[1, k, j] = 0.5 * M[k, j]
+            c[2, k, j] = (y[k + 1, j] - y[k, j]) / h - h * (2.0 * M[k, j] + M[k + 1, j]) / 6.0
+            c[3, k, j] = y[k, j]
+    return c
+
+
+@njit(cache=True)
+def _grid_derivatives(knots: np.ndarray, c: np.ndarray,
+                      per: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    """The grid s (``per`` points per knot interval, and the last knot) with q'(s), q''(s) there."""
+    K, n = c.shape[1], c.shape[2]
+    N = K * per
+    s = np.empty(N + 1)
+    d1 = np.empty((N + 1, n))
+    d2 = np.empty((N + 1, n))
+    for m in range(N + 1):
+        k = min(m // per, K - 1)
+        h = knots[k + 1] - knots[k]
+        z = h * ((m - k * per) / per)
+        s[m] = knots[k] + z if m < N else knots[K]
+        for j in range(n):
+            d1[m, j] = (3.0 * c[0, k, j] * z + 2.0 * c[1, k, j]) * z + c[2, k, j]
+            d2[m, j] = 6.0 * c[0, k, j] * z + 2.0 * c[1, k, j]
+    return s, d1, d2
 
 
 @njit(cache=True)
@@ -234,23 +291,25 @@ def topp_spline(path: npt.ArrayLike, vmax: npt.ArrayLike, amax: npt.ArrayLike, *
     if len(P) < 2:
         raise InvalidInput("the path has no length", value=path)
     knots = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
-    spline = CubicSpline(knots, P, bc_type="natural")
-    frac = np.arange(GRID_PER_KNOT) / GRID_PER_KNOT  # GRID_PER_KNOT points per knot interval
-    s = np.concatenate([(knots[:-1, None] + np.diff(knots)[:, None] * frac).ravel(), knots[-1:]])
-    x, u, ok = topp_grid(s, spline(s, 1), spline(s, 2), GRID_MARGIN * vmax, GRID_MARGIN * amax)
+    c = natural_spline(knots, np.ascontiguousarray(P))
+    s, d1, d2 = _grid_derivatives(knots, c, GRID_PER_KNOT)  # GRID_PER_KNOT points per knot interval
+    x, u, ok = topp_grid(s, d1, d2, GRID_MARGIN * vmax, GRID_MARGIN * amax)
     if not ok:
         raise InvalidInput("TOPP: the path admits no motion (a joint's derivative is not finite)", value=path)
     sd = np.sqrt(x)
     tg = np.concatenate([[0.0], np.cumsum(2 * np.diff(s) / (sd[:-1] + sd[1:]))])
     ratio = 1.0
-    c = np.ascontiguousarray(spline.c)
     for _ in range(3):  # stretch uniformly until the samples between grid points are within the limits
         ts = _times(tg, dt / ratio)
         q, qd, qdd = (np.empty((len(ts), n)) for _ in range(3))
         r = _sample(ts, tg, s, sd, u, knots, c, vmax, amax, q, qd, qdd)
         if r <= ratio * (1 + 1e-9):
             break
-        ratio = r * (1 + 1e-6)
+        stretched = r * (1 + 1e-6)
+        if float(np.max(np.diff(ts))) * stretched <= dt:  # the same samples, stretched, stay dt apart
+            ratio = stretched
+            break
+        ratio = stretched
     q[0], q[-1] = P[0], P[-1]
     qd[0], qd[-1] = 0.0, 0.0
     T = ts * ratio

@@ -1,0 +1,110 @@
+"""The shortcut's one-pass edge check keeps the walk's guarantee, and the shortcut keeps its path valid."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robointel.io.mbm import load_mbm_problems
+from robointel.planning import Environment
+from robointel.planning import _collision_kernels as K
+from robointel.planning import _edge_kernels as E
+from robointel.planning import _shortcut_kernels as S
+from robointel.robot import Robot
+
+
+@pytest.fixture(scope="module")
+def thin70(shared_data):
+    """bookshelf_thin 70: its goal clears the fitted spheres (2.7 mm) but not the covering ones."""
+    root = shared_data("mbm", "ur5")
+    p = next(q for q in load_mbm_problems(root / "problems.json").select(families=["bookshelf_thin"])
+             if q.index == 70)
+    robot = Robot.load(root / "ur5.urdf")
+    env = Environment(robot, p.obstacles, srdf=root / "ur5.srdf", spheres=root / "ur5_spherized.urdf")
+    return p, env
+
+
+def _dense_min(env, W, q0, q1, gap=0.004) -> float:
+    """Smallest clearance in ``W`` on samples of q0 -> q1 at most ``gap`` of sphere travel apart."""
+    s = env.scratch
+    k = int(np.ceil(K.travel(q0, q1, env.lever) / gap)) + 1
+    return min(float(K.config_clearance(q0 + t * (q1 - q0), W, s.T, s.C, s.G, s.out, 1.0))
+               for t in np.linspace(0.0, 1.0, k))
+
+
+def test_edge_fine_keeps_the_walks_guarantee(thin70):
+    p, env = thin70
+    env.use("fitted")  # edges leaving the goal among the shelves, in the spheres it is free in
+    W, s, robot = env.world, env.scratch, env.robot
+    thr, res, gap = 0.0, 0.002, 0.004
+    rng = np.random.default_rng(11)
+    q0 = np.asarray(p.goals[0], float)
+    assert K.config_valid(q0, W, s.T, s.C, s.G, s.out, thr)
+    accepted = refused = 0
+    for _ in range(80):
+        d = rng.normal(0.0, 1.0, 6)
+        q1 = np.clip(q0 + d * rng.uniform(0.2, 1.5) / np.abs(d).max(), robot.lower, robot.upper)
+        ok = S.edge_fine(q0, q1, W, s.T, s.C, s.G, s.out, thr, env.lever, res)
+        dmin = _dense_min(env, W, q0, q1, gap)
+        if ok:  # accepted: the guarantee on dense samples
+            accepted += 1
+            assert dmin >= thr - res / 2 - 1e-9
+        else:  # refused: a point below thr exists (dense samples come within the gap of it)
+            refused += 1
+            assert dmin < thr + gap
+    env.use("cover")
+    assert accepted >= 5 and refused >= 5
+
+
+def test_root_edge_fine_relaxed_only_near_the_root(thin70):
+    p, env = thin70
+    env.use("fitted")
+    Wr, W, s, robot = env.world, env.world_cover, env.scratch, env.robot
+    thr, res, cap = 0.0, 0.002, 0.2
+    q0 = np.asarray(p.goals[0], float)
+    rng = np.random.default_rng(3)
+    left = 0
+    for _ in range(90):
+        d = rng.normal(0.0, 1.0, 6)
+        d *= rng.uniform(0.3, 1.2) / np.abs(d).max()
+        q1 = np.clip(q0 + d, robot.lower, robot.upper)
+        if not K.config_valid(q1, W, s.T, s.C, s.G, s.out, thr):
+            continue
+        if S.root_edge_fine(q0, q1, Wr, W, True, False, cap, s.T, s.C, s.G, s.out, thr, env.lever, res):
+            left += 1
+            f = cap / np.abs(q1 - q0).max()
+            qa = q0 + min(f, 1.0) * (q1 - q0)
+            assert _dense_min(env, Wr, q0, qa) >= thr - res / 2 - 1e-9  # relaxed within the cap
+            assert f >= 1.0 or _dense_min(env, W, qa, q1) >= thr - res / 2 - 1e-9  # covering beyond
+    env.use("cover")
+    assert left >= 3
+
+
+def test_shortcut_shortens_and_keeps_every_edge_valid(thin70):
+    p, env = thin70
+    W, s, robot = env.world_cover, env.scratch, env.robot
+    thr, res = 0.0, 0.002
+    # a zig-zag through free configurations near the start
+    rng = np.random.default_rng(5)
+    q0 = np.asarray(p.start, float)
+    pts = [q0]
+    while len(pts) < 8:
+        q = np.clip(pts[-1] + rng.normal(0.0, 0.15, 6), robot.lower, robot.upper)
+        if E.edge_valid(pts[-1], q, W, s.T, s.C, s.G, s.out, thr, env.lever, res) and \
+                K.config_valid(q, W, s.T, s.C, s.G, s.out, thr):
+            pts.append(q)
+    path = np.array(pts)
+    P = np.empty((256, 6))
+    P[:len(path)] = path
+    S.shortcut(P, 2, 0, W, W, np.inf, s.T, s.C, s.G, s.out, thr, env.lever, res)  # compile
+    P[:len(path)] = path
+    m = S.shortcut(P, len(path), 40, W, W, np.inf, s.T, s.C, s.G, s.out, thr, env.lever, res)
+    out = P[:m]
+    np.testing.assert_array_equal(out[0], path[0])
+    np.testing.assert_array_equal(out[-1], path[-1])
+
+    def length(x):
+        return float(np.sum(np.linalg.norm(np.diff(x, axis=0), axis=1)))
+
+    assert length(out) < length(path)
+    for a, b in zip(out[:-1], out[1:]):
+        assert _dense_min(env, W, a, b) >= thr - res / 2 - 1e-9
