@@ -41,8 +41,6 @@ def _nearest(nodes, cnt, q):  # pragma: no cover - compiled
 WINDOW = 32
 #: the smallest adapted range, rad
 MIN_RANGE = 0.125
-#: every BALANCE-th iteration grows the larger tree (the others the smaller one)
-BALANCE = 64
 
 
 @njit(cache=True, inline="always")
@@ -88,19 +86,16 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, win, W, Wr, nroo
     window; both caller-owned, so the ranges carry over between chunks (start with ``rng`` all equal
     and ``win`` zero). A tree whose extensions mostly fail (a goal deep in a narrow pocket) steps
     shorter (:func:`_adapt`); its greedy connect steps by its own range. The smaller tree is extended
-    (ties: tree 0), the larger one every ``BALANCE``-th iteration; ``iters`` a multiple of ``BALANCE``
-    keeps the search independent of how it is cut into chunks.
+    (ties: tree 0), so the search does not depend on how it is cut into chunks of ``iters``.
     """
     n = lower.shape[0]
     cap = nodes.shape[1]
     qr = np.empty(n)
     qn = np.empty(n)
-    for it in range(iters):
+    for _ in range(iters):
         # balanced: the smaller tree grows (a goal tree stuck in a pocket gets the attempts, which
-        # fail cheaply at the sample), the larger one every BALANCE-th iteration all the same
+        # fail cheaply at the sample's node check)
         a = 0 if count[0] <= count[1] else 1
-        if it % BALANCE == BALANCE - 1:
-            a = 1 - a
         b = 1 - a
         if count[a] >= cap or count[b] >= cap:
             return -1
