@@ -27,12 +27,39 @@ def _nearest(nodes, cnt, q):  # pragma: no cover - compiled
     n = q.shape[0]
     for i in range(cnt):
         d = 0.0
-        for k in range(n):
+        for k in range(n):  # partial distances: a node stops counting once it cannot be the nearest
             e = nodes[i, k] - q[k]
             d += e * e
+            if d >= best:
+                break
         if d < best:
             best, bi = d, i
     return bi, math.sqrt(best)
+
+
+#: a tree's range adapts over windows of this many extension attempts
+WINDOW = 32
+#: the smallest adapted range, rad
+MIN_RANGE = 0.125
+
+
+@njit(cache=True, inline="always")
+def _adapt(rng, win, t, ok):  # pragma: no cover - compiled
+    """Count one extension attempt of tree t; at the end of a window adapt the tree's range.
+
+    Below 1/8 of the window's attempts added a node: the range halves (not below ``MIN_RANGE``);
+    above 1/2: it doubles (not above ``rng[2]``, the range asked for).
+    """
+    win[t, 0] += 1
+    if ok:
+        win[t, 1] += 1
+    if win[t, 0] >= WINDOW:
+        if 8 * win[t, 1] < win[t, 0]:
+            rng[t] = max(MIN_RANGE, 0.5 * rng[t])
+        elif 2 * win[t, 1] > win[t, 0]:
+            rng[t] = min(rng[2], 2.0 * rng[t])
+        win[t, 0] = 0
+        win[t, 1] = 0
 
 
 @njit(cache=True, inline="always")
@@ -44,8 +71,8 @@ def _steer(a, b, dist, rng, out):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def rrt_connect(nodes, parent, count, lower, upper, iters, rng, W, Wr, nroot, rcap, T, C, G, out, thresh, lever,
-                res, link):  # pragma: no cover - compiled
+def rrt_connect(nodes, parent, count, lower, upper, iters, rng, win, W, Wr, nroot, rcap, T, C, G, out, thresh,
+                lever, res, link):  # pragma: no cover - compiled
     """Run up to ``iters`` RRT-Connect iterations.
 
     Returns 1 when the trees met (``link`` = (tree-0 node,
@@ -53,23 +80,33 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, W, Wr, nroot, rc
     leaving one of the ``nroot[t]`` roots of tree t are checked in world ``Wr`` (the roots may be
     valid only there) for their first ``rcap`` rad (max |dq|) and in ``W`` beyond
     (:func:`~robointel.planning._edge_kernels.root_edge`), all other edges in ``W``.
+
+    ``rng`` (3,): the current range (rad, joint-space norm) of tree 0 and tree 1 and the range asked
+    for (their upper bound), ``win`` (2, 2) int64: each tree's attempts and successes in the current
+    window; both caller-owned, so the ranges carry over between chunks (start with ``rng`` all equal
+    and ``win`` zero). A tree whose extensions mostly fail (a goal deep in a narrow pocket) steps
+    shorter (:func:`_adapt`); its greedy connect steps by its own range. The smaller tree is extended
+    (ties: tree 0), so the search does not depend on how it is cut into chunks of ``iters``.
     """
     n = lower.shape[0]
     cap = nodes.shape[1]
     qr = np.empty(n)
     qn = np.empty(n)
-    for it in range(iters):
-        a = (count[0] + count[1] + it) % 2
+    for _ in range(iters):
+        # balanced: the smaller tree grows (a goal tree stuck in a pocket gets the attempts, which
+        # fail cheaply at the sample's node check)
+        a = 0 if count[0] <= count[1] else 1
         b = 1 - a
         if count[a] >= cap or count[b] >= cap:
             return -1
         for k in range(n):
             qr[k] = np.random.uniform(lower[k], upper[k])
         i, d = _nearest(nodes[a], count[a], qr)
-        _steer(nodes[a, i], qr, d, rng, qn)
-        if not config_valid(qn, W, T, C, G, out, thresh):
-            continue
-        if not root_edge(nodes[a, i], qn, Wr, W, i < nroot[a], False, rcap, T, C, G, out, thresh, lever, res, 0.0):
+        _steer(nodes[a, i], qr, d, rng[a], qn)
+        ok = config_valid(qn, W, T, C, G, out, thresh) and root_edge(
+            nodes[a, i], qn, Wr, W, i < nroot[a], False, rcap, T, C, G, out, thresh, lever, res, 0.0)
+        _adapt(rng, win, a, ok)
+        if not ok:
             continue
         ia = count[a]
         nodes[a, ia] = qn
@@ -80,7 +117,7 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, W, Wr, nroot, rc
         while True:
             if count[b] >= cap:
                 return -1
-            reached = _steer(nodes[b, j], qn, d, rng, qr)
+            reached = _steer(nodes[b, j], qn, d, rng[b], qr)
             if not reached and not config_valid(qr, W, T, C, G, out, thresh):
                 break
             if not root_edge(nodes[b, j], qr, Wr, W, j < nroot[b], False, rcap, T, C, G, out, thresh, lever, res,

@@ -52,7 +52,8 @@ class MotionSettings:
         seed: seed of the sampler and the shortcutter.
         jerk_limited: time the path with ruckig (rest to rest per straight segment) instead of
             temporal optimization.
-        rrt_range: longest RRT edge, rad (Euclidean in joint space).
+        rrt_range: longest RRT edge, rad (Euclidean in joint space); each tree steps shorter while its
+            extensions mostly fail (down to 1/8 rad), longer again (up to this) when they succeed.
         resolution: largest sphere-centre travel between two checks of a path edge, m (so the
             edge keeps clearance >= d_min - resolution / 2 between the checked points).
         search_resolution: the same during the tree search (coarser, faster); the found path's
@@ -417,8 +418,8 @@ def _warmup(env: Environment) -> None:
     nodes = np.zeros((2, 4, len(q)))
     parent = np.full((2, 4), -1, np.int64)
     count = np.array([1, 1], np.int64)
-    R.rrt_connect(nodes, parent, count, env.robot.lower, env.robot.upper, 0, 1.0, W, W, count, 0.2, s.T, s.C, s.G,
-                  s.out, 0.0, env.lever, 0.01, np.zeros(2, np.int64))
+    R.rrt_connect(nodes, parent, count, env.robot.lower, env.robot.upper, 0, np.ones(3), np.zeros((2, 2), np.int64),
+                  W, W, count, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, np.zeros(2, np.int64))
     P = np.array([q, q + 1e-3 * (env.robot.upper - q)])
     S.shortcut(P, 2, 0, W, W, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
     E.root_edge(P[0], P[1], W, W, True, True, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, 0.0)
@@ -469,6 +470,7 @@ def _search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetti
     nodes[0, 0] = q0
     nodes[1, :len(goals)] = goals
     link = np.zeros(2, np.int64)
+    rng, win = np.full(3, float(st.rrt_range)), np.zeros((2, 2), np.int64)  # each tree's range adapts
     R.seed(int(st.seed) + 7 * attempt)
     robot = env.robot
     status, grown = 0, 0
@@ -477,8 +479,8 @@ def _search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetti
             grown += int(count.sum())
             count[:] = nroot
             parent[:] = -1
-        status = R.rrt_connect(nodes, parent, count, robot.lower, robot.upper, 32, float(st.rrt_range), W, Wr, nroot,
-                               rcap, s.T, s.C, s.G, s.out, thr, lever, res, link)
+        status = R.rrt_connect(nodes, parent, count, robot.lower, robot.upper, 32, rng, win, W, Wr, nroot, rcap,
+                               s.T, s.C, s.G, s.out, thr, lever, res, link)
     if status != 1:
         return None, -1, f"the time budget of {st.time_budget_s:g} s ran out ({grown + int(count.sum())} nodes)"
     a, b = [], []

@@ -1,0 +1,89 @@
+"""The RRT search kernel: exact nearest neighbours, each tree's adaptive range, determinism per seed.
+
+A cage goal of MotionBenchMaker sits in a narrow pocket: long extensions of the goal tree almost
+all fail, so its range must drop while the start tree's (in free space) stays as asked.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from robointel.io.mbm import load_mbm_problems
+from robointel.planning import Environment
+from robointel.planning import _rrt_kernels as R
+from robointel.planning.motion import _goal_set
+from robointel.robot import Robot
+
+
+def test_nearest_is_the_exact_nearest():
+    rng = np.random.default_rng(3)
+    walk = np.cumsum(rng.normal(0.0, 0.3, (3000, 6)), axis=0)  # clustered, as a tree's nodes
+    for Q in (walk, rng.uniform(-6, 6, (3000, 6))):
+        for q in rng.uniform(-6, 6, (50, 6)):
+            i, d = R._nearest(Q, 2500, q)
+            dist = np.linalg.norm(Q[:2500] - q, axis=1)
+            assert i == int(np.argmin(dist)) and d == pytest.approx(dist.min(), rel=1e-12)
+
+
+def test_adapt_halves_and_doubles_within_bounds():
+    rng, win = np.array([1.0, 1.0, 1.0]), np.zeros((2, 2), np.int64)
+    for _ in range(R.WINDOW * 10):  # tree 1 never succeeds: halves each window down to the floor
+        R._adapt(rng, win, 1, False)
+    assert rng[1] == R.MIN_RANGE and rng[0] == 1.0
+    for k in range(R.WINDOW):  # 3 of 32 succeed (< 1/8): halves; no floor hit for tree 0
+        R._adapt(rng, win, 0, k < 3)
+    assert rng[0] == 0.5
+    for k in range(R.WINDOW):  # 4 of 32 (not < 1/8, not > 1/2): unchanged
+        R._adapt(rng, win, 0, k < 4)
+    assert rng[0] == 0.5
+    for _ in range(R.WINDOW * 10):  # all succeed: doubles up to the range asked for, never beyond
+        R._adapt(rng, win, 1, True)
+    assert rng[1] == 1.0 and rng[2] == 1.0
+
+
+@pytest.fixture(scope="module")
+def cage(shared_data, tmp_path_factory):
+    root = shared_data("mbm", "ur5")
+    robot = Robot.load(root / "ur5.urdf")
+    data = json.loads((root / "problems.json").read_text())
+    one = tmp_path_factory.mktemp("cage") / "one.json"  # the reader on this problem alone (all 689 is slow)
+    one.write_text(json.dumps({**data, "problems": {"cage": [r for r in data["problems"]["cage"] if r["index"] == 4]}}))
+    p = load_mbm_problems(one).select(index=4)[0]
+    env = Environment(robot, p.obstacles, srdf=root / "ur5.srdf", spheres=root / "ur5_spherized.urdf")
+    env.use("cover")
+    goals = _goal_set(robot, p.goals, 0)
+    return env, np.asarray(p.start, float), goals
+
+
+def _grow(env, q0, goals, seed, iters=1536):
+    W, s, n, cap = env.world_cover, env.scratch, len(q0), 4000
+    nodes, parent = np.zeros((2, cap, n)), np.full((2, cap), -1, np.int64)
+    count = np.array([1, len(goals)], np.int64)
+    nroot = count.copy()
+    nodes[0, 0], nodes[1, :len(goals)] = q0, goals
+    rng, win, link = np.ones(3), np.zeros((2, 2), np.int64), np.zeros(2, np.int64)
+    R.seed(seed)
+    status = 0
+    for _ in range(iters // 32):
+        status = R.rrt_connect(nodes, parent, count, env.robot.lower, env.robot.upper, 32, rng, win, W, W, nroot,
+                               np.inf, s.T, s.C, s.G, s.out, 0.001, env.lever, 0.02, link)
+        if status != 0:
+            break
+    return nodes, parent, count, rng, status
+
+
+def test_goal_tree_steps_shorter_in_a_pocket_and_search_is_deterministic(cage):
+    env, q0, goals = cage
+    nodes, parent, count, rng, status = _grow(env, q0, goals, seed=11)
+    assert rng[2] == 1.0 and rng[0] == 1.0  # the start tree in free space keeps the range asked for
+    assert rng[1] < 1.0  # the goal tree's long extensions failed: it steps shorter
+    for t in range(2):  # no edge is longer than the range asked for; every node is valid
+        for i in range(int(count[t])):
+            if parent[t, i] >= 0:
+                assert np.linalg.norm(nodes[t, i] - nodes[t, parent[t, i]]) <= 1.0 + 1e-9
+                assert env.clearance(nodes[t, i], cap=0.1) >= 0.001 - 1e-9
+    again = _grow(env, q0, goals, seed=11)
+    assert again[4] == status and np.array_equal(again[2], count) and np.array_equal(again[3], rng)
+    assert all(np.array_equal(again[0][t, :count[t]], nodes[t, :count[t]]) for t in range(2))
