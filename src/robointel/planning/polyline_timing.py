@@ -12,6 +12,10 @@ from robointel._validate import as_array
 from robointel.errors import InvalidInput
 from robointel.trajectory import Trajectory
 
+_MIN_GAP = 1e-4
+"""A grid knot closer than this to a switch of the profile or to a vertex, s, is left out (rounding in
+the positions over a shorter interval would bend the interpolant's acceleration)."""
+
 
 def _segment(delta: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> tuple[float, float, float]:
     """Peak path speed, path acceleration (per unit of the parameter s in [0, 1]) and duration."""
@@ -41,7 +45,8 @@ def polyline_timing(path: npt.ArrayLike, vmax: npt.ArrayLike, amax: npt.ArrayLik
         joint_names: names of the n joints.
 
     Returns:
-        The trajectory with knots every ``dt`` (and at every vertex), exact q, qd, qdd.
+        The trajectory with knots every ``dt``, at every vertex and at every switch of the profile
+        (so its cubic Hermite interpolant is the profile itself: exact q, qd, qdd everywhere).
 
     Raises:
         InvalidInput: bad shapes, non-positive limits or dt.
@@ -62,8 +67,13 @@ def polyline_timing(path: npt.ArrayLike, vmax: npt.ArrayLike, amax: npt.ArrayLik
             continue
         sv, sa, dur = _segment(d, vmax, amax)
         tr = sv / sa  # ramp time
-        ts = np.arange(1, int(np.ceil(dur / dt))) * dt
-        ts = np.append(ts, dur)
+        # knots every dt plus the profile's switching times: between two knots the motion is then one
+        # quadratic piece, which the trajectory's cubic Hermite interpolant reproduces exactly (a knot
+        # interval across a switch would bend its acceleration up to 1.5x the limit)
+        grid = np.arange(1, int(np.ceil(dur / dt))) * dt
+        keys = np.array([x for x in (tr, dur - tr) if 0.0 < x < dur] + [dur])
+        near = np.min(np.abs(grid[:, None] - keys[None, :]), axis=1) < _MIN_GAP
+        ts = np.union1d(grid[~near], keys)
         s = np.where(ts < tr, 0.5 * sa * ts ** 2,
                      np.where(ts > dur - tr, 1.0 - 0.5 * sa * (dur - ts) ** 2, 0.5 * sa * tr ** 2 + sv * (ts - tr)))
         sd = np.where(ts < tr, sa * ts, np.where(ts > dur - tr, sa * (dur - ts), sv))
