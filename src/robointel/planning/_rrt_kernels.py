@@ -1,4 +1,4 @@
-"""Compiled (numba) RRT-Connect and path shortcutting on the sphere collision kernels.
+"""Compiled (numba) RRT-Connect on the sphere collision kernels (the shortcut: ``_shortcut_kernels``).
 
 Trees live in caller-owned arrays so that the search runs in chunks of iterations between which
 the caller watches the clock: ``nodes`` (2, cap, n), ``parent`` (2, cap), ``count`` (2,). Tree 0
@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 from robointel.planning._collision_kernels import config_valid
-from robointel.planning._edge_kernels import edge_two_pass, root_edge
+from robointel.planning._edge_kernels import root_edge
 
 
 @njit(cache=True)
@@ -140,92 +140,3 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, win, W, Wr, nroo
                 d += e * e
             d = math.sqrt(d)
     return 0
-
-
-@njit(cache=True)
-def _length(P, npts, L):  # pragma: no cover - compiled
-    L[0] = 0.0
-    for i in range(1, npts):
-        s = 0.0
-        for k in range(P.shape[1]):
-            e = P[i, k] - P[i - 1, k]
-            s += e * e
-        L[i] = L[i - 1] + math.sqrt(s)
-
-
-@njit(cache=True)
-def shortcut(P, npts, iters, W, Wr, rcap, T, C, G, out, thresh, lever, res, coarse):  # pragma: no cover - compiled
-    """Shorten the path P[:npts] in place.
-
-    A greedy pass (each vertex joined to the farthest one
-    it sees), then ``iters`` random shortcuts between points anywhere on the path. Returns the
-    new vertex count. Edges from the first or to the last vertex are checked in world ``Wr`` within
-    ``rcap`` rad of that vertex and in ``W`` beyond (:func:`~robointel.planning._edge_kernels.root_edge`),
-    all others in ``W``; every edge at resolution ``res`` after a rejecting pass at ``coarse``.
-    """
-    n = P.shape[1]
-    cap = P.shape[0]
-    Q = np.empty_like(P)
-    # greedy pass
-    Q[0] = P[0]
-    m = 1
-    i = 0
-    while i < npts - 1:
-        j = npts - 1
-        while j > i + 1 and not root_edge(P[i], P[j], Wr, W, i == 0, j == npts - 1, rcap, T, C, G, out, thresh,
-                                          lever, res, coarse):
-            j -= 1
-        Q[m] = P[j]
-        m += 1
-        i = j
-    for r in range(m):
-        P[r] = Q[r]
-    npts = m
-    L = np.empty(cap)
-    qa = np.empty(n)
-    qb = np.empty(n)
-    for _ in range(iters):
-        if npts < 3:
-            break
-        _length(P, npts, L)
-        u1 = np.random.uniform(0.0, L[npts - 1])
-        u2 = np.random.uniform(0.0, L[npts - 1])
-        if u1 > u2:
-            u1, u2 = u2, u1
-        s1 = np.searchsorted(L[:npts], u1, side="right") - 1
-        s2 = np.searchsorted(L[:npts], u2, side="right") - 1
-        s1 = min(max(s1, 0), npts - 2)
-        s2 = min(max(s2, 0), npts - 2)
-        if s1 == s2 or npts + 1 > cap:
-            continue
-        f1 = (u1 - L[s1]) / max(L[s1 + 1] - L[s1], 1e-12)
-        f2 = (u2 - L[s2]) / max(L[s2 + 1] - L[s2], 1e-12)
-        for k in range(n):
-            qa[k] = P[s1, k] + f1 * (P[s1 + 1, k] - P[s1, k])
-            qb[k] = P[s2, k] + f2 * (P[s2 + 1, k] - P[s2, k])
-        if not edge_two_pass(qa, qb, W, T, C, G, out, thresh, lever, res, coarse):
-            continue
-        m = 0
-        for r in range(s1 + 1):
-            Q[m] = P[r]
-            m += 1
-        Q[m] = qa
-        Q[m + 1] = qb
-        m += 2
-        for r in range(s2 + 1, npts):
-            Q[m] = P[r]
-            m += 1
-        for r in range(m):
-            P[r] = Q[r]
-        npts = m
-    # drop vertices that are (almost) duplicates of their predecessor
-    m = 1
-    for r in range(1, npts):
-        s = 0.0
-        for k in range(n):
-            e = P[r, k] - P[m - 1, k]
-            s += e * e
-        if s > 1e-16 or r == npts - 1:
-            P[m] = P[r]
-            m += 1
-    return m

@@ -9,12 +9,25 @@ res / 2 everywhere (its end is checked >= thresh too), a rejected one has a poin
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
 from robointel.planning._collision_kernels import config_valid
 from robointel.planning._edge_kernels import edge_valid_bisect
-from robointel.planning._rrt_kernels import _length
+
+
+@njit(cache=True)
+def _length(P: np.ndarray, npts: int, L: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Cumulative Euclidean length L[:npts] of the path P[:npts], rad."""
+    L[0] = 0.0
+    for i in range(1, npts):
+        s = 0.0
+        for k in range(P.shape[1]):
+            e = P[i, k] - P[i - 1, k]
+            s += e * e
+        L[i] = L[i - 1] + math.sqrt(s)
 
 
 @njit(cache=True)
