@@ -27,6 +27,16 @@ process (robointel.interface.emulator) so that its Python real-time loop does no
 interpreter lock. Peer: the same
 stream sent straight through ``FanucDriver.servo_j`` (no robointel gate, state read or recording),
 measured in the same run.
+
+The host during each stream (session 27; :class:`~robointel.interface.host_probe.HostProbe`):
+``<run>_host`` holds the CPU count, the load average at the stream's start and end, the share of each
+CPU taken by the hypervisor (``/proc/stat`` steal) over the stream and its worst 0.5 s, and what a
+bare SCHED_FIFO sleeper woken every 2 ms saw (its lateness, its stalls over 2 ms and when);
+``<run>_late_us`` (median / max), ``<run>_late_at_s`` (s after the stream's start) and
+``<run>_late_in_host_stall`` (late windows within 20 ms of a stall of the sleeper) describe the late
+windows of the streaming process (``fanuc``, ``sim``) or the late cycles of the caller (``in_process``,
+``peer``, ``sim_in_process``); ``<run>_child_scheduling`` the streaming process's threads by policy
+(was SCHED_FIFO granted). A late window at an instant the sleeper also stalled is the host's, not ours.
 """
 from __future__ import annotations
 
@@ -40,6 +50,7 @@ import numpy as np
 
 from _planner_load import planner_thread
 from robointel.interface.emulator import EmulatorProcess
+from robointel.interface.host_probe import HostProbe
 
 PERIOD = 0.008
 
@@ -60,7 +71,8 @@ def _targets(q0, seconds):
 def _stream(send, targets, robot=None):
     """Send targets paced at the period.
 
-    Returns (cycle compute us, missed cycles, late ms per cycle, stall stops). A stall stop (the
+    Returns (cycle compute us, missed cycles, late ms per cycle, stall stops, CLOCK_MONOTONIC s at which
+    each cycle ended: its deadline). A stall stop (the
     watchdog stopped the robot because this thread got no CPU for N periods) is counted, recovered,
     and the rest of the path is shifted to start where the robot stopped.
     """
@@ -68,7 +80,7 @@ def _stream(send, targets, robot=None):
     from robointel.interface.realtime import sleep_until
 
     K = len(targets)
-    cyc, late, missed, stalls = np.zeros(K), np.zeros(K), 0, []
+    cyc, late, missed, stalls, due = np.zeros(K), np.zeros(K), 0, [], np.zeros(K)
     offset = np.zeros(targets.shape[1])
     t0 = time.perf_counter() + 0.02
     for k in range(K):
@@ -87,10 +99,27 @@ def _stream(send, targets, robot=None):
             t0 += c0 - (t0 + k * PERIOD)  # the schedule restarts after the recovery
         c1 = time.perf_counter()
         cyc[k] = (c1 - c0) * 1e6
-        late[k] = (c1 - (t0 + (k + 1) * PERIOD)) * 1e3
+        due[k] = t0 + (k + 1) * PERIOD
+        late[k] = (c1 - due[k]) * 1e3
         if late[k] > 0:
             missed += 1
-    return cyc, missed, late, stalls
+    return cyc, missed, late, stalls, due
+
+
+def _late_figures(probe, origin, at, late_ms):
+    """The late windows beside the host's figures: how late, when, and how many fell in a host stall.
+
+    ``at``: CLOCK_MONOTONIC s of each late window; ``late_ms``: how late each was. Keys: ``host``
+    (:meth:`HostProbe.summary`, times after ``origin``: the stream's start), ``late_us`` (median / max,
+    per late window or event), ``late_at_s`` (the first 100, s after the start), ``late_in_host_stall``
+    (how many of them fell within 20 ms of a stall of the host probe's bare sleeper).
+    """
+    at, late_ms = np.asarray(at, dtype=float), np.asarray(late_ms, dtype=float)
+    return {"host": probe.summary(origin),
+            "late_us": ({"median": float(np.median(late_ms)) * 1e3, "max": float(np.max(late_ms)) * 1e3}
+                        if len(late_ms) else None),
+            "late_at_s": [round(float(t - origin), 3) for t in at[:100]],
+            "late_in_host_stall": probe.coincident(at.tolist())}
 
 
 def _streaming_run(make_robot, seconds, planner=True):
@@ -105,8 +134,9 @@ def _streaming_run(make_robot, seconds, planner=True):
             th.start()
             _wait_warm(counter)
         targets = _targets(robot.state().q, seconds)
-        with _fifo():
-            cyc, missed, late, stalls = _stream(robot.stream, targets, robot)
+        with _fifo(), HostProbe() as probe:
+            origin = time.monotonic()
+            cyc, missed, late, stalls, due = _stream(robot.stream, targets, robot)
         robot.hold()
         if hasattr(getattr(robot, "driver", None), "held"):  # the sim stream: count its queued targets too
             deadline = time.monotonic() + 30.0
@@ -114,9 +144,19 @@ def _streaming_run(make_robot, seconds, planner=True):
                 time.sleep(0.01)
         extra = robot.timing_stats() if hasattr(robot, "timing_stats") else {}
         if getattr(robot, "stream_process", False):  # the missed windows, for locating them
-            keys = ("kind", "t_s", "tick", "gap_ms", "cpu_ms", "runq_ms", "runs", "wait_ms")
+            keys = ("kind", "t_s", "tick", "gap_ms", "cpu_ms", "runq_ms", "runs", "wait_ms", "late_ms", "faults",
+                    "preemptions")
+            events = robot.driver.missed_events()
             extra["missed_events"] = [dict(zip(keys, (e[0], round(e[1], 4), *e[2:]), strict=True))
-                                      for e in robot.driver.missed_events()]
+                                      for e in events]
+            base = robot.driver.base_ns * 1e-9
+            mine = [e for e in events if e[0] == "late"]  # the streaming process's own (not starved, core-late)
+            extra["late"] = _late_figures(probe, origin, [base + e[1] for e in mine], [e[8] for e in mine])
+            extra["child_scheduling"] = robot.driver.scheduling()
+        if "slow_steps" in extra:  # the sim child's windows with a long physics step: [s after start, wall, CPU ms]
+            slow = extra["slow_steps"]
+            extra["slow_steps"] = {"count": len(slow), "in_host_stall": probe.coincident([x[0] for x in slow]),
+                                   "first": [[round(x[0] - origin, 3), x[1], x[2]] for x in slow[:50]]}
     finally:
         stop.set()
         if planner:
@@ -125,6 +165,7 @@ def _streaming_run(make_robot, seconds, planner=True):
     return {"cycles": len(cyc), "missed_cycles": int(missed), "per_cycle_us": _stats(cyc),
             "planner_segments_meanwhile": counter[0], "core": extra, "max_late_ms": float(late.max()),
             "stall_stops": len(stalls), "late_over_100ms": int(np.sum(late > 100.0)),
+            "caller_late": _late_figures(probe, origin, due[late > 0], late[late > 0]),
             "load_avg_1min": [load0, os.getloadavg()[0]]}
 
 
@@ -139,6 +180,11 @@ def _fifo():
 
 
 SWITCH = [0.0005]
+
+
+def _flat(prefix, late):
+    """``_late_figures``' keys as ``<prefix>_host``, ``<prefix>_late_us``, ``<prefix>_late_at_s``, ..."""
+    return {f"{prefix}_{k}": v for k, v in late.items()}
 
 
 def _stats(us):
@@ -161,14 +207,15 @@ def _peer_run(url_fake, seconds):
         th.start()
         _wait_warm(counter)
         targets = _targets(drv.get_joint_configuration(), seconds)
-        with _fifo():
-            cyc, missed, late, _ = _stream(lambda q: drv.servo_j(q, PERIOD), targets)
+        with _fifo(), HostProbe() as probe:
+            origin = time.monotonic()
+            cyc, missed, late, _, due = _stream(lambda q: drv.servo_j(q, PERIOD), targets)
     finally:
         stop.set()
         th.join()
         drv.close()
     return {"cycles": len(cyc), "missed_cycles": int(missed), "per_cycle_us": _stats(cyc),
-            "max_late_ms": float(late.max())}
+            "max_late_ms": float(late.max()), "late": _late_figures(probe, origin, due[late > 0], late[late > 0])}
 
 
 def _estop_run(fake):
@@ -294,6 +341,14 @@ def main() -> None:
                          args.seconds)
     score = sim["core"]
     sim_in = _streaming_run(lambda: SimRobot(paced=True, stall_periods=10), args.seconds)
+    out.update({  # the host during each stream, and when and how late the late windows were (session 27)
+        "host_cpus": os.cpu_count(),
+        **_flat("fanuc", core["late"]), "fanuc_child_scheduling": core["child_scheduling"],
+        **_flat("sim", score["late"]), "sim_child_scheduling": score["child_scheduling"],
+        "sim_slow_steps": score.get("slow_steps"),
+        **(_flat("in_process", inproc["caller_late"]) if inproc else {}),
+        **_flat("peer", peer["late"]), **_flat("sim_in_process", sim_in["caller_late"]),
+    })
     out.update({
         "fanuc_cycles": fan["cycles"],
         "fanuc_missed_cycles": int(core["stream_starved"] + core["stream_late"]),

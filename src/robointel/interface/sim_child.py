@@ -35,6 +35,8 @@ from robointel.interface.sim import step_window, substeps_of
 from robointel.sim.workcell import Workcell
 
 _WRENCH_KEYS = ("fx", "fy", "fz", "mx", "my", "mz")
+SLOW_STEP_S, SLOW_STEPS = 0.002, 256
+"""A window's physics longer than this (wall time) is remembered with its CPU time, s; how many."""
 
 
 class SimSide:
@@ -66,6 +68,7 @@ class SimSide:
         self.fault = ""  # why the simulation diverged
         self.step_max_s = 0.0
         self.catch_up_max = 0  # the most windows stepped at one read
+        self.slow_steps: list[tuple[float, float, float]] = []  # (CLOCK_MONOTONIC s, wall ms, CPU ms)
         self._snap: dict[str, Any] | None = None
 
     # ------------------------------------------------------------------ the core
@@ -84,13 +87,17 @@ class SimSide:
         return self._snap
 
     def _window(self) -> None:
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.thread_time()
         try:
             step_window(self.wc, self.prev, self.cmd, self.period, self.substeps)
         except SafetyStop as exc:
             self.fault = str(exc) or "the simulation diverged"
         self.prev = self.cmd
-        self.step_max_s = max(self.step_max_s, time.perf_counter() - t)
+        wall = time.perf_counter() - t
+        self.step_max_s = max(self.step_max_s, wall)
+        if wall > SLOW_STEP_S and len(self.slow_steps) < SLOW_STEPS:  # CPU << wall: the thread was not running
+            self.slow_steps.append((round(time.monotonic() - wall, 4), round(wall * 1e3, 3),
+                                    round((time.thread_time() - c) * 1e3, 3)))
 
     def _snapshot(self) -> dict[str, Any]:
         wc, ns = self.wc, self.t0_ns + self.tick * self.period_ns
@@ -146,9 +153,14 @@ class SimSide:
         """Nothing to arm."""
 
     def timing_stats(self) -> dict[str, Any]:
-        """``tick_count``, ``step_max_ms`` (the longest window's physics), ``catch_up_max_windows``."""
+        """The child's physics figures.
+
+        ``tick_count``, ``step_max_ms`` (the longest window's physics), ``catch_up_max_windows``,
+        ``slow_steps`` (windows whose physics took more than :data:`SLOW_STEP_S` of wall time: [start,
+        CLOCK_MONOTONIC s; wall ms; CPU ms of this thread]).
+        """
         return {"tick_count": self.tick, "step_max_ms": self.step_max_s * 1e3,
-                "catch_up_max_windows": int(self.catch_up_max)}
+                "catch_up_max_windows": int(self.catch_up_max), "slow_steps": [list(x) for x in self.slow_steps]}
 
     def close(self) -> None:
         """Nothing to release."""

@@ -19,6 +19,7 @@ import gc
 import math
 import mmap
 import os
+import resource
 import select
 import sys
 import time
@@ -61,7 +62,7 @@ PRIORITY = 60
 """SCHED_FIFO priority of this process's threads (below the core's 80, above the emulator's 50, a caller's 40)."""
 CORE_LATE_MARGIN_S, CATCH_UP_S = 0.0002, 0.001
 """A tick not there this long after it was due, and the next within CATCH_UP_S of that poll: core-late, s."""
-EVENTS = 64  # missed windows remembered for the ``missed_events`` request
+EVENTS = 512  # missed windows remembered for the ``missed_events`` request
 GC_TICKS = 125
 """Automatic GC is off; the loop collects the young generations every this many ticks, just after one."""
 _SNAP_SCALARS = ("cmd_tick", "mode", "fault", "e_stopped", "in_error", "tp_enabled", "motion_possible",
@@ -91,10 +92,11 @@ class Player:
         self.wake_s = self.prev_wake_s = 0.0  # this wake-up's time and the previous one's
         self.sched: tuple[int, ...] = (0, 0, 0)  # schedstat at those wake-ups: on a CPU, runnable (ns), runs
         self.prev_sched: tuple[int, ...] = self.sched
+        self.faults = self.prev_faults = (0, 0)  # (page faults, involuntary switches) at those wake-ups
         self.waited_s = 0.0  # the poll timeout asked for before this wake-up
         self.consec_starved = self._read_upto = 0
         self._last_arrival = -math.inf
-        self.events: list[tuple[str, float, int, float, float, float, int, float]] = []
+        self.events: list[tuple[str, float, int, float, float, float, int, float, float, int, int]] = []
         self.counters = {"windows": 0, "fresh": 0, "starved": 0, "late": 0, "submits": 0, "last_submit_s": 0.0,
                          "stalled": 0, "stall_gap_s": 0.0, "refused": 0, "core_late": 0, "direct_submits": 0,
                          "direct_latency_max_s": 0.0, "direct_latency_sum_s": 0.0, "gc_max_s": 0.0, "holds": 0}
@@ -140,12 +142,18 @@ class Player:
         self.active = self.direct = False
         self.consec_starved = 0
 
-    def _event(self, kind: str, t: float, tick: int) -> None:
-        """Remember a missed window with what this thread did over the gap before the wake-up that saw it."""
+    def _event(self, kind: str, t: float, tick: int, late_s: float) -> None:
+        """Remember a missed window with what this thread did over the gap before the wake-up that saw it.
+
+        ``late_s``: how late it was: for a late window, its target's submission (or the wake-up that
+        found it skipped) after the window's deadline (the tick that ends it); for a starved one, the
+        time since the caller's last target was due.
+        """
         (c0, r0, n0), (c1, r1, n1) = self.prev_sched, self.sched
+        (f0, p0), (f1, p1) = self.prev_faults, self.faults
         self.events.append((kind, t, tick, round((self.wake_s - self.prev_wake_s) * 1e3, 3),
                             round((c1 - c0) * 1e-6, 3), round((r1 - r0) * 1e-6, 3), n1 - n0,
-                            round(self.waited_s * 1e3, 3)))
+                            round(self.waited_s * 1e3, 3), round(late_s * 1e3, 3), f1 - f0, p1 - p0))
         del self.events[:-EVENTS]
 
     # ------------------------------------------------------------------ one controller window
@@ -198,7 +206,7 @@ class Player:
         else:  # starved: the caller has not delivered the target for this window
             c["windows"] += 1
             c["starved"] += 1
-            self._event("starved", tau, tick)
+            self._event("starved", tau, tick, tau - a[1])
             self._starved(1, tau - a[1])
             return  # the servo keeps heading for the last target
         c["windows"] += 1
@@ -222,7 +230,9 @@ class Player:
             c["core_late"] += core
             c["late"] += gap - core
             c["windows"] += gap
-            self._event("late" if gap > core else "core_late", self.rel(int(snap["tick_mono_ns"])), tick)
+            # the first window skipped ended at the tick after it: last_tick_s + 2 periods
+            self._event("late" if gap > core else "core_late", self.rel(int(snap["tick_mono_ns"])), tick,
+                        self.wake_s - (self.last_tick_s + 2 * self.period))
         self._seen(tick, snap)
 
     def _starved(self, n: int, gap_s: float) -> None:
@@ -255,10 +265,10 @@ class Player:
             self.consec_starved = 0
         elif any(p[2] <= t_tick for p in self.pending if _is_direct(p)):
             c["late"] += 1  # a target had arrived: this process submitted it after the tick
-            self._event("late", t_tick, tick)
+            self._event("late", t_tick, tick, self.wake_s - t_tick)
         else:
             c["starved"] += 1
-            self._event("starved", t_tick, tick)
+            self._event("starved", t_tick, tick, t_tick - self._last_arrival)
             self._starved(1, t_tick - self._last_arrival)
 
     def serve_direct(self, snap: dict[str, Any]) -> None:
@@ -309,10 +319,10 @@ class Player:
             c["fresh"] -= 1
             if self.rel(int(snap["tick_mono_ns"])) - self.last_tick_s < 0.5 * self.period:
                 c["core_late"] += 1  # the served tick came late, its successor on time: the core's catch-up
-                self._event("core_late", self.last_tick_s, tick)
+                self._event("core_late", self.last_tick_s, tick, c["last_submit_s"] - self.last_tick_s - self.period)
             else:
                 c["late"] += 1
-                self._event("late", self.last_tick_s, tick)
+                self._event("late", self.last_tick_s, tick, c["last_submit_s"] - self.last_tick_s - self.period)
             self._seen(after, snap)
 
 
@@ -393,6 +403,8 @@ def serve_forever(conn: Connection, buf: npt.NDArray[np.float64], driver: Any, b
             t_read = player.rel(time.monotonic_ns())  # before the read: no tick by then, if none in it
             player.prev_wake_s, player.wake_s = player.wake_s, t_read
             player.prev_sched, player.sched = player.sched, tuple(map(int, os.pread(stat_fd, 96, 0).split()))
+            ru = resource.getrusage(resource.RUSAGE_THREAD)
+            player.prev_faults, player.faults = player.faults, (ru.ru_minflt + ru.ru_majflt, ru.ru_nivcsw)
             snap = core.get_snapshot() if core is not None else {}
             if running and int(snap["cmd_tick"]) != seen:
                 player.serve(snap)

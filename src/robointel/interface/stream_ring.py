@@ -162,6 +162,27 @@ class RingProcess:
             return True
         return self._proc.poll() is None
 
+    def scheduling(self) -> dict[str, int]:
+        """The child's threads by scheduling policy and priority, e.g. ``{"SCHED_FIFO 60": 1, "SCHED_OTHER 0": 2}``.
+
+        Whether the real-time policy was granted (it needs CAP_SYS_NICE; the child goes on at normal
+        priority without it). Empty when the child is gone.
+        """
+        names = {os.SCHED_OTHER: "SCHED_OTHER", os.SCHED_FIFO: "SCHED_FIFO", os.SCHED_RR: "SCHED_RR",
+                 os.SCHED_BATCH: "SCHED_BATCH", os.SCHED_IDLE: "SCHED_IDLE"}
+        out: dict[str, int] = {}
+        try:
+            tids = [int(t) for t in os.listdir(f"/proc/{self._proc.pid}/task")]
+        except OSError:
+            return out
+        for tid in tids:
+            try:
+                key = f"{names.get(os.sched_getscheduler(tid), 'other')} {os.sched_getparam(tid).sched_priority}"
+            except OSError:  # the thread ended meanwhile
+                continue
+            out[key] = out.get(key, 0) + 1
+        return out
+
     def values(self) -> list[float]:
         """A consistent copy of the child's state block as floats (seqlock read; fields at ``stream_state.R``)."""
         mv = self._mv
@@ -321,13 +342,17 @@ class RingProcess:
         out["lookahead_s"] = self.lookahead_s
         return out
 
-    def missed_events(self) -> list[tuple[str, float, int, float, float, float, int, float]]:
-        """The last missed windows: (kind, time s after ``base_ns``, cmd_tick, gap ms, cpu ms, runq ms, runs, wait ms).
+    def missed_events(self) -> list[tuple[str, float, int, float, float, float, int, float, float, int, int]]:
+        """The last 512 missed windows, each a tuple (see below).
 
-        ``kind`` is starved, late or core_late. The rest describe the child's main thread between the
+        (kind, time s after ``base_ns``, cmd_tick, gap ms, cpu ms, runq ms, runs, wait ms, late ms, faults,
+        preemptions). ``kind`` is starved, late or core_late. Gap to wait describe the child's main thread between the
         wake-up that counted the window and its previous one: the gap between them, its time on a CPU
         and runnable but waiting for one over the gap (``/proc`` schedstat), how many times it was
-        scheduled in (1: the poll's wake-up alone), and the poll timeout it had asked for.
+        scheduled in (1: the poll's wake-up alone), and the poll timeout it had asked for. ``late``: a
+        late window's submission (or the wake-up that found it skipped) after its deadline, a starved
+        one's time since the caller's last target was due. ``faults``: page faults (minor + major) and
+        ``preemptions``: involuntary context switches of that thread over the gap.
         """
         return [tuple(e) for e in self.call("missed_events")]  # type: ignore[misc]
 
