@@ -43,7 +43,8 @@ def register(app: typer.Typer) -> None:
               out: Path = typer.Option(Path("robointel-guide"), help="output folder for the plot and JSON"),
               duration: float = typer.Option(None, help="simulated seconds (default: the whole operator path)"),
               physics: bool = typer.Option(True, help="MuJoCo with the F/T sensor in the loop (else kinematic)"),
-              robot: str = typer.Option("sim", help="'sim' (the scenario) or 'fanuc://HOST': guide the arm by hand"),
+              robot: str = typer.Option("sim", help="'sim' (the scenario), 'sim?process=1' or 'fanuc://HOST': "
+                                                          "guide the arm by hand"),
               record: Path = typer.Option(None, help="with --robot fanuc://...: record the run as a ROS 2 bag (.mcap)"),
               ft: str = typer.Option(None, "--ft", help="with --robot fanuc://...: the wrist F/T sensor, "
                                                         "netft://HOST[:PORT][?cpf=COUNTS&cpt=COUNTS] (ATI RDT)"),
@@ -93,7 +94,7 @@ def register(app: typer.Typer) -> None:
                   tolerance: float = typer.Option(0.01, help="key-point (RDP) tolerance, m"),
                   speed: float = typer.Option(0.15, help="TCP speed of the reproduction, m/s"),
                   out: Path = typer.Option(Path("robointel-keypoints"), help="output folder for the plot"),
-                  robot: str = typer.Option("sim", help="execute on 'sim' or 'fanuc://HOST[:RMI_PORT][?sm_port=N]'"),
+                  robot: str = typer.Option("sim", help="execute on 'sim', 'sim?process=1' or 'fanuc://HOST[:RMI_PORT][?sm_port=N]'"),
                   record: Path = typer.Option(None, help="record the execution as a ROS 2 bag (.mcap)")) -> None:
         """Reproduce a guided path from its key points (Figs. 3.11-3.12) and execute it on the robot.
 

@@ -232,7 +232,8 @@ def register(app: typer.Typer) -> None:
              out: Path = typer.Option(Path("traj.npz"), help="trajectory file (.npz or .json)"),
              plots: bool = typer.Option(True, help="write <out>_profiles.png and <out>_path3d.png"),
              execute: bool = typer.Option(False, "--execute", help="track the trajectory in the MuJoCo workcell"),
-             robot: str = typer.Option("sim", help="with --execute: 'sim' or 'fanuc://HOST[:RMI_PORT][?sm_port=N]'; "
+             robot: str = typer.Option("sim", help="with --execute: 'sim', 'sim?process=1' or "
+                                       "'fanuc://HOST[:RMI_PORT][?sm_port=N]'; "
                                        "with --mbm: the robot's URDF (SRDF beside it)"),
              record: Path = typer.Option(None, help="with --execute: record the run as a ROS 2 bag (.mcap)"),
              mbm: Path = typer.Option(None, "--mbm", help="MotionBenchMaker problems.json: plan its problems"),

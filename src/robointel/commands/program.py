@@ -23,7 +23,7 @@ console = Console()
 
 
 def run(program: str = typer.Argument(..., help="program YAML file, or a built-in program: example, pick_place, moves"),
-        robot: str = typer.Option("sim", "--robot", help="'sim' (the simulated cell) or fanuc://HOST[:PORT][?sm_port=N]"),
+        robot: str = typer.Option("sim", "--robot", help="'sim' (the simulated cell), 'sim?process=1' or fanuc://HOST[:PORT][?sm_port=N]"),
         start: str = typer.Option("0", "--from", help="first step to run (index or name)"),
         record: Path = typer.Option(None, "--record", help="record the run as a ROS 2 bag (.mcap)"),
         report: Path = typer.Option(Path("robointel-program-report"), help="report folder"),

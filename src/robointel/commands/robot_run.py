@@ -1,4 +1,4 @@
-"""Run a trajectory on ``--robot sim|fanuc://HOST`` with an optional ``--record run.mcap`` (shared by commands)."""
+"""Run a trajectory on ``--robot sim|sim?process=1|fanuc://HOST`` with an optional ``--record run.mcap`` (shared)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -9,6 +9,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 from robointel.interface import ExecutionResult, RobotState, open_robot
+from robointel.interface.open import parse_robot_url
 from robointel.io.mcap_log import McapRecorder
 from robointel.programming.guidance import GuidanceConfig
 from robointel.programming.lead_through import lead_through
@@ -23,10 +24,12 @@ def run_on_robot(trajectory: Trajectory, url: str, record: Path | None, console:
     Args:
         trajectory: the trajectory (rad); the simulation is reset at its start (``sim``), a real
             robot is first brought there (``approach``).
-        url: ``"sim"`` or ``"fanuc://HOST[:RMI_PORT][?sm_port=N]"``.
+        url: ``"sim"``, ``"sim?process=1"`` or ``"fanuc://HOST[:RMI_PORT][?sm_port=N]"``
+            (:func:`~robointel.interface.open.parse_robot_url`).
         record: ``.mcap`` file to record the run to, or None.
         console: rich console for the progress bar and the summary.
-        sim_kwargs: extra arguments of :class:`~robointel.interface.sim.SimRobot` (e.g. a workcell).
+        sim_kwargs: extra arguments of :class:`~robointel.interface.sim.SimRobot` (e.g. a workcell); the
+            streaming process's sim (``sim?process=1``) steps the default cell and takes none of them.
         approach: a robot away from the start moves there first (a quintic joint move at 20 % of its
             limits, :meth:`~robointel.interface.Backend.move_to`); False: such a trajectory is refused.
 
@@ -37,7 +40,10 @@ def run_on_robot(trajectory: Trajectory, url: str, record: Path | None, console:
         RobointelError: refused trajectory, controller fault, lost connection, bad URL or path.
     """
     rec = McapRecorder(record, list(trajectory.joint_names)) if record is not None else None
-    kw: dict[str, Any] = dict(sim_kwargs or {}, q0=trajectory.q[0]) if url == "sim" else {}
+    u = parse_robot_url(url)
+    kw: dict[str, Any] = {}
+    if u.kind == "sim":
+        kw = {"q0": trajectory.q[0]} if u.stream_process else dict(sim_kwargs or {}, q0=trajectory.q[0])
     try:
         with open_robot(url, recorder=rec, **kw) as robot:
             st = robot.state()
@@ -71,7 +77,7 @@ def guide_on_robot(url: str, record: Path | None, duration: float, method: str, 
     """Lead-through on the robot at ``url`` for ``duration`` s (guidance ``method``), with a progress bar.
 
     Args:
-        url: The robot, ``sim`` or ``fanuc://HOST[:RMI_PORT][?sm_port=N]``.
+        url: The robot, ``sim``, ``sim?process=1`` or ``fanuc://HOST[:RMI_PORT][?sm_port=N]``.
         record: Record the run as a ROS 2 bag (.mcap) here, if given.
         duration: How long to guide, s.
         method: Guidance method (``qp``, ``equality``, ``repulsive`` or ``nullspace``).

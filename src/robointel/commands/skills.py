@@ -1,7 +1,8 @@
 """Learned skills and grasps on a robot: ``robointel skill insert|grind`` and ``robointel grasp execute``.
 
 Each learns (or plans) as the Ch. 5-6 commands do, then runs on the robot interface,
-``--robot sim`` (the MuJoCo workcell) or ``--robot fanuc://HOST`` (Stream Motion + RMI), with
+``--robot sim`` (the MuJoCo workcell; ``sim?process=1``: the paced workcell in a streaming process, not for
+grasps) or ``--robot fanuc://HOST`` (Stream Motion + RMI), with
 ``--record run.mcap`` writing the run as a ROS 2 bag. On a FANUC controller without force telemetry
 ``--wrench virtual`` stands a simulated contact in for the F/T sensor (for the controller emulator).
 """
@@ -25,6 +26,7 @@ from robointel.interface import RobotState, open_robot
 from robointel.interface.backend import Backend
 from robointel.interface.grasp_execute import GraspMotion, execute_grasp, joint_move
 from robointel.interface.gripper import FanucGripper, JawGeometry, SimGripper
+from robointel.interface.open import ROBOT_FORMS, parse_robot_url
 from robointel.interface.sim import SimRobot
 from robointel.interface.skill_cells import (
     R_DOWN,
@@ -44,16 +46,24 @@ from robointel.io.mcap_log import McapRecorder
 console = Console()
 skill_app = typer.Typer(no_args_is_help=True, help="Learned skills on a robot (--robot sim|fanuc://HOST).")
 
-ROBOT_HELP = "'sim' (the MuJoCo workcell) or 'fanuc://HOST[:RMI_PORT][?sm_port=N]'"
+ROBOT_HELP = ROBOT_FORMS
 RECORD_HELP = "record the run as a ROS 2 bag (.mcap)"
 STALL_HELP = "fanuc: stop the robot when the skill gives no target for this long, ms"
+_CELLS = "robointel.interface.skill_cells"
 WRENCH_HELP = "'sensor' (the robot's F/T reading) or 'virtual' (a simulated contact, for the controller emulator)"
 
 
-def _check_url(robot: str) -> None:
-    """Refuse a robot URL that :func:`~robointel.interface.open_robot` cannot open, before any learning."""
-    if robot != "sim" and not robot.startswith("fanuc://"):
-        fail(f"unknown robot {robot!r}: use 'sim' or 'fanuc://HOST[:RMI_PORT][?sm_port=N]'")
+def _check_url(robot: str) -> str:
+    """Refuse a robot URL that :func:`~robointel.interface.open_robot` cannot open, before any learning.
+
+    Returns:
+        ``"sim"`` (the workcell in this process), ``"stream"`` (``sim?process=1``) or ``"fanuc"``.
+    """
+    try:
+        u = parse_robot_url(robot)
+    except RobointelError as exc:
+        fail(exc)
+    return "fanuc" if u.kind == "fanuc" else "stream" if u.stream_process else "sim"
 
 
 @contextmanager
@@ -72,7 +82,7 @@ def _go_to(arm: Backend, robot: Any, q: np.ndarray) -> None:
 
 
 def _open(robot: str, rec: McapRecorder | None, stall_ms: float, **kw: Any) -> Backend:
-    """Open a FANUC robot whose stall watchdog allows ``stall_ms`` without a target."""
+    """Open a FANUC robot (or the sim's streaming process) whose stall watchdog allows ``stall_ms`` without a target."""
     if not (np.isfinite(stall_ms) and stall_ms >= 8.0):
         raise typer.BadParameter(f"--stall-ms must be >= 8 (one period), got {stall_ms}")
     return open_robot(robot, recorder=rec, stall_periods=int(np.ceil(stall_ms / 8.0)), **kw)
@@ -105,7 +115,7 @@ def insert(robot: str = typer.Option("sim", help=ROBOT_HELP), record: Path = typ
     """
     from robointel.learning import insertion as ins
 
-    _check_url(robot)
+    kind = _check_url(robot)
     try:
         peg, hole = PegTool(), HoleTask(clearance=clearance)
         task = ins.PegHole()
@@ -127,11 +137,14 @@ def insert(robot: str = typer.Option("sim", help=ROBOT_HELP), record: Path = typ
         rec = _recorder(record, arm_robot)
         try:
             for k in range(trials):
-                lat = starts.uniform(-1.5e-3, 1.5e-3, 2) if robot == "sim" else np.zeros(2)
-                tilt = ((starts.uniform(0, 2 * np.pi), starts.uniform(0, np.radians(3))) if robot == "sim"
+                lat = starts.uniform(-1.5e-3, 1.5e-3, 2) if kind != "fanuc" else np.zeros(2)
+                tilt = ((starts.uniform(0, 2 * np.pi), starts.uniform(0, np.radians(3))) if kind != "fanuc"
                         else (0.0, 0.0))
                 q0 = ik_near(arm_robot, hole.start_tcp(peg, lateral=lat, tilt=tilt))
-                if robot == "sim":
+                if kind == "stream":  # the same cell, built in the streaming process
+                    arm = _open(robot, rec, stall_ms, q0=q0, workcell_factory=f"{_CELLS}:peg_hole_workcell",
+                                factory_args=(peg, hole))
+                elif kind == "sim":
                     wc, _ = peg_hole_workcell(peg, hole)
                     wc.reset(q0)
                     wc.hold(0.2)
@@ -171,7 +184,7 @@ def grind(robot: str = typer.Option("sim", help=ROBOT_HELP), record: Path = type
     """
     from robointel.learning import grinding as gr
 
-    _check_url(robot)
+    kind = _check_url(robot)
     try:
         plate = gr.Plate()
         rng = np.random.default_rng(seed)
@@ -193,7 +206,10 @@ def grind(robot: str = typer.Option("sim", help=ROBOT_HELP), record: Path = type
         q0 = ik_near(arm_robot, T)
         rec = _recorder(record, arm_robot)
         try:
-            if robot == "sim":
+            if kind == "stream":  # the same cell, built in the streaming process
+                arm = _open(robot, rec, stall_ms, q0=q0, workcell_factory=f"{_CELLS}:plate_workcell",
+                            factory_args=(task, tool))
+            elif kind == "sim":
                 wc.reset(q0)
                 wc.hold(0.2)
                 arm: Backend = SimRobot(wc, recorder=rec)
@@ -233,7 +249,8 @@ def grasp_execute(category: str = typer.Option("box", help="category of the rand
     from robointel.sim import Workcell
     from robointel.sim.mjcf import Payload, SimObject
 
-    _check_url(robot)
+    if _check_url(robot) == "stream":
+        fail("grasp execute runs on 'sim' or 'fanuc://...': the sim's streaming process has no gripper")
     try:
         with Progress(TextColumn("{task.description}"), BarColumn(), console=console) as bar:
             step = bar.add_task("perceive and plan", total=2)

@@ -17,6 +17,7 @@ from robointel.commands.failure import fail
 from robointel.commands.robot_run import run_on_robot
 from robointel.errors import RobointelError
 from robointel.interface import Backend, open_robot
+from robointel.interface.open import is_sim
 from robointel.io.mcap_log import McapRecorder
 from robointel.io.reference import data_path
 from robointel.programming.imitation import kinematic_imitation, plot_imitation, simulate_imitation
@@ -76,7 +77,7 @@ def register(app: typer.Typer) -> None:
                 out: Path = typer.Option(Path("imitation"), help="folder for the plots"),
                 latency: float = typer.Option(0.1, help="Kinect latency for the SCARA run [s]"),
                 robot_url: str = typer.Option("sim", "--robot", help="also execute the imitation on this robot: "
-                                              "'sim' (with --record) or 'fanuc://HOST[:RMI_PORT][?sm_port=N]'"),
+                                              "'sim' (with --record), 'sim?process=1' or 'fanuc://HOST[:RMI_PORT][?sm_port=N]'"),
                 record: Path = typer.Option(None, help="record the execution as a ROS 2 bag (.mcap)")) -> None:
         """Imitate a recorded human arm: LR Mate kinematic imitation (3.1) in MuJoCo, optionally the SCARA.
 
@@ -152,7 +153,8 @@ def register(app: typer.Typer) -> None:
                token: str = typer.Option(None, help="shared secret, required for non-loopback binds"),
                program: Path = typer.Option(Path("teleop_program.yaml"), help="where 'Save program' writes"),
                duration: float = typer.Option(0.0, help="stop after this many seconds (0: until Ctrl-C)"),
-               robot: str = typer.Option("sim", help="'sim' or 'fanuc://HOST[:RMI_PORT][?sm_port=N]': the robot "
+               robot: str = typer.Option("sim", help="'sim', 'sim?process=1' or 'fanuc://HOST[:RMI_PORT][?sm_port=N]': "
+                                                     "the robot "
                                                      "the stream drives (through the robot interface)"),
                record: Path = typer.Option(None, help="record the run as a ROS 2 bag (.mcap)")) -> None:
         """Serve the teleoperation page (viser) and the robot streaming interface (WebSocket).
@@ -173,7 +175,7 @@ def register(app: typer.Typer) -> None:
             if robot != "sim" or record is not None:
                 lr = Robot.load("lrmate200id7l")
                 rec = McapRecorder(record, list(lr.joint_names)) if record is not None else None
-                kw = {"q0": TELEOP_START} if robot == "sim" else {}
+                kw = {"q0": TELEOP_START} if is_sim(robot) else {}
                 iface = open_robot(robot, recorder=rec, **kw)
                 ctrl = StreamingController(lr, interface=iface)
             else:

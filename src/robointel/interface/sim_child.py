@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import gc
+import importlib
 import mmap
 import os
 import sys
@@ -29,7 +30,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from robointel.errors import RobointelError, SafetyStop
+from robointel.errors import InvalidInput, RobointelError, SafetyStop
 from robointel.interface import stream_child as sc
 from robointel.interface.sim import step_window, substeps_of
 from robointel.sim.workcell import Workcell
@@ -166,14 +167,37 @@ class SimSide:
         """Nothing to release."""
 
 
+def build_workcell(workcell_kwargs: dict[str, Any], factory: str | None, factory_args: tuple[Any, ...]) -> Workcell:
+    """``Workcell(**workcell_kwargs)``, or ``module:function`` ``factory`` called with ``factory_args``.
+
+    A factory may return the workcell or a tuple whose first item is the workcell (as
+    :func:`~robointel.interface.skill_cells.peg_hole_workcell` does).
+
+    Raises:
+        InvalidInput: a factory that is not ``module:function``, cannot be imported or gives no workcell.
+    """
+    if factory is None:
+        return Workcell(**workcell_kwargs)
+    mod, _, name = factory.partition(":")
+    try:
+        fn = getattr(importlib.import_module(mod), name)
+    except (ImportError, AttributeError, ValueError) as exc:
+        raise InvalidInput(f"workcell factory {factory!r} not found: {exc}", value=factory) from None
+    wc = fn(*factory_args)
+    wc = wc[0] if isinstance(wc, tuple) else wc
+    if not isinstance(wc, Workcell):
+        raise InvalidInput(f"workcell factory {factory!r} gave a {type(wc).__name__}, not a Workcell", value=factory)
+    return wc
+
+
 def main(conn_fd: int, shm_fd: int, wake_fd: int = -1) -> None:
     """Entry point of the child: build the workcell, report, serve until closed."""
     conn, buf = Connection(conn_fd), np.frombuffer(mmap.mmap(shm_fd, sc.SHM_BYTES), dtype=np.float64)
-    workcell_kwargs, q0, base_ns, period, stall_periods = conn.recv()
+    workcell_kwargs, q0, factory, factory_args, base_ns, period, stall_periods = conn.recv()
     with contextlib.suppress(OSError):  # PermissionError without CAP_SYS_NICE
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(sc.PRIORITY))
     try:
-        wc = Workcell(**workcell_kwargs)
+        wc = build_workcell(workcell_kwargs, factory, factory_args)
         if q0 is not None:
             wc.reset(q0)
         side = SimSide(wc, period)

@@ -63,6 +63,10 @@ class SimStreamProcess(RingProcess):
         period: controller period, s.
         lookahead_s: a target is played this long after it arrived, s (0: at once).
         stall_periods: the child stops the arm after this many consecutive windows without a target.
+        workcell_factory: ``"module:function"`` building the workcell in the child from ``factory_args``
+            (picklable) instead of ``Workcell(**workcell_kwargs)`` (a cell whose model is edited after it
+            is built, e.g. :func:`~robointel.interface.skill_cells.plate_workcell`).
+        factory_args: the factory's positional arguments.
 
     Raises:
         InvalidInput: bad arguments (the child's refusal of the workcell's arguments included).
@@ -74,10 +78,11 @@ class SimStreamProcess(RingProcess):
     START_S: ClassVar[float] = START_TIMEOUT_S
 
     def __init__(self, workcell_kwargs: Mapping[str, Any], q0: npt.ArrayLike | None, *, period: float,
-                 lookahead_s: float, stall_periods: int) -> None:
+                 lookahead_s: float, stall_periods: int, workcell_factory: str | None = None,
+                 factory_args: tuple[Any, ...] = ()) -> None:
         q = None if q0 is None else [float(x) for x in np.asarray(q0, dtype=float).reshape(-1)]
-        super().__init__(_SCRIPT, (dict(workcell_kwargs), q), period=period, lookahead_s=lookahead_s,
-                         stall_periods=stall_periods, path=_ROOT)
+        super().__init__(_SCRIPT, (dict(workcell_kwargs), q, workcell_factory, tuple(factory_args)), period=period,
+                         lookahead_s=lookahead_s, stall_periods=stall_periods, path=_ROOT)
         self.t0 = float(self.hello_reply["t0"])
         """The workcell's simulated time at tick 0, s."""
         self.has_ft = bool(self.hello_reply["has_ft"])
@@ -133,6 +138,9 @@ class SimStreamRobot(Backend):
         lookahead_s: the child plays a target this long after it arrived, s: a stall of the
             streaming caller shorter than this costs no window; it is added latency.
         force_lookahead_s: the look-ahead inside :meth:`low_latency`, s (0: each target at once).
+        workcell_factory: ``"module:function"`` building the workcell in the child from ``factory_args``
+            instead of ``Workcell(**workcell_kwargs)`` (see :class:`SimStreamProcess`).
+        factory_args: the factory's positional arguments (picklable).
 
     Raises:
         InvalidInput: a bad period, look-ahead, robot or workcell argument.
@@ -141,7 +149,8 @@ class SimStreamRobot(Backend):
 
     def __init__(self, *, period: float = 0.008, stall_periods: int | None = 10, recorder: Recorder | None = None,
                  q0: npt.ArrayLike | None = None, workcell_kwargs: Mapping[str, Any] | None = None,
-                 lookahead_s: float = DEFAULT_LOOKAHEAD_S, force_lookahead_s: float = 0.0) -> None:
+                 lookahead_s: float = DEFAULT_LOOKAHEAD_S, force_lookahead_s: float = 0.0,
+                 workcell_factory: str | None = None, factory_args: tuple[Any, ...] = ()) -> None:
         kw = dict(workcell_kwargs or {})
         name = kw.get("robot")
         if name is not None and not isinstance(name, str):
@@ -165,7 +174,8 @@ class SimStreamRobot(Backend):
         self._read_ns = 0
         self._stale_ms = 12 * self.period * 1e3
         self.driver = SimStreamProcess(kw, q0, period=self.period, lookahead_s=self.lookahead_s,
-                                       stall_periods=stall_periods if stall_periods is not None else 10**9)
+                                       stall_periods=stall_periods if stall_periods is not None else 10**9,
+                                       workcell_factory=workcell_factory, factory_args=factory_args)
 
     @property
     def has_wrench(self) -> bool:
