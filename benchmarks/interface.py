@@ -300,6 +300,8 @@ def main() -> None:
                     help="stream from a SCHED_FIFO thread (needs CAP_SYS_NICE; else normal priority)")
     ap.add_argument("--lookahead", type=float, default=0.1,
                     help="look-ahead of the FANUC and sim streaming processes, s (lookahead_s=...)")
+    ap.add_argument("--sim-lock-memory", action="store_true",
+                    help="the sim's streaming process locks its memory (mlockall; lock_memory=True)")
     ap.add_argument("--in-process", action=argparse.BooleanOptionalAction, default=True,
                     help="also stream with the driver in this process (stream_process=False)")
     args = ap.parse_args()
@@ -337,15 +339,16 @@ def main() -> None:
     violations = violations[:n_proc] + violations[n_fan + n_peer:]
     core = fan["core"]
     frmp, v2 = _frmp_run()
-    sim = _streaming_run(lambda: open_robot("sim", stream_process=True, stall_periods=10, lookahead_s=args.lookahead),
-                         args.seconds)
+    sim = _streaming_run(lambda: open_robot("sim", stream_process=True, stall_periods=10, lookahead_s=args.lookahead,
+                                            lock_memory=args.sim_lock_memory), args.seconds)
     score = sim["core"]
     sim_in = _streaming_run(lambda: SimRobot(paced=True, stall_periods=10), args.seconds)
     out.update({  # the host during each stream, and when and how late the late windows were (session 27)
         "host_cpus": os.cpu_count(),
         **_flat("fanuc", core["late"]), "fanuc_child_scheduling": core["child_scheduling"],
         **_flat("sim", score["late"]), "sim_child_scheduling": score["child_scheduling"],
-        "sim_slow_steps": score.get("slow_steps"),
+        "sim_slow_steps": score.get("slow_steps"), "sim_wake_after_tick_ms": score.get("wake_after_tick_ms"),
+        "sim_memory_locked": score.get("memory_locked"),
         **(_flat("in_process", inproc["caller_late"]) if inproc else {}),
         **_flat("peer", peer["late"]), **_flat("sim_in_process", sim_in["caller_late"]),
     })

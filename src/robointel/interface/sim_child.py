@@ -18,6 +18,7 @@ when none came. A window the loop served late is stepped all the same, with the 
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import gc
 import importlib
 import mmap
@@ -38,6 +39,9 @@ from robointel.sim.workcell import Workcell
 _WRENCH_KEYS = ("fx", "fy", "fz", "mx", "my", "mz")
 SLOW_STEP_S, SLOW_STEPS = 0.002, 256
 """A window's physics longer than this (wall time) is remembered with its CPU time, s; how many."""
+WAKES = 1 << 18
+"""Wake-up delays remembered (9 min at 8 ms; the statistics are of the first this many)."""
+_MCL_CURRENT, _MCL_FUTURE = 1, 2
 
 
 class SimSide:
@@ -70,14 +74,19 @@ class SimSide:
         self.step_max_s = 0.0
         self.catch_up_max = 0  # the most windows stepped at one read
         self.slow_steps: list[tuple[float, float, float]] = []  # (CLOCK_MONOTONIC s, wall ms, CPU ms)
+        self.wakes_ns: list[int] = []  # each read that found a new tick: how long after that tick, ns
+        self.memory_locked = False
         self._snap: dict[str, Any] | None = None
 
     # ------------------------------------------------------------------ the core
     def get_snapshot(self) -> dict[str, Any]:
         """Step every window whose tick has passed, then the state as ``core.get_snapshot()`` keys."""
         if self.running:
-            due = (time.monotonic_ns() - self.t0_ns) // self.period_ns
+            now = time.monotonic_ns()
+            due = (now - self.t0_ns) // self.period_ns
             if due > self.tick:
+                if len(self.wakes_ns) < WAKES:
+                    self.wakes_ns.append(now - self.t0_ns - due * self.period_ns)
                 self.catch_up_max = max(self.catch_up_max, due - self.tick)
                 while self.tick < due:
                     self._window()
@@ -158,10 +167,17 @@ class SimSide:
 
         ``tick_count``, ``step_max_ms`` (the longest window's physics), ``catch_up_max_windows``,
         ``slow_steps`` (windows whose physics took more than :data:`SLOW_STEP_S` of wall time: [start,
-        CLOCK_MONOTONIC s; wall ms; CPU ms of this thread]).
+        CLOCK_MONOTONIC s; wall ms; CPU ms of this thread]), ``wake_after_tick_ms`` (how long after a
+        tick the loop's read found it: p50, p99, p99.9, max, and how many reads came a period or more
+        late), ``memory_locked`` (``mlockall`` succeeded).
         """
+        w = np.asarray(self.wakes_ns, dtype=float) * 1e-6
+        wake = ({"p50": float(np.percentile(w, 50)), "p99": float(np.percentile(w, 99)),
+                 "p999": float(np.percentile(w, 99.9)), "max": float(w.max()), "reads": len(w),
+                 "over_period": int(np.sum(w >= self.period * 1e3))} if len(w) else {})
         return {"tick_count": self.tick, "step_max_ms": self.step_max_s * 1e3,
-                "catch_up_max_windows": int(self.catch_up_max), "slow_steps": [list(x) for x in self.slow_steps]}
+                "catch_up_max_windows": int(self.catch_up_max), "slow_steps": [list(x) for x in self.slow_steps],
+                "wake_after_tick_ms": wake, "memory_locked": self.memory_locked}
 
     def close(self) -> None:
         """Nothing to release."""
@@ -190,10 +206,23 @@ def build_workcell(workcell_kwargs: dict[str, Any], factory: str | None, factory
     return wc
 
 
+def lock_all_memory() -> bool:
+    """``mlockall(MCL_CURRENT | MCL_FUTURE)``: no page of this process is paged out or faulted in late.
+
+    Returns:
+        False when refused (without CAP_IPC_LOCK the RLIMIT_MEMLOCK, often 8 MB, is far below the
+        few hundred MB of an interpreter with MuJoCo and Pinocchio); the process goes on unlocked.
+    """
+    try:
+        return ctypes.CDLL(None, use_errno=True).mlockall(_MCL_CURRENT | _MCL_FUTURE) == 0
+    except (OSError, AttributeError):
+        return False
+
+
 def main(conn_fd: int, shm_fd: int, wake_fd: int = -1) -> None:
     """Entry point of the child: build the workcell, report, serve until closed."""
     conn, buf = Connection(conn_fd), np.frombuffer(mmap.mmap(shm_fd, sc.SHM_BYTES), dtype=np.float64)
-    workcell_kwargs, q0, factory, factory_args, base_ns, period, stall_periods = conn.recv()
+    workcell_kwargs, q0, factory, factory_args, lock_memory, base_ns, period, stall_periods = conn.recv()
     with contextlib.suppress(OSError):  # PermissionError without CAP_SYS_NICE
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(sc.PRIORITY))
     try:
@@ -208,6 +237,7 @@ def main(conn_fd: int, shm_fd: int, wake_fd: int = -1) -> None:
     gc.freeze()
     gc.disable()  # the serve loop collects between ticks (stream_child.GC_TICKS)
     sys.setswitchinterval(0.0005)
+    side.memory_locked = lock_memory and lock_all_memory()
     side.start()
     conn.send((True, {"t0": wc.time, "has_ft": side.has_ft, "tick0_ns": side.t0_ns}))
     sc.serve_forever(conn, buf, side, base_ns, period, stall_periods, wake_fd, refusals=(SafetyStop,))

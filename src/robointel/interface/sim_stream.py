@@ -67,6 +67,8 @@ class SimStreamProcess(RingProcess):
             (picklable) instead of ``Workcell(**workcell_kwargs)`` (a cell whose model is edited after it
             is built, e.g. :func:`~robointel.interface.skill_cells.plate_workcell`).
         factory_args: the factory's positional arguments.
+        lock_memory: the child locks its memory (``mlockall``; refused without CAP_IPC_LOCK or a large
+            RLIMIT_MEMLOCK, and then it goes on unlocked: ``timing_stats()["memory_locked"]``).
 
     Raises:
         InvalidInput: bad arguments (the child's refusal of the workcell's arguments included).
@@ -79,10 +81,11 @@ class SimStreamProcess(RingProcess):
 
     def __init__(self, workcell_kwargs: Mapping[str, Any], q0: npt.ArrayLike | None, *, period: float,
                  lookahead_s: float, stall_periods: int, workcell_factory: str | None = None,
-                 factory_args: tuple[Any, ...] = ()) -> None:
+                 factory_args: tuple[Any, ...] = (), lock_memory: bool = False) -> None:
         q = None if q0 is None else [float(x) for x in np.asarray(q0, dtype=float).reshape(-1)]
-        super().__init__(_SCRIPT, (dict(workcell_kwargs), q, workcell_factory, tuple(factory_args)), period=period,
-                         lookahead_s=lookahead_s, stall_periods=stall_periods, path=_ROOT)
+        hello = (dict(workcell_kwargs), q, workcell_factory, tuple(factory_args), bool(lock_memory))
+        super().__init__(_SCRIPT, hello, period=period, lookahead_s=lookahead_s, stall_periods=stall_periods,
+                         path=_ROOT)
         self.t0 = float(self.hello_reply["t0"])
         """The workcell's simulated time at tick 0, s."""
         self.has_ft = bool(self.hello_reply["has_ft"])
@@ -141,6 +144,7 @@ class SimStreamRobot(Backend):
         workcell_factory: ``"module:function"`` building the workcell in the child from ``factory_args``
             instead of ``Workcell(**workcell_kwargs)`` (see :class:`SimStreamProcess`).
         factory_args: the factory's positional arguments (picklable).
+        lock_memory: the child locks its memory (``mlockall``, when allowed; see :class:`SimStreamProcess`).
 
     Raises:
         InvalidInput: a bad period, look-ahead, robot or workcell argument.
@@ -150,7 +154,8 @@ class SimStreamRobot(Backend):
     def __init__(self, *, period: float = 0.008, stall_periods: int | None = 10, recorder: Recorder | None = None,
                  q0: npt.ArrayLike | None = None, workcell_kwargs: Mapping[str, Any] | None = None,
                  lookahead_s: float = DEFAULT_LOOKAHEAD_S, force_lookahead_s: float = 0.0,
-                 workcell_factory: str | None = None, factory_args: tuple[Any, ...] = ()) -> None:
+                 workcell_factory: str | None = None, factory_args: tuple[Any, ...] = (),
+                 lock_memory: bool = False) -> None:
         kw = dict(workcell_kwargs or {})
         name = kw.get("robot")
         if name is not None and not isinstance(name, str):
@@ -175,7 +180,8 @@ class SimStreamRobot(Backend):
         self._stale_ms = 12 * self.period * 1e3
         self.driver = SimStreamProcess(kw, q0, period=self.period, lookahead_s=self.lookahead_s,
                                        stall_periods=stall_periods if stall_periods is not None else 10**9,
-                                       workcell_factory=workcell_factory, factory_args=factory_args)
+                                       workcell_factory=workcell_factory, factory_args=factory_args,
+                                       lock_memory=lock_memory)
 
     @property
     def has_wrench(self) -> bool:
