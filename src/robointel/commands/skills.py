@@ -142,13 +142,13 @@ def insert(robot: str = typer.Option("sim", help=ROBOT_HELP), record: Path = typ
                         else (0.0, 0.0))
                 q0 = ik_near(arm_robot, hole.start_tcp(peg, lateral=lat, tilt=tilt))
                 if kind == "stream":  # the same cell, built in the streaming process
-                    arm = _open(robot, rec, stall_ms, q0=q0, workcell_factory=f"{_CELLS}:peg_hole_workcell",
+                    arm: Backend = _open(robot, rec, stall_ms, q0=q0, workcell_factory=f"{_CELLS}:peg_hole_workcell",
                                 factory_args=(peg, hole))
                 elif kind == "sim":
                     wc, _ = peg_hole_workcell(peg, hole)
                     wc.reset(q0)
                     wc.hold(0.2)
-                    arm: Backend = SimRobot(wc, recorder=rec)
+                    arm = SimRobot(wc, recorder=rec)
                 else:
                     arm = _open(robot, rec, stall_ms)
                 with arm:
@@ -207,12 +207,12 @@ def grind(robot: str = typer.Option("sim", help=ROBOT_HELP), record: Path = type
         rec = _recorder(record, arm_robot)
         try:
             if kind == "stream":  # the same cell, built in the streaming process
-                arm = _open(robot, rec, stall_ms, q0=q0, workcell_factory=f"{_CELLS}:plate_workcell",
+                arm: Backend = _open(robot, rec, stall_ms, q0=q0, workcell_factory=f"{_CELLS}:plate_workcell",
                             factory_args=(task, tool))
             elif kind == "sim":
                 wc.reset(q0)
                 wc.hold(0.2)
-                arm: Backend = SimRobot(wc, recorder=rec)
+                arm = SimRobot(wc, recorder=rec)
             else:
                 arm = _open(robot, rec, stall_ms)
             with arm:

@@ -2,12 +2,13 @@
 
 A window a streaming process misses is either its own doing (a long physics step, a collection, a
 page fault) or the machine's (the virtual CPU taken by the hypervisor: *steal*; another real-time
-task). :class:`HostProbe` tells them apart from outside the streaming code: beside the stream it runs
-a child process (this file as a script, standard library only) that does nothing but sleep to a
-deadline every :data:`PROBE_PERIOD_S` at SCHED_FIFO :data:`PROBE_PRIORITY` (when the policy is
-granted) and notes each wake-up later than :data:`STALL_MS`, and every :data:`SAMPLE_S` the load
-average and ``/proc/stat``'s steal per CPU. A missed window at the instant the sleeper also woke late
-is a host stall, not the streaming code.
+task). :class:`HostProbe` tells them apart from outside the streaming code: beside the stream it
+runs, on each CPU, a child process pinned there (this file as a script, standard library only) that
+does nothing but sleep to a deadline every :data:`PROBE_PERIOD_S` at SCHED_FIFO :data:`PROBE_PRIORITY`
+(when the policy is granted) and notes each wake-up later than :data:`STALL_MS`; the first also
+samples the load average and ``/proc/stat``'s steal per CPU every :data:`SAMPLE_S`. A missed window at
+the instant a sleeper also woke late is a host stall, not the streaming code; a stall of every CPU's
+sleeper at once is one no process of this machine could have escaped by running elsewhere.
 
 Times are CLOCK_MONOTONIC seconds (``time.monotonic()``), the clock of the streaming processes'
 ``base_ns``.
@@ -58,11 +59,14 @@ def steal_share(a: dict[str, tuple[int, int]], b: dict[str, tuple[int, int]]) ->
     return out
 
 
-def _probe(seconds_max: float) -> None:
-    """The sleeper (this file as a script): run until stdin closes or ``seconds_max``; print JSON."""
+def _probe(seconds_max: float, cpu: int, sample: bool) -> None:
+    """The sleeper (this file as a script) on ``cpu``: run until stdin closes or ``seconds_max``; print JSON."""
     import select
     import threading
 
+    if cpu >= 0:
+        with contextlib.suppress(OSError):
+            os.sched_setaffinity(0, {cpu})
     fifo = True
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(PROBE_PRIORITY))
@@ -95,11 +99,11 @@ def _probe(seconds_max: float) -> None:
             if len(stalls) < MAX_STALLS:
                 stalls.append((round(deadline, 6), round(late, 3)))
         deadline += PROBE_PERIOD_S * max(1, int((now - deadline) / PROBE_PERIOD_S) + 1)
-        if now >= next_sample:
-            cpu = cpu_times()
-            samples.append((round(now, 3), os.getloadavg()[0], steal_share(prev_cpu, cpu)))
-            prev_cpu, next_sample = cpu, now + SAMPLE_S
-    print(json.dumps({"fifo": fifo, "start": start, "end": time.monotonic(), "wakes": wakes,
+        if sample and now >= next_sample:
+            times = cpu_times()
+            samples.append((round(now, 3), os.getloadavg()[0], steal_share(prev_cpu, times)))
+            prev_cpu, next_sample = times, now + SAMPLE_S
+    print(json.dumps({"cpu": cpu, "fifo": fifo, "start": start, "end": time.monotonic(), "wakes": wakes,
                       "late_mean_ms": late_sum / max(wakes, 1), "late_max_ms": late_max, "stalls_total": n_stalls,
                       "stalls": stalls, "samples": samples}))
 
@@ -117,38 +121,47 @@ class HostProbe:
     def __init__(self, seconds_max: float = 3600.0) -> None:
         self.seconds_max = float(seconds_max)
         self.result: dict[str, Any] = {}
-        self._proc: subprocess.Popen[str] | None = None
+        self._procs: list[subprocess.Popen[str]] = []
 
     def __enter__(self) -> HostProbe:
         self._cpu0, self._load0, self.t_start = cpu_times(), os.getloadavg(), time.monotonic()
-        self._proc = subprocess.Popen([sys.executable, str(Path(__file__)), str(self.seconds_max)],
-                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        for i, cpu in enumerate(sorted(os.sched_getaffinity(0))):
+            self._procs.append(subprocess.Popen([sys.executable, str(Path(__file__)), str(self.seconds_max), str(cpu),
+                                                 str(int(i == 0))], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                                text=True))
         return self
 
     def __exit__(self, *exc: object) -> None:
         cpu1, load1, self.t_end = cpu_times(), os.getloadavg(), time.monotonic()
-        raw: dict[str, Any] = {}
-        if self._proc is not None:
+        raws: list[dict[str, Any]] = []
+        for p in self._procs:
             try:
-                out, _ = self._proc.communicate(input="", timeout=60.0)
-                raw = json.loads(out) if out.strip() else {}
+                out, _ = p.communicate(input="", timeout=60.0)
+                raws.append(json.loads(out) if out.strip() else {})
             except (subprocess.TimeoutExpired, json.JSONDecodeError):
-                self._proc.kill()
-                self._proc.wait()
+                p.kill()
+                p.wait()
         steal = steal_share(self._cpu0, cpu1)
-        per_sample = [s[2].get("cpu", 0.0) for s in raw.get("samples", [])]
+        samples = [s for r in raws for s in r.get("samples", [])]
+        per_cpu = {f"cpu{r.get('cpu')}": [(float(t), float(ms)) for t, ms in r.get("stalls", [])] for r in raws}
+        stalls = sorted(x for v in per_cpu.values() for x in v)
+        wakes = sum(r.get("wakes", 0) for r in raws)
         self.result = {
             "cpus": os.cpu_count(), "load_avg": [list(self._load0), list(load1)],
             "steal_share": steal.pop("cpu", 0.0), "steal_share_per_cpu": steal,
-            "steal_share_max_per_sample": max(per_sample, default=0.0), "sample_s": SAMPLE_S,
-            "probe_fifo": raw.get("fifo"), "probe_period_ms": PROBE_PERIOD_S * 1e3,
-            "probe_late_mean_ms": raw.get("late_mean_ms"), "probe_late_max_ms": raw.get("late_max_ms"),
-            "probe_stalls": raw.get("stalls_total"), "stall_threshold_ms": STALL_MS,
-            "_stalls": raw.get("stalls", []), "_samples": raw.get("samples", []),
+            "steal_share_max_per_sample": max((s[2].get("cpu", 0.0) for s in samples), default=0.0),
+            "sample_s": SAMPLE_S, "probe_fifo": all(r.get("fifo") for r in raws) if raws else None,
+            "probe_period_ms": PROBE_PERIOD_S * 1e3, "probe_sleepers": len(raws),
+            "probe_late_mean_ms": sum(r.get("late_mean_ms", 0.0) * r.get("wakes", 0) for r in raws) / max(wakes, 1),
+            "probe_late_max_ms": max((r.get("late_max_ms", 0.0) for r in raws), default=None),
+            "probe_stalls": sum(r.get("stalls_total", 0) for r in raws),
+            "probe_stalls_per_cpu": {k: len(v) for k, v in per_cpu.items()},
+            "probe_stalls_on_every_cpu": _on_every(list(per_cpu.values())), "stall_threshold_ms": STALL_MS,
+            "_stalls": stalls,
         }
 
     def stalls(self) -> list[tuple[float, float]]:
-        """The sleeper's stalls: (deadline, CLOCK_MONOTONIC s; how late, ms)."""
+        """Every sleeper's stalls, by time: (deadline, CLOCK_MONOTONIC s; how late, ms)."""
         return [(float(t), float(ms)) for t, ms in self.result.get("_stalls", [])]
 
     def coincident(self, times: Sequence[float], window_s: float = 0.02) -> int:
@@ -166,8 +179,10 @@ class HostProbe:
         Keys: ``cpus``, ``load_avg`` ([1, 5, 15 min] at start and end), ``steal_share`` (all CPUs over
         the run, 0..1), ``steal_share_per_cpu``, ``steal_share_max_per_sample`` (the worst
         :data:`SAMPLE_S` interval), ``probe_fifo`` (the sleeper got SCHED_FIFO), ``probe_late_mean_ms``,
-        ``probe_late_max_ms``, ``probe_stalls`` (wake-ups later than ``stall_threshold_ms``),
-        ``probe_stall_at_s`` (the first 50: [s after origin, ms late]).
+        ``probe_late_max_ms``, ``probe_stalls`` (wake-ups later than ``stall_threshold_ms``, every CPU's
+        sleeper), ``probe_stalls_per_cpu``, ``probe_stalls_on_every_cpu`` (stalls of the first CPU's sleeper
+        that overlap a stall of every other one's), ``probe_stall_at_s`` (the first 50: [s after origin,
+        ms late]).
         """
         o = self.t_start if origin is None else origin
         out = {k: v for k, v in self.result.items() if not k.startswith("_")}
@@ -175,6 +190,19 @@ class HostProbe:
         return out
 
 
+def _on_every(per_cpu: list[list[tuple[float, float]]]) -> int:
+    """How many stalls of the first list overlap a stall in every other list ((start s, ms) spans)."""
+    if len(per_cpu) < 2:
+        return len(per_cpu[0]) if per_cpu else 0
+    first, rest = per_cpu[0], per_cpu[1:]
+
+    def overlaps(a: tuple[float, float], others: list[tuple[float, float]]) -> bool:
+        return any(b[0] <= a[0] + a[1] * 1e-3 and a[0] <= b[0] + b[1] * 1e-3 for b in others)
+
+    return sum(1 for a in first if all(overlaps(a, o) for o in rest))
+
+
 if __name__ == "__main__":
     with contextlib.suppress(KeyboardInterrupt):
-        _probe(float(sys.argv[1]) if len(sys.argv) > 1 else 3600.0)
+        _probe(float(sys.argv[1]) if len(sys.argv) > 1 else 3600.0, int(sys.argv[2]) if len(sys.argv) > 2 else -1,
+               len(sys.argv) <= 3 or sys.argv[3] == "1")

@@ -74,7 +74,7 @@ class SimSide:
         self.step_max_s = 0.0
         self.catch_up_max = 0  # the most windows stepped at one read
         self.slow_steps: list[tuple[float, float, float]] = []  # (CLOCK_MONOTONIC s, wall ms, CPU ms)
-        self.wakes_ns: list[int] = []  # each read that found a new tick: how long after that tick, ns
+        self.wakes_ns: list[int] = []  # each read that found new ticks: how long after the oldest of them, ns
         self.memory_locked = False
         self._snap: dict[str, Any] | None = None
 
@@ -86,7 +86,7 @@ class SimSide:
             due = (now - self.t0_ns) // self.period_ns
             if due > self.tick:
                 if len(self.wakes_ns) < WAKES:
-                    self.wakes_ns.append(now - self.t0_ns - due * self.period_ns)
+                    self.wakes_ns.append(now - self.t0_ns - (self.tick + 1) * self.period_ns)  # the oldest new tick
                 self.catch_up_max = max(self.catch_up_max, due - self.tick)
                 while self.tick < due:
                     self._window()
@@ -168,8 +168,8 @@ class SimSide:
         ``tick_count``, ``step_max_ms`` (the longest window's physics), ``catch_up_max_windows``,
         ``slow_steps`` (windows whose physics took more than :data:`SLOW_STEP_S` of wall time: [start,
         CLOCK_MONOTONIC s; wall ms; CPU ms of this thread]), ``wake_after_tick_ms`` (how long after a
-        tick the loop's read found it: p50, p99, p99.9, max, and how many reads came a period or more
-        late), ``memory_locked`` (``mlockall`` succeeded).
+        tick the loop's read found it, from the oldest tick not yet stepped: p50, p99, p99.9, max, and how
+        many reads came a period or more late: a window stepped late), ``memory_locked`` (``mlockall`` succeeded).
         """
         w = np.asarray(self.wakes_ns, dtype=float) * 1e-6
         wake = ({"p50": float(np.percentile(w, 50)), "p99": float(np.percentile(w, 99)),
