@@ -204,3 +204,25 @@ def test_a_child_that_dies_while_it_plays_the_queue_fails_the_execution(frmp_seg
             robot.execute(tr, on_cycle=kill_at_the_end)
         st, res = err.value.value
         assert st.mode is RobotMode.DISCONNECTED and res.completed and len(res.q_cmd) == K
+
+
+def test_a_cell_built_by_a_factory_in_the_child_and_its_own_figures():
+    """``workcell_factory`` builds the skill's cell in the child; the child reports its wake-ups and memory lock."""
+    from robointel.interface.skill_cells import HoleTask, PegTool
+
+    peg, hole = PegTool(), HoleTask()
+    with SimStreamRobot(workcell_factory="robointel.interface.skill_cells:peg_hole_workcell",
+                        factory_args=(peg, hole), lock_memory=True, stall_periods=None) as robot:
+        assert robot.has_wrench  # the peg cell's wrist sensor, read through the block
+        t0 = robot.state().t
+        assert wait_until(lambda: robot.state().t > t0 + 0.2, timeout=60.0)
+        st = robot.timing_stats()
+    assert isinstance(st["memory_locked"], bool)  # True where mlockall is allowed (root here), else False
+    w = st["wake_after_tick_ms"]
+    assert w["reads"] > 0 and 0.0 <= w["p50"] <= w["p99"] <= w["max"] and 0 <= w["over_period"] <= w["reads"]
+    assert all(len(s) == 3 for s in st["slow_steps"])
+
+
+def test_a_factory_that_is_not_there_is_refused():
+    with pytest.raises(InvalidInput, match="no_such_cell"):
+        SimStreamRobot(workcell_factory="robointel.interface.skill_cells:no_such_cell")
