@@ -30,8 +30,9 @@ measured in the same run.
 
 The host during each stream (session 27; :class:`~robointel.interface.host_probe.HostProbe`):
 ``<run>_host`` holds the CPU count, the load average at the stream's start and end, the share of each
-CPU taken by the hypervisor (``/proc/stat`` steal) over the stream and its worst 0.5 s, and what a
-bare SCHED_FIFO sleeper woken every 2 ms saw (its lateness, its stalls over 2 ms and when);
+CPU taken by the hypervisor (``/proc/stat`` steal) over the stream and its worst 0.5 s, and what bare
+SCHED_FIFO-55 sleepers, one pinned to each CPU, woken every 2 ms saw (lateness, stalls over 2 ms and when;
+a pinned sleeper also stalls while a thread above 55 holds its CPU: the FANUC core and streaming process);
 ``<run>_late_us`` (median / max), ``<run>_late_at_s`` (s after the stream's start) and
 ``<run>_late_in_host_stall`` (late windows within 20 ms of a stall of the sleeper) describe the late
 windows of the streaming process (``fanuc``, ``sim``) or the late cycles of the caller (``in_process``,

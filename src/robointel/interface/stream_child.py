@@ -8,9 +8,8 @@ played (its *slot*: arrival + the look-ahead, then one period apart). At each co
 process interpolates them at the next tick's time and submits the result (``servo_j``). A window is *fresh*
 (a target to interpolate was there), *starved* (the caller was late by more than the look-ahead), *late*
 (this process submitted after the tick) or *core-late* (the core sent the tick late while this process
-polled for it, counted apart). A *direct* target (slot = arrival: look-ahead 0, a force loop) is submitted
-as soon as the caller's eventfd wakes this process, the newest first. The snapshot, counters and stall
-flag go back through a seqlock block.
+polled for it, counted apart). A *direct* target (slot = arrival: look-ahead 0, a force loop) is submitted as
+soon as the caller's eventfd wakes this process, the newest first. State and counters return in a seqlock block.
 """
 from __future__ import annotations
 
@@ -90,9 +89,8 @@ class Player:
         self.hold_gen, self.last_tick, self.last_tick_s = 0, -1, 0.0
         self.empty_poll_s = -math.inf  # the last wake-up that found no new tick
         self.wake_s = self.prev_wake_s = 0.0  # this wake-up's time and the previous one's
-        self.sched: tuple[int, ...] = (0, 0, 0)  # schedstat at those wake-ups: on a CPU, runnable (ns), runs
+        self.sched: tuple[int, ...] = (0, 0, 0, 0, 0)  # on a CPU, runnable (ns), runs, page faults, preemptions
         self.prev_sched: tuple[int, ...] = self.sched
-        self.faults = self.prev_faults = (0, 0)  # (page faults, involuntary switches) at those wake-ups
         self.waited_s = 0.0  # the poll timeout asked for before this wake-up
         self.consec_starved = self._read_upto = 0
         self._last_arrival = -math.inf
@@ -143,14 +141,8 @@ class Player:
         self.consec_starved = 0
 
     def _event(self, kind: str, t: float, tick: int, late_s: float) -> None:
-        """Remember a missed window with what this thread did over the gap before the wake-up that saw it.
-
-        ``late_s``: how late it was: for a late window, its target's submission (or the wake-up that
-        found it skipped) after the window's deadline (the tick that ends it); for a starved one, the
-        time since the caller's last target was due.
-        """
-        (c0, r0, n0), (c1, r1, n1) = self.prev_sched, self.sched
-        (f0, p0), (f1, p1) = self.prev_faults, self.faults
+        """Remember a missed window, how late (``RingProcess.missed_events``), what this thread did over the gap."""
+        (c0, r0, n0, f0, p0), (c1, r1, n1, f1, p1) = self.prev_sched, self.sched
         self.events.append((kind, t, tick, round((self.wake_s - self.prev_wake_s) * 1e3, 3),
                             round((c1 - c0) * 1e-6, 3), round((r1 - r0) * 1e-6, 3), n1 - n0,
                             round(self.waited_s * 1e3, 3), round(late_s * 1e3, 3), f1 - f0, p1 - p0))
@@ -230,9 +222,8 @@ class Player:
             c["core_late"] += core
             c["late"] += gap - core
             c["windows"] += gap
-            # the first window skipped ended at the tick after it: last_tick_s + 2 periods
-            self._event("late" if gap > core else "core_late", self.rel(int(snap["tick_mono_ns"])), tick,
-                        self.wake_s - (self.last_tick_s + 2 * self.period))
+            late = self.wake_s - due[0] - self.period  # the first window skipped ended a period after its tick
+            self._event("late" if gap > core else "core_late", self.rel(int(snap["tick_mono_ns"])), tick, late)
         self._seen(tick, snap)
 
     def _starved(self, n: int, gap_s: float) -> None:
@@ -317,12 +308,9 @@ class Player:
         after = int(snap["cmd_tick"])
         if after != tick:  # the tick this target was for went out before it arrived
             c["fresh"] -= 1
-            if self.rel(int(snap["tick_mono_ns"])) - self.last_tick_s < 0.5 * self.period:
-                c["core_late"] += 1  # the served tick came late, its successor on time: the core's catch-up
-                self._event("core_late", self.last_tick_s, tick, c["last_submit_s"] - self.last_tick_s - self.period)
-            else:
-                c["late"] += 1
-                self._event("late", self.last_tick_s, tick, c["last_submit_s"] - self.last_tick_s - self.period)
+            kind = "core_late" if self.rel(int(snap["tick_mono_ns"])) - self.last_tick_s < 0.5 * self.period else "late"
+            c[kind] += 1
+            self._event(kind, self.last_tick_s, tick, c["last_submit_s"] - self.last_tick_s - self.period)
             self._seen(after, snap)
 
 
@@ -402,9 +390,9 @@ def serve_forever(conn: Connection, buf: npt.NDArray[np.float64], driver: Any, b
             running = core is not None and core.running
             t_read = player.rel(time.monotonic_ns())  # before the read: no tick by then, if none in it
             player.prev_wake_s, player.wake_s = player.wake_s, t_read
-            player.prev_sched, player.sched = player.sched, tuple(map(int, os.pread(stat_fd, 96, 0).split()))
             ru = resource.getrusage(resource.RUSAGE_THREAD)
-            player.prev_faults, player.faults = player.faults, (ru.ru_minflt + ru.ru_majflt, ru.ru_nivcsw)
+            player.prev_sched, player.sched = player.sched, (*map(int, os.pread(stat_fd, 96, 0).split()),
+                                                             ru.ru_minflt + ru.ru_majflt, ru.ru_nivcsw)
             snap = core.get_snapshot() if core is not None else {}
             if running and int(snap["cmd_tick"]) != seen:
                 player.serve(snap)
