@@ -17,6 +17,7 @@ from robointel.planning import _edge_kernels as E
 from robointel.planning.hybrid_check import interior_check, interior_window
 from robointel.planning.motion_check import check_dense
 from robointel.robot import Robot
+from robointel.trajectory import Trajectory
 
 
 @pytest.fixture(scope="module")
@@ -177,8 +178,6 @@ def test_covering_spheres_are_never_clearer_than_the_relaxed(thin70):
 
 
 def test_dense_check_window_in_the_covering_spheres(thin70):
-    from robointel.trajectory import Trajectory
-
     p, env = thin70
     robot = env.robot
     vmax, amax = robot.velocity_limit, robot.acceleration_limit

@@ -31,7 +31,7 @@ class _Part:
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b of two 3-vectors (``np.cross``'s value without its broadcasting overhead)."""
+    """The cross product a x b of two 3-vectors (``np.cross`` without its broadcasting overhead)."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
