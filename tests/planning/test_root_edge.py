@@ -14,9 +14,10 @@ from robointel.outcome import Failure
 from robointel.planning import Environment, MotionSettings, plan_motion
 from robointel.planning import _collision_kernels as K
 from robointel.planning import _edge_kernels as E
-from robointel.planning.hybrid_check import interior_check
+from robointel.planning.hybrid_check import interior_check, interior_window
 from robointel.planning.motion_check import check_dense
 from robointel.robot import Robot
+from robointel.trajectory import Trajectory
 
 
 @pytest.fixture(scope="module")
@@ -158,3 +159,49 @@ def test_limit_failed_smoothing_honours_the_budget(monkeypatch, late):
     else:
         assert plan.success, plan.reason  # the rest-to-rest fallback along the checked polyline
         assert calls == {"check": 2, "polyline": 1}
+
+
+def test_covering_spheres_are_never_clearer_than_the_relaxed(thin70):
+    """The window of the dense check relies on it: passing in the covering spheres passes in any blend."""
+    p, env = thin70
+    s, robot = env.scratch, env.robot
+    rng = np.random.default_rng(17)
+    qs = [np.asarray(p.goals[0], float)] + [robot.random_configuration(rng) for _ in range(60)]
+    try:
+        for blend in (0.0, 0.5, 0.93):
+            env.use("fitted", blend=blend)
+            for q in qs:
+                dc = float(K.config_clearance(q, env.world_cover, s.T, s.C, s.G, s.out, 1.0))
+                assert dc <= float(K.config_clearance(q, env.world, s.T, s.C, s.G, s.out, 1.0)) + 1e-12
+    finally:
+        env.use("cover")
+
+
+def test_dense_check_window_in_the_covering_spheres(thin70):
+    p, env = thin70
+    robot = env.robot
+    vmax, amax = robot.velocity_limit, robot.acceleration_limit
+    plan = plan_motion(robot, env, p.start, p.goals, settings=MotionSettings(d_min=0.001, seed=7919 + 70,
+                                                                            time_budget_s=30.0))
+    assert plan.success, plan.reason
+    env.use("fitted")
+    try:
+        tr = plan.trajectory
+        win = (*interior_window(tr, plan.path), env.world_cover)
+        old = interior_check(env, tr, plan.path, env.world_cover, check_dense(env, tr, d_min=0.001, vmax=vmax,
+                             amax=amax), d_min=0.001, dt=1e-3)
+        new = check_dense(env, tr, d_min=0.001, vmax=vmax, amax=amax, window=win)
+        assert old.ok and new.ok and new.min_clearance_m <= old.min_clearance_m + 1e-12
+        # resting at the goal (free in the fitted spheres, not in the covering ones), all of it interior
+        g = np.asarray(p.goals[0], float)
+        z = np.zeros((11, robot.nq))
+        rest = Trajectory(np.linspace(0.0, 0.01, 11), np.tile(g, (11, 1)), z, z, list(robot.joint_names))
+        path = np.array([p.start, g, p.start])
+        assert check_dense(env, rest, d_min=0.001, vmax=vmax, amax=amax).ok
+        bad = check_dense(env, rest, d_min=0.001, vmax=vmax, amax=amax, window=(*interior_window(rest, path),
+                                                                                 env.world_cover))
+        assert not bad.ok and bad.kind == "collision" and "covering spheres" in bad.reason
+        plain = check_dense(env, rest, d_min=0.001, vmax=vmax, amax=amax)
+        assert not interior_check(env, rest, path, env.world_cover, plain, d_min=0.001, dt=1e-3).ok  # as before
+    finally:
+        env.use("cover")

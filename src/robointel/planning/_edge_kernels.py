@@ -250,6 +250,31 @@ def edge_two_pass(q0, q1, W, T, C, G, out, thresh, lever, res, coarse):  # pragm
 
 
 @njit(cache=True)
+def root_split(q0: np.ndarray, q1: np.ndarray, root0: bool, root1: bool,
+               rcap: float) -> tuple[float, float, float, np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    """Where a root edge q0 -> q1 leaves the relaxed world: (L, a, b, qa, qb).
+
+    L is the edge's max |dq|; [0, a] lies within ``rcap`` rad of q0 (a = 0 unless ``root0``),
+    [b, 1] within ``rcap`` of q1 (b = 1 unless ``root1``); qa, qb are the points at a and b.
+    a >= b: every point is within ``rcap`` of a root. Shared by :func:`root_edge` and the
+    shortcut's ``root_edge_fine``.
+    """
+    n = q0.shape[0]
+    L = 0.0
+    for k in range(n):
+        L = max(L, abs(q1[k] - q0[k]))
+    f = rcap / L if L > 0.0 else np.inf
+    a = min(f, 1.0) if root0 else 0.0  # [0, a] relaxed
+    b = max(1.0 - f, 0.0) if root1 else 1.0  # [b, 1] relaxed
+    qa = np.empty(n)
+    qb = np.empty(n)
+    for k in range(n):
+        qa[k] = q0[k] + a * (q1[k] - q0[k])
+        qb[k] = q0[k] + b * (q1[k] - q0[k])
+    return L, a, b, qa, qb
+
+
+@njit(cache=True)
 def root_edge(q0, q1, Wr, W, root0, root1, rcap, T, C, G, out, thresh, lever, res, coarse):  # pragma: no cover
     """Check q0 -> q1 (q1 excluded, as :func:`edge_valid`) with the relaxed world ``Wr`` only near a root.
 
@@ -259,24 +284,13 @@ def root_edge(q0, q1, Wr, W, root0, root1, rcap, T, C, G, out, thresh, lever, re
     holds per stretch: >= thresh - res / 2 in its world). An edge within ``rcap`` of a root at every
     point is checked in ``Wr`` alone; ``rcap`` = inf checks every root edge in ``Wr`` whole.
     """
-    n = q0.shape[0]
-    L = 0.0
-    for k in range(n):
-        L = max(L, abs(q1[k] - q0[k]))
     if not root0 and not root1:
         return edge_two_pass(q0, q1, W, T, C, G, out, thresh, lever, res, coarse)
+    L, a, b, qa, qb = root_split(q0, q1, root0, root1, rcap)
     if L <= 0.0:
         return True
-    f = rcap / L
-    a = min(f, 1.0) if root0 else 0.0  # [0, a] relaxed
-    b = max(1.0 - f, 0.0) if root1 else 1.0  # [b, 1] relaxed
     if a >= b:  # every point within rcap of a root
         return edge_two_pass(q0, q1, Wr, T, C, G, out, thresh, lever, res, coarse)
-    qa = np.empty(n)
-    qb = np.empty(n)
-    for k in range(n):
-        qa[k] = q0[k] + a * (q1[k] - q0[k])
-        qb[k] = q0[k] + b * (q1[k] - q0[k])
     if root0 and not edge_two_pass(q0, qa, Wr, T, C, G, out, thresh, lever, res, coarse):
         return False
     # the middle in W: its walk checks qa first; qb (its excluded end) is checked on its own

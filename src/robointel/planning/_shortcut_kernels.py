@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit
 
 from robointel.planning._collision_kernels import config_valid
-from robointel.planning._edge_kernels import edge_valid_bisect
+from robointel.planning._edge_kernels import edge_valid_bisect, root_split
 
 
 @njit(cache=True)
@@ -52,29 +52,50 @@ def root_edge_fine(q0: np.ndarray, q1: np.ndarray, Wr: tuple, W: tuple, root0: b
     Within ``rcap`` rad (max |dq|) of a root (q0 when ``root0``, q1 when ``root1``) the edge is
     checked in the relaxed world ``Wr``, the rest (and the split points) in ``W``.
     """
-    n = q0.shape[0]
-    L = 0.0
-    for k in range(n):
-        L = max(L, abs(q1[k] - q0[k]))
     if not root0 and not root1:
         return edge_fine(q0, q1, W, T, C, G, out, thresh, lever, res)
+    L, a, b, qa, qb = root_split(q0, q1, root0, root1, rcap)
     if L <= 0.0:
         return True
-    f = rcap / L
-    a = min(f, 1.0) if root0 else 0.0  # [0, a] relaxed
-    b = max(1.0 - f, 0.0) if root1 else 1.0  # [b, 1] relaxed
     if a >= b:  # every point within rcap of a root
         return edge_fine(q0, q1, Wr, T, C, G, out, thresh, lever, res)
-    qa = np.empty(n)
-    qb = np.empty(n)
-    for k in range(n):
-        qa[k] = q0[k] + a * (q1[k] - q0[k])
-        qb[k] = q0[k] + b * (q1[k] - q0[k])
     if root0 and not edge_fine(q0, qa, Wr, T, C, G, out, thresh, lever, res):
         return False
     if not edge_fine(qa, qb, W, T, C, G, out, thresh, lever, res):  # qb included, in W
         return False
     return not root1 or edge_fine(qb, q1, Wr, T, C, G, out, thresh, lever, res)
+
+
+#: how far :func:`tighten` tries to move a vertex toward its neighbours' midpoint, largest first
+PULL_FRACTIONS = (1.0, 0.5, 0.25, 0.125)
+
+
+@njit(cache=True)
+def tighten(P: np.ndarray, npts: int, W: tuple, Wr: tuple, rcap: float, T: np.ndarray, C: np.ndarray, G: np.ndarray,
+            out: np.ndarray, thresh: float, lever: np.ndarray, res: float) -> int:  # pragma: no cover - compiled
+    """One pass over the inner vertices of P[:npts], each moved toward the midpoint of its neighbours.
+
+    Vertex i goes to P[i] + f (m - P[i]), m = (P[i-1] + P[i+1]) / 2, for the largest f of
+    :data:`PULL_FRACTIONS` whose two new edges pass the check of the shortcut (:func:`root_edge_fine`
+    from the first / to the last vertex, else :func:`edge_fine`); else it stays. The path length
+    a -> q -> b is convex in q and smallest at m, so no move lengthens the path (in any norm: the
+    motion time, ~ the max-joint length, falls with it). Returns the number of vertices moved.
+    """
+    n = P.shape[1]
+    q = np.empty(n)
+    moved = 0
+    for i in range(1, npts - 1):
+        for f in PULL_FRACTIONS:
+            for k in range(n):
+                q[k] = P[i, k] + f * (0.5 * (P[i - 1, k] + P[i + 1, k]) - P[i, k])
+            if (root_edge_fine(P[i - 1], q, Wr, W, i == 1, False, rcap, T, C, G, out, thresh, lever, res)
+                    and root_edge_fine(q, P[i + 1], Wr, W, False, i + 1 == npts - 1, rcap, T, C, G, out, thresh,
+                                       lever, res)):
+                for k in range(n):
+                    P[i, k] = q[k]
+                moved += 1
+                break
+    return moved
 
 
 @njit(cache=True)
@@ -84,7 +105,8 @@ def shortcut(P: np.ndarray, npts: int, iters: int, W: tuple, Wr: tuple, rcap: fl
     """Shorten the path P[:npts] in place; returns the new vertex count.
 
     A greedy pass (each vertex joined to the farthest one it sees), then ``iters`` random
-    shortcuts between points anywhere on the path (numba's random stream). Edges from the first or
+    shortcuts between points anywhere on the path (numba's random stream), then one
+    :func:`tighten` pass (corners cut toward the neighbours' midpoint). Edges from the first or
     to the last vertex are checked in world ``Wr`` within ``rcap`` rad of that vertex and in ``W``
     beyond (:func:`root_edge_fine`), all others in ``W`` (:func:`edge_fine`), at resolution ``res``.
     """
@@ -143,6 +165,8 @@ def shortcut(P: np.ndarray, npts: int, iters: int, W: tuple, Wr: tuple, rcap: fl
         for r in range(m):
             P[r] = Q[r]
         npts = m
+    if npts >= 3:
+        tighten(P, npts, W, Wr, rcap, T, C, G, out, thresh, lever, res)
     # drop vertices that are (almost) duplicates of their predecessor
     m = 1
     for r in range(1, npts):

@@ -30,11 +30,17 @@ class _Part:
     link: str
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The cross product a x b of two 3-vectors (``np.cross`` without its broadcasting overhead)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
 def _axis_frame(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """A rotation whose z axis points from a to b."""
     u = (b - a) / np.linalg.norm(b - a)
-    x = np.cross(u, [1.0, 0.0, 0.0]) if abs(u[0]) < 0.9 else np.cross(u, [0.0, 1.0, 0.0])
+    x = _cross(u, np.array([1.0, 0.0, 0.0]) if abs(u[0]) < 0.9 else np.array([0.0, 1.0, 0.0]))
     x /= np.linalg.norm(x)
-    return np.stack([x, np.cross(u, x), u], 1)
+    return np.stack([x, _cross(u, x), u], 1)
 
 
 class MeshGeometry:
@@ -48,9 +54,10 @@ class MeshGeometry:
     def __init__(self, robot: Robot, obstacles: list[Obstacle]) -> None:
         self.robot = robot
         key = (id(robot), str(robot.urdf_path))
-        if key not in _PARTS:
-            _PARTS[key] = _parts(robot)
-        self.parts = _PARTS[key]
+        if key not in _PARTS:  # the robot side (meshes, hulls, levers), built once per robot
+            _PARTS[key] = _RobotMeshes(robot, _parts(robot))
+        side = _PARTS[key]
+        self.parts = side.parts
         self.obstacles: list[tuple[str, Any, Any, np.ndarray, np.ndarray]] = []
         for k, o in enumerate(obstacles):
             g = _coal_obstacle(o)
@@ -59,13 +66,9 @@ class MeshGeometry:
                 self.obstacles.append((o.label(k), g[0], g[1], np.asarray(lo), np.asarray(hi)))
         self._lo = np.array([o[3] for o in self.obstacles], float).reshape(-1, 3)
         self._hi = np.array([o[4] for o in self.obstacles], float).reshape(-1, 3)
-        self.reach = max((p.radius + float(np.linalg.norm(p.centre)) for p in self.parts), default=0.0)
-        self.lever = _mesh_levers(robot, self.parts)
-        # per part: its link frame (as an index into the distinct frames), bounding-sphere centre and radius
-        self._frames = sorted({p.frame for p in self.parts})
-        self._part_frame = np.array([self._frames.index(p.frame) for p in self.parts], int)
-        self._centres = np.array([p.centre for p in self.parts], float).reshape(-1, 3)
-        self._radii = np.array([p.radius for p in self.parts], float)
+        self.reach, self.lever = side.reach, side.lever
+        self._frames, self._part_frame = side.frames, side.part_frame
+        self._centres, self._radii = side.centres, side.radii
 
     @property
     def empty(self) -> bool:
@@ -158,7 +161,26 @@ class MeshGeometry:
         return best, worst, bl, bo
 
 
-_PARTS: dict[tuple[int, str], list[_Part]] = {}
+class _RobotMeshes:
+    """What :class:`MeshGeometry` needs of the robot alone (shared read-only by every instance).
+
+    ``reach``: the largest part extent from its link origin, m; ``lever``: :func:`_mesh_levers`;
+    per part its link frame (an index into the distinct ``frames``), bounding-sphere centre and radius.
+    """
+
+    def __init__(self, robot: Robot, parts: list[_Part]) -> None:
+        self.parts = parts
+        self.reach = max((p.radius + float(np.linalg.norm(p.centre)) for p in parts), default=0.0)
+        self.lever = _mesh_levers(robot, parts)
+        self.frames = sorted({p.frame for p in parts})
+        self.part_frame = np.array([self.frames.index(p.frame) for p in parts], int)
+        self.centres = np.array([p.centre for p in parts], float).reshape(-1, 3)
+        self.radii = np.array([p.radius for p in parts], float)
+        for a in (self.lever, self.part_frame, self.centres, self.radii):
+            a.flags.writeable = False
+
+
+_PARTS: dict[tuple[int, str], _RobotMeshes] = {}
 
 
 def _mesh_levers(robot: Robot, parts: list[_Part]) -> np.ndarray:

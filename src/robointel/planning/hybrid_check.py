@@ -50,28 +50,41 @@ def _nearest(Q: np.ndarray, q: np.ndarray, last: bool) -> int:  # pragma: no cov
     return bi
 
 
+def interior_window(traj: Trajectory, path: np.ndarray) -> tuple[float, float]:
+    """(t0, t1): the times of the samples of ``traj`` nearest the first and the last inner vertex of ``path``.
+
+    Between them a trajectory planned with relaxed spheres at its start/goal edges must clear the
+    mesh-covering spheres; before t0 and after t1 the collision meshes decide. Without an inner
+    vertex, t0 is the end and t1 the start (no interior: the meshes decide everywhere).
+    """
+    if len(path) < 3:
+        return float(traj.t[-1]), float(traj.t[0])
+    Q = np.ascontiguousarray(traj.q)
+    i0 = _nearest(Q, np.ascontiguousarray(path[1], dtype=float), False)
+    i1 = _nearest(Q, np.ascontiguousarray(path[-2], dtype=float), True)
+    return float(traj.t[i0]), float(traj.t[i1])
+
+
 def interior_check(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, chk: DenseCheck, *,
-                   d_min: float, dt: float, deadline: float = float("inf")) -> DenseCheck:
+                   d_min: float, dt: float, deadline: float = float("inf"), window_checked: bool = False) -> DenseCheck:
     """Check a trajectory planned with partially grown spheres at the start/goal edges.
 
-    Between the first and the last inner vertex it must clear the mesh-covering spheres; before
-    and after them (the start and goal edges) the exact distance to the collision meshes
+    Between the first and the last inner vertex (:func:`interior_window`) it must clear the
+    mesh-covering spheres (skipped when ``window_checked``: ``chk`` came from
+    :func:`~robointel.planning.motion_check.check_dense` with that window in ``Wc``); before and
+    after them (the start and goal edges) the exact distance to the collision meshes
     (:class:`MeshGeometry`: convex hulls, refined on the meshes) must be >= max(d_min - 1 mm, 0).
     The mesh check looks at the clock every ``MESH_CHUNK`` exact samples: past ``deadline`` it
     returns a failed check of kind ``"timeout"``.
     """
-    i0, i1 = len(traj.q) - 1, 0
-    if len(path) >= 3:
-        Q = np.ascontiguousarray(traj.q)
-        i0 = _nearest(Q, np.ascontiguousarray(path[1], dtype=float), False)
-        i1 = _nearest(Q, np.ascontiguousarray(path[-2], dtype=float), True)
-        d = window_clearance(env, traj, Wc, float(traj.t[i0]), float(traj.t[i1]), d_min=d_min, dt=dt)
+    t0, t1 = interior_window(traj, path)
+    if len(path) >= 3 and not window_checked:
+        d = window_clearance(env, traj, Wc, t0, t1, d_min=d_min, dt=dt)
         if d < d_min - CLEARANCE_TOL:
             return DenseCheck(False, f"the covering spheres come {d * 1e3:.1f} mm from the obstacles between "
-                              f"t = {traj.t[i0]:.3f} s and {traj.t[i1]:.3f} s", "collision",
-                              min(d, chk.min_clearance_m), chk.samples)
+                              f"t = {t0:.3f} s and {t1:.3f} s", "collision", min(d, chk.min_clearance_m),
+                              chk.samples)
     dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
-    t0, t1 = float(traj.t[i0]), float(traj.t[i1])
     return _mesh_check(env, dense, (dense.t <= t0, dense.t >= t1), Wc, chk, d_min=d_min, deadline=deadline)
 
 
@@ -117,4 +130,4 @@ def _mesh_check(env: Environment, dense: Trajectory, windows: tuple[np.ndarray, 
     return chk
 
 
-__all__ = ["MESH_CHUNK", "exact_check", "interior_check", "mesh_geometry", "timed_out"]
+__all__ = ["MESH_CHUNK", "exact_check", "interior_check", "interior_window", "mesh_geometry", "timed_out"]

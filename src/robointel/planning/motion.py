@@ -26,12 +26,12 @@ from robointel.planning import _rrt_kernels as R
 from robointel.planning import _shortcut_kernels as S
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
-from robointel.planning.hybrid_check import exact_check, interior_check, timed_out
+from robointel.planning.hybrid_check import exact_check, interior_check, interior_window, timed_out
 from robointel.planning.jerk_limited import jerk_limited_polyline
 from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, check_dense
 from robointel.planning.polyline_timing import polyline_timing
 from robointel.planning.temporal import temporal_optimize
-from robointel.planning.topp import topp_spline
+from robointel.planning.topp import densify, topp_spline
 from robointel.robot.model import Robot
 from robointel.trajectory import Trajectory
 
@@ -162,15 +162,6 @@ def _goal_set(robot: Robot, goal: npt.ArrayLike | Sequence[npt.ArrayLike], seed:
 def _fail(reason: str, failure: Failure, t0: float, timings: dict[str, float], path: np.ndarray | None = None,
           traj: Trajectory | None = None, clearance: float = float("nan"), goal: int = -1) -> MotionPlan:
     return MotionPlan(False, reason, failure, traj, path, (time.perf_counter() - t0) * 1e3, timings, clearance, goal)
-
-
-def _densify(path: np.ndarray, step: float) -> np.ndarray:
-    """Insert evenly spaced points so no joint moves more than ``step`` between knots."""
-    out = [path[:1]]
-    for a, b in zip(path[:-1], path[1:]):
-        k = max(1, int(np.ceil(np.max(np.abs(b - a)) / step)))
-        out.append(a + (b - a) * (np.arange(1, k + 1) / k)[:, None])
-    return np.concatenate(out)
 
 
 def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
@@ -359,6 +350,9 @@ def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
     t3 = time.perf_counter()
     names = list(robot.joint_names)
     traj, chk = None, None
+    # hybrid: the interior (between the inner vertices) is checked in the covering spheres Wc alone (they
+    # contain the relaxed ones in use, so passing there passes env.world too), the start/goal edges on the meshes
+    win = hybrid and not exact and len(path) >= 3
     if st.smooth and not st.jerk_limited and len(path) > 2:
         steps = (st.knot_step,) if st.timing == "temporal" else (st.spline_step, st.spline_step / 4)
         for step in steps:  # a spline that leaves the checked polyline too far: knots closer together
@@ -366,12 +360,13 @@ def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
                 chk = timed_out("the smoothing", chk)
                 break
             if st.timing == "temporal":
-                tt = temporal_optimize(_densify(path, float(step)), vmax, amax).trajectory
+                tt = temporal_optimize(densify(path, float(step)), vmax, amax).trajectory
                 traj = Trajectory(tt.t, tt.q, tt.qd, tt.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
             else:
                 traj = topp_spline(path, vmax, amax, step=float(step), dt=st.check_dt, joint_names=names)
-            chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
-            chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact)
+            chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt,
+                              window=(*interior_window(traj, path), Wc) if win else None)
+            chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win)
             if chk.ok or chk.kind != "collision":
                 break
         timings["smooth"] = (time.perf_counter() - t3) * 1e3
@@ -384,21 +379,23 @@ def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
             traj = jerk_limited_polyline(path, vmax, amax, jmax, dt=st.check_dt, joint_names=names)
         else:
             traj = polyline_timing(path, vmax, amax, dt=st.check_dt, joint_names=names)
-        chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt)
-        chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact)
+        chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt,
+                          window=(*interior_window(traj, path), Wc) if win else None)
+        chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win)
         timings["timing"] = (time.perf_counter() - t4) * 1e3
     return path, traj, chk
 
 
 def _mesh_checks(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, chk: DenseCheck, st: MotionSettings,
-                 deadline: float, hybrid: bool, exact: bool) -> DenseCheck:
+                 deadline: float, hybrid: bool, exact: bool, window_checked: bool = False) -> DenseCheck:
     """The collision-mesh checks a passed dense check still needs: start/goal edges (hybrid) or all (exact)."""
     if not chk.ok:
         return chk
     if exact:
         return exact_check(env, traj, env.world_cover, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
     if hybrid:
-        return interior_check(env, traj, path, Wc, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
+        return interior_check(env, traj, path, Wc, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline,
+                              window_checked=window_checked)
     return chk
 
 

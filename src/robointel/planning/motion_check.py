@@ -76,7 +76,7 @@ def _limit_ratios(Q: np.ndarray, QD: np.ndarray, QDD: np.ndarray, lower: np.ndar
 
 
 def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.ArrayLike,
-                amax: npt.ArrayLike, dt: float = 1e-3) -> DenseCheck:
+                amax: npt.ArrayLike, dt: float = 1e-3, window: tuple[float, float, tuple] | None = None) -> DenseCheck:
     """Resample ``traj`` every ``dt`` seconds and check limits and clearance.
 
     Args:
@@ -86,6 +86,11 @@ def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.A
         vmax: (n,) velocity limits, rad/s.
         amax: (n,) acceleration limits, rad/s^2.
         dt: resampling step, s (1 ms).
+        window: (t0, t1, W): the samples with t0 <= t <= t1 are checked in the packed world ``W``
+            instead of ``env.world``. ``W`` must be ``env.world`` with spheres at least as large (e.g.
+            :attr:`Environment.world_cover` while relaxed spheres are in use): its clearance is then
+            never above ``env.world``'s, so passing in it implies passing in ``env.world`` (the
+            reported clearance of those samples is ``W``'s).
 
     Returns:
         The :class:`DenseCheck`.
@@ -100,8 +105,22 @@ def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.A
                                   vmax, amax)
     cap = d_min + 0.1
     s = env.scratch
-    dmin, worst = K.samples_clearance(np.ascontiguousarray(Q), env.world, s.T, s.C, s.G, s.out, env.lever,
-                                      d_min - CLEARANCE_TOL, cap)
+    floor = d_min - CLEARANCE_TOL
+    if window is None:
+        dmin, worst = K.samples_clearance(np.ascontiguousarray(Q), env.world, s.T, s.C, s.G, s.out, env.lever,
+                                          floor, cap)
+        inside = False
+    else:  # before, inside, after the window: each stretch with its world
+        t0, t1, Ww = window
+        a = int(np.searchsorted(dense.t, t0, side="left"))
+        b = max(a, int(np.searchsorted(dense.t, t1, side="right")))
+        dmin, worst, inside = cap, 0, False
+        for lo, hi, W in ((0, a, env.world), (a, b, Ww), (b, len(Q), env.world)):
+            if hi > lo:
+                d, w = K.samples_clearance(np.ascontiguousarray(Q[lo:hi]), W, s.T, s.C, s.G, s.out, env.lever,
+                                           floor, cap)
+                if d < dmin:
+                    dmin, worst, inside = d, lo + w, W is Ww
     n = len(Q)
     if first >= 0:
         return DenseCheck(False, f"joint position limit exceeded at t = {dense.t[first]:.3f} s", "limit", dmin, n)
@@ -112,7 +131,11 @@ def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.A
         j = int(np.argmax(ra))
         return DenseCheck(False, f"acceleration limit of {robot.joint_names[j]} exceeded {ra[j]:.4f}x", "limit",
                           dmin, n)
-    if dmin < d_min - CLEARANCE_TOL:
+    if dmin < floor and inside:
+        return DenseCheck(False, f"the covering spheres come {dmin * 1e3:.1f} mm from the obstacles at t = "
+                          f"{dense.t[worst]:.3f} s (required {d_min * 1e3:.1f} mm - {CLEARANCE_TOL * 1e3:.0f} mm)",
+                          "collision", dmin, n)
+    if dmin < floor:
         c = env.contact(Q[worst], cap=cap)
         return DenseCheck(False, f"{c.message(f'trajectory sample at t = {dense.t[worst]:.3f} s')} "
                           f"(required {d_min * 1e3:.1f} mm - {CLEARANCE_TOL * 1e3:.0f} mm)", "collision", dmin, n)
