@@ -62,9 +62,9 @@ def _nearest_soa(X, cnt, q, buf):  # pragma: no cover - compiled
 
 
 #: a tree's range adapts over windows of this many extension attempts
-WINDOW = 32
-#: the smallest adapted range, rad
-MIN_RANGE = 0.125
+WINDOW = 16
+#: the smallest adapted range, rad (session 27: 1/8 -> 1/2 and windows 32 -> 16 halved the cage's search)
+MIN_RANGE = 0.5
 
 
 @njit(cache=True, inline="always")

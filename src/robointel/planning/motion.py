@@ -54,7 +54,7 @@ class MotionSettings:
         jerk_limited: time the path with ruckig (rest to rest per straight segment) instead of
             temporal optimization.
         rrt_range: longest RRT edge, rad (Euclidean in joint space); each tree steps shorter while its
-            extensions mostly fail (down to 1/8 rad), longer again (up to this) when they succeed.
+            extensions mostly fail (down to 1/2 rad), longer again (up to this) when they succeed.
         resolution: largest sphere-centre travel between two checks of a path edge, m (so the
             edge keeps clearance >= d_min - resolution / 2 between the checked points).
         search_resolution: the same during the tree search (coarser, faster); the found path's
