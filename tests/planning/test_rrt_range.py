@@ -25,6 +25,8 @@ def test_nearest_is_the_exact_nearest():
             i, d = R._nearest(Q, 2500, q)
             dist = np.linalg.norm(Q[:2500] - q, axis=1)
             assert i == int(np.argmin(dist)) and d == pytest.approx(dist.min(), rel=1e-12)
+            j, e = R._nearest_soa(np.ascontiguousarray(Q.T), 2500, q, np.empty(3000))  # joint by joint
+            assert (j, e) == (i, d)
 
 
 def test_adapt_halves_and_doubles_within_bounds():
@@ -32,12 +34,13 @@ def test_adapt_halves_and_doubles_within_bounds():
     for _ in range(R.WINDOW * 10):  # tree 1 never succeeds: halves each window down to the floor
         R._adapt(rng, win, 1, False)
     assert rng[1] == R.MIN_RANGE and rng[0] == 1.0
-    for k in range(R.WINDOW):  # 3 of 32 succeed (< 1/8): halves; no floor hit for tree 0
-        R._adapt(rng, win, 0, k < 3)
-    assert rng[0] == 0.5
-    for k in range(R.WINDOW):  # 4 of 32 (not < 1/8, not > 1/2): unchanged
-        R._adapt(rng, win, 0, k < 4)
-    assert rng[0] == 0.5
+    few = R.WINDOW // 8
+    for k in range(R.WINDOW):  # fewer than 1/8 succeed: halves for tree 0
+        R._adapt(rng, win, 0, k < few - 1)
+    assert rng[0] == max(0.5, R.MIN_RANGE)
+    for k in range(R.WINDOW):  # 1/8 exactly (not < 1/8, not > 1/2): unchanged
+        R._adapt(rng, win, 0, k < few)
+    assert rng[0] == max(0.5, R.MIN_RANGE)
     for _ in range(R.WINDOW * 10):  # all succeed: doubles up to the range asked for, never beyond
         R._adapt(rng, win, 1, True)
     assert rng[1] == 1.0 and rng[2] == 1.0
@@ -64,19 +67,20 @@ def _grow(env, q0, goals, seed, iters=1536):
     nroot = count.copy()
     nodes[0, 0], nodes[1, :len(goals)] = q0, goals
     rng, win, link = np.ones(3), np.zeros((2, 2), np.int64), np.zeros(2, np.int64)
+    X = nodes.transpose(0, 2, 1).copy()
     R.seed(seed)
     status = 0
     for _ in range(iters // 32):
         status = R.rrt_connect(nodes, parent, count, env.robot.lower, env.robot.upper, 32, rng, win, W, W, nroot,
-                               np.inf, s.T, s.C, s.G, s.out, 0.001, env.lever, 0.02, link)
+                               np.inf, s.T, s.C, s.G, s.out, 0.001, env.lever, 0.02, link, X)
         if status != 0:
             break
-    return nodes, parent, count, rng, status
+    return nodes, parent, count, rng, status, X
 
 
 def test_goal_tree_steps_shorter_in_a_pocket_and_search_is_deterministic(cage):
     env, q0, goals = cage
-    nodes, parent, count, rng, status = _grow(env, q0, goals, seed=11)
+    nodes, parent, count, rng, status, X = _grow(env, q0, goals, seed=11)
     assert rng[2] == 1.0 and rng[0] == 1.0  # the start tree in free space keeps the range asked for
     assert rng[1] < 1.0  # the goal tree's long extensions failed: it steps shorter
     for t in range(2):  # no edge is longer than the range asked for; every node is valid
@@ -87,3 +91,5 @@ def test_goal_tree_steps_shorter_in_a_pocket_and_search_is_deterministic(cage):
     again = _grow(env, q0, goals, seed=11)
     assert again[4] == status and np.array_equal(again[2], count) and np.array_equal(again[3], rng)
     assert all(np.array_equal(again[0][t, :count[t]], nodes[t, :count[t]]) for t in range(2))
+    assert np.array_equal(again[5], X)  # the joint-by-joint copy holds the same nodes
+    assert all(np.array_equal(X[t, :, :count[t]].T, nodes[t, :count[t]]) for t in range(2))

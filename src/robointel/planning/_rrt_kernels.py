@@ -1,8 +1,10 @@
 """Compiled (numba) RRT-Connect on the sphere collision kernels (the shortcut: ``_shortcut_kernels``).
 
 Trees live in caller-owned arrays so that the search runs in chunks of iterations between which
-the caller watches the clock: ``nodes`` (2, cap, n), ``parent`` (2, cap), ``count`` (2,). Tree 0
-grows from the start, tree 1 from every goal of the goal set (each a root with parent -1).
+the caller watches the clock: ``nodes`` (2, cap, n), ``parent`` (2, cap), ``count`` (2,), and
+``X`` (2, n, cap), the same nodes joint by joint (the nearest-neighbour scan reads them so, one
+joint of many nodes at a time, which the compiler vectorizes). Tree 0 grows from the start, tree 1
+from every goal of the goal set (each a root with parent -1).
 """
 from __future__ import annotations
 
@@ -37,10 +39,32 @@ def _nearest(nodes, cnt, q):  # pragma: no cover - compiled
     return bi, math.sqrt(best)
 
 
+@njit(cache=True, inline="always")
+def _nearest_soa(X, cnt, q, buf):  # pragma: no cover - compiled
+    """:func:`_nearest` over the nodes stored joint by joint, ``X`` (n, cap): (index, distance).
+
+    The squared distances of all ``cnt`` nodes are summed joint by joint into ``buf`` (cap,), in
+    the same order of terms as :func:`_nearest`, then the first smallest is taken: the same node.
+    """
+    for i in range(cnt):
+        buf[i] = 0.0
+    for k in range(X.shape[0]):
+        xk = X[k]
+        qk = q[k]
+        for i in range(cnt):
+            e = xk[i] - qk
+            buf[i] += e * e
+    best, bi = np.inf, 0
+    for i in range(cnt):
+        if buf[i] < best:
+            best, bi = buf[i], i
+    return bi, math.sqrt(best)
+
+
 #: a tree's range adapts over windows of this many extension attempts
-WINDOW = 32
-#: the smallest adapted range, rad
-MIN_RANGE = 0.125
+WINDOW = 16
+#: the smallest adapted range, rad (session 27: 1/8 -> 1/2 and windows 32 -> 16 halved the cage's search)
+MIN_RANGE = 0.5
 
 
 @njit(cache=True, inline="always")
@@ -72,7 +96,7 @@ def _steer(a, b, dist, rng, out):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def rrt_connect(nodes, parent, count, lower, upper, iters, rng, win, W, Wr, nroot, rcap, T, C, G, out, thresh,
-                lever, res, link):  # pragma: no cover - compiled
+                lever, res, link, X):  # pragma: no cover - compiled
     """Run up to ``iters`` RRT-Connect iterations.
 
     Returns 1 when the trees met (``link`` = (tree-0 node,
@@ -87,11 +111,15 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, win, W, Wr, nroo
     and ``win`` zero). A tree whose extensions mostly fail (a goal deep in a narrow pocket) steps
     shorter (:func:`_adapt`); its greedy connect steps by its own range. The smaller tree is extended
     (ties: tree 0), so the search does not depend on how it is cut into chunks of ``iters``.
+
+    ``X`` (2, n, cap): the nodes joint by joint, ``X[t, :, i] == nodes[t, i]`` for ``i < count[t]``
+    (the caller writes the roots; the kernel every node it adds).
     """
     n = lower.shape[0]
     cap = nodes.shape[1]
     qr = np.empty(n)
     qn = np.empty(n)
+    buf = np.empty(cap)
     for _ in range(iters):
         # balanced: the smaller tree grows (a goal tree stuck in a pocket gets the attempts, which
         # fail cheaply at the sample's node check)
@@ -101,7 +129,7 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, win, W, Wr, nroo
             return -1
         for k in range(n):
             qr[k] = np.random.uniform(lower[k], upper[k])
-        i, d = _nearest(nodes[a], count[a], qr)
+        i, d = _nearest_soa(X[a], count[a], qr, buf)
         _steer(nodes[a, i], qr, d, rng[a], qn)
         ok = config_valid(qn, W, T, C, G, out, thresh) and root_edge(
             nodes[a, i], qn, Wr, W, i < nroot[a], False, rcap, T, C, G, out, thresh, lever, res, 0.0)
@@ -110,10 +138,11 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, win, W, Wr, nroo
             continue
         ia = count[a]
         nodes[a, ia] = qn
+        X[a, :, ia] = qn
         parent[a, ia] = i
         count[a] += 1
         # connect tree b greedily toward the new node
-        j, d = _nearest(nodes[b], count[b], qn)
+        j, d = _nearest_soa(X[b], count[b], qn, buf)
         while True:
             if count[b] >= cap:
                 return -1
@@ -131,6 +160,7 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, win, W, Wr, nroo
                 return 1
             jb = count[b]
             nodes[b, jb] = qr
+            X[b, :, jb] = qr
             parent[b, jb] = j
             count[b] += 1
             j = jb

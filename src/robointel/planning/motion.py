@@ -32,6 +32,7 @@ from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, check_den
 from robointel.planning.polyline_timing import polyline_timing
 from robointel.planning.temporal import temporal_optimize
 from robointel.planning.topp import densify, topp_spline
+from robointel.planning.tree_search import path_valid, search, warm_search
 from robointel.robot.model import Robot
 from robointel.trajectory import Trajectory
 
@@ -53,7 +54,7 @@ class MotionSettings:
         jerk_limited: time the path with ruckig (rest to rest per straight segment) instead of
             temporal optimization.
         rrt_range: longest RRT edge, rad (Euclidean in joint space); each tree steps shorter while its
-            extensions mostly fail (down to 1/8 rad), longer again (up to this) when they succeed.
+            extensions mostly fail (down to 1/2 rad), longer again (up to this) when they succeed.
         resolution: largest sphere-centre travel between two checks of a path edge, m (so the
             edge keeps clearance >= d_min - resolution / 2 between the checked points).
         search_resolution: the same during the tree search (coarser, faster); the found path's
@@ -305,11 +306,11 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     path, gi, why = None, -1, ""
     res = float(st.search_resolution)
     while path is None:
-        path, gi, why = _search(env, q0, goals, st, res, search_end, Wc, Wr, attempt, thr, rcap)
+        path, gi, why = search(env, q0, goals, st, res, search_end, Wc, Wr, attempt, thr, rcap)
         if path is None:
             timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
             return None, -1, None, None, why
-        if _path_valid(env, path, thr, st.resolution, Wc, Wr, rcap):
+        if path_valid(env, path, thr, st.resolution, Wc, Wr, rcap):
             break
         if time.perf_counter() >= deadline:
             timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
@@ -412,11 +413,7 @@ def _warmup(env: Environment) -> None:
         return
     W, s = env.world, env.scratch
     q = np.clip(np.zeros(env.robot.nq), env.robot.lower, env.robot.upper)
-    nodes = np.zeros((2, 4, len(q)))
-    parent = np.full((2, 4), -1, np.int64)
-    count = np.array([1, 1], np.int64)
-    R.rrt_connect(nodes, parent, count, env.robot.lower, env.robot.upper, 0, np.ones(3), np.zeros((2, 2), np.int64),
-                  W, W, count, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, np.zeros(2, np.int64))
+    warm_search(env)
     P = np.array([q, q + 1e-3 * (env.robot.upper - q)])
     S.shortcut(P, 2, 0, W, W, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
     E.root_edge(P[0], P[1], W, W, True, True, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, 0.0)
@@ -429,68 +426,6 @@ def _warmup(env: Environment) -> None:
     e = 0.1 * np.eye(env.robot.nq)
     topp_spline(np.array([q, q + e[0], q + e[0] + e[-1]]), lim, lim)  # a path with a corner
     _WARM.add(key)
-
-
-def _path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: float, W: tuple,
-                Wr: tuple, rcap: float = float("inf")) -> bool:
-    """Every edge of ``path`` passes the edge check at ``resolution``.
-
-    The first and last edge are checked in ``Wr`` within ``rcap`` rad (max |dq|) of the start and
-    the goal and in ``W`` beyond, the others in ``W``.
-    """
-    s = env.scratch
-    last = len(path) - 2
-    return all(E.root_edge(a, b, Wr, W, k == 0, k == last, float(rcap), s.T, s.C, s.G, s.out, float(d_min),
-                           env.lever, float(resolution), 0.0)
-               for k, (a, b) in enumerate(zip(path[:-1], path[1:])))
-
-
-def _search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, res: float,
-            deadline: float, W: tuple, Wr: tuple, attempt: int = 0,
-            thr: float | None = None, rcap: float = float("inf")) -> tuple[np.ndarray | None, int, str]:
-    """RRT-Connect from q0 to the goal set (a direct edge first): (path, goal index, why not).
-
-    Nodes and edges are checked in ``W``, edges leaving the start or a goal in ``Wr`` for their
-    first ``rcap`` rad (max |dq|) and in ``W`` beyond.
-    """
-    s = env.scratch
-    thr, lever = float(st.d_min if thr is None else thr), env.lever
-    for k, g in enumerate(goals):
-        if attempt == 0 and E.root_edge(q0, g, Wr, W, True, True, rcap, s.T, s.C, s.G, s.out, thr, lever, res, 0.0):
-            return np.array([q0, g]), k, ""
-    n = len(q0)
-    cap = int(st.max_nodes)
-    nodes = np.empty((2, cap, n))
-    parent = np.full((2, cap), -1, np.int64)
-    count = np.array([1, len(goals)], np.int64)
-    nroot = count.copy()
-    nodes[0, 0] = q0
-    nodes[1, :len(goals)] = goals
-    link = np.zeros(2, np.int64)
-    rng, win = np.full(3, float(st.rrt_range)), np.zeros((2, 2), np.int64)  # each tree's range adapts
-    R.seed(int(st.seed) + 7 * attempt)
-    robot = env.robot
-    status, grown = 0, 0
-    while status != 1 and time.perf_counter() < deadline:
-        if status < 0:  # the trees are full: start over from the roots (the random stream goes on)
-            grown += int(count.sum())
-            count[:] = nroot
-            parent[:] = -1
-        status = R.rrt_connect(nodes, parent, count, robot.lower, robot.upper, 32, rng, win, W, Wr, nroot, rcap,
-                               s.T, s.C, s.G, s.out, thr, lever, res, link)
-    if status != 1:
-        return None, -1, f"the time budget of {st.time_budget_s:g} s ran out ({grown + int(count.sum())} nodes)"
-    a, b = [], []
-    i = int(link[0])
-    while i >= 0:
-        a.append(nodes[0, i])
-        i = int(parent[0, i])
-    i, last = int(link[1]), 0
-    while i >= 0:
-        b.append(nodes[1, i])
-        last = i
-        i = int(parent[1, i])
-    return np.array(a[::-1] + b), last, ""
 
 
 __all__ = ["MotionSettings", "MotionPlan", "plan_motion"]

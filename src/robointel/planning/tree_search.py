@@ -1,0 +1,96 @@
+"""The motion planner's global search: RRT-Connect from the start to a goal set, and the re-check of its path.
+
+:func:`search` runs the compiled kernel (:mod:`robointel.planning._rrt_kernels`) in chunks of
+iterations between which it watches the clock; :func:`path_valid` re-checks a found path's edges
+at the fine resolution.
+"""
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from robointel.planning import _edge_kernels as E
+from robointel.planning import _rrt_kernels as R
+from robointel.planning.environment import Environment
+
+if TYPE_CHECKING:
+    from robointel.planning.motion import MotionSettings
+
+
+def warm_search(env: Environment) -> None:
+    """Compile (or load from numba's disk cache) the search kernel for ``env``'s world layout."""
+    W, s = env.world, env.scratch
+    q = np.clip(np.zeros(env.robot.nq), env.robot.lower, env.robot.upper)
+    nodes = np.zeros((2, 4, len(q)))
+    nodes[:, 0] = q
+    parent = np.full((2, 4), -1, np.int64)
+    count = np.array([1, 1], np.int64)
+    R.rrt_connect(nodes, parent, count, env.robot.lower, env.robot.upper, 0, np.ones(3), np.zeros((2, 2), np.int64),
+                  W, W, count, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, np.zeros(2, np.int64),
+                  nodes.transpose(0, 2, 1).copy())
+
+
+def path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: float, W: tuple,
+               Wr: tuple, rcap: float = float("inf")) -> bool:
+    """Every edge of ``path`` passes the edge check at ``resolution``.
+
+    The first and last edge are checked in ``Wr`` within ``rcap`` rad (max |dq|) of the start and
+    the goal and in ``W`` beyond, the others in ``W``.
+    """
+    s = env.scratch
+    last = len(path) - 2
+    return all(E.root_edge(a, b, Wr, W, k == 0, k == last, float(rcap), s.T, s.C, s.G, s.out, float(d_min),
+                           env.lever, float(resolution), 0.0)
+               for k, (a, b) in enumerate(zip(path[:-1], path[1:])))
+
+
+def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, res: float,
+           deadline: float, W: tuple, Wr: tuple, attempt: int = 0,
+           thr: float | None = None, rcap: float = float("inf")) -> tuple[np.ndarray | None, int, str]:
+    """RRT-Connect from q0 to the goal set (a direct edge first): (path, goal index, why not).
+
+    Nodes and edges are checked in ``W``, edges leaving the start or a goal in ``Wr`` for their
+    first ``rcap`` rad (max |dq|) and in ``W`` beyond.
+    """
+    s = env.scratch
+    thr, lever = float(st.d_min if thr is None else thr), env.lever
+    for k, g in enumerate(goals):
+        if attempt == 0 and E.root_edge(q0, g, Wr, W, True, True, rcap, s.T, s.C, s.G, s.out, thr, lever, res, 0.0):
+            return np.array([q0, g]), k, ""
+    n = len(q0)
+    cap = int(st.max_nodes)
+    nodes = np.empty((2, cap, n))
+    parent = np.full((2, cap), -1, np.int64)
+    count = np.array([1, len(goals)], np.int64)
+    nroot = count.copy()
+    nodes[0, 0] = q0
+    nodes[1, :len(goals)] = goals
+    X = np.empty((2, n, cap))  # the nodes joint by joint (the kernel's nearest-neighbour scan)
+    X[0, :, 0], X[1, :, :len(goals)] = q0, goals.T
+    link = np.zeros(2, np.int64)
+    rng, win = np.full(3, float(st.rrt_range)), np.zeros((2, 2), np.int64)  # each tree's range adapts
+    R.seed(int(st.seed) + 7 * attempt)
+    robot = env.robot
+    status, grown = 0, 0
+    while status != 1 and time.perf_counter() < deadline:
+        if status < 0:  # the trees are full: start over from the roots (the random stream goes on)
+            grown += int(count.sum())
+            count[:] = nroot
+            parent[:] = -1
+        status = R.rrt_connect(nodes, parent, count, robot.lower, robot.upper, 32, rng, win, W, Wr, nroot, rcap,
+                               s.T, s.C, s.G, s.out, thr, lever, res, link, X)
+    if status != 1:
+        return None, -1, f"the time budget of {st.time_budget_s:g} s ran out ({grown + int(count.sum())} nodes)"
+    a, b = [], []
+    i = int(link[0])
+    while i >= 0:
+        a.append(nodes[0, i])
+        i = int(parent[0, i])
+    i, last = int(link[1]), 0
+    while i >= 0:
+        b.append(nodes[1, i])
+        last = i
+        i = int(parent[1, i])
+    return np.array(a[::-1] + b), last, ""
