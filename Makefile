@@ -20,8 +20,10 @@ lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples tools
 	$(BIN)/mypy
 
+# the suite on 2 pytest-xdist workers, grouped as tests/conftest.py says; TEST_WORKERS=0 runs it in one process
+TEST_WORKERS ?= 2
 test: $(STAMP) lint
-	$(BIN)/python -m pytest -q -p no:cacheprovider tests
+	$(BIN)/python -m pytest -q -p no:cacheprovider -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder tests
 
 bench: $(STAMP)
 	for b in benchmarks/*.py; do $(BIN)/python $$b --json || exit 1; done
