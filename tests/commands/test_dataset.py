@@ -48,9 +48,9 @@ def test_teleop_program_export(tmp_path, lrmate):
     program = save_program(tmp_path / "prog.yaml", lrmate, [ready, ready + [0.2, 0.1, 0.0, 0.0, 0.1, 0.0]])
     res = runner.invoke(app, ["dataset", "export", f"teleop:{program}", "--out", str(tmp_path / "tele")])
     assert res.exit_code == 0, res.output
-    # a wide console: the path (longer under pytest-xdist: .../popen-gw0/...) must not wrap the table
-    res = runner.invoke(app, ["dataset", "import", str(tmp_path / "tele")], env={"COLUMNS": "200"})
-    assert res.exit_code == 0 and "1 episode(s)" in res.output
+    res = runner.invoke(app, ["dataset", "import", str(tmp_path / "tele")])
+    # the table's title wraps where the path ends (longer under pytest-xdist: .../popen-gw0/...)
+    assert res.exit_code == 0 and "1 episode(s)" in " ".join(res.output.split())
     (ep,) = read_lerobot(tmp_path / "tele")
     assert ep.kind == "teleoperation" and ep.name == "prog" and ep.observations["state"].shape[1] == 6
 
