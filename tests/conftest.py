@@ -122,8 +122,8 @@ def pytest_runtest_call(item):
 
 
 
-# pytest-xdist (``make test`` runs ``-n 2 --dist loadgroup``): every test goes to a worker with the rest of its
-# file, or of its group below. ``realtime``: the tests that stream to the FANUC emulator or the streaming
+# pytest-xdist (``make test TEST_WORKERS=2``: ``-n 2 --dist loadgroup``): every test goes to a worker with its
+# file, or its group below. ``realtime``: the tests that stream to the FANUC emulator or the streaming
 # process, drive Chromium or time the wall clock run one at a time, never beside one another; ``ray``: Ray's
 # start takes both cores; ``planning``: the planner's tests share one worker, which compiles the planning
 # kernels into numba's on-disk cache once. The groups go first (longest first), the other worker's files fill
