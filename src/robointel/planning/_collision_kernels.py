@@ -145,13 +145,13 @@ def _aabb_dist(x, y, z, W):  # pragma: no cover - compiled
 @njit(cache=True)
 def clearance(C, G, W, cap, stop, out):  # pragma: no cover - compiled
     """:func:`full_clearance` over obstacles and self-collision pairs."""
-    return full_clearance(C, G, W, cap, stop, out, True)
+    return full_clearance(C, G, W, cap, stop, out, np.bool_(True))  # typed bool: one compiled signature
 
 
 @njit(cache=True)
 def env_clearance(C, G, W, cap, stop, out):  # pragma: no cover - compiled
     """:func:`full_clearance` over obstacles only."""
-    return full_clearance(C, G, W, cap, stop, out, False)
+    return full_clearance(C, G, W, cap, stop, out, np.bool_(False))
 
 
 @njit(cache=True, fastmath=FM)

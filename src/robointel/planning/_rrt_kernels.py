@@ -132,7 +132,7 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, win, W, Wr, nroo
         i, d = _nearest_soa(X[a], count[a], qr, buf)
         _steer(nodes[a, i], qr, d, rng[a], qn)
         ok = config_valid(qn, W, T, C, G, out, thresh) and root_edge(
-            nodes[a, i], qn, Wr, W, i < nroot[a], False, rcap, T, C, G, out, thresh, lever, res, 0.0)
+            nodes[a, i], qn, Wr, W, i < nroot[a], np.bool_(False), rcap, T, C, G, out, thresh, lever, res, 0.0)
         _adapt(rng, win, a, ok)
         if not ok:
             continue
@@ -149,8 +149,8 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, win, W, Wr, nroo
             reached = _steer(nodes[b, j], qn, d, rng[b], qr)
             if not reached and not config_valid(qr, W, T, C, G, out, thresh):
                 break
-            if not root_edge(nodes[b, j], qr, Wr, W, j < nroot[b], False, rcap, T, C, G, out, thresh, lever, res,
-                             0.0):
+            if not root_edge(nodes[b, j], qr, Wr, W, j < nroot[b], np.bool_(False), rcap, T, C, G, out, thresh,
+                             lever, res, 0.0):
                 break
             if reached:
                 if a == 0:

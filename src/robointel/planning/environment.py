@@ -229,7 +229,7 @@ class Environment:
             a, b = inv[i], inv[k]
             smask[a, b] = smask[b, a] = 1
         self._spheres = (sj, sp, sr, groups.astype(np.int64), gc, gr, np.array(gs, np.int64))
-        smask &= _variable_pairs(self._chain + self._spheres, self.robot, smask)
+        smask &= _variable_pairs(self._chain + self._spheres + _world_tail(), self.robot, smask)
         gid = np.searchsorted(groups, sj)
         gp = {(min(gid[a], gid[b]), max(gid[a], gid[b])) for a, b in zip(*np.nonzero(smask))}
         gpairs = np.array(sorted(gp), np.int64).reshape(-1, 2)
@@ -372,6 +372,15 @@ def _frame_z(u: np.ndarray) -> np.ndarray:
 def _empty_cloud() -> tuple:
     return (np.zeros((0, 3)), np.zeros(2, np.int64), np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]),
             np.zeros(3, np.int64))
+
+
+def _world_tail() -> tuple:
+    """Empty arrays typed as the world's entries 12-23: a 12-array prefix padded to the full world's numba type.
+
+    The kernels read only what the prefix holds; the full type spares a second compile of them (session 27).
+    """
+    return ((np.zeros(0, np.int64), np.zeros((0, GK.NPARAM)), np.zeros((0, 2), np.int64), np.zeros((0, 0), np.uint8))
+            + _empty_cloud() + (np.zeros((0, 0)), np.zeros(0), np.zeros(0), np.zeros((0, 0, 0))))
 
 
 def _variable_pairs(W: tuple, robot: Robot, smask: np.ndarray, samples: int = 500) -> np.ndarray:

@@ -128,7 +128,7 @@ def _interval(dq: np.ndarray, ddq: np.ndarray, i: int, h: float, amax: np.ndarra
               lo_p: np.ndarray, lo_m: np.ndarray, up_p: np.ndarray,
               up_m: np.ndarray) -> tuple[int, float]:  # pragma: no cover - compiled
     """Lines of the acceleration limits of interval i at both ends (x = x_i, x_{i+1} = x_i + 2 h u)."""
-    m, c0 = _lines(dq[i], ddq[i], amax, lo_p, lo_m, up_p, up_m, 0)
+    m, c0 = _lines(dq[i], ddq[i], amax, lo_p, lo_m, up_p, up_m, int(np.int64(0)))  # int64, not a literal 0
     for j in range(cu.shape[0]):
         cu[j] = dq[i + 1, j] + 2.0 * h * ddq[i + 1, j]
     m, c1 = _lines(cu, ddq[i + 1], amax, lo_p, lo_m, up_p, up_m, m)
