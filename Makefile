@@ -20,9 +20,9 @@ lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples tools
 	$(BIN)/mypy
 
-# TEST_WORKERS=2: the suite on 2 pytest-xdist workers, grouped as tests/conftest.py says (not yet the default:
-# three loaded runs had timing and Ray failures, docs/decisions.md session 27); 0 runs it in one process
-TEST_WORKERS ?= 0
+# the suite on 2 pytest-xdist workers, grouped as tests/conftest.py says (docs/decisions.md, session 27);
+# TEST_WORKERS=0 runs it in one process
+TEST_WORKERS ?= 2
 test: $(STAMP) lint
 	$(BIN)/python -m pytest -q -p no:cacheprovider -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder tests
 
