@@ -131,7 +131,8 @@ def pytest_runtest_call(item):
 # given to xdist's scheduler here (by path) instead of as marks. A run without xdist is not changed.
 XDIST_GROUPS = {
     "realtime": (
-        "interface/test_cli_moves.py", "interface/test_cli_robot.py", "interface/test_emulator_stalls.py",
+        "interface/test_cli_moves.py", "interface/test_cli_robot.py", "interface/test_cli_sim_process.py",
+        "interface/test_emulator_stalls.py",
         "interface/test_fanuc.py", "interface/test_fanuc_close.py", "interface/test_ft_sensor.py",
         "interface/test_lead_through.py", "interface/test_mcap_log.py", "interface/test_realtime.py",
         "interface/test_sim.py", "interface/test_sim_stream.py", "interface/test_skills.py",
