@@ -86,6 +86,11 @@ class Backend:
         recorder: optional :class:`Recorder` that receives states, commands and trajectories.
     """
 
+    clocked = False
+    """The state advances on the robot's own clock, at its ticks (a controller, a streaming process), not
+    when a target is sent: a force loop paces itself on those ticks
+    (:class:`~robointel.interface.tick_pacer.TickPacer`)."""
+
     def __init__(self, joint_names: Sequence[str], lower: npt.ArrayLike, upper: npt.ArrayLike,
                  velocity_limit: npt.ArrayLike, period: float, *, paced: bool, stall_periods: int | None = 10,
                  recorder: Recorder | None = None) -> None:

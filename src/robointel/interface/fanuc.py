@@ -95,6 +95,9 @@ class FanucRobot(RegisterIO, Backend):
         ConnectionLost: bring-up failed (the controller is unreachable or refuses motion).
     """
 
+    clocked = True
+    """The state advances at the controller's ticks."""
+
     def __init__(self, host: str, *, rmi_port: int = DEFAULT_RMI_PORT, sm_port: int = DEFAULT_SM_PORT,
                  profile: RobotProfile | None = None, robot: Any = None, stall_periods: int | None = 10,
                  recorder: Recorder | None = None, connect_timeout: float = 5.0,

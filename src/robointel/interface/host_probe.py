@@ -157,12 +157,21 @@ class HostProbe:
             "probe_stalls": sum(r.get("stalls_total", 0) for r in raws),
             "probe_stalls_per_cpu": {k: len(v) for k, v in per_cpu.items()},
             "probe_stalls_on_every_cpu": _on_every(list(per_cpu.values())), "stall_threshold_ms": STALL_MS,
-            "_stalls": stalls,
+            "_stalls": stalls, "_stalls_per_cpu": per_cpu,
         }
 
     def stalls(self) -> list[tuple[float, float]]:
         """Every sleeper's stalls, by time: (deadline, CLOCK_MONOTONIC s; how late, ms)."""
         return [(float(t), float(ms)) for t, ms in self.result.get("_stalls", [])]
+
+    def stalls_per_cpu(self) -> dict[int, list[tuple[float, float]]]:
+        """Each CPU's sleeper's stalls: {CPU number: [(deadline, CLOCK_MONOTONIC s; how late, ms)]}."""
+        return {int(k[3:]): [(float(t), float(ms)) for t, ms in v]
+                for k, v in self.result.get("_stalls_per_cpu", {}).items() if k[3:].isdigit()}
+
+    def sleeper_pids(self) -> dict[int, int]:
+        """{CPU number: process id} of the sleepers (empty before the ``with``)."""
+        return {cpu: p.pid for cpu, p in zip(sorted(os.sched_getaffinity(0)), self._procs, strict=False)}
 
     def coincident(self, times: Sequence[float], window_s: float = 0.02) -> int:
         """How many of ``times`` (CLOCK_MONOTONIC s) fall within ``window_s`` of a stall of the sleeper.

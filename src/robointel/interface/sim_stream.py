@@ -151,6 +151,9 @@ class SimStreamRobot(Backend):
         ConnectionLost: the streaming process did not come up.
     """
 
+    clocked = True
+    """The state advances at the streaming process's ticks."""
+
     def __init__(self, *, period: float = 0.008, stall_periods: int | None = 10, recorder: Recorder | None = None,
                  q0: npt.ArrayLike | None = None, workcell_kwargs: Mapping[str, Any] | None = None,
                  lookahead_s: float = DEFAULT_LOOKAHEAD_S, force_lookahead_s: float = 0.0,

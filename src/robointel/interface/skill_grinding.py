@@ -8,7 +8,6 @@ through the interface's safety gate; force, torque and speed limits as for the i
 """
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -18,9 +17,10 @@ import numpy.typing as npt
 
 from robointel.errors import InvalidInput
 from robointel.geometry.rotations import so3_log
-from robointel.interface.backend import Backend, sleep_until
+from robointel.interface.backend import Backend
 from robointel.interface.skill_insertion import SkillLimits, over_limits, read_wrench, tool_wrench, twist_step
 from robointel.interface.state import RobotState
+from robointel.interface.tick_pacer import TickPacer
 from robointel.interface.wrench_source import StateWrench, WrenchSource
 from robointel.outcome import Failure, TrialOutcome
 
@@ -57,7 +57,7 @@ class GrindingRun:
 
 
 def run_grinding(arm: Backend, robot: Any, setpoint: SetPoint, start: npt.ArrayLike, end: npt.ArrayLike, *,
-                 source: WrenchSource | None = None, speed: float = 0.03, k_force: float = 1.0 / 1500.0,
+                 source: WrenchSource | None = None, speed: float = 0.03, k_force: float = 1.0 / 3000.0,
                  filter_hz: float = 5.0, t_touch: float = 1.0, limits: SkillLimits | None = None,
                  on_cycle: Callable[[int, RobotState], None] | None = None) -> GrindingRun:
     """Press and move the TCP from ``start`` to ``end`` with the force the skill asks for.
@@ -108,14 +108,12 @@ def run_grinding(arm: Backend, robot: Any, setpoint: SetPoint, start: npt.ArrayL
     f_filt, missing, k = 0.0, 0, 0
     w_last = np.zeros(6)
     outcome = TrialOutcome(True)
-    t0 = time.perf_counter()
+    pacer = TickPacer(arm)  # on a clocked robot each cycle answers the newest state at once (session 28)
     # a force loop: each target goes out at once, no queue; paced: a real-time section
     with arm.force_loop():
         try:
             for k in range(K):
-                if arm.paced:
-                    sleep_until(t0 + k * dt)
-                st = arm.state()
+                st = pacer.next()
                 w, missing = read_wrench(src, st, missing, lim, arm)
                 w = w_last if w is None else w
                 w_last = w

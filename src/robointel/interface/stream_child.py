@@ -466,6 +466,10 @@ def _request(name: str, args: tuple, kwargs: dict, driver: Any, player: Player, 
         return bool(handles[args[0]].done())
     if name == "motion_result":
         return getattr(handles[args[0]].result(), "value", None)  # None while it runs
+    if name == "threads":  # {native thread id: threading name} of this process's Python threads
+        import threading
+
+        return {t.native_id: t.name for t in threading.enumerate() if t.native_id is not None}
     if name in ("timing_stats", "missed_events"):
         return dict(driver.timing_stats()) if name == "timing_stats" else list(player.events)
     if name in ("rmi_write_register", "rmi_read_register"):
