@@ -154,23 +154,38 @@ def run(seconds: float, planner: bool, lookahead: float) -> dict[str, Any]:
             woke = next((t for t in wakes.get(pid, []) if t >= d - 1e-4), None)
             occ = _occupancy(runs[cpu], d, ran)
             top = sorted(occ.items(), key=lambda kv: -kv[1])[:4]
+            held = [(names.get(p, f"other: {c}"), pr) for (p, c, pr), s in occ.items()
+                    if pr < SLEEPER_PRIO and woke is not None and s > 1e-3]
+            late_wake = woke is None or (woke - d) * 1e3 >= late_ms - 1.0
             stalls_out.append({"cpu": cpu, "at_s": round(d - origin, 4), "late_ms": late_ms,
+                               "cause": ("held above 55: " + ", ".join(w for w, _ in held)) if held else
+                               "timer wake-up late (the vCPU not run)" if late_wake else "other",
                                "woken_after_deadline_ms": None if woke is None else round((woke - d) * 1e3, 3),
                                "ran": [{"who": names.get(p, f"other: {c}"), "pid": p, "prio": pr,
                                         "ms": round(s * 1e3, 3)} for (p, c, pr), s in top]})
     t0, t1 = origin, origin + seconds
+    longest: dict[str, float] = collections.defaultdict(float)
     for cpu, sw in runs.items():
         for (p, c, pr), s in _occupancy(sw, t0, t1).items():
             if pr < SLEEPER_PRIO:
                 above[(names.get(p, f"other: {c}"), pr, cpu)] += s
+        for i, (t, p, c, pr) in enumerate(sw[:-1]):  # the longest single run on a CPU above the sleeper
+            if pr < SLEEPER_PRIO and t0 <= t <= t1:
+                key = f"{names.get(p, f'other: {c}')} prio {pr}"
+                longest[key] = max(longest[key], sw[i + 1][0] - t)
     missed_ev = [{"kind": e[0], "at_s": round(base + e[1] - origin, 4), "late_ms": e[8]} for e in events]
     return {"seconds": seconds, "planner": planner, "lookahead_s": lookahead,
             "load_avg": probe.summary(origin)["load_avg"], "steal_share": probe.summary(origin)["steal_share"],
             "missed_windows": int(stats["stream_starved"] + stats["stream_late"]), "caller_late_cycles": missed,
             "core_skipped_windows": stats.get("skipped_tick_windows"), "missed_events": missed_ev,
             "child_threads": {names.get(t, str(t)): p for t, p in pols.items()},
-            "stalls": len(stalls_out), "stalls_by_cpu": {c: len(v) for c, v in probe.stalls_per_cpu().items()},
+            "stalls": len(stalls_out),
+            "stall_causes": dict(collections.Counter(x["cause"] for x in stalls_out)),
+            "stalls_on_every_cpu": probe.summary(origin)["probe_stalls_on_every_cpu"],
+            "stalls_by_cpu": {c: len(v) for c, v in probe.stalls_per_cpu().items()},
             "stall_detail": sorted(stalls_out, key=lambda s: -s["late_ms"])[:40],
+            "above_sleeper_longest_run_ms": {k: round(v * 1e3, 3) for k, v in
+                                             sorted(longest.items(), key=lambda kv: -kv[1])},
             "above_sleeper_cpu_s": {f"{w} prio {pr} cpu{c}": round(s, 4)
                                     for (w, pr, c), s in sorted(above.items(), key=lambda kv: -kv[1])}}
 

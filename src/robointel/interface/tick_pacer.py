@@ -83,7 +83,8 @@ class TickPacer:
             time.sleep(self.poll_s)
             st = arm.state()
         if st.t <= self._t_prev:
-            self.stale += 1
+            st = arm.state()  # once more after the bound: this thread may have been off the CPU past it
+            self.stale += int(st.t <= self._t_prev)
         self._t_prev = st.t
         self._wake = time.perf_counter() + self.period - self.early_s
         return st
