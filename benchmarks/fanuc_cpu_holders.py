@@ -158,8 +158,10 @@ def run(seconds: float, planner: bool, lookahead: float) -> dict[str, Any]:
                     if pr < SLEEPER_PRIO and woke is not None and s > 1e-3]
             late_wake = woke is None or (woke - d) * 1e3 >= late_ms - 1.0
             stalls_out.append({"cpu": cpu, "at_s": round(d - origin, 4), "late_ms": late_ms,
-                               "cause": ("held above 55: " + ", ".join(w for w, _ in held)) if held else
-                               "timer wake-up late (the vCPU not run)" if late_wake else "other",
+                               # a timer wake-up that itself came late: the vCPU was not run (the
+                               # interrupt preempts any task); whatever was current is billed the gap
+                               "cause": "timer wake-up late (the vCPU not run)" if late_wake else
+                               ("held above 55: " + ", ".join(w for w, _ in held)) if held else "other",
                                "woken_after_deadline_ms": None if woke is None else round((woke - d) * 1e3, 3),
                                "ran": [{"who": names.get(p, f"other: {c}"), "pid": p, "prio": pr,
                                         "ms": round(s * 1e3, 3)} for (p, c, pr), s in top]})
