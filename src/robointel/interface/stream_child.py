@@ -1,15 +1,14 @@
 """The streaming process: owns the robot's real-time side and plays time-stamped targets at the ticks.
 
-This file runs as a script in the FANUC driver's child process (:mod:`robointel.interface.stream_process`
-starts it and talks to it; it imports only the standard library, numpy and ``airo_fanuc``, and has its
-own interpreter lock); the sim's child (:mod:`robointel.interface.sim_child`) runs its loop too. The
-caller writes targets into a ring in shared memory, each stamped with its arrival and the time it is to be
-played (its *slot*: arrival + the look-ahead, then one period apart). At each core tick (``cmd_tick``) this
-process interpolates them at the next tick's time and submits the result (``servo_j``). A window is *fresh*
-(a target to interpolate was there), *starved* (the caller was late by more than the look-ahead), *late*
-(this process submitted after the tick) or *core-late* (the core sent the tick late while this process
-polled for it, counted apart). A *direct* target (slot = arrival: look-ahead 0, a force loop) is submitted as
-soon as the caller's eventfd wakes this process, the newest first. State and counters return in a seqlock block.
+This file runs as a script in the FANUC driver's child process (:mod:`robointel.interface.stream_process` starts it; it
+imports only the standard library, numpy and ``airo_fanuc``, and has its own interpreter lock); the sim's child
+(:mod:`robointel.interface.sim_child`) runs its loop too. The caller writes targets into a ring in shared memory, each
+stamped with its arrival and the time it is to be played (its *slot*: arrival + the look-ahead, then one period apart).
+At each core tick (``cmd_tick``) this process interpolates them at the next tick's time and submits the result
+(``servo_j``). A window is *fresh* (a target was there), *starved* (the caller was late by more than the look-ahead),
+*late* (this process submitted after the tick) or *core-late* (the core sent the tick late while this process polled
+for it, counted apart). A *direct* target (slot = arrival: look-ahead 0, a force loop) is submitted as soon as the
+caller's eventfd wakes this process, the newest first. State and counters return in a seqlock block.
 """
 from __future__ import annotations
 
@@ -21,6 +20,7 @@ import os
 import resource
 import select
 import sys
+import threading
 import time
 from multiprocessing.connection import Connection
 from typing import Any
@@ -462,16 +462,12 @@ def _request(name: str, args: tuple, kwargs: dict, driver: Any, player: Player, 
         h = driver.move_trajectory(*args, **kwargs)
         handles[h.motion_id] = h
         return h.motion_id
-    if name == "motion_done":
-        return bool(handles[args[0]].done())
-    if name == "motion_result":
-        return getattr(handles[args[0]].result(), "value", None)  # None while it runs
-    if name == "threads":  # {native thread id: threading name} of this process's Python threads
-        import threading
-
-        return {t.native_id: t.name for t in threading.enumerate() if t.native_id is not None}
-    if name in ("timing_stats", "missed_events"):
-        return dict(driver.timing_stats()) if name == "timing_stats" else list(player.events)
+    if name in ("motion_done", "motion_result"):
+        h = handles[args[0]]
+        return bool(h.done()) if name == "motion_done" else getattr(h.result(), "value", None)  # None: it runs
+    if name in ("timing_stats", "missed_events", "threads"):  # threads: {native id: name}, who is who in /proc
+        return (dict(driver.timing_stats()) if name == "timing_stats" else list(player.events)
+                if name == "missed_events" else {t.native_id: t.name for t in threading.enumerate()})
     if name in ("rmi_write_register", "rmi_read_register"):
         if driver.rmi is None:
             raise FanucConnectionError("no RMI session")
