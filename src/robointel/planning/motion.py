@@ -346,8 +346,18 @@ def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
     keep[-1] = True
     path = path[keep]
     timings["shortcut"] = (time.perf_counter() - t2) * 1e3
+    traj, chk = _smooth(env, path, st, deadline, Wc, hybrid, vmax, amax, timings, exact)
+    return path, traj, chk
 
-    # timing and the dense check -------------------------------------------------------------
+
+def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: float, Wc: tuple, hybrid: bool,
+            vmax: np.ndarray, amax: np.ndarray, timings: dict[str, float],
+            exact: bool) -> tuple[Trajectory | None, DenseCheck | None]:
+    """Timing and the dense (and mesh) checks of the shortened ``path``: (trajectory, check).
+
+    Args and clock as :func:`_finish`; ``hybrid``: relaxed spheres at the roots (``rcap`` finite).
+    """
+    robot = env.robot
     t3 = time.perf_counter()
     names = list(robot.joint_names)
     traj, chk = None, None
@@ -384,7 +394,7 @@ def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
                           window=(*interior_window(traj, path), Wc) if win else None)
         chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win)
         timings["timing"] = (time.perf_counter() - t4) * 1e3
-    return path, traj, chk
+    return traj, chk
 
 
 def _mesh_checks(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, chk: DenseCheck, st: MotionSettings,
