@@ -16,15 +16,14 @@ def test_limit_pass_matches_numpy():
     lo, hi = np.full(6, -2.5), np.full(6, 2.5)
     Q = np.clip(Q, -2.4, 2.4)
     Q[[37, 300], 2] = 2.6  # out of limits from sample 37 on
-    lever = rng.uniform(0.1, 1.0, 6)
-    cum = np.empty(len(Q))
-    first, rv, ra = D.limits_travel(Q, QD, QDD, lo, hi, vmax, amax, lever, cum)
+    V = np.empty(Q.shape)
+    first, rv, ra = D.limits_travel(Q, QD, QDD, lo, hi, vmax, amax, V)
     assert first == int(np.flatnonzero(np.any(Q < lo - 1e-9, 1) | np.any(Q > hi + 1e-9, 1))[0]) == 37
     np.testing.assert_array_equal(rv, np.max(np.abs(QD) / vmax, axis=0))
     np.testing.assert_array_equal(ra, np.max(np.abs(QDD) / amax, axis=0))
-    steps = np.abs(np.diff(Q, axis=0)) @ lever
-    np.testing.assert_allclose(cum, np.concatenate([[0.0], np.cumsum(steps)]), rtol=1e-12, atol=1e-12)
-    assert D.limits_travel(np.clip(Q, -2.0, 2.0), QD, QDD, lo, hi, vmax, amax, lever, cum)[0] == -1
+    np.testing.assert_allclose(V, np.concatenate([np.zeros((1, 6)), np.cumsum(np.abs(np.diff(Q, axis=0)), axis=0)]),
+                               rtol=1e-12, atol=1e-12)
+    assert D.limits_travel(np.clip(Q, -2.0, 2.0), QD, QDD, lo, hi, vmax, amax, V)[0] == -1
 
 
 def test_two_sided_skip_is_exact_below_the_floor(shared_data):
@@ -44,16 +43,16 @@ def test_two_sided_skip_is_exact_below_the_floor(shared_data):
         u = np.linspace(0.0, 1.0, 3000)[:, None]
         Q = np.ascontiguousarray((1 - u) ** 2 * a + 2 * u * (1 - u) * g + u ** 2 * b)
         full = np.array([K.config_clearance(q, W, s.T, s.C, s.G, s.out, 0.2) for q in Q])
-        cum = np.empty(len(Q))
+        V = np.empty(Q.shape)
         z = np.zeros_like(Q)
-        D.limits_travel(Q, z, z, robot.lower, robot.upper, np.ones(6), np.ones(6), env.lever, cum)
+        D.limits_travel(Q, z, z, robot.lower, robot.upper, np.ones(6), np.ones(6), V)
         for floor in (full.min() - 0.002, full.min() + 0.002, 0.01, float(np.median(full))):
-            d, w, n = D.span_clearance(Q, cum, 0, len(Q), W, s.T, s.C, s.G, s.out, floor, 0.2, 0.2)
+            d, w, n = D.span_clearance(Q, V, 0, len(Q), W, s.T, s.C, s.G, s.out, env.lever, floor, 0.2, 0.2)
             assert d >= full.min() - 1e-12 and (w < 0 or abs(full[w] - d) < 1e-12)
             assert (d < floor) == (full.min() < floor)
             if d < floor:
                 assert abs(d - full.min()) < 1e-12  # the minimum itself, when the check fails
             assert n < len(Q)
         # a stretch: the result over [lo, hi) only, starting from a given best
-        d, w, _ = D.span_clearance(Q, cum, 1000, 2000, W, s.T, s.C, s.G, s.out, 1.0, 0.2, 0.2)
+        d, w, _ = D.span_clearance(Q, V, 1000, 2000, W, s.T, s.C, s.G, s.out, env.lever, 1.0, 0.2, 0.2)
         assert abs(d - full[1000:2000].min()) < 1e-12 and 1000 <= w < 2000

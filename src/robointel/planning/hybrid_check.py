@@ -66,7 +66,8 @@ def interior_window(traj: Trajectory, path: np.ndarray) -> tuple[float, float]:
 
 
 def interior_check(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, chk: DenseCheck, *,
-                   d_min: float, dt: float, deadline: float = float("inf"), window_checked: bool = False) -> DenseCheck:
+                   d_min: float, dt: float, deadline: float = float("inf"), window_checked: bool = False,
+                   window: tuple[float, float] | None = None) -> DenseCheck:
     """Check a trajectory planned with partially grown spheres at the start/goal edges.
 
     Between the first and the last inner vertex (:func:`interior_window`) it must clear the
@@ -75,9 +76,10 @@ def interior_check(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tup
     after them (the start and goal edges) the exact distance to the collision meshes
     (:class:`MeshGeometry`: convex hulls, refined on the meshes) must be >= max(d_min - 1 mm, 0).
     The mesh check looks at the clock every ``MESH_CHUNK`` exact samples: past ``deadline`` it
-    returns a failed check of kind ``"timeout"``.
+    returns a failed check of kind ``"timeout"``. ``window``: ``interior_window(traj, path)`` when
+    the caller has it already.
     """
-    t0, t1 = interior_window(traj, path)
+    t0, t1 = interior_window(traj, path) if window is None else window
     if len(path) >= 3 and not window_checked:
         d = window_clearance(env, traj, Wc, t0, t1, d_min=d_min, dt=dt)
         if d < d_min - CLEARANCE_TOL:

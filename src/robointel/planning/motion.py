@@ -375,9 +375,10 @@ def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
                 traj = Trajectory(tt.t, tt.q, tt.qd, tt.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
             else:
                 traj = topp_spline(path, vmax, amax, step=float(step), dt=st.check_dt, joint_names=names)
+            tw = interior_window(traj, path) if hybrid and not exact else None
             chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt,
-                              window=(*interior_window(traj, path), Wc) if win else None)
-            chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win)
+                              window=(*tw, Wc) if win and tw is not None else None)
+            chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win, tw)
             if chk.ok or chk.kind != "collision":
                 break
         timings["smooth"] = (time.perf_counter() - t3) * 1e3
@@ -390,23 +391,28 @@ def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
             traj = jerk_limited_polyline(path, vmax, amax, jmax, dt=st.check_dt, joint_names=names)
         else:
             traj = polyline_timing(path, vmax, amax, dt=st.check_dt, joint_names=names)
+        tw = interior_window(traj, path) if hybrid and not exact else None
         chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt,
-                          window=(*interior_window(traj, path), Wc) if win else None)
-        chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win)
+                          window=(*tw, Wc) if win and tw is not None else None)
+        chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win, tw)
         timings["timing"] = (time.perf_counter() - t4) * 1e3
     return traj, chk
 
 
 def _mesh_checks(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, chk: DenseCheck, st: MotionSettings,
-                 deadline: float, hybrid: bool, exact: bool, window_checked: bool = False) -> DenseCheck:
-    """The collision-mesh checks a passed dense check still needs: start/goal edges (hybrid) or all (exact)."""
+                 deadline: float, hybrid: bool, exact: bool, window_checked: bool = False,
+                 window: tuple[float, float] | None = None) -> DenseCheck:
+    """The collision-mesh checks a passed dense check still needs: start/goal edges (hybrid) or all (exact).
+
+    ``window``: the trajectory's :func:`interior_window` when already known (hybrid).
+    """
     if not chk.ok:
         return chk
     if exact:
         return exact_check(env, traj, env.world_cover, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
     if hybrid:
         return interior_check(env, traj, path, Wc, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline,
-                              window_checked=window_checked)
+                              window_checked=window_checked, window=window)
     return chk
 
 

@@ -76,12 +76,13 @@ def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.A
     Q = np.ascontiguousarray(dense.q)
     vmax = np.ascontiguousarray(vmax, dtype=float)
     amax = np.ascontiguousarray(amax, dtype=float)
-    cum = np.empty(len(Q))
-    first, rv, ra = D.limits_travel(Q, np.ascontiguousarray(dense.qd), np.ascontiguousarray(dense.qdd), np.asarray(robot.lower, float),
-                                    np.asarray(robot.upper, float), vmax, amax, env.lever, cum)
+    V = np.empty(Q.shape)
+    first, rv, ra = D.limits_travel(Q, np.ascontiguousarray(dense.qd), np.ascontiguousarray(dense.qdd),
+                                    np.asarray(robot.lower, float), np.asarray(robot.upper, float), vmax, amax, V)
     cap = d_min + 0.1
     s = env.scratch
     floor = d_min - CLEARANCE_TOL
+    spans: tuple[tuple[int, int, tuple], ...]
     if window is None:
         spans = ((0, len(Q), env.world),)
         Ww: tuple | None = None
@@ -93,7 +94,7 @@ def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.A
     dmin, worst, inside = cap, 0, False
     for lo, hi, W in spans:
         if hi > lo:
-            d, w, _ = D.span_clearance(Q, cum, lo, hi, W, s.T, s.C, s.G, s.out, floor, cap, dmin)
+            d, w, _ = D.span_clearance(Q, V, lo, hi, W, s.T, s.C, s.G, s.out, env.lever, floor, cap, dmin)
             if w >= 0:
                 dmin, worst, inside = d, w, W is Ww
     n = len(Q)
