@@ -21,6 +21,7 @@ import numpy.typing as npt
 from robointel.errors import IKFailure, InvalidInput
 from robointel.outcome import Failure
 from robointel.planning import _collision_kernels as K
+from robointel.planning import _dense_kernels as D
 from robointel.planning import _edge_kernels as E
 from robointel.planning import _rrt_kernels as R
 from robointel.planning import _shortcut_kernels as S
@@ -436,6 +437,10 @@ def _warmup(env: Environment) -> None:
     E.edge_valid(P[0], P[1], W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
     K.samples_clearance(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1)
     K.samples_env_below(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0)
+    V = np.empty(P.shape)  # the dense check's kernels (called directly: tests count check_dense's calls)
+    D.limits_travel(P, P, P, np.asarray(env.robot.lower, float), np.asarray(env.robot.upper, float),
+                    np.ones(env.robot.nq), np.ones(env.robot.nq), V)
+    D.span_clearance(P, V, 0, 2, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1, 0.1)
     if env.cover_meshes:  # the collision meshes and their hulls, loaded once per robot
         MeshGeometry(env.robot, [])
     lim = np.ones(env.robot.nq)
