@@ -56,3 +56,30 @@ def test_two_sided_skip_is_exact_below_the_floor(shared_data):
         # a stretch: the result over [lo, hi) only, starting from a given best
         d, w, _ = D.span_clearance(Q, V, 1000, 2000, W, s.T, s.C, s.G, s.out, env.lever, 1.0, 0.2, 0.2)
         assert abs(d - full[1000:2000].min()) < 1e-12 and 1000 <= w < 2000
+
+
+def test_env_below_is_the_exact_mask(shared_data):
+    """The two-sided doubt mask of the mesh check equals the one-sided kernel's (the exact one)."""
+    from robointel.io.mbm import load_mbm_problems
+
+    root = shared_data("mbm", "ur5")
+    p = next(q for q in load_mbm_problems(root / "problems.json").select(families=["bookshelf_thin"])
+             if q.index == 70)
+    robot = Robot.load(root / "ur5.urdf")
+    env = Environment(robot, p.obstacles, srdf=root / "ur5.srdf", spheres=root / "ur5_spherized.urdf")
+    W, s = env.world_cover, env.scratch
+    rng = np.random.default_rng(6)
+    g = np.asarray(p.goals[0], float)
+    for _ in range(4):
+        a, b = g + rng.normal(0.0, 0.3, 6), g + rng.normal(0.0, 0.3, 6)
+        u = np.linspace(0.0, 1.0, 2000)[:, None]
+        Q = np.ascontiguousarray((1 - u) ** 2 * a + 2 * u * (1 - u) * g + u ** 2 * b)
+        V = np.empty(Q.shape)
+        z = np.zeros_like(Q)
+        D.limits_travel(Q, z, z, robot.lower, robot.upper, np.ones(6), np.ones(6), V)
+        W2 = np.empty(Q.shape)
+        D.variation(Q, W2)
+        np.testing.assert_array_equal(W2, V)
+        for thr in (0.0, 0.01, 0.05):
+            old = K.samples_env_below(Q, W, s.T, s.C, s.G, s.out, env.lever, thr)
+            np.testing.assert_array_equal(D.env_below(Q, V, W, s.T, s.C, s.G, s.out, env.lever, thr), old)

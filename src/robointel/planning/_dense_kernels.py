@@ -60,6 +60,16 @@ def limits_travel(Q: np.ndarray, QD: np.ndarray, QDD: np.ndarray, lower: np.ndar
     return first, mv / vmax, ma / amax
 
 
+@njit(cache=True)
+def variation(Q: np.ndarray, V: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Fill ``V`` (K, n) with the joints' total variation from Q[0], as :func:`limits_travel` does."""
+    for j in range(Q.shape[1]):
+        V[0, j] = 0.0
+    for k in range(1, Q.shape[0]):
+        for j in range(Q.shape[1]):
+            V[k, j] = V[k - 1, j] + abs(Q[k, j] - Q[k - 1, j])
+
+
 @njit(cache=True, fastmath=K.FM)
 def _evaluate(q: np.ndarray, W: tuple, T: np.ndarray, C: np.ndarray, G: np.ndarray, out: np.ndarray, cap: float,
               sp: np.ndarray) -> tuple[float, float]:  # pragma: no cover - compiled
@@ -240,3 +250,64 @@ def span_clearance(Q: np.ndarray, V: np.ndarray, lo: int, hi: int, W: tuple, T: 
             top += 1
         k, rk = j, rj
     return best, worst, evals
+
+
+@njit(cache=True)
+def env_below(Q: np.ndarray, V: np.ndarray, W: tuple, T: np.ndarray, C: np.ndarray, G: np.ndarray, out: np.ndarray,
+              lever: np.ndarray, thresh: float) -> np.ndarray:  # pragma: no cover - compiled
+    """Mask (K,) of the samples Q whose obstacle clearance (no self-collision) is below ``thresh``.
+
+    The same mask as :func:`~robointel.planning._collision_kernels.samples_env_below` (True exactly
+    where the clearance is below ``thresh``), with samples proven >= ``thresh`` from both sides
+    (``V`` the joints' total variation of :func:`limits_travel`).
+    """
+    Kn = Q.shape[0]
+    mask = np.zeros(Kn, np.bool_)
+    if Kn == 0:
+        return mask
+    cap = thresh + 0.25
+    none = np.full(0, np.inf)  # no pair bounds: the obstacles alone
+    rel = np.zeros((0, Q.shape[1]))
+    tau = thresh + TRAVEL_EPS
+    st_a = np.empty(64, np.int64)
+    st_b = np.empty(64, np.int64)
+    st_ea = np.empty(64)
+    st_eb = np.empty(64)
+    K.sphere_centres(Q[0], W, T, C, G)
+    ek = K.env_clearance(C, G, W, cap, -np.inf, out)
+    mask[0] = ek < thresh
+    k = 0
+    while k < Kn - 1:
+        if _bound(V, k, Kn - 1, ek, none, lever, rel, 1.0) >= tau:
+            break
+        j = _reach(V, k, k + 1, Kn - 1, ek, none, lever, rel, 0.5, tau, True)
+        j = min(max(j, k + 1), Kn - 1)
+        K.sphere_centres(Q[j], W, T, C, G)
+        ej = K.env_clearance(C, G, W, cap, -np.inf, out)
+        mask[j] = ej < thresh
+        st_a[0], st_b[0], st_ea[0], st_eb[0] = k, j, ek, ej
+        top = 1
+        while top > 0:
+            top -= 1
+            a, b, ea, eb = st_a[top], st_b[top], st_ea[top], st_eb[top]
+            if b - a <= 1:
+                continue
+            f = _reach(V, a, a + 1, b - 1, ea, none, lever, rel, 1.0, tau, True)
+            g = _reach(V, b, f + 1, b - 1, eb, none, lever, rel, 1.0, tau, False) if f < b - 1 else b
+            if f + 1 >= g:
+                continue
+            m = (f + 1 + g - 1) // 2
+            K.sphere_centres(Q[m], W, T, C, G)
+            em = K.env_clearance(C, G, W, cap, -np.inf, out)
+            mask[m] = em < thresh
+            if top + 2 > st_a.shape[0]:
+                st_a = np.concatenate((st_a, np.empty(st_a.shape[0], np.int64)))
+                st_b = np.concatenate((st_b, np.empty(st_b.shape[0], np.int64)))
+                st_ea = np.concatenate((st_ea, np.empty(st_ea.shape[0])))
+                st_eb = np.concatenate((st_eb, np.empty(st_eb.shape[0])))
+            st_a[top], st_b[top], st_ea[top], st_eb[top] = m, b, em, eb
+            top += 1
+            st_a[top], st_b[top], st_ea[top], st_eb[top] = a, m, ea, em
+            top += 1
+        k, ek = j, ej
+    return mask

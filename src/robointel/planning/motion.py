@@ -441,6 +441,8 @@ def _warmup(env: Environment) -> None:
     D.limits_travel(P, P, P, np.asarray(env.robot.lower, float), np.asarray(env.robot.upper, float),
                     np.ones(env.robot.nq), np.ones(env.robot.nq), V)
     D.span_clearance(P, V, 0, 2, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1, 0.1)
+    D.variation(P, V)
+    D.env_below(P, V, W, s.T, s.C, s.G, s.out, env.lever, 0.0)
     if env.cover_meshes:  # the collision meshes and their hulls, loaded once per robot
         MeshGeometry(env.robot, [])
     lim = np.ones(env.robot.nq)
