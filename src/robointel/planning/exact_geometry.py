@@ -132,10 +132,11 @@ class MeshGeometry:
                           mask: np.ndarray | None = None) -> tuple[float, int, str, str]:
         """Smallest clearance over nearby samples Q (K, n).
 
-        Samples that the last measured clearance minus the travel since
-        (sum_k L_k |dq_k|, L the larger of ``lever`` and the meshes' own :attr:`lever`) keeps >= thresh
-        are skipped, and so are the samples
-        ``mask`` (K,) leaves False (already known to be clear, e.g. by conservative spheres).
+        Samples that a measured sample's clearance minus the travel between them (sum_k L_k |dq_k|, L
+        the larger of ``lever`` and the meshes' own :attr:`lever`) keeps >= min(the smallest so far,
+        thresh) are skipped, the bound taken from the measured samples on both sides (so the result
+        is exact below ``thresh``), and so are the samples ``mask`` (K,) leaves False (already known
+        to be clear, e.g. by conservative spheres).
 
         Returns:
             (distance m, worst sample index or -1, link, obstacle).
@@ -147,17 +148,46 @@ class MeshGeometry:
         lev = np.maximum(np.asarray(lever, float), self.lever)
         moved = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(Q, axis=0)) @ lev)])  # travel bound from Q[0]
         todo = np.flatnonzero(mask) if mask is not None else np.arange(K)
-        i = 0
-        while i < len(todo):
+        if len(todo) == 0:
+            return best, worst, bl, bo
+        eps = 1e-12  # rounding of the summed travel
+
+        def measure(i: int) -> float:
+            nonlocal best, worst, bl, bo
             k = int(todo[i])
             c, link, obs = self.clearance(Q[k], cap=cap, thresh=thresh)
             if c < best:
                 best, worst, bl, bo = c, k, link, obs
-            if c > thresh:  # every sample within travel c - thresh of Q[k] keeps >= thresh
-                j = int(np.searchsorted(moved, moved[k] + (c - thresh), side="right"))
-                i = max(i + 1, int(np.searchsorted(todo, j)))
-            else:
-                i += 1
+            return c
+
+        # todo[i] measured at c: todo entries within travel c - tau of it keep >= tau (tau = min(best, thresh));
+        # between two measured entries a, b each entry is proven by the nearer bound (two-sided)
+        last = len(todo) - 1
+        i, ci = 0, measure(0)
+        while i < last:
+            tau = min(best, thresh) + eps
+            if moved[todo[last]] - moved[todo[i]] <= ci - tau:
+                break  # the rest proven from todo[i] alone
+            x = moved[todo[i]] + 2.0 * (ci - tau)  # an equal clearance there proves the whole interval
+            j = int(np.searchsorted(todo, np.searchsorted(moved, x, side="right"))) - 1
+            j = min(max(j, i + 1), last)
+            cj = measure(j)
+            stack = [(i, ci, j, cj)]
+            while stack:
+                a, ca, b, cb = stack.pop()
+                if b - a <= 1:
+                    continue
+                tau = min(best, thresh) + eps
+                ta, tb = moved[todo[a]], moved[todo[b]]
+                f = int(np.searchsorted(todo, np.searchsorted(moved, ta + ca - tau, side="right"))) - 1
+                g = int(np.searchsorted(todo, np.searchsorted(moved, tb - cb + tau, side="left")))
+                lo_u, hi_u = max(f + 1, a + 1), min(g - 1, b - 1)
+                if lo_u > hi_u:
+                    continue
+                m = (lo_u + hi_u) // 2
+                cm = measure(m)
+                stack += [(m, cm, b, cb), (a, ca, m, cm)]
+            i, ci = j, cj
         return best, worst, bl, bo
 
 

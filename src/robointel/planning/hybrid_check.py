@@ -11,7 +11,7 @@ import time
 import numpy as np
 from numba import njit
 
-from robointel.planning import _collision_kernels as K
+from robointel.planning import _dense_kernels as D
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
 from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, window_clearance
@@ -66,7 +66,8 @@ def interior_window(traj: Trajectory, path: np.ndarray) -> tuple[float, float]:
 
 
 def interior_check(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, chk: DenseCheck, *,
-                   d_min: float, dt: float, deadline: float = float("inf"), window_checked: bool = False) -> DenseCheck:
+                   d_min: float, dt: float, deadline: float = float("inf"), window_checked: bool = False,
+                   window: tuple[float, float] | None = None) -> DenseCheck:
     """Check a trajectory planned with partially grown spheres at the start/goal edges.
 
     Between the first and the last inner vertex (:func:`interior_window`) it must clear the
@@ -75,9 +76,10 @@ def interior_check(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tup
     after them (the start and goal edges) the exact distance to the collision meshes
     (:class:`MeshGeometry`: convex hulls, refined on the meshes) must be >= max(d_min - 1 mm, 0).
     The mesh check looks at the clock every ``MESH_CHUNK`` exact samples: past ``deadline`` it
-    returns a failed check of kind ``"timeout"``.
+    returns a failed check of kind ``"timeout"``. ``window``: ``interior_window(traj, path)`` when
+    the caller has it already.
     """
-    t0, t1 = interior_window(traj, path)
+    t0, t1 = interior_window(traj, path) if window is None else window
     if len(path) >= 3 and not window_checked:
         d = window_clearance(env, traj, Wc, t0, t1, d_min=d_min, dt=dt)
         if d < d_min - CLEARANCE_TOL:
@@ -85,7 +87,9 @@ def interior_check(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tup
                               f"t = {t0:.3f} s and {t1:.3f} s", "collision", min(d, chk.min_clearance_m),
                               chk.samples)
     dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
-    return _mesh_check(env, dense, (dense.t <= t0, dense.t >= t1), Wc, chk, d_min=d_min, deadline=deadline)
+    n = len(dense.t)  # the samples with t <= t0 and those with t >= t1
+    spans = ((0, int(np.searchsorted(dense.t, t0, side="right"))), (int(np.searchsorted(dense.t, t1, side="left")), n))
+    return _mesh_check(env, dense, spans, Wc, chk, d_min=d_min, deadline=deadline)
 
 
 def exact_check(env: Environment, traj: Trajectory, Wc: tuple, chk: DenseCheck, *, d_min: float, dt: float,
@@ -97,23 +101,25 @@ def exact_check(env: Environment, traj: Trajectory, Wc: tuple, chk: DenseCheck, 
     (:class:`MeshGeometry`), which must be >= that bound. Clock and result as :func:`interior_check`.
     """
     dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
-    return _mesh_check(env, dense, (np.ones(len(dense.t), bool),), Wc, chk, d_min=d_min, deadline=deadline)
+    return _mesh_check(env, dense, ((0, len(dense.t)),), Wc, chk, d_min=d_min, deadline=deadline)
 
 
-def _mesh_check(env: Environment, dense: Trajectory, windows: tuple[np.ndarray, ...], Wc: tuple, chk: DenseCheck, *,
-                d_min: float, deadline: float) -> DenseCheck:
-    """The exact mesh check of the samples of ``dense`` each boolean mask in ``windows`` selects."""
+def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int], ...], Wc: tuple, chk: DenseCheck,
+                *, d_min: float, deadline: float) -> DenseCheck:
+    """The exact mesh check of the samples ``dense``[lo:hi] of each (lo, hi) in ``spans``."""
     mg = mesh_geometry(env)
     if mg.empty:
         return chk
     thr = max(d_min - CLEARANCE_TOL, 0.0)  # the real geometry may not be penetrated at all
     s = env.scratch
-    for sel in windows:
-        Q = np.ascontiguousarray(dense.q[sel])
+    for s0, s1 in spans:
+        Q = np.ascontiguousarray(dense.q[s0:s1])
         if len(Q) == 0:
             continue
         # the covering spheres contain the meshes: only samples they leave below thr need coal
-        doubt = K.samples_env_below(Q, Wc, s.T, s.C, s.G, s.out, env.lever, thr)
+        V = np.empty(Q.shape)
+        D.variation(Q, V)
+        doubt = D.env_below(Q, V, Wc, s.T, s.C, s.G, s.out, env.lever, thr)
         if not doubt.any():
             continue
         idx = np.flatnonzero(doubt)
@@ -125,7 +131,7 @@ def _mesh_check(env: Environment, dense: Trajectory, windows: tuple[np.ndarray, 
                                                    mask=doubt[lo:hi])
             if d < thr:
                 return DenseCheck(False, f"collision-mesh check: link {link!r} is {d * 1e3:.2f} mm from {obs!r} at "
-                                  f"t = {dense.t[sel][lo + k]:.3f} s", "collision", min(d, chk.min_clearance_m),
+                                  f"t = {dense.t[s0 + lo + k]:.3f} s", "collision", min(d, chk.min_clearance_m),
                                   chk.samples)
     return chk
 

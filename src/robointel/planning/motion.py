@@ -21,6 +21,7 @@ import numpy.typing as npt
 from robointel.errors import IKFailure, InvalidInput
 from robointel.outcome import Failure
 from robointel.planning import _collision_kernels as K
+from robointel.planning import _dense_kernels as D
 from robointel.planning import _edge_kernels as E
 from robointel.planning import _rrt_kernels as R
 from robointel.planning import _shortcut_kernels as S
@@ -346,8 +347,18 @@ def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
     keep[-1] = True
     path = path[keep]
     timings["shortcut"] = (time.perf_counter() - t2) * 1e3
+    traj, chk = _smooth(env, path, st, deadline, Wc, hybrid, vmax, amax, timings, exact)
+    return path, traj, chk
 
-    # timing and the dense check -------------------------------------------------------------
+
+def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: float, Wc: tuple, hybrid: bool,
+            vmax: np.ndarray, amax: np.ndarray, timings: dict[str, float],
+            exact: bool) -> tuple[Trajectory | None, DenseCheck | None]:
+    """Timing and the dense (and mesh) checks of the shortened ``path``: (trajectory, check).
+
+    Args and clock as :func:`_finish`; ``hybrid``: relaxed spheres at the roots (``rcap`` finite).
+    """
+    robot = env.robot
     t3 = time.perf_counter()
     names = list(robot.joint_names)
     traj, chk = None, None
@@ -365,9 +376,10 @@ def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
                 traj = Trajectory(tt.t, tt.q, tt.qd, tt.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
             else:
                 traj = topp_spline(path, vmax, amax, step=float(step), dt=st.check_dt, joint_names=names)
+            tw = interior_window(traj, path) if hybrid and not exact else None
             chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt,
-                              window=(*interior_window(traj, path), Wc) if win else None)
-            chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win)
+                              window=(*tw, Wc) if win and tw is not None else None)
+            chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win, tw)
             if chk.ok or chk.kind != "collision":
                 break
         timings["smooth"] = (time.perf_counter() - t3) * 1e3
@@ -380,23 +392,28 @@ def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
             traj = jerk_limited_polyline(path, vmax, amax, jmax, dt=st.check_dt, joint_names=names)
         else:
             traj = polyline_timing(path, vmax, amax, dt=st.check_dt, joint_names=names)
+        tw = interior_window(traj, path) if hybrid and not exact else None
         chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt,
-                          window=(*interior_window(traj, path), Wc) if win else None)
-        chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win)
+                          window=(*tw, Wc) if win and tw is not None else None)
+        chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win, tw)
         timings["timing"] = (time.perf_counter() - t4) * 1e3
-    return path, traj, chk
+    return traj, chk
 
 
 def _mesh_checks(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, chk: DenseCheck, st: MotionSettings,
-                 deadline: float, hybrid: bool, exact: bool, window_checked: bool = False) -> DenseCheck:
-    """The collision-mesh checks a passed dense check still needs: start/goal edges (hybrid) or all (exact)."""
+                 deadline: float, hybrid: bool, exact: bool, window_checked: bool = False,
+                 window: tuple[float, float] | None = None) -> DenseCheck:
+    """The collision-mesh checks a passed dense check still needs: start/goal edges (hybrid) or all (exact).
+
+    ``window``: the trajectory's :func:`interior_window` when already known (hybrid).
+    """
     if not chk.ok:
         return chk
     if exact:
         return exact_check(env, traj, env.world_cover, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
     if hybrid:
         return interior_check(env, traj, path, Wc, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline,
-                              window_checked=window_checked)
+                              window_checked=window_checked, window=window)
     return chk
 
 
@@ -420,6 +437,12 @@ def _warmup(env: Environment) -> None:
     E.edge_valid(P[0], P[1], W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
     K.samples_clearance(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1)
     K.samples_env_below(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0)
+    V = np.empty(P.shape)  # the dense check's kernels (called directly: tests count check_dense's calls)
+    D.limits_travel(P, P, P, np.asarray(env.robot.lower, float), np.asarray(env.robot.upper, float),
+                    np.ones(env.robot.nq), np.ones(env.robot.nq), V)
+    D.span_clearance(P, V, 0, 2, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1, 0.1)
+    D.variation(P, V)
+    D.env_below(P, V, W, s.T, s.C, s.G, s.out, env.lever, 0.0)
     if env.cover_meshes:  # the collision meshes and their hulls, loaded once per robot
         MeshGeometry(env.robot, [])
     lim = np.ones(env.robot.nq)

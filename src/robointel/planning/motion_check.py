@@ -10,10 +10,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
 from robointel.outcome import Failure
 from robointel.planning import _collision_kernels as K
+from robointel.planning import _dense_kernels as D
 from robointel.planning.environment import Environment
 from robointel.trajectory import Trajectory
 
@@ -50,31 +50,6 @@ class DenseCheck:
         return {"collision": Failure.COLLISION, "limit": Failure.LIMIT}.get(self.kind, Failure.NONE)
 
 
-@njit(cache=True)
-def _limit_ratios(Q: np.ndarray, QD: np.ndarray, QDD: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-                  vmax: np.ndarray, amax: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:  # pragma: no cover
-    """The limits of every sample in one pass: (first sample index out of [lower, upper], rv, ra).
-
-    The index is -1 when every sample is within the position limits (1e-9 rad tolerance); rv, ra
-    (n,) are per joint max |qd| / vmax and max |qdd| / amax (NaN propagates, as in ``np.max``).
-    """
-    K, n = Q.shape
-    first = -1
-    rv = np.zeros(n)
-    ra = np.zeros(n)
-    for k in range(K):
-        for j in range(n):
-            if first < 0 and (Q[k, j] < lower[j] - 1e-9 or Q[k, j] > upper[j] + 1e-9):
-                first = k
-            v = abs(QD[k, j]) / vmax[j]
-            a = abs(QDD[k, j]) / amax[j]
-            if v > rv[j] or v != v:
-                rv[j] = v
-            if a > ra[j] or a != a:
-                ra[j] = a
-    return first, rv, ra
-
-
 def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.ArrayLike,
                 amax: npt.ArrayLike, dt: float = 1e-3, window: tuple[float, float, tuple] | None = None) -> DenseCheck:
     """Resample ``traj`` every ``dt`` seconds and check limits and clearance.
@@ -98,29 +73,30 @@ def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.A
     robot = env.robot
     # knots already on a grid at least as fine as dt are checked as given (their qdd is exact)
     dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
-    Q, QD, QDD = dense.q, dense.qd, dense.qdd
+    Q = np.ascontiguousarray(dense.q)
     vmax = np.ascontiguousarray(vmax, dtype=float)
     amax = np.ascontiguousarray(amax, dtype=float)
-    first, rv, ra = _limit_ratios(Q, QD, QDD, np.asarray(robot.lower, float), np.asarray(robot.upper, float),
-                                  vmax, amax)
+    V = np.empty(Q.shape)
+    first, rv, ra = D.limits_travel(Q, np.ascontiguousarray(dense.qd), np.ascontiguousarray(dense.qdd),
+                                    np.asarray(robot.lower, float), np.asarray(robot.upper, float), vmax, amax, V)
     cap = d_min + 0.1
     s = env.scratch
     floor = d_min - CLEARANCE_TOL
+    spans: tuple[tuple[int, int, tuple], ...]
     if window is None:
-        dmin, worst = K.samples_clearance(np.ascontiguousarray(Q), env.world, s.T, s.C, s.G, s.out, env.lever,
-                                          floor, cap)
-        inside = False
+        spans = ((0, len(Q), env.world),)
+        Ww: tuple | None = None
     else:  # before, inside, after the window: each stretch with its world
         t0, t1, Ww = window
         a = int(np.searchsorted(dense.t, t0, side="left"))
         b = max(a, int(np.searchsorted(dense.t, t1, side="right")))
-        dmin, worst, inside = cap, 0, False
-        for lo, hi, W in ((0, a, env.world), (a, b, Ww), (b, len(Q), env.world)):
-            if hi > lo:
-                d, w = K.samples_clearance(np.ascontiguousarray(Q[lo:hi]), W, s.T, s.C, s.G, s.out, env.lever,
-                                           floor, cap)
-                if d < dmin:
-                    dmin, worst, inside = d, lo + w, W is Ww
+        spans = ((0, a, env.world), (a, b, Ww), (b, len(Q), env.world))
+    dmin, worst, inside = cap, 0, False
+    for lo, hi, W in spans:
+        if hi > lo:
+            d, w, _ = D.span_clearance(Q, V, lo, hi, W, s.T, s.C, s.G, s.out, env.lever, floor, cap, dmin)
+            if w >= 0:
+                dmin, worst, inside = d, w, W is Ww
     n = len(Q)
     if first >= 0:
         return DenseCheck(False, f"joint position limit exceeded at t = {dense.t[first]:.3f} s", "limit", dmin, n)

@@ -37,11 +37,14 @@ GRID_MARGIN = 1.0
 def densify(path: npt.ArrayLike, step: float) -> np.ndarray:
     """The polyline ``path`` (K, n) with points inserted so no joint moves more than ``step`` rad."""
     P = np.asarray(path, float)
-    out = [P[:1]]
-    for a, b in zip(P[:-1], P[1:]):
-        k = max(1, int(np.ceil(np.max(np.abs(b - a)) / step)))
-        out.append(a + (b - a) * (np.arange(1, k + 1) / k)[:, None])
-    return np.concatenate(out)
+    if len(P) < 2:
+        return P.copy()
+    D = P[1:] - P[:-1]
+    ks = np.maximum(1, np.ceil(np.max(np.abs(D), axis=1) / step)).astype(np.int64)
+    e = np.repeat(np.arange(len(D)), ks)  # the edge of every new point
+    first = np.cumsum(ks) - ks
+    f = (np.arange(len(e)) - first[e] + 1) / ks[e]  # its fraction 1/k .. k/k along the edge
+    return np.concatenate([P[:1], P[:-1][e] + D[e] * f[:, None]])
 
 
 @njit(cache=True)
@@ -165,11 +168,18 @@ def topp_grid(s: np.ndarray, dq: np.ndarray, ddq: np.ndarray, vmax: np.ndarray,
         up_p[m], up_m[m] = K[i + 1] / (2 * h), -1.0 / (2 * h)
         lo_p[m], lo_m[m] = 0.0, -1.0 / (2 * h)
         hi = min(xv[i], xcap)
+        # the admissible x form an interval [0, x*] (x = 0 admits u = 0): when x = hi admits a u, x* >= hi
+        # and no pair of lines can lower it; only otherwise the crossings of every lower with every upper line
+        lb, ub = -np.inf, np.inf
         for p in range(m + 1):
-            for q in range(m + 1):
-                dm = lo_m[p] - up_m[q]
-                if dm > 1e-15:
-                    hi = min(hi, (up_p[q] - lo_p[p]) / dm)
+            lb = max(lb, lo_p[p] + lo_m[p] * hi)
+            ub = min(ub, up_p[p] + up_m[p] * hi)
+        if not (lb <= ub):
+            for p in range(m + 1):
+                for q in range(m + 1):
+                    dm = lo_m[p] - up_m[q]
+                    if dm > 1e-15:
+                        hi = min(hi, (up_p[q] - lo_p[p]) / dm)
         K[i] = max(hi, 0.0)
     x = np.zeros(N + 1)
     u = np.zeros(N)
@@ -200,7 +210,7 @@ def _sample(ts: np.ndarray, tg: np.ndarray, s: np.ndarray, sd: np.ndarray, u: np
     N = u.shape[0]
     nk = xk.shape[0] - 1
     i, k = 0, 0
-    rv, ra = 0.0, 0.0
+    mv, ma = np.zeros(n), np.zeros(n)  # per joint max |qd|, |qdd| (divided by the limits once, at the end)
     for m in range(ts.shape[0]):
         t = ts[m]
         while i < N - 1 and tg[i + 1] <= t:
@@ -216,10 +226,16 @@ def _sample(ts: np.ndarray, tg: np.ndarray, s: np.ndarray, sd: np.ndarray, u: np
             d1 = (3.0 * c0 * z + 2.0 * c1) * z + c2
             d2 = 6.0 * c0 * z + 2.0 * c1
             Q[m, j] = ((c0 * z + c1) * z + c2) * z + c3
-            QD[m, j] = d1 * sdm
-            QDD[m, j] = d1 * u[i] + d2 * sdm * sdm
-            rv = max(rv, abs(QD[m, j]) / vmax[j])
-            ra = max(ra, abs(QDD[m, j]) / amax[j])
+            vd = d1 * sdm
+            ad = d1 * u[i] + d2 * sdm * sdm
+            QD[m, j] = vd
+            QDD[m, j] = ad
+            mv[j] = max(mv[j], abs(vd))
+            ma[j] = max(ma[j], abs(ad))
+    rv, ra = 0.0, 0.0
+    for j in range(n):  # max_m |x_m| / lim == max_m (|x_m| / lim): division by a positive number is monotone
+        rv = max(rv, mv[j] / vmax[j])
+        ra = max(ra, ma[j] / amax[j])
     return max(rv, math.sqrt(ra))
 
 
@@ -312,7 +328,10 @@ def topp_spline(path: npt.ArrayLike, vmax: npt.ArrayLike, amax: npt.ArrayLike, *
         ratio = stretched
     q[0], q[-1] = P[0], P[-1]
     qd[0], qd[-1] = 0.0, 0.0
-    T = ts * ratio
-    return Trajectory(T, q, qd / ratio, qdd / ratio ** 2, list(joint_names or []),
+    if ratio != 1.0:  # in place: the same values as ts * ratio, qd / ratio, qdd / ratio ** 2
+        ts *= ratio
+        qd /= ratio
+        qdd /= ratio ** 2
+    return Trajectory(ts, q, qd, qdd, list(joint_names or []),
                       {"timing": f"time-optimal along a spline (TOPP, knots every {step:g} rad)",
                        "stretch": ratio})
