@@ -57,7 +57,7 @@ def time_length(P: np.ndarray, npts: int, w: np.ndarray, L: np.ndarray) -> float
 @njit(cache=True)
 def _locate(P: np.ndarray, L: np.ndarray, npts: int, u: float, q: np.ndarray) -> int:  # pragma: no cover
     """Segment s (0 <= s <= npts - 2) holding time-length parameter ``u``; q = the point there."""
-    s = np.searchsorted(L[:npts], u, side="right") - 1
+    s = int(np.searchsorted(L[:npts], u, side="right")) - 1
     s = min(max(s, 0), npts - 2)
     f = (u - L[s]) / max(L[s + 1] - L[s], 1e-12)
     f = min(max(f, 0.0), 1.0)
