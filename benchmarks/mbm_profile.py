@@ -43,13 +43,13 @@ class PostProbe:
     STAGES = {"topp": "topp_spline", "dense": "check_dense", "mesh": "_mesh_checks", "polyline": "polyline_timing"}
 
     def __init__(self, reps: int) -> None:
-        import robointel.planning._shortcut_kernels as S
+        import robointel.planning._time_shortcut as TS
         import robointel.planning.motion as M
 
         self.reps, self.acc, self.calls = reps, {}, []
         for key, name in self.STAGES.items():
             setattr(M, name, self._timed(key, getattr(M, name)))
-        S.shortcut = self._timed("shortcut", S.shortcut)
+        TS.shortcut_time = self._timed("shortcut", TS.shortcut_time)
         self.finish = M._finish
         M._finish = self._finish
 

@@ -24,7 +24,7 @@ from robointel.planning import _collision_kernels as K
 from robointel.planning import _dense_kernels as D
 from robointel.planning import _edge_kernels as E
 from robointel.planning import _rrt_kernels as R
-from robointel.planning import _shortcut_kernels as S
+from robointel.planning import _time_shortcut as TS
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
 from robointel.planning.hybrid_check import exact_check, interior_check, interior_window, timed_out
@@ -340,8 +340,8 @@ def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
     P = np.empty((max(len(path) * 2 + 64, 256), robot.nq))
     P[:len(path)] = path
     R.seed(int(st.seed) + 1 + 7 * attempt)
-    m = S.shortcut(P, len(path), int(st.shortcut_iters), Wc, Wr, rcap, s.T, s.C, s.G, s.out, float(thr), env.lever,
-                   float(st.resolution))
+    m = TS.shortcut_time(P, len(path), int(st.shortcut_iters), Wc, Wr, rcap, s.T, s.C, s.G, s.out, float(thr),
+                         env.lever, float(st.resolution), 1.0 / vmax, 1.0 / amax)
     path = P[:m].copy()
     keep = np.concatenate([[True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-9])
     keep[-1] = True
@@ -432,7 +432,8 @@ def _warmup(env: Environment) -> None:
     q = np.clip(np.zeros(env.robot.nq), env.robot.lower, env.robot.upper)
     warm_search(env)
     P = np.array([q, q + 1e-3 * (env.robot.upper - q)])
-    S.shortcut(P, 2, 0, W, W, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
+    one = np.ones(env.robot.nq)
+    TS.shortcut_time(P, 2, 0, W, W, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, one, one)
     E.root_edge(P[0], P[1], W, W, True, True, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, 0.0)
     E.edge_valid(P[0], P[1], W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
     K.samples_clearance(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1)
