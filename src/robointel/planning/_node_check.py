@@ -14,12 +14,12 @@ import math
 
 from numba import njit
 
-from robointel.geometry._kernels import _one
+from robointel.geometry._kernels import Arr, _one
 from robointel.planning._collision_kernels import CLOUD, ENV, FM, SELF, _aabb_dist, _cloud_min, sphere_centres
 
 
 @njit(cache=True, fastmath=FM)
-def config_free(q, W, T, C, G, out, thresh):  # pragma: no cover - compiled
+def config_free(q: Arr, W: tuple, T: Arr, C: Arr, G: Arr, out: Arr, thresh: float) -> bool:  # pragma: no cover
     """True when every checked distance at q is >= thresh: the verdict of ``config_valid``.
 
     T, C and G are filled as by ``sphere_centres``. ``out`` receives the pair found below
