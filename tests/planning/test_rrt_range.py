@@ -12,6 +12,8 @@ import pytest
 
 from robointel.io.mbm import load_mbm_problems
 from robointel.planning import Environment
+from robointel.planning import _collision_kernels as K
+from robointel.planning import _node_check as NC
 from robointel.planning import _rrt_kernels as R
 from robointel.planning.motion import _goal_set
 from robointel.robot import Robot
@@ -62,25 +64,24 @@ def cage(shared_data, tmp_path_factory):
 
 def _grow(env, q0, goals, seed, iters=1536):
     W, s, n, cap = env.world_cover, env.scratch, len(q0), 4000
-    nodes, parent = np.zeros((2, cap, n)), np.full((2, cap), -1, np.int64)
+    X, parent = np.zeros((2, n, cap)), np.full((2, cap), -1, np.int64)  # the nodes joint by joint
     count = np.array([1, len(goals)], np.int64)
     nroot = count.copy()
-    nodes[0, 0], nodes[1, :len(goals)] = q0, goals
+    X[0, :, 0], X[1, :, :len(goals)] = q0, goals.T
     rng, win, link = np.ones(3), np.zeros((2, 2), np.int64), np.zeros(2, np.int64)
-    X = nodes.transpose(0, 2, 1).copy()
     R.seed(seed)
     status = 0
     for _ in range(iters // 32):
-        status = R.rrt_connect(nodes, parent, count, env.robot.lower, env.robot.upper, 32, rng, win, W, W, nroot,
-                               np.inf, s.T, s.C, s.G, s.out, 0.001, env.lever, 0.02, link, X)
+        status = R.rrt_connect(X, parent, count, env.robot.lower, env.robot.upper, 32, rng, win, W, W, nroot,
+                               np.inf, s.T, s.C, s.G, s.out, 0.001, env.lever, 0.02, link)
         if status != 0:
             break
-    return nodes, parent, count, rng, status, X
+    return X.transpose(0, 2, 1), parent, count, rng, status
 
 
 def test_goal_tree_steps_shorter_in_a_pocket_and_search_is_deterministic(cage):
     env, q0, goals = cage
-    nodes, parent, count, rng, status, X = _grow(env, q0, goals, seed=11)
+    nodes, parent, count, rng, status = _grow(env, q0, goals, seed=11)
     assert rng[2] == 1.0 and rng[0] == 1.0  # the start tree in free space keeps the range asked for
     assert rng[1] < 1.0  # the goal tree's long extensions failed: it steps shorter
     for t in range(2):  # no edge is longer than the range asked for; every node is valid
@@ -91,5 +92,23 @@ def test_goal_tree_steps_shorter_in_a_pocket_and_search_is_deterministic(cage):
     again = _grow(env, q0, goals, seed=11)
     assert again[4] == status and np.array_equal(again[2], count) and np.array_equal(again[3], rng)
     assert all(np.array_equal(again[0][t, :count[t]], nodes[t, :count[t]]) for t in range(2))
-    assert np.array_equal(again[5], X)  # the joint-by-joint copy holds the same nodes
-    assert all(np.array_equal(X[t, :, :count[t]].T, nodes[t, :count[t]]) for t in range(2))
+    assert all(np.array_equal(again[1][t, :count[t]], parent[t, :count[t]]) for t in range(2))
+
+
+def test_node_check_gives_config_valids_verdict(cage):
+    """The search's node check (groups from the tool back, tests against the threshold alone) refuses and
+    accepts exactly the configurations ``config_valid`` does: uniform ones and ones near the cage goal."""
+    env, q0, goals = cage
+    W, s = env.world_cover, env.scratch
+    rs = np.random.default_rng(5)
+    U = rs.uniform(env.robot.lower, env.robot.upper, (3000, len(q0)))
+    D = U - goals[0]
+    near = goals[0] + rs.uniform(0.0, 0.5, (3000, 1)) * D / np.linalg.norm(D, axis=1)[:, None]
+    seen = set()
+    for thr in (0.0, 0.001, 0.03):
+        for q in np.concatenate([U, near]):
+            v = K.config_valid(q, W, s.T, s.C, s.G, s.out, thr)
+            kind = int(s.out[0])
+            assert NC.config_free(q, W, s.T, s.C, s.G, s.out, thr) == v
+            seen.add((v, kind))
+    assert {(True, -1), (False, K.ENV), (False, K.SELF)} <= seen  # free, an obstacle and a self-collision met

@@ -1,10 +1,10 @@
 """Compiled (numba) RRT-Connect on the sphere collision kernels (the shortcut: ``_shortcut_kernels``).
 
 Trees live in caller-owned arrays so that the search runs in chunks of iterations between which
-the caller watches the clock: ``nodes`` (2, cap, n), ``parent`` (2, cap), ``count`` (2,), and
-``X`` (2, n, cap), the same nodes joint by joint (the nearest-neighbour scan reads them so, one
-joint of many nodes at a time, which the compiler vectorizes). Tree 0 grows from the start, tree 1
-from every goal of the goal set (each a root with parent -1).
+the caller watches the clock: ``X`` (2, n, cap), the nodes joint by joint (the nearest-neighbour
+scan reads them so, one joint of many nodes at a time, which the compiler vectorizes; session 28
+dropped the node-major copy the trees also kept), ``parent`` (2, cap) and ``count`` (2,). Tree 0
+grows from the start, tree 1 from every goal of the goal set (each a root with parent -1).
 """
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ import math
 import numpy as np
 from numba import njit
 
-from robointel.planning._collision_kernels import config_valid
 from robointel.planning._edge_kernels import root_edge
+from robointel.planning._node_check import config_free
 
 
 @njit(cache=True)
@@ -95,8 +95,8 @@ def _steer(a, b, dist, rng, out):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def rrt_connect(nodes, parent, count, lower, upper, iters, rng, win, W, Wr, nroot, rcap, T, C, G, out, thresh,
-                lever, res, link, X):  # pragma: no cover - compiled
+def rrt_connect(X, parent, count, lower, upper, iters, rng, win, W, Wr, nroot, rcap, T, C, G, out, thresh,
+                lever, res, link):  # pragma: no cover - compiled
     """Run up to ``iters`` RRT-Connect iterations.
 
     Returns 1 when the trees met (``link`` = (tree-0 node,
@@ -105,20 +105,22 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, win, W, Wr, nroo
     valid only there) for their first ``rcap`` rad (max |dq|) and in ``W`` beyond
     (:func:`~robointel.planning._edge_kernels.root_edge`), all other edges in ``W``.
 
+    ``X`` (2, n, cap): the nodes of each tree joint by joint, node i of tree t ``X[t, :, i]``
+    (the caller writes the roots, the kernel every node it adds); ``parent`` (2, cap) int64.
+
     ``rng`` (3,): the current range (rad, joint-space norm) of tree 0 and tree 1 and the range asked
     for (their upper bound), ``win`` (2, 2) int64: each tree's attempts and successes in the current
     window; both caller-owned, so the ranges carry over between chunks (start with ``rng`` all equal
     and ``win`` zero). A tree whose extensions mostly fail (a goal deep in a narrow pocket) steps
     shorter (:func:`_adapt`); its greedy connect steps by its own range. The smaller tree is extended
     (ties: tree 0), so the search does not depend on how it is cut into chunks of ``iters``.
-
-    ``X`` (2, n, cap): the nodes joint by joint, ``X[t, :, i] == nodes[t, i]`` for ``i < count[t]``
-    (the caller writes the roots; the kernel every node it adds).
+    Samples are checked with :func:`~robointel.planning._node_check.config_free`.
     """
     n = lower.shape[0]
-    cap = nodes.shape[1]
+    cap = X.shape[2]
     qr = np.empty(n)
     qn = np.empty(n)
+    qa = np.empty(n)  # the node extended from (a contiguous copy for the edge check)
     buf = np.empty(cap)
     for _ in range(iters):
         # balanced: the smaller tree grows (a goal tree stuck in a pocket gets the attempts, which
@@ -130,26 +132,29 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, win, W, Wr, nroo
         for k in range(n):
             qr[k] = np.random.uniform(lower[k], upper[k])
         i, d = _nearest_soa(X[a], count[a], qr, buf)
-        _steer(nodes[a, i], qr, d, rng[a], qn)
-        ok = config_valid(qn, W, T, C, G, out, thresh) and root_edge(
-            nodes[a, i], qn, Wr, W, i < nroot[a], np.bool_(False), rcap, T, C, G, out, thresh, lever, res, 0.0)
+        for k in range(n):
+            qa[k] = X[a, k, i]
+        _steer(qa, qr, d, rng[a], qn)
+        ok = config_free(qn, W, T, C, G, out, thresh) and root_edge(
+            qa, qn, Wr, W, i < nroot[a], np.bool_(False), rcap, T, C, G, out, thresh, lever, res, 0.0)
         _adapt(rng, win, a, ok)
         if not ok:
             continue
         ia = count[a]
-        nodes[a, ia] = qn
         X[a, :, ia] = qn
         parent[a, ia] = i
         count[a] += 1
         # connect tree b greedily toward the new node
         j, d = _nearest_soa(X[b], count[b], qn, buf)
+        for k in range(n):
+            qa[k] = X[b, k, j]
         while True:
             if count[b] >= cap:
                 return -1
-            reached = _steer(nodes[b, j], qn, d, rng[b], qr)
-            if not reached and not config_valid(qr, W, T, C, G, out, thresh):
+            reached = _steer(qa, qn, d, rng[b], qr)
+            if not reached and not config_free(qr, W, T, C, G, out, thresh):
                 break
-            if not root_edge(nodes[b, j], qr, Wr, W, j < nroot[b], np.bool_(False), rcap, T, C, G, out, thresh,
+            if not root_edge(qa, qr, Wr, W, j < nroot[b], np.bool_(False), rcap, T, C, G, out, thresh,
                              lever, res, 0.0):
                 break
             if reached:
@@ -159,13 +164,13 @@ def rrt_connect(nodes, parent, count, lower, upper, iters, rng, win, W, Wr, nroo
                     link[0], link[1] = j, ia
                 return 1
             jb = count[b]
-            nodes[b, jb] = qr
             X[b, :, jb] = qr
             parent[b, jb] = j
             count[b] += 1
             j = jb
             d = 0.0
             for k in range(n):
+                qa[k] = qr[k]
                 e = qn[k] - qr[k]
                 d += e * e
             d = math.sqrt(d)

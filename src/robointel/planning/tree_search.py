@@ -23,13 +23,12 @@ def warm_search(env: Environment) -> None:
     """Compile (or load from numba's disk cache) the search kernel for ``env``'s world layout."""
     W, s = env.world, env.scratch
     q = np.clip(np.zeros(env.robot.nq), env.robot.lower, env.robot.upper)
-    nodes = np.zeros((2, 4, len(q)))
-    nodes[:, 0] = q
+    X = np.zeros((2, len(q), 4))
+    X[:, :, 0] = q
     parent = np.full((2, 4), -1, np.int64)
     count = np.array([1, 1], np.int64)
-    R.rrt_connect(nodes, parent, count, env.robot.lower, env.robot.upper, 0, np.ones(3), np.zeros((2, 2), np.int64),
-                  W, W, count, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, np.zeros(2, np.int64),
-                  nodes.transpose(0, 2, 1).copy())
+    R.rrt_connect(X, parent, count, env.robot.lower, env.robot.upper, 0, np.ones(3), np.zeros((2, 2), np.int64),
+                  W, W, count, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, np.zeros(2, np.int64))
 
 
 def path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: float, W: tuple,
@@ -61,13 +60,10 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
             return np.array([q0, g]), k, ""
     n = len(q0)
     cap = int(st.max_nodes)
-    nodes = np.empty((2, cap, n))
+    X = np.empty((2, n, cap))  # the trees' nodes joint by joint (the kernel's nearest-neighbour scan)
     parent = np.full((2, cap), -1, np.int64)
     count = np.array([1, len(goals)], np.int64)
     nroot = count.copy()
-    nodes[0, 0] = q0
-    nodes[1, :len(goals)] = goals
-    X = np.empty((2, n, cap))  # the nodes joint by joint (the kernel's nearest-neighbour scan)
     X[0, :, 0], X[1, :, :len(goals)] = q0, goals.T
     link = np.zeros(2, np.int64)
     rng, win = np.full(3, float(st.rrt_range)), np.zeros((2, 2), np.int64)  # each tree's range adapts
@@ -79,18 +75,18 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
             grown += int(count.sum())
             count[:] = nroot
             parent[:] = -1
-        status = R.rrt_connect(nodes, parent, count, robot.lower, robot.upper, 32, rng, win, W, Wr, nroot, rcap,
-                               s.T, s.C, s.G, s.out, thr, lever, res, link, X)
+        status = R.rrt_connect(X, parent, count, robot.lower, robot.upper, 32, rng, win, W, Wr, nroot, rcap,
+                               s.T, s.C, s.G, s.out, thr, lever, res, link)
     if status != 1:
         return None, -1, f"the time budget of {st.time_budget_s:g} s ran out ({grown + int(count.sum())} nodes)"
     a, b = [], []
     i = int(link[0])
     while i >= 0:
-        a.append(nodes[0, i])
+        a.append(X[0, :, i])
         i = int(parent[0, i])
     i, last = int(link[1]), 0
     while i >= 0:
-        b.append(nodes[1, i])
+        b.append(X[1, :, i])
         last = i
         i = int(parent[1, i])
     return np.array(a[::-1] + b), last, ""
