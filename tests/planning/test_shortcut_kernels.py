@@ -79,60 +79,6 @@ def test_root_edge_fine_relaxed_only_near_the_root(thin70):
     assert left >= 3
 
 
-def test_shortcut_shortens_and_keeps_every_edge_valid(thin70):
-    p, env = thin70
-    W, s, robot = env.world_cover, env.scratch, env.robot
-    thr, res = 0.0, 0.002
-    # a zig-zag through free configurations near the start
-    rng = np.random.default_rng(5)
-    q0 = np.asarray(p.start, float)
-    pts = [q0]
-    while len(pts) < 8:
-        q = np.clip(pts[-1] + rng.normal(0.0, 0.15, 6), robot.lower, robot.upper)
-        if E.edge_valid(pts[-1], q, W, s.T, s.C, s.G, s.out, thr, env.lever, res) and \
-                K.config_valid(q, W, s.T, s.C, s.G, s.out, thr):
-            pts.append(q)
-    path = np.array(pts)
-    P = np.empty((256, 6))
-    P[:len(path)] = path
-    S.shortcut(P, 2, 0, W, W, np.inf, s.T, s.C, s.G, s.out, thr, env.lever, res)  # compile
-    P[:len(path)] = path
-    m = S.shortcut(P, len(path), 40, W, W, np.inf, s.T, s.C, s.G, s.out, thr, env.lever, res)
-    out = P[:m]
-    np.testing.assert_array_equal(out[0], path[0])
-    np.testing.assert_array_equal(out[-1], path[-1])
-
-    def length(x):
-        return float(np.sum(np.linalg.norm(np.diff(x, axis=0), axis=1)))
-
-    assert length(out) < length(path)
-    for a, b in zip(out[:-1], out[1:]):
-        assert _dense_min(env, W, a, b) >= thr - res / 2 - 1e-9
-
-
-def test_tighten_moves_corners_never_lengthens_and_keeps_edges_valid(thin70):
-    p, env = thin70
-    W, s, robot = env.world_cover, env.scratch, env.robot
-    thr, res = 0.0, 0.002
-    rng = np.random.default_rng(9)
-    pts = [np.asarray(p.start, float)]
-    while len(pts) < 10:  # a zig-zag through free configurations, each edge valid
-        q = np.clip(pts[-1] + rng.normal(0.0, 0.2, 6), robot.lower, robot.upper)
-        if E.edge_valid(pts[-1], q, W, s.T, s.C, s.G, s.out, thr, env.lever, res) and \
-                K.config_valid(q, W, s.T, s.C, s.G, s.out, thr):
-            pts.append(q)
-    path = np.array(pts)
-    P = path.copy()
-    moved = S.tighten(P, len(P), W, W, np.inf, s.T, s.C, s.G, s.out, thr, env.lever, res)
-    assert moved >= 3
-    np.testing.assert_array_equal(P[[0, -1]], path[[0, -1]])
-    d0, d1 = np.diff(path, axis=0), np.diff(P, axis=0)
-    assert np.linalg.norm(d1, axis=1).sum() < np.linalg.norm(d0, axis=1).sum()
-    assert np.abs(d1).max(axis=1).sum() <= np.abs(d0).max(axis=1).sum() + 1e-12  # the max-joint length too
-    for a, b in zip(P[:-1], P[1:]):
-        assert _dense_min(env, W, a, b) >= thr - res / 2 - 1e-9
-
-
 def test_root_split_fractions():
     q0, q1 = np.zeros(3), np.array([0.0, 1.0, -0.5])
     L, a, b, qa, qb = E.root_split(q0, q1, True, True, 0.25)

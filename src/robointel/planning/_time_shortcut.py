@@ -16,8 +16,7 @@ polyline takes about its *time length* (sum over its segments of max_k |dq_k| / 
 Every new edge is checked by the shortcut's own edge check (>= thresh - res / 2 on the edge, its end
 >= thresh; :func:`~robointel.planning._shortcut_kernels.edge_fine`), edges from the first or to the
 last vertex by :func:`~robointel.planning._shortcut_kernels.root_edge_fine` (relaxed world within
-``rcap`` of that vertex), so the result keeps the guarantee of
-:func:`~robointel.planning._shortcut_kernels.shortcut`.
+``rcap`` of that vertex), so every edge of the result keeps that guarantee.
 """
 from __future__ import annotations
 
@@ -218,9 +217,9 @@ def tighten_time(P: np.ndarray, npts: int, W: tuple, Wr: tuple, rcap: float, T: 
                  ia: np.ndarray) -> int:  # pragma: no cover - compiled
     """One pass over the inner vertices of P[:npts], each corner cut toward its neighbours' midpoint.
 
-    As :func:`~robointel.planning._shortcut_kernels.tighten` (the largest fraction of
+    Each vertex moves the largest fraction of
     :data:`~robointel.planning._shortcut_kernels.PULL_FRACTIONS` of the way to m = (P[i-1] + P[i+1]) / 2
-    whose two new edges pass the check), but a vertex is tried only when moving it to m lowers the
+    whose two new edges pass the check (session 27's tightening), but it is tried only when moving it to m lowers the
     :func:`chain_time` of the five points around it by >= :data:`TIGHTEN_GATE_S`. No move lengthens
     the path in any norm. Returns the number of vertices moved.
     """
@@ -272,9 +271,10 @@ def shortcut_time(P: np.ndarray, npts: int, iters: int, W: tuple, Wr: tuple, rca
     The greedy pass (:func:`greedy`), then ``iters`` random tries between two points drawn
     uniformly on the time length (numba's random stream; a share :data:`PARTIAL_SHARE` partial, the
     rest full), each checked only when it lowers :func:`chain_time`, then one
-    :func:`tighten_time` pass. ``w`` (n,) = 1 / vmax, s/rad; ``ia`` (n,) = 1 / amax, s^2/rad. Worlds,
-    ``rcap``, ``thresh``, ``res`` as :func:`~robointel.planning._shortcut_kernels.shortcut`. P's rows are
-    its capacity: a try that would not fit is skipped.
+    :func:`tighten_time` pass. ``w`` (n,) = 1 / vmax, s/rad; ``ia`` (n,) = 1 / amax, s^2/rad. Edges
+    from the first or to the last vertex are checked in world ``Wr`` within ``rcap`` rad of that vertex
+    and in ``W`` beyond, all others in ``W``, at resolution ``res`` (m of sphere travel) against
+    clearance ``thresh`` (m). P's rows are its capacity: a try that would not fit is skipped.
     """
     n = P.shape[1]
     cap = P.shape[0]
