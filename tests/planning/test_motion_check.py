@@ -5,8 +5,6 @@ import numpy as np
 
 from robointel.planning import _collision_kernels as K
 from robointel.planning import _dense_kernels as D
-from robointel.planning.environment import Environment
-from robointel.robot import Robot
 
 
 def test_limit_pass_matches_numpy():
@@ -26,15 +24,9 @@ def test_limit_pass_matches_numpy():
     assert D.limits_travel(np.clip(Q, -2.0, 2.0), QD, QDD, lo, hi, vmax, amax, V)[0] == -1
 
 
-def test_two_sided_skip_is_exact_below_the_floor(shared_data):
+def test_two_sided_skip_is_exact_below_the_floor(thin70):
     """On a motion grazing the shelves, the skipped samples are proven: verdicts and minima below the floor exact."""
-    from robointel.io.mbm import load_mbm_problems
-
-    root = shared_data("mbm", "ur5")
-    p = next(q for q in load_mbm_problems(root / "problems.json").select(families=["bookshelf_thin"])
-             if q.index == 70)
-    robot = Robot.load(root / "ur5.urdf")
-    env = Environment(robot, p.obstacles, srdf=root / "ur5.srdf", spheres=root / "ur5_spherized.urdf")
+    p, env = thin70
     W, s = env.world_cover, env.scratch
     rng = np.random.default_rng(5)
     g = np.asarray(p.goals[0], float)
@@ -45,7 +37,7 @@ def test_two_sided_skip_is_exact_below_the_floor(shared_data):
         full = np.array([K.config_clearance(q, W, s.T, s.C, s.G, s.out, 0.2) for q in Q])
         V = np.empty(Q.shape)
         z = np.zeros_like(Q)
-        D.limits_travel(Q, z, z, robot.lower, robot.upper, np.ones(6), np.ones(6), V)
+        D.limits_travel(Q, z, z, env.robot.lower, env.robot.upper, np.ones(6), np.ones(6), V)
         for floor in (full.min() - 0.002, full.min() + 0.002, 0.01, float(np.median(full))):
             d, w, n = D.span_clearance(Q, V, 0, len(Q), W, s.T, s.C, s.G, s.out, env.lever, floor, 0.2, 0.2)
             assert d >= full.min() - 1e-12 and (w < 0 or abs(full[w] - d) < 1e-12)
@@ -58,15 +50,9 @@ def test_two_sided_skip_is_exact_below_the_floor(shared_data):
         assert abs(d - full[1000:2000].min()) < 1e-12 and 1000 <= w < 2000
 
 
-def test_env_below_is_the_exact_mask(shared_data):
+def test_env_below_is_the_exact_mask(thin70):
     """The two-sided doubt mask of the mesh check equals the one-sided kernel's (the exact one)."""
-    from robointel.io.mbm import load_mbm_problems
-
-    root = shared_data("mbm", "ur5")
-    p = next(q for q in load_mbm_problems(root / "problems.json").select(families=["bookshelf_thin"])
-             if q.index == 70)
-    robot = Robot.load(root / "ur5.urdf")
-    env = Environment(robot, p.obstacles, srdf=root / "ur5.srdf", spheres=root / "ur5_spherized.urdf")
+    p, env = thin70
     W, s = env.world_cover, env.scratch
     rng = np.random.default_rng(6)
     g = np.asarray(p.goals[0], float)
@@ -76,7 +62,7 @@ def test_env_below_is_the_exact_mask(shared_data):
         Q = np.ascontiguousarray((1 - u) ** 2 * a + 2 * u * (1 - u) * g + u ** 2 * b)
         V = np.empty(Q.shape)
         z = np.zeros_like(Q)
-        D.limits_travel(Q, z, z, robot.lower, robot.upper, np.ones(6), np.ones(6), V)
+        D.limits_travel(Q, z, z, env.robot.lower, env.robot.upper, np.ones(6), np.ones(6), V)
         W2 = np.empty(Q.shape)
         D.variation(Q, W2)
         np.testing.assert_array_equal(W2, V)

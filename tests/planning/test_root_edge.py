@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from robointel.geometry.obstacles import Box
-from robointel.io.mbm import load_mbm_problems
 from robointel.outcome import Failure
 from robointel.planning import Environment, MotionSettings, plan_motion
 from robointel.planning import _collision_kernels as K
@@ -18,17 +17,6 @@ from robointel.planning.hybrid_check import interior_check, interior_window
 from robointel.planning.motion_check import check_dense
 from robointel.robot import Robot
 from robointel.trajectory import Trajectory
-
-
-@pytest.fixture(scope="module")
-def thin70(shared_data):
-    """bookshelf_thin 70: its goal clears the fitted spheres (2.7 mm) but not the covering ones."""
-    root = shared_data("mbm", "ur5")
-    p = next(q for q in load_mbm_problems(root / "problems.json").select(families=["bookshelf_thin"])
-             if q.index == 70)
-    robot = Robot.load(root / "ur5.urdf")
-    env = Environment(robot, p.obstacles, srdf=root / "ur5.srdf", spheres=root / "ur5_spherized.urdf")
-    return p, env
 
 
 def test_root_edge_relaxed_only_near_the_root(thin70):

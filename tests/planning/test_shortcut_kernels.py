@@ -1,37 +1,14 @@
-"""The shortcut's one-pass edge check keeps the walk's guarantee, and the shortcut keeps its path valid."""
+"""The shortcut's one-pass edge checks keep the walk's guarantee; the root split's fractions."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
-from robointel.io.mbm import load_mbm_problems
-from robointel.planning import Environment
 from robointel.planning import _collision_kernels as K
 from robointel.planning import _edge_kernels as E
 from robointel.planning import _shortcut_kernels as S
-from robointel.robot import Robot
 
 
-@pytest.fixture(scope="module")
-def thin70(shared_data):
-    """bookshelf_thin 70: its goal clears the fitted spheres (2.7 mm) but not the covering ones."""
-    root = shared_data("mbm", "ur5")
-    p = next(q for q in load_mbm_problems(root / "problems.json").select(families=["bookshelf_thin"])
-             if q.index == 70)
-    robot = Robot.load(root / "ur5.urdf")
-    env = Environment(robot, p.obstacles, srdf=root / "ur5.srdf", spheres=root / "ur5_spherized.urdf")
-    return p, env
-
-
-def _dense_min(env, W, q0, q1, gap=0.004) -> float:
-    """Smallest clearance in ``W`` on samples of q0 -> q1 at most ``gap`` of sphere travel apart."""
-    s = env.scratch
-    k = int(np.ceil(K.travel(q0, q1, env.lever) / gap)) + 1
-    return min(float(K.config_clearance(q0 + t * (q1 - q0), W, s.T, s.C, s.G, s.out, 1.0))
-               for t in np.linspace(0.0, 1.0, k))
-
-
-def test_edge_fine_keeps_the_walks_guarantee(thin70):
+def test_edge_fine_keeps_the_walks_guarantee(thin70, dense_min):
     p, env = thin70
     env.use("fitted")  # edges leaving the goal among the shelves, in the spheres it is free in
     W, s, robot = env.world, env.scratch, env.robot
@@ -44,7 +21,7 @@ def test_edge_fine_keeps_the_walks_guarantee(thin70):
         d = rng.normal(0.0, 1.0, 6)
         q1 = np.clip(q0 + d * rng.uniform(0.2, 1.5) / np.abs(d).max(), robot.lower, robot.upper)
         ok = S.edge_fine(q0, q1, W, s.T, s.C, s.G, s.out, thr, env.lever, res)
-        dmin = _dense_min(env, W, q0, q1, gap)
+        dmin = dense_min(env, W, q0, q1, gap)
         if ok:  # accepted: the guarantee on dense samples
             accepted += 1
             assert dmin >= thr - res / 2 - 1e-9
@@ -55,7 +32,7 @@ def test_edge_fine_keeps_the_walks_guarantee(thin70):
     assert accepted >= 5 and refused >= 5
 
 
-def test_root_edge_fine_relaxed_only_near_the_root(thin70):
+def test_root_edge_fine_relaxed_only_near_the_root(thin70, dense_min):
     p, env = thin70
     env.use("fitted")
     Wr, W, s, robot = env.world, env.world_cover, env.scratch, env.robot
@@ -73,8 +50,8 @@ def test_root_edge_fine_relaxed_only_near_the_root(thin70):
             left += 1
             f = cap / np.abs(q1 - q0).max()
             qa = q0 + min(f, 1.0) * (q1 - q0)
-            assert _dense_min(env, Wr, q0, qa) >= thr - res / 2 - 1e-9  # relaxed within the cap
-            assert f >= 1.0 or _dense_min(env, W, qa, q1) >= thr - res / 2 - 1e-9  # covering beyond
+            assert dense_min(env, Wr, q0, qa) >= thr - res / 2 - 1e-9  # relaxed within the cap
+            assert f >= 1.0 or dense_min(env, W, qa, q1) >= thr - res / 2 - 1e-9  # covering beyond
     env.use("cover")
     assert left >= 3
 

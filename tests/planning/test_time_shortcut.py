@@ -4,32 +4,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robointel.io.mbm import load_mbm_problems
-from robointel.planning import Environment
 from robointel.planning import _collision_kernels as K
 from robointel.planning import _edge_kernels as E
 from robointel.planning import _rrt_kernels as R
 from robointel.planning import _time_shortcut as TS
-from robointel.robot import Robot
-
-
-@pytest.fixture(scope="module")
-def thin70(shared_data):
-    """bookshelf_thin 70 (its goal clears the fitted spheres but not the covering ones)."""
-    root = shared_data("mbm", "ur5")
-    p = next(q for q in load_mbm_problems(root / "problems.json").select(families=["bookshelf_thin"])
-             if q.index == 70)
-    robot = Robot.load(root / "ur5.urdf")
-    env = Environment(robot, p.obstacles, srdf=root / "ur5.srdf", spheres=root / "ur5_spherized.urdf")
-    return p, env
-
-
-def _dense_min(env, W, q0, q1, gap=0.004) -> float:
-    """Smallest clearance in ``W`` on samples of q0 -> q1 at most ``gap`` of sphere travel apart."""
-    s = env.scratch
-    k = int(np.ceil(K.travel(q0, q1, env.lever) / gap)) + 1
-    return min(float(K.config_clearance(q0 + t * (q1 - q0), W, s.T, s.C, s.G, s.out, 1.0))
-               for t in np.linspace(0.0, 1.0, k))
 
 
 def test_time_length_and_chain_time():
@@ -83,7 +61,7 @@ def _zigzag(env, start, seed, k, step):
     return np.array(pts)
 
 
-def test_shortcut_time_shortens_keeps_edges_valid_and_is_deterministic(thin70):
+def test_shortcut_time_shortens_keeps_edges_valid_and_is_deterministic(thin70, dense_min):
     p, env = thin70
     W, s, robot = env.world_cover, env.scratch, env.robot
     thr, res = 0.0, 0.002
@@ -106,5 +84,5 @@ def test_shortcut_time_shortens_keeps_edges_valid_and_is_deterministic(thin70):
     assert TS.chain_time(out, len(out), w, ia, TS.CORNER_WEIGHT) < TS.chain_time(path, len(path), w, ia,
                                                                                     TS.CORNER_WEIGHT)
     for a, b in zip(out[:-1], out[1:]):
-        assert _dense_min(env, W, a, b) >= thr - res / 2 - 1e-9
+        assert dense_min(env, W, a, b) >= thr - res / 2 - 1e-9
     np.testing.assert_array_equal(run(3), out)  # the same seed, the same path
