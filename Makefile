@@ -20,7 +20,7 @@ lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples tools
 	$(BIN)/mypy
 
-# the suite on 2 pytest-xdist workers, grouped as tests/conftest.py says (docs/decisions.md, session 27);
+# the suite on 2 pytest-xdist workers, grouped as tests/conftest.py says (docs/design/testing.md);
 # TEST_WORKERS=0 runs it in one process
 TEST_WORKERS ?= 2
 test: $(STAMP) lint

@@ -15,8 +15,8 @@ import time
 import numpy as np
 
 from robointel.interface import open_robot
-from robointel.interface.emulator import EmulatorProcess
 from robointel.interface.realtime import realtime_thread, sleep_until
+from robointel.testing.emulator import EmulatorProcess
 
 
 def main(n: int) -> None:

@@ -1,10 +1,10 @@
-"""Who holds a CPU above the bare sleeper's priority during a FANUC stream (issue 14, session 28).
+"""Who holds a CPU above the bare sleeper's priority during a FANUC stream.
 
     python benchmarks/fanuc_cpu_holders.py --json [--seconds 60] [--no-planner] [--lookahead 0.1]
 
 Streams as ``benchmarks/interface.py`` does (the emulator in its own process, ``FanucRobot`` with the
 streaming process, a planner looping in another thread, the caller's streaming thread at SCHED_FIFO 40)
-with :class:`~robointel.interface.host_probe.HostProbe`'s pinned SCHED_FIFO-55 sleepers beside it, while
+with :class:`~robointel.testing.host_probe.HostProbe`'s pinned SCHED_FIFO-55 sleepers beside it, while
 ``perf record -e sched:sched_switch -e sched:sched_wakeup -a -k CLOCK_MONOTONIC`` records every context
 switch of the machine. For each stall of a sleeper (a wake-up more than 2 ms late) it reads from the
 trace what ran on that sleeper's CPU between the sleeper's deadline and the moment it ran: each task's
@@ -32,8 +32,8 @@ from typing import Any
 
 import interface as ib
 from _planner_load import planner_thread
-from robointel.interface.emulator import EmulatorProcess
-from robointel.interface.host_probe import HostProbe
+from robointel.testing.emulator import EmulatorProcess
+from robointel.testing.host_probe import HostProbe
 
 _SWITCH = re.compile(r"\[(\d+)\]\s+(\d+\.\d+):\s+sched:sched_switch:\s+prev_comm=(.*?) prev_pid=(\d+) prev_prio=(\d+)"
                      r" prev_state=(\S+) ==> next_comm=(.*?) next_pid=(\d+) next_prio=(\d+)")

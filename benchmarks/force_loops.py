@@ -1,4 +1,4 @@
-"""Force loops on the FANUC backend with and without the streaming process (issue 14, session 22).
+"""Force loops on the FANUC backend with and without the streaming process.
 
     python benchmarks/force_loops.py --json [--modes in_process,direct,queued] [--repeats 1]
 
@@ -14,7 +14,7 @@ strict conformance, 127.0.0.1, in its own process; its plant is a first-order la
 
 Scenarios (one emulator session each):
 
-- ``lead_through_step``: lead-through (:func:`robointel.programming.lead_through.lead_through`) with a
+- ``lead_through_step``: lead-through (:func:`robointel.teach.lead_through.lead_through`) with a
   simulated Net F/T box (its own process, RDT over UDP at 500 Hz) that pushes 20 N along world +y / -y
   for 0.4 s after 0.6 s of rest, ``--steps`` times. Per push: the time from the box's step to the first
   moved target the loop streamed (``loop_ms``) and to the first controller tick whose command (the
@@ -42,12 +42,12 @@ import numpy as np
 
 from robointel.control.admittance import AdmittanceGains
 from robointel.interface import open_robot
-from robointel.interface.emulator import EmulatorProcess
 from robointel.interface.ft_sensor import RDT_RECORD, NetFTSensor
 from robointel.interface.wrench_source import VirtualWall
-from robointel.programming.guidance import GuidanceConfig
-from robointel.programming.lead_through import lead_through
 from robointel.robot import Robot
+from robointel.teach.guidance import GuidanceConfig
+from robointel.teach.lead_through import lead_through
+from robointel.testing.emulator import EmulatorProcess
 
 PERIOD = 0.008
 CPF = 1e6
@@ -215,8 +215,8 @@ def lead_through_wall(mode: str, stiffness: float, kd: float, seconds: float = 3
 
 
 def insertion_wall(mode: str, skill: Any) -> dict:
-    from robointel.interface.skill_cells import HoleTask, PegTool, ik_near
-    from robointel.interface.skill_insertion import run_insertion
+    from robointel.skills.cells import HoleTask, PegTool, ik_near
+    from robointel.skills.insertion import run_insertion
 
     peg, hole = PegTool(), HoleTask()
     robot = peg.robot()
@@ -272,8 +272,8 @@ def main() -> None:
     out: dict = {"load_avg_1min_at_start": os.getloadavg()[0], "modes": modes}
     skill = None
     if "insertion_wall" in scen:
-        from robointel.interface.skill_cells import PegTool
         from robointel.learning import insertion as ins
+        from robointel.skills.cells import PegTool
 
         task = ins.PegHole()
         demos = ins.seated_demonstrations(task, np.random.default_rng(0), 4, scene=ins.HDDScene(task))

@@ -37,7 +37,7 @@ from robointel.batch import ResultStore, TaskSpec, run_batch
 
 def record_states(robot, per_scenario: int) -> tuple[np.ndarray, np.ndarray]:
     """(q, wrench) pairs from kinematic runs of the three scenarios (QP method)."""
-    from robointel.programming.scenarios import SimulatedOperator, run_scenario, scenario
+    from robointel.teach.scenarios import SimulatedOperator, run_scenario, scenario
 
     Q, W = [], []
     for s in (1, 2, 3):
@@ -124,10 +124,10 @@ def main() -> None:
     ap.add_argument("--timing-only", action="store_true", help="skip the MuJoCo scenarios")
     args = ap.parse_args()
 
-    from robointel.programming.compliance import ComplianceGains
-    from robointel.programming.guidance import METHODS, GuidanceConfig, GuidanceController
-    from robointel.programming.scenarios import table_4_1_obstacles
     from robointel.robot import Robot
+    from robointel.teach.compliance import ComplianceGains
+    from robointel.teach.guidance import METHODS, GuidanceConfig, GuidanceController
+    from robointel.teach.scenarios import table_4_1_obstacles
 
     robot = Robot.load("lrmate200id7l")
     obstacles = list(table_4_1_obstacles().values())

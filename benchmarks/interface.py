@@ -1,4 +1,4 @@
-"""Robot interface benchmark (issue 14): streaming at the controller's period on the FANUC emulator and
+"""Robot interface benchmark: streaming at the controller's period on the FANUC emulator and
 in the simulated cell, with a planner running in another thread; e-stop reaction; FRMP tracking.
 
     python benchmarks/interface.py --json [--seconds 60]
@@ -19,16 +19,16 @@ The ``sim`` backend is measured the same way: ``open_robot("sim", stream_process
 (:class:`~robointel.interface.sim_stream.SimStreamRobot`: the workcell stepped at wall-clock ticks in a
 process of its own, fed through the same look-ahead ring) counts each window fresh, starved or late in
 its child, and ``sim_missed_cycles`` = starved + late. The paced sim stepped inside the caller's
-``stream()`` (``SimRobot(paced=True)``, the figure of sessions 20-25) is measured after it, as
+``stream()`` (``SimRobot(paced=True)``) is measured after it, as
 ``sim_in_process_*``: there a cycle is missed when ``stream()`` returned after the end of its period.
 
 The emulator (airo_fanuc.testing.FakeCRXController, strict conformance, 127.0.0.1) runs in a child
-process (robointel.interface.emulator) so that its Python real-time loop does not share our
+process (robointel.testing.emulator) so that its Python real-time loop does not share our
 interpreter lock. Peer: the same
 stream sent straight through ``FanucDriver.servo_j`` (no robointel gate, state read or recording),
 measured in the same run.
 
-The host during each stream (session 27; :class:`~robointel.interface.host_probe.HostProbe`):
+The host during each stream (:class:`~robointel.testing.host_probe.HostProbe`):
 ``<run>_host`` holds the CPU count, the load average at the stream's start and end, the share of each
 CPU taken by the hypervisor (``/proc/stat`` steal) over the stream and its worst 0.5 s, and what bare
 SCHED_FIFO-55 sleepers, one pinned to each CPU, woken every 2 ms saw (lateness, stalls over 2 ms and when;
@@ -50,8 +50,8 @@ import time
 import numpy as np
 
 from _planner_load import planner_thread
-from robointel.interface.emulator import EmulatorProcess
-from robointel.interface.host_probe import HostProbe
+from robointel.testing.emulator import EmulatorProcess
+from robointel.testing.host_probe import HostProbe
 
 PERIOD = 0.008
 
@@ -344,7 +344,7 @@ def main() -> None:
                                             lock_memory=args.sim_lock_memory), args.seconds)
     score = sim["core"]
     sim_in = _streaming_run(lambda: SimRobot(paced=True, stall_periods=10), args.seconds)
-    out.update({  # the host during each stream, and when and how late the late windows were (session 27)
+    out.update({  # the host during each stream, and when and how late the late windows were
         "host_cpus": os.cpu_count(),
         **_flat("fanuc", core["late"]), "fanuc_child_scheduling": core["child_scheduling"],
         **_flat("sim", score["late"]), "sim_child_scheduling": score["child_scheduling"],

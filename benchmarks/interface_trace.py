@@ -1,4 +1,4 @@
-"""Where the FANUC stream's per-target compute goes, cycle by cycle (issue 14, session 24).
+"""Where the FANUC stream's per-target compute goes, cycle by cycle.
 
     python benchmarks/interface_trace.py --json [--seconds 20] [--no-planner] [--switch-interval S]
 
@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from _planner_load import planner_thread
-from robointel.interface.emulator import EmulatorProcess
+from robointel.testing.emulator import EmulatorProcess
 
 PERIOD = 0.008
 BINS_US = (0, 100, 200, 300, 400, 500, 750, 1000, 1500, 2000, 5000, 10**9)

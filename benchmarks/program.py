@@ -16,8 +16,7 @@ randomised by the seed (fixtures moved by up to +/-2 cm, waypoints turned by up 
 Prints ``runs``, ``success``, per-step success and median step time, ``cycle_time_s`` (median planned
 motion time of a successful run for ``moves``; simulated time of a successful run otherwise),
 ``check_ms`` (median pre-run check). Seeds 4000.. were never used while writing or tuning the program module
-(seeds 1000-1049: the previous session's benchmark, 3000-3049: a first run of this one, both studied;
-2000-2099: development).
+(seeds 1000-1049 and 3000-3049 were studied, 2000-2099 used in development).
 With ``--workers N`` > 1 the trials run on a local Ray inside a loopback-only network namespace
 (``unshare --net``, root).
 """

@@ -1,4 +1,4 @@
-"""Where the paced sim stream's late cycles go (issue 14): waking late vs a slow ``stream()``.
+"""Where the paced sim stream's late cycles go: waking late vs a slow ``stream()``.
 
     PYTHONPATH=src:benchmarks python benchmarks/sim_pacing.py [--seconds 20] [--profile] [--stream-process]
 
@@ -20,7 +20,7 @@ starved + late windows, and ``caller_late_cycles`` the cycles whose wake + send 
 holds the child's own figures (how long after each tick its loop read it, the windows whose physics took
 more than 2 ms, ``--lock-memory``: ``mlockall`` in the child) and ``late_events`` its late windows, each
 with ``in_host_stall`` (within 20 ms of a stall of the host probe's bare sleeper, ``host``: see
-:class:`~robointel.interface.host_probe.HostProbe`).
+:class:`~robointel.testing.host_probe.HostProbe`).
 """
 from __future__ import annotations
 
@@ -36,9 +36,9 @@ import numpy as np
 import interface as bench
 from _planner_load import planner_thread
 from robointel.interface import open_robot
-from robointel.interface.host_probe import HostProbe
 from robointel.interface.realtime import realtime_thread, sleep_until
 from robointel.interface.sim import SimRobot
+from robointel.testing.host_probe import HostProbe
 
 GAP_S = 0.004
 

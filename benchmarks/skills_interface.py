@@ -1,4 +1,4 @@
-"""Learned skills on the robot interface (issue 14, part B): insertion success and grinding force error in
+"""Learned skills on the robot interface: insertion success and grinding force error in
 the simulated cell, with the skill running over streamed joint positions (admittance, 8 ms period).
 
     python benchmarks/skills_interface.py --json [--trials 10] [--demos 4]
@@ -19,7 +19,10 @@ import numpy as np
 
 from robointel.control.payload import PayloadCompensation
 from robointel.interface.sim import SimRobot
-from robointel.interface.skill_cells import (
+from robointel.interface.wrench_source import StateWrench
+from robointel.learning import grinding as gr
+from robointel.learning import insertion as ins
+from robointel.skills.cells import (
     R_DOWN,
     HoleTask,
     PegTool,
@@ -29,11 +32,8 @@ from robointel.interface.skill_cells import (
     plate_workcell,
     stylus,
 )
-from robointel.interface.skill_grinding import run_grinding
-from robointel.interface.skill_insertion import run_insertion
-from robointel.interface.wrench_source import StateWrench
-from robointel.learning import grinding as gr
-from robointel.learning import insertion as ins
+from robointel.skills.grinding import run_grinding
+from robointel.skills.insertion import run_insertion
 
 
 def insertion(trials: int, demos: int, clearance: float) -> dict:

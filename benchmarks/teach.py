@@ -36,8 +36,9 @@ from websockets.sync.client import connect
 
 from robointel.errors import IKFailure
 from robointel.io.reference import data_path
-from robointel.programming.imitation import kinematic_imitation, simulate_imitation
-from robointel.programming.scara import (
+from robointel.robot import Robot
+from robointel.teach.imitation import kinematic_imitation, simulate_imitation
+from robointel.teach.scara import (
     BLEND_FRAMES,
     PAPER_RMS,
     PAPER_RMS_COMPENSATED,
@@ -53,11 +54,10 @@ from robointel.programming.scara import (
     required_torques,
     simulate_scara,
 )
-from robointel.programming.scara import FeasibleReference as FR
-from robointel.programming.skeleton import Skeleton, read_kinect_csv
-from robointel.programming.stream_client import StreamClient
-from robointel.programming.streaming import StreamingController, StreamingServer
-from robointel.robot import Robot
+from robointel.teach.scara import FeasibleReference as FR
+from robointel.teach.skeleton import Skeleton, read_kinect_csv
+from robointel.teach.stream_client import StreamClient
+from robointel.teach.streaming import StreamingController, StreamingServer
 
 RECORDINGS = ["Ges01_wavehand", "Ges02_balancinghands", "Ges03_drawlines", "Ges04_comehere",
               "Ges05_demopoint", "Ges06_chickenwing", "joints"]
@@ -359,7 +359,7 @@ def streaming(latency_samples: int = 500, rate_seconds: float = 3.0) -> dict[str
 
 def _flooders(url: str, modes: list[str], seconds: float, hold: float) -> list[subprocess.Popen[str]]:
     """Flooding clients, each in its own process at the lowest CPU priority (see the tests)."""
-    procs = [subprocess.Popen(["nice", "-n", "19", sys.executable, "-m", "robointel.programming.stream_client", url, m,
+    procs = [subprocess.Popen(["nice", "-n", "19", sys.executable, "-m", "robointel.teach.stream_client", url, m,
                                str(seconds), str(hold)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
              for m in modes]
     for p in procs:
@@ -376,7 +376,7 @@ def _release(procs: list[subprocess.Popen[str]]) -> None:
 
 
 def stream_safety(runs: int = 3, probe_seconds: float = 3.0) -> dict[str, Any]:
-    """Issue 15's two figures: how long after the last send of a 0.4 s flood the stop begins
+    """The streaming server's two figures: how long after the last send of a 0.4 s flood the stop begins
     (``deadman_after_flood_ms``; deadman 100 ms), and another client's get_state round trip while 5
     clients flood (``get_state_p99_ms_under_load``), beside the same client's p99 with no load."""
     srv = StreamingServer(StreamingController(), port=0).start()

@@ -7,6 +7,7 @@ them, the trajectory is checked on a 1 ms grid, saved, and tracked by the simula
 """
 import numpy as np
 
+from robointel.io import save_trajectory
 from robointel.planning import execute, plan_scene
 from robointel.planning.scene import load_scene
 
@@ -18,7 +19,7 @@ for i, seg in enumerate(result.segments):
 print(f"operational time {result.operational_time_fixed:.2f} s -> {result.operational_time_frmp:.2f} s")
 print(f"dense check: clearance {result.check.min_clearance * 1000:.1f} mm, "
       f"{result.check.limit_violations} limit violations")
-result.trajectory.save("table71_frmp.npz")  # {t, q, qd, qdd} + joint names
+save_trajectory(result.trajectory, "table71_frmp.npz")  # {t, q, qd, qdd} + joint names
 
 run = execute(result)  # MuJoCo workcell, 1 kHz PID + feed-forward
 print(f"MuJoCo: RMS tracking error {np.degrees(run.rms_error_rad):.4f} deg, obstacle contacts {run.obstacle_contacts}")

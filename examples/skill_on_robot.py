@@ -7,10 +7,10 @@ import numpy as np
 
 from robointel.control.payload import PayloadCompensation
 from robointel.interface.sim import SimRobot
-from robointel.interface.skill_cells import HoleTask, PegTool, ik_near, peg_hole_workcell
-from robointel.interface.skill_insertion import run_insertion
 from robointel.interface.wrench_source import StateWrench
 from robointel.learning import insertion as ins
+from robointel.skills.cells import HoleTask, PegTool, ik_near, peg_hole_workcell
+from robointel.skills.insertion import run_insertion
 
 # learn: scripted hand-held demonstrations -> GMR skill (felt wrench -> corrective tool twist)
 task = ins.PegHole()

@@ -13,7 +13,9 @@ from pathlib import Path
 import pytest
 
 from robointel.errors import DataMissing
+from robointel.interface import open_robot
 from robointel.io.reference import data_path
+from robointel.testing.emulator import EmulatorProcess, FakeProxy, fanuc_url, protocol_violations
 
 
 def _shared_data(*parts: str):
@@ -64,8 +66,8 @@ def insertion_skill():
     """
     import numpy as np
 
-    from robointel.interface.skill_cells import PegTool
     from robointel.learning import insertion as ins
+    from robointel.skills.cells import PegTool
 
     task = ins.PegHole()
     scene = ins.HDDScene(task)
@@ -99,14 +101,14 @@ def doctor():
 def pytest_runtest_call(item):
     """Run a test once more when it failed while a FANUC emulator it opened and closed had stalled.
 
-    The emulator (``robointel.interface.emulator``) logs every gap of over 50 ms between two of its own
+    The emulator (``robointel.testing.emulator``) logs every gap of over 50 ms between two of its own
     125 Hz ticks: its process did not run (a loaded CI host, a paused VM). A real controller never does
     that, and robointel's correct answer to 100 ms of controller silence is to stop (the airo-fanuc
     core's blind hold, our connection-lost latch), so such a failure says nothing about robointel. The
     second run must pass in full; a failure without an emulator stall, or a second failure, fails.
     Tests on the ``fake_controller`` fixture are never run again (their emulator outlives the call).
     """
-    from robointel.interface import emulator
+    from robointel.testing import emulator
 
     mark = len(emulator.RIG_STALLS)
     try:
@@ -132,14 +134,14 @@ def pytest_runtest_call(item):
 XDIST_GROUPS = {
     "realtime": (
         "interface/test_cli_moves.py", "interface/test_cli_robot.py", "interface/test_cli_sim_process.py",
-        "interface/test_emulator_stalls.py",
+        "testing/test_emulator_stalls.py",
         "interface/test_fanuc.py", "interface/test_fanuc_close.py", "interface/test_ft_sensor.py",
         "interface/test_lead_through.py", "interface/test_mcap_log.py", "interface/test_realtime.py",
-        "interface/test_sim.py", "interface/test_sim_stream.py", "interface/test_skills.py",
-        "interface/test_skills_cli.py", "interface/test_skills_fanuc.py", "interface/test_stream_process.py",
+        "interface/test_sim.py", "interface/test_sim_stream.py", "skills/test_skills.py",
+        "skills/test_skills_cli.py", "skills/test_skills_fanuc.py", "interface/test_stream_process.py",
         "interface/test_stream_state.py", "program/test_program_io.py", "program/test_program_steps.py",
-        "programming/test_stream_interface.py", "programming/test_stream_safety.py", "programming/test_streaming.py",
-        "programming/test_teleop.py", "programming/test_teleop_browser.py",
+        "teach/test_stream_interface.py", "teach/test_stream_safety.py", "teach/test_streaming.py",
+        "teach/test_teleop.py", "teach/test_teleop_browser.py",
     ),
     "planning": ("planning/",),
     "ray": ("batch/test_ray.py",),
@@ -175,3 +177,24 @@ def pytest_xdist_make_scheduler(config, log):
             return xdist_group(nodeid)
 
     return _Groups(config, log)
+
+
+# the FANUC controller emulator (airo-fanuc's FakeCRXController on 127.0.0.1), for interface and skills tests
+@pytest.fixture
+def fake_controller():
+    """A running fake controller; asserts zero strict-conformance violations at teardown."""
+    emu = EmulatorProcess()
+    try:
+        yield FakeProxy(emu)
+    finally:
+        violations = protocol_violations(emu.close())
+    assert violations == []
+
+
+@pytest.fixture
+def fanuc(fake_controller):
+    robot = open_robot(fanuc_url(fake_controller))
+    try:
+        yield robot
+    finally:
+        robot.close()

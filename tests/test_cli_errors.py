@@ -1,4 +1,4 @@
-"""Misuse of the CLI (issue 15): each bad argument or bad file is one ``error:`` line, exit code 2,
+"""Misuse of the CLI: each bad argument or bad file is one ``error:`` line, exit code 2,
 checked before the work starts (no traceback, no hang)."""
 from __future__ import annotations
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-PACKAGES = ["robointel.io", "robointel.planning", "robointel.programming", "robointel.learning"]
+PACKAGES = ["robointel.io", "robointel.planning", "robointel.teach", "robointel.learning"]
 
 
 @pytest.mark.parametrize("name", PACKAGES)
@@ -24,18 +24,14 @@ def test_io_imports_no_phase():
     code = ("import sys, robointel.io, robointel.io.scene, robointel.io.grasp_db, robointel.io.demonstrations, "
             "robointel.io.trajectory, robointel.io.reference\n"
             "print(sorted(m for m in sys.modules if m.split('.')[:2] in "
-            "(['robointel', 'learning'], ['robointel', 'planning'], ['robointel', 'programming'])))")
+            "(['robointel', 'learning'], ['robointel', 'planning'], ['robointel', 'teach'], ['robointel', 'skills'])))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]", out.stdout
 
 
 IO = Path(__file__).resolve().parents[1] / "src" / "robointel" / "io"
-# the phases and everything above them (DESIGN.md: io reads and writes files only, under the phases)
-ABOVE_IO = {"planning", "learning", "programming", "program", "batch", "report", "commands", "cli"}
-# Transitional, one entry: commands/grasp.py (another branch this session) still imports GraspDatabase
-# from io.grasp_db, which forwards it lazily from its module __getattr__. The lead drops this entry with
-# the shim once that branch imports robointel.learning.grasp_database.
-SHIMS = {("grasp_db.py", "__getattr__", "robointel.learning.grasp_database")}
+# the phases and everything above them (io reads and writes files only, under the phases)
+ABOVE_IO = {"planning", "learning", "teach", "skills", "program", "batch", "report", "commands", "cli"}
 
 
 def _robointel_imports(tree: ast.AST) -> list[tuple[str, str]]:
@@ -62,7 +58,7 @@ def test_io_source_imports_no_phase():
     for f in files:
         for scope, mod in _robointel_imports(ast.parse(f.read_text())):
             part = mod.split(".")[1] if "." in mod else ""
-            if part in ABOVE_IO and (f.name, scope, mod) not in SHIMS:
+            if part in ABOVE_IO:
                 offending.append(f"{f.name}: {mod}" + (f" (inside {scope})" if scope else ""))
     assert not offending, f"io/ imports a phase or above: {offending}"
 

@@ -14,7 +14,7 @@ from enum import Enum
 from typing import Any
 
 
-class Failure(str, Enum):  # noqa: UP042 - StrEnum would change str() of the values other branches log
+class Failure(str, Enum):  # noqa: UP042 - StrEnum would change str() of the values logs and stores hold
     """Why a trial failed (``NONE`` for a success)."""
 
     NONE = "none"

@@ -10,7 +10,6 @@ velocity at stop-by waypoints. Files: :mod:`robointel.io.trajectory`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -114,18 +113,3 @@ class Trajectory:
         ts = np.append(ts, self.t[-1]) if ts[-1] < self.t[-1] - 1e-12 else ts
         q, qd, qdd = self.sample(ts)
         return Trajectory(ts, q, qd, qdd, list(self.joint_names), dict(self.meta))
-
-    # Transitional: commands/planning.py and tests on other branches call ``.save``/``.load``; the
-    # file format lives in robointel.io.trajectory (imported here lazily: io imports this module).
-    def save(self, path: str | Path) -> Path:
-        """Write the trajectory with :func:`robointel.io.trajectory.save_trajectory`."""
-        from robointel.io.trajectory import save_trajectory
-
-        return save_trajectory(self, path)
-
-    @classmethod
-    def load(cls, path: str | Path) -> Trajectory:
-        """Read a file with :func:`robointel.io.trajectory.load_trajectory`."""
-        from robointel.io.trajectory import load_trajectory
-
-        return load_trajectory(path)

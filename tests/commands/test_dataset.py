@@ -8,7 +8,7 @@ from typer.testing import CliRunner
 from robointel.cli import app
 from robointel.io.lerobot import read_lerobot
 from robointel.learning.demonstration import Demonstration, load_demonstrations, save_demonstrations
-from robointel.programming.teleop import save_program
+from robointel.teach.teleop import save_program
 
 runner = CliRunner()
 

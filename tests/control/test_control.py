@@ -59,7 +59,7 @@ def test_follower_position_interface_brake_and_per_period_limits():
 
 
 def test_jerk_limited_reference_goes_through_the_one_follower(monkeypatch):
-    import robointel.programming.imitation as imitation
+    import robointel.teach.imitation as imitation
 
     made = []
 
@@ -82,7 +82,7 @@ def test_payload_compensation_removes_weight_at_any_orientation():
     readings = p.payload_wrench(R) + ext
     np.testing.assert_allclose(p.compensate(readings, R), np.tile(ext, (20, 1)), atol=1e-12)
     np.testing.assert_allclose(np.linalg.norm(p.payload_wrench(R)[:, :3] - p.force_bias, axis=1), 1.3 * 9.81)
-    from robointel.programming.ft_identification import FTCalibration
+    from robointel.teach.ft_identification import FTCalibration
 
     old = FTCalibration(1.3, p.com, p.force_bias, p.torque_bias, 0.0, 0.0)
     np.testing.assert_allclose(p.compensate(readings, R), old.compensate(readings, R), atol=1e-12)

@@ -170,7 +170,7 @@ def test_batch_all_spheres_and_empty_batch(lrmate):
 
 
 def test_planner_clearances_are_the_batched_distances(lrmate):
-    from robointel.planning.trajectory import sphere_clearances
+    from robointel.planning.waypoints import sphere_clearances
 
     obs = _scene(lrmate, 3)
     Q = lrmate.random_configuration(8, 6)

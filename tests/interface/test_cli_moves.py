@@ -9,10 +9,10 @@ from typer.testing import CliRunner
 
 from robointel.cli import app
 from robointel.io.mcap_log import COMMAND, JOINT_STATES, WRENCH
-from robointel.programming.stream_client import StreamClient
+from robointel.teach.stream_client import StreamClient
+from robointel.testing.emulator import fanuc_url, running_fake
 
 from ._waits import settled
-from .conftest import fanuc_url, running_fake
 
 READY = np.array([0.0, 0.0, 0.0, 0.0, -np.pi / 2, 0.0])
 
@@ -82,9 +82,9 @@ def _run_on_fake(args, tmp_path, q0=READY):
 
 
 def test_imitation_executes_on_the_fanuc_emulator(tmp_path):
-    from robointel.programming.imitation import kinematic_imitation
-    from robointel.programming.skeleton import synthetic_wave
     from robointel.robot import Robot
+    from robointel.teach.imitation import kinematic_imitation
+    from robointel.teach.skeleton import synthetic_wave
 
     plan = kinematic_imitation(synthetic_wave(), Robot.load("lrmate200id7l"))
     output, q_end, topics = _run_on_fake(["imitate", "synthetic", "--out", str(tmp_path)], tmp_path)

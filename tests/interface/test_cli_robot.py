@@ -5,8 +5,7 @@ from typer.testing import CliRunner
 from robointel.cli import app
 from robointel.io.mcap_log import COMMAND, JOINT_STATES, TRAJECTORY
 from robointel.planning.scene import load_scene
-
-from .conftest import fanuc_url, running_fake
+from robointel.testing.emulator import fanuc_url, running_fake
 
 
 def test_plan_execute_on_fanuc_with_record(tmp_path):

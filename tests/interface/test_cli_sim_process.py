@@ -1,4 +1,4 @@
-"""``--robot sim?process=1``: the CLI's commands run the paced sim in its streaming process (issue 14, session 27)."""
+"""``--robot sim?process=1``: the CLI's commands run the paced sim in its streaming process."""
 import os
 
 import numpy as np

@@ -9,9 +9,9 @@ from airo_fanuc.controller_facts import MEASURED_FACTS
 from robointel.errors import ConnectionLost, ControllerFault, UnsafeCommand
 from robointel.interface import RobotInterface, RobotMode, open_robot
 from robointel.interface.fanuc import FanucRobot
+from robointel.testing.emulator import fanuc_url, running_fake
 
 from ._waits import settled, wait_until
-from .conftest import fanuc_url, running_fake
 
 PERIOD = 0.008
 

@@ -10,11 +10,11 @@ import pytest
 from robointel.errors import InvalidInput
 from robointel.interface import open_robot
 from robointel.interface.ft_sensor import RDT_RECORD, NetFTSensor, WrenchSource, open_ft_sensor
-from robointel.programming.lead_through import lead_through
 from robointel.robot import Robot
+from robointel.teach.lead_through import lead_through
+from robointel.testing.emulator import fanuc_url, running_fake
 
 from ._waits import settled
-from .conftest import fanuc_url, running_fake
 
 CPF = 1e6
 

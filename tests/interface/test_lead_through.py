@@ -5,11 +5,10 @@ import pytest
 from robointel.errors import InvalidInput
 from robointel.interface import open_robot
 from robointel.interface.sim import SimRobot
-from robointel.programming.lead_through import lead_through
 from robointel.robot import Robot
 from robointel.sim import Workcell
-
-from .conftest import running_fake
+from robointel.teach.lead_through import lead_through
+from robointel.testing.emulator import running_fake
 
 
 def test_a_push_on_the_simulated_tool_moves_the_tcp_along_it():

@@ -7,8 +7,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from robointel.interface import open_robot
 from robointel.io.mcap_log import COMMAND, JOINT_STATES, TRAJECTORY, WRENCH, McapRecorder
-
-from .conftest import fanuc_url, running_fake
+from robointel.testing.emulator import fanuc_url, running_fake
 
 
 def _read(path):

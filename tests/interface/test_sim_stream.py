@@ -1,4 +1,4 @@
-"""The paced sim whose physics runs in a streaming process of its own (SimStreamRobot, issue 14 session 26).
+"""The paced sim whose physics runs in a streaming process of its own (SimStreamRobot).
 
 No assertion on timing: every wait is for the state the property needs, with a generous timeout (load 20).
 """
@@ -208,10 +208,10 @@ def test_a_child_that_dies_while_it_plays_the_queue_fails_the_execution(frmp_seg
 
 def test_a_cell_built_by_a_factory_in_the_child_and_its_own_figures():
     """``workcell_factory`` builds the skill's cell in the child; the child reports its wake-ups and memory lock."""
-    from robointel.interface.skill_cells import HoleTask, PegTool
+    from robointel.skills.cells import HoleTask, PegTool
 
     peg, hole = PegTool(), HoleTask()
-    with SimStreamRobot(workcell_factory="robointel.interface.skill_cells:peg_hole_workcell",
+    with SimStreamRobot(workcell_factory="robointel.skills.cells:peg_hole_workcell",
                         factory_args=(peg, hole), lock_memory=True, stall_periods=None) as robot:
         assert robot.has_wrench  # the peg cell's wrist sensor, read through the block
         t0 = robot.state().t
@@ -225,4 +225,4 @@ def test_a_cell_built_by_a_factory_in_the_child_and_its_own_figures():
 
 def test_a_factory_that_is_not_there_is_refused():
     with pytest.raises(InvalidInput, match="no_such_cell"):
-        SimStreamRobot(workcell_factory="robointel.interface.skill_cells:no_such_cell")
+        SimStreamRobot(workcell_factory="robointel.skills.cells:no_such_cell")

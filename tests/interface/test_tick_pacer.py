@@ -1,4 +1,4 @@
-"""The force loop's pacing at the robot's ticks (``TickPacer``, session 28): fakes, no timing asserted."""
+"""The force loop's pacing at the robot's ticks (``TickPacer``): fakes, no timing asserted."""
 import time
 
 import numpy as np

@@ -12,7 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from robointel.cli import _load_commands, app
-from robointel.trajectory import Trajectory
+from robointel.io.trajectory import load_trajectory
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from _mbm_checker import MBMChecker  # noqa: E402
@@ -41,7 +41,7 @@ def test_cli_plans_every_family(planned):
     assert f"{7 * PER_FAMILY}/{7 * PER_FAMILY} planned and passed" in res.output
     for family in raw:
         for p in [p for p in raw[family] if p["valid"]][:PER_FAMILY]:
-            tr = Trajectory.load(out.with_name(f"traj_{family}_{p['index']}.npz"))
+            tr = load_trajectory(out.with_name(f"traj_{family}_{p['index']}.npz"))
             np.testing.assert_allclose(tr.q[0], p["start"], atol=1e-6)
             assert np.abs(np.asarray(p["goals"]) - tr.q[-1]).max(1).min() < 1e-6
             assert np.all(np.abs(tr.qd) <= 0.5 * (1 + 1e-6))  # the URDF's velocity limit
@@ -53,7 +53,7 @@ def test_cli_trajectories_pass_the_independent_checker(planned, root):
     bad = []
     for family in raw:
         for p in [p for p in raw[family] if p["valid"]][:PER_FAMILY]:
-            tr = Trajectory.load(out.with_name(f"traj_{family}_{p['index']}.npz"))
+            tr = load_trajectory(out.with_name(f"traj_{family}_{p['index']}.npz"))
             v = checker.check_trajectory(tr.t, tr.q, p, qd=tr.qd, amax=3.0 * checker.vmax)
             if not v.ok:
                 bad.append((family, p["index"], v.pair, v.min_clearance, v.limit_violation))

@@ -6,9 +6,9 @@ from typer.testing import CliRunner
 
 from robointel.cli import app
 from robointel.interface import open_robot
-from robointel.interface.emulator import EmulatorProcess, protocol_violations
 from robointel.outcome import Failure
 from robointel.program import InterfaceCell, ProgramRejected, program_from_dict, run_program
+from robointel.testing.emulator import EmulatorProcess, protocol_violations
 
 HOME = [0.0, 0.3, -23.8, 0.0, -65.8, 0.0]
 LEFT = [35.0, 56.3, -11.0, 0.0, -22.7, -0.6]

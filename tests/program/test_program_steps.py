@@ -6,7 +6,6 @@ from typer.testing import CliRunner
 
 from robointel.cli import app
 from robointel.errors import InvalidInput
-from robointel.interface.emulator import EmulatorProcess, protocol_violations
 from robointel.learning.insertion import PegHole, RobotCell
 from robointel.program import (
     ProgramRejected,
@@ -20,7 +19,8 @@ from robointel.program import (
     program_from_teleop,
     run_program,
 )
-from robointel.programming.teleop_program import save_program
+from robointel.teach.teleop_program import save_program
+from robointel.testing.emulator import EmulatorProcess, protocol_violations
 
 HOME = [0.0, 0.3, -23.8, 0.0, -65.8, 0.0]
 LEFT = [35.0, 56.3, -11.0, 0.0, -22.7, -0.6]

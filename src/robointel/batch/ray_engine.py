@@ -86,7 +86,7 @@ def start_ray(*, workers: int, address: str | None, worker_niceness: int = 0) ->
         except (ConnectionError, RuntimeError, ValueError) as exc:
             # a Ray Client server starts its per-client server lazily; on a loaded head that can time out,
             # or the fresh server process can die at once (Ray forks it while gRPC threads run: "Initialization
-            # failure from server ... ZombieProcess", docs/decisions.md): the join is tried again
+            # failure from server ... ZombieProcess", docs/design/batch.md): the join is tried again
             if attempt + 1 < attempts and ("client server failed" in str(exc)
                                            or "Initialization failure from server" in str(exc)):
                 time.sleep(2.0)

@@ -28,17 +28,17 @@ from robointel.io.lerobot import read_lerobot, write_lerobot
 from robointel.io.robomimic import read_robomimic, write_robomimic
 from robointel.learning.demonstration import load_demonstrations
 from robointel.learning.demonstration_episode import demonstration_to_episode, episode_to_demonstration
-from robointel.programming.imitation import kinematic_imitation, simulate_imitation
-from robointel.programming.recording_episodes import (
+from robointel.robot import Robot
+from robointel.teach.imitation import kinematic_imitation, simulate_imitation
+from robointel.teach.recording_episodes import (
     guidance_episode,
     imitation_episode,
     scara_episode,
     teleop_episode,
 )
-from robointel.programming.scara import simulate_scara
-from robointel.programming.scenarios import run_scenario
-from robointel.programming.teleop import load_program
-from robointel.robot import Robot
+from robointel.teach.scara import simulate_scara
+from robointel.teach.scenarios import run_scenario
+from robointel.teach.teleop import load_program
 
 console = Console()
 FORMATS = ("lerobot", "robomimic")

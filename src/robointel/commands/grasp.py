@@ -50,8 +50,8 @@ def _templates(objs: dict[str, list[ObjectModel]], db: Path | None = None, *,
     scans (``sampled=True``) the best top-down grasps sampled on the template's full model stand in for
     the human demonstration (toy arms keep their written grasps).
     """
-    from robointel.io.grasp_db import GraspDatabase
     from robointel.learning.grasp import Template, sample_points, sampled_grasps, seen_template, taught_grasps
+    from robointel.learning.grasp_database import GraspDatabase
 
     if db is not None and Path(db).exists():
         return GraspDatabase(db).load_all()
@@ -154,7 +154,7 @@ def plot_confusion(C: np.ndarray, labels: list[str], path: Path, title: str) -> 
 def teach(out: Path = typer.Option(Path("grasps.h5"), help="grasp database file to write"),
           source: str = typer.Option("demo", help="'demo' (generated objects) or 'ycb' (shared data)")) -> None:
     """Write a grasp database: one template per category with its taught grasps."""
-    from robointel.io.grasp_db import GraspDatabase
+    from robointel.learning.grasp_database import GraspDatabase
 
     try:
         objs = _objects(source)
@@ -174,7 +174,7 @@ def _check_db(db: Path | None) -> None:
     """Refuse a missing, foreign or corrupt ``--db`` before any work (one line, exit code 2)."""
     if db is None:
         return
-    from robointel.io.grasp_db import GraspDatabase
+    from robointel.learning.grasp_database import GraspDatabase
 
     if not Path(db).exists():
         fail(f"grasp database {db} does not exist; build it with `robointel grasp build --out {db}` or leave out --db")

@@ -19,12 +19,12 @@ from rich.table import Table
 from robointel.commands.failure import fail
 from robointel.commands.robot_run import guide_on_robot, run_on_robot
 from robointel.errors import RobointelError
-from robointel.programming.guidance import METHODS
-from robointel.programming.keypoints import plot_reproduction, reproduce_path
-from robointel.programming.scenarios import ScenarioResult, plot_scenario, run_scenario, scenario
 from robointel.report.demo import Figure, StageContext, StageResult
 from robointel.robot import Robot
 from robointel.sim import Workcell
+from robointel.teach.guidance import METHODS
+from robointel.teach.keypoints import plot_reproduction, reproduce_path
+from robointel.teach.scenarios import ScenarioResult, plot_scenario, run_scenario, scenario
 
 METHOD_HELP = ("qp: relaxed QP (4.11); equality: (4.10); repulsive: repulsive vector (4.1); "
                "nullspace: task-priority null space (4.2)-(4.3)")
@@ -55,7 +55,7 @@ def register(app: typer.Typer) -> None:
             fail(f"--scenario must be 1, 2 or 3 (Table 4.1), got {scenario}")
         if duration is not None and not (np.isfinite(duration) and duration > 0):
             fail(f"--duration must be a positive number of simulated seconds, got {duration}")
-        if robot != "sim":  # lead-through on a real arm through the robot interface (issue 14)
+        if robot != "sim":  # lead-through on a real arm through the robot interface
             try:
                 guide_on_robot(robot, record, duration or 30.0, method, console, ft=ft)
             except RobointelError as exc:
@@ -135,7 +135,7 @@ def _reproduce(res: ScenarioResult, out: Path) -> tuple[list[Figure], Path]:
     rot = np.array([robot.fk(q)[:3, :3] for q in res.q])
     rep = reproduce_path(robot, res.t, res.tcp, res.q[0], rotations=rot, tolerance=0.01, speed=0.15)
     wc = Workcell(robot, obstacles=[scenario(res.scenario).obstacle], ft_sensor=False)
-    log = wc.run_trajectory(rep.t, rep.q, rep.qd, record_ft=False)
+    log = wc.run_trajectory(rep.trajectory.t, rep.trajectory.q, rep.trajectory.qd, record_ft=False)
     tcp = np.array([robot.fk(q)[:3, 3] for q in log.q[::10]])
     ref = np.array([robot.fk(q)[:3, 3] for q in log.q_ref[::10]])
     track = float(np.max(np.linalg.norm(tcp - ref, axis=1)))

@@ -30,10 +30,10 @@ from robointel.planning.frmp import FRMPResult, make_planners, plan_scene, plann
 from robointel.planning.frmp import execute as run_in_sim
 from robointel.planning.replan import receding_horizon
 from robointel.planning.scene import load_scene
-from robointel.programming.collision_guard import CollisionGuard
 from robointel.report.demo import Figure, StageContext, StageResult
 from robointel.robot import Robot
 from robointel.sim import Workcell
+from robointel.teach.collision_guard import CollisionGuard
 
 
 def plot_joint_profiles(result: FRMPResult, path: Path) -> Path:
@@ -258,7 +258,7 @@ def register(app: typer.Typer) -> None:
             with console.status("planning"):
                 res = plan_scene(sc)
             out.parent.mkdir(parents=True, exist_ok=True)
-            res.trajectory.save(out)
+            save_trajectory(res.trajectory, out)
         except RobointelError as exc:
             fail(exc)
         t = Table(title=f"{sc.name}: {len(sc.steps)} segments, {sc.total_steps} steps, "
@@ -286,7 +286,7 @@ def register(app: typer.Typer) -> None:
                 CollisionGuard(sc.robot, env).check_many(res.trajectory.resample(0.01).q, "planned trajectory")
             except RobointelError as exc:
                 fail(exc)
-        if execute and (robot != "sim" or record is not None):  # the robot interface (issue 14)
+        if execute and (robot != "sim" or record is not None):  # the robot interface
             try:
                 wc = {"workcell": Workcell(sc.robot, obstacles=sc.obstacles)} if robot == "sim" else {}
                 run_on_robot(res.trajectory, robot, record, console, sim_kwargs=wc)
@@ -328,7 +328,7 @@ def demo_stage(ctx: StageContext) -> StageResult:
     ctx.advance(0.45, "plots")
     img1 = plot_joint_profiles(res, ctx.out / "frmp_profiles.png")
     img2 = plot_path_3d(res, ctx.out / "frmp_path3d.png")
-    res.trajectory.save(ctx.out / "table71_frmp.npz")
+    save_trajectory(res.trajectory, ctx.out / "table71_frmp.npz")
     ctx.advance(0.6, "tracking in MuJoCo")
     ex = run_in_sim(res)
     ctx.advance(0.8, "replanning around a moving hand")

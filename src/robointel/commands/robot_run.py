@@ -11,9 +11,9 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from robointel.interface import ExecutionResult, RobotState, open_robot
 from robointel.interface.open import parse_robot_url
 from robointel.io.mcap_log import McapRecorder
-from robointel.programming.guidance import GuidanceConfig
-from robointel.programming.lead_through import lead_through
 from robointel.robot import Robot
+from robointel.teach.guidance import GuidanceConfig
+from robointel.teach.lead_through import lead_through
 from robointel.trajectory import Trajectory
 
 

@@ -24,11 +24,12 @@ from robointel.control.payload import PayloadCompensation
 from robointel.errors import RobointelError
 from robointel.interface import RobotState, open_robot
 from robointel.interface.backend import Backend
-from robointel.interface.grasp_execute import GraspMotion, execute_grasp, joint_move
 from robointel.interface.gripper import FanucGripper, JawGeometry, SimGripper
 from robointel.interface.open import ROBOT_FORMS, parse_robot_url
 from robointel.interface.sim import SimRobot
-from robointel.interface.skill_cells import (
+from robointel.interface.wrench_source import StateWrench, VirtualWall, WrenchSource
+from robointel.io.mcap_log import McapRecorder
+from robointel.skills.cells import (
     R_DOWN,
     HoleTask,
     PegTool,
@@ -38,10 +39,9 @@ from robointel.interface.skill_cells import (
     plate_workcell,
     stylus,
 )
-from robointel.interface.skill_grinding import run_grinding
-from robointel.interface.skill_insertion import run_insertion
-from robointel.interface.wrench_source import StateWrench, VirtualWall, WrenchSource
-from robointel.io.mcap_log import McapRecorder
+from robointel.skills.grasp_execution import GraspMotion, execute_grasp, joint_move
+from robointel.skills.grinding import run_grinding
+from robointel.skills.insertion import run_insertion
 
 console = Console()
 skill_app = typer.Typer(no_args_is_help=True, help="Learned skills on a robot (--robot sim|fanuc://HOST).")
@@ -49,7 +49,7 @@ skill_app = typer.Typer(no_args_is_help=True, help="Learned skills on a robot (-
 ROBOT_HELP = ROBOT_FORMS
 RECORD_HELP = "record the run as a ROS 2 bag (.mcap)"
 STALL_HELP = "fanuc: stop the robot when the skill gives no target for this long, ms"
-_CELLS = "robointel.interface.skill_cells"
+_CELLS = "robointel.skills.cells"
 WRENCH_HELP = "'sensor' (the robot's F/T reading) or 'virtual' (a simulated contact, for the controller emulator)"
 
 

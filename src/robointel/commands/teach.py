@@ -20,8 +20,10 @@ from robointel.interface import Backend, open_robot
 from robointel.interface.open import is_sim
 from robointel.io.mcap_log import McapRecorder
 from robointel.io.reference import data_path
-from robointel.programming.imitation import kinematic_imitation, plot_imitation, simulate_imitation
-from robointel.programming.scara import (
+from robointel.report.demo import Figure, StageContext, StageResult
+from robointel.robot import Robot
+from robointel.teach.imitation import kinematic_imitation, plot_imitation, simulate_imitation
+from robointel.teach.scara import (
     PAPER_RMS,
     PAPER_RMS_COMPENSATED,
     SMOOTH_HZ,
@@ -32,11 +34,9 @@ from robointel.programming.scara import (
     simulate_scara,
     training_predictor,
 )
-from robointel.programming.skeleton import Skeleton, clean, load_skeleton, synthetic_wave
-from robointel.programming.streaming import StreamingController, StreamingServer
-from robointel.programming.teleop import TeleopApp
-from robointel.report.demo import Figure, StageContext, StageResult
-from robointel.robot import Robot
+from robointel.teach.skeleton import Skeleton, clean, load_skeleton, synthetic_wave
+from robointel.teach.streaming import StreamingController, StreamingServer
+from robointel.teach.teleop import TeleopApp
 
 console = Console()
 

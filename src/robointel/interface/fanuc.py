@@ -46,7 +46,7 @@ from robointel.trajectory import Trajectory
 DEFAULT_RMI_PORT = 16001
 DEFAULT_SM_PORT = 60015
 DEFAULT_LOOKAHEAD_S = 0.1
-"""Look-ahead of the streaming process, s (docs/decisions.md: the caller's stalls under load)."""
+"""Look-ahead of the streaming process, s (docs/design/streaming.md: the caller's stalls under load)."""
 STALE_STATUS_PERIODS = 12
 """Status older than this many periods counts as a lost connection (the core's own RX-silence hold
 starts earlier)."""
@@ -188,7 +188,7 @@ class FanucRobot(RegisterIO, Backend):
     def _read_shared(self) -> RobotState:
         """:meth:`_read` from the streaming process's block, without building the snapshot dict.
 
-        The per-target path (docs/decisions.md, session 25): one seqlock copy, the state's arrays made
+        The per-target path (docs/design/streaming.md): one seqlock copy, the state's arrays made
         from it; :attr:`_snap` builds the dict from the same copy only when something asks for it.
         """
         v = self.driver.head()

@@ -97,7 +97,7 @@ class SafetyGate:
         The same checks in plain Python floats, for the one shape a stream sends (a 1-D sequence of n
         numbers, a 1-D previous command): called once per controller period on a cache the rest of
         the machine has evicted, a dozen numpy calls cost ~75-155 µs here, this ~40-60 µs
-        (docs/decisions.md, session 24). NaN fails every comparison and the limits are finite, so a
+        (docs/design/streaming.md). NaN fails every comparison and the limits are finite, so a
         non-finite target is never accepted here; whatever is not accepted goes through the numpy
         checks, which decide and word the refusal.
         """

@@ -2,7 +2,7 @@
 
 This file runs as a script in a child process (:class:`~robointel.interface.sim_stream.SimStreamProcess`
 starts it and talks to it) with an interpreter lock of its own, so a planner thread in the caller's
-process cannot delay a simulated controller window (docs/decisions.md, issue 14, session 26). It
+process cannot delay a simulated controller window (docs/design/streaming.md). It
 builds the :class:`~robointel.sim.Workcell` from picklable arguments and runs the FANUC streaming
 process's loop (:func:`~robointel.interface.stream_child.serve_forever` with its
 :class:`~robointel.interface.stream_child.Player`: the look-ahead ring, the window accounting, the
@@ -187,7 +187,7 @@ def build_workcell(workcell_kwargs: dict[str, Any], factory: str | None, factory
     """``Workcell(**workcell_kwargs)``, or ``module:function`` ``factory`` called with ``factory_args``.
 
     A factory may return the workcell or a tuple whose first item is the workcell (as
-    :func:`~robointel.interface.skill_cells.peg_hole_workcell` does).
+    :func:`~robointel.skills.cells.peg_hole_workcell` does).
 
     Raises:
         InvalidInput: a factory that is not ``module:function``, cannot be imported or gives no workcell.

@@ -2,7 +2,7 @@
 
 ``SimRobot(paced=True)`` steps MuJoCo inside the caller's ``stream()``: a planner thread of the
 caller's process holding the interpreter lock in a long C call makes the stream miss windows
-(priority inversion on the lock, docs/decisions.md, session 25). :class:`SimStreamRobot` moves the
+(priority inversion on the lock, docs/design/streaming.md). :class:`SimStreamRobot` moves the
 physics out of the caller's interpreter, as ``FanucRobot(stream_process=True)`` moves the FANUC
 driver: a child process (:mod:`robointel.interface.sim_child`) owns the workcell, built there from
 picklable arguments, and steps it one controller period per tick of the wall clock from the targets
@@ -65,7 +65,7 @@ class SimStreamProcess(RingProcess):
         stall_periods: the child stops the arm after this many consecutive windows without a target.
         workcell_factory: ``"module:function"`` building the workcell in the child from ``factory_args``
             (picklable) instead of ``Workcell(**workcell_kwargs)`` (a cell whose model is edited after it
-            is built, e.g. :func:`~robointel.interface.skill_cells.plate_workcell`).
+            is built, e.g. :func:`~robointel.skills.cells.plate_workcell`).
         factory_args: the factory's positional arguments.
         lock_memory: the child locks its memory (``mlockall``; refused without CAP_IPC_LOCK or a large
             RLIMIT_MEMLOCK, and then it goes on unlocked: ``timing_stats()["memory_locked"]``).

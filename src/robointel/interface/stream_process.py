@@ -1,7 +1,7 @@
 """The FANUC driver in a streaming process of its own, fed through a look-ahead queue in shared memory.
 
 :class:`StreamProcess` is a :class:`~robointel.interface.stream_ring.RingProcess` (the ring, the
-seqlock block, the window counters: docs/decisions.md, sessions 21-25) whose child
+seqlock block, the window counters: docs/design/streaming.md) whose child
 (:mod:`robointel.interface.stream_child` run as a script) owns the ``airo-fanuc`` driver and its
 real-time core, and submits the interpolated target at each of the core's ticks.
 

@@ -2,7 +2,7 @@
 
 A Python thread that streams one target per period shares its interpreter lock with every other
 thread of its process; a planner thread holding the lock while the kernel preempts it delays the
-stream by a scheduling latency (docs/decisions.md). A streaming process moves the per-window work
+stream by a scheduling latency (docs/design/streaming.md). A streaming process moves the per-window work
 out of the caller's interpreter: a child process (:mod:`robointel.interface.stream_child`'s
 :class:`~robointel.interface.stream_child.Player` and ``serve_forever``) owns the robot's real-time
 side, and each target the caller streams is stamped with the time it is to be played,
@@ -101,7 +101,7 @@ class RingProcess:
             os.ftruncate(fd, sc.SHM_BYTES)
             self._mm = mmap.mmap(fd, sc.SHM_BYTES)
             self._buf: npt.NDArray[np.float64] = np.frombuffer(self._mm, dtype=np.float64)
-            self._mv = memoryview(self._mm).cast("d")  # the per-target path: no numpy call (docs/decisions.md)
+            self._mv = memoryview(self._mm).cast("d")  # the per-target path: no numpy call (docs/design/streaming.md)
             ours, theirs = socket.socketpair()
             self._conn = Connection(ours.detach())
             env = None
@@ -197,7 +197,7 @@ class RingProcess:
         """The state block's first :data:`~robointel.interface.stream_state.HEAD` fields (seqlock read).
 
         Everything the per-target path reads (the snapshot, the stop flags), unpacked in one ``struct``
-        call: the per-target state read (docs/decisions.md, session 25).
+        call: the per-target state read (docs/design/streaming.md).
         """
         mv, mm = self._mv, self._mm
         for _ in range(1000):

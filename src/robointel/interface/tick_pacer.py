@@ -6,7 +6,7 @@ robot's controller window. On a robot that ticks on its own clock (a FANUC contr
 streaming process) the target sent at that phase is played at the next tick, or, when the phase falls
 after the tick's cut-off, one tick later: the loop's delay from a measurement to its effect is one or two
 periods depending on when the loop started, and an admittance whose gain is tuned for one period goes
-unstable at two (the grinding skill through ``sim?process=1``, docs/decisions.md, session 28).
+unstable at two (the grinding skill through ``sim?process=1``, docs/design/force-loops.md).
 :class:`TickPacer` starts each cycle on the robot's clock instead: it sleeps until shortly before the next
 state is due and polls until the state's time has advanced, so the target goes out right after the
 measurement it answers. A backend whose state advances only when it is commanded (the in-process

@@ -161,14 +161,3 @@ class GraspDatabaseFile:
         """The gripper fields stored with the database ({} if none were given)."""
         with self._open("r") as f:
             return dict(json.loads(f.attrs["gripper"]))
-
-
-# Transitional: commands/grasp.py and grasp tests (other branches this session) import GraspDatabase
-# from here; resolved lazily so that io imports no phase. The lead removes this after merging.
-def __getattr__(name: str) -> Any:
-    """Old import path of ``GraspDatabase`` (now :mod:`robointel.learning.grasp_database`)."""
-    if name == "GraspDatabase":
-        import robointel.learning.grasp_database as moved
-
-        return moved.GraspDatabase
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -11,9 +11,7 @@ import numpy as np
 from robointel.errors import InvalidInput
 from robointel.trajectory import Trajectory
 
-# Transitional re-export: files owned by other branches this session import Trajectory from here;
-# the lead removes it after merging (the type lives in robointel.trajectory).
-__all__ = ["FORMAT", "Trajectory", "load_trajectory", "save_trajectory", "trajectory_to_dict"]
+__all__ = ["FORMAT", "load_trajectory", "save_trajectory", "trajectory_to_dict"]
 
 FORMAT = "robointel.trajectory/1"
 

@@ -41,7 +41,7 @@ class Plate:
     light: float = 5.0
     hard: float = 25.0
     # a grinding pad is compliant and progressive: 10 ms contact time constant, impedance rising from
-    # 0.5 at first touch to 0.99 at 0.2 mm compression (why: docs/decisions.md, "lint: grinding").
+    # 0.5 at first touch to 0.99 at 0.2 mm compression (why: docs/design/skills.md, "Grinding").
     contact: Contact = field(default_factory=lambda: Contact(friction=0.15, solref=(0.01, 1.0),
                                                              solimp=(0.5, 0.99, 0.0002, 0.5, 2.0)))
 

@@ -26,7 +26,8 @@ from robointel.planning.frmp import (
     plan_scene,
     planner_settings,
 )
-from robointel.planning.motion import MotionPlan, MotionSettings, plan_motion
+from robointel.planning.motion import MotionPlan, plan_motion
+from robointel.planning.motion_settings import MotionSettings
 from robointel.planning.ompl_peer import OMPLResult, rrtconnect
 from robointel.planning.qp import DenseQP, SparseQP
 from robointel.planning.replan import ReplanResult, receding_horizon
@@ -39,7 +40,7 @@ from robointel.planning.temporal import (
     fixed_dt_segment,
     temporal_optimize,
 )
-from robointel.planning.trajectory import PlannerSettings, SegmentPlan, TrajectoryPlanner, straight_reference
+from robointel.planning.waypoints import PlannerSettings, SegmentPlan, TrajectoryPlanner, straight_reference
 
 __all__ = [
     "cfs", "CFSResult", "NonlinearConstraint", "SparseQP", "DenseQP",

@@ -2,9 +2,9 @@
 
 Trees live in caller-owned arrays so that the search runs in chunks of iterations between which
 the caller watches the clock: ``X`` (2, n, cap), the nodes joint by joint (the nearest-neighbour
-scan reads them so, one joint of many nodes at a time, which the compiler vectorizes; session 28
-dropped the node-major copy the trees also kept), ``parent`` (2, cap) and ``count`` (2,). Tree 0
-grows from the start, tree 1 from every goal of the goal set (each a root with parent -1).
+scan reads them so, one joint of many nodes at a time, which the compiler vectorizes), ``parent``
+(2, cap) and ``count`` (2,). Tree 0 grows from the start, tree 1 from every goal of the goal set
+(each a root with parent -1).
 """
 from __future__ import annotations
 
@@ -63,7 +63,7 @@ def _nearest_soa(X, cnt, q, buf):  # pragma: no cover - compiled
 
 #: a tree's range adapts over windows of this many extension attempts
 WINDOW = 16
-#: the smallest adapted range, rad (session 27: 1/8 -> 1/2 and windows 32 -> 16 halved the cage's search)
+#: the smallest adapted range, rad (1/8 -> 1/2 and windows 32 -> 16 halved the cage's search)
 MIN_RANGE = 0.5
 
 

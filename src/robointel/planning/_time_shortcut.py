@@ -219,7 +219,7 @@ def tighten_time(P: np.ndarray, npts: int, W: tuple, Wr: tuple, rcap: float, T: 
 
     Each vertex moves the largest fraction of
     :data:`~robointel.planning._shortcut_kernels.PULL_FRACTIONS` of the way to m = (P[i-1] + P[i+1]) / 2
-    whose two new edges pass the check (session 27's tightening), but it is tried only when moving it to m lowers the
+    whose two new edges pass the check, but it is tried only when moving it to m lowers the
     :func:`chain_time` of the five points around it by >= :data:`TIGHTEN_GATE_S`. No move lengthens
     the path in any norm. Returns the number of vertices moved.
     """

@@ -377,7 +377,7 @@ def _empty_cloud() -> tuple:
 def _world_tail() -> tuple:
     """Empty arrays typed as the world's entries 12-23: a 12-array prefix padded to the full world's numba type.
 
-    The kernels read only what the prefix holds; the full type spares a second compile of them (session 27).
+    The kernels read only what the prefix holds; the full type spares a second compile of them.
     """
     return ((np.zeros(0, np.int64), np.zeros((0, GK.NPARAM)), np.zeros((0, 2), np.int64), np.zeros((0, 0), np.uint8))
             + _empty_cloud() + (np.zeros((0, 0)), np.zeros(0), np.zeros(0), np.zeros((0, 0, 0))))

@@ -18,7 +18,7 @@ from robointel.geometry.table import ENVIRONMENT_NAMES
 from robointel.outcome import Failure, TrialOutcome
 from robointel.planning.scene import Scene
 from robointel.planning.temporal import TemporalResult, concatenate_segments, fixed_dt_segment, temporal_optimize
-from robointel.planning.trajectory import PlannerSettings, SegmentPlan, TrajectoryPlanner, sphere_clearances
+from robointel.planning.waypoints import PlannerSettings, SegmentPlan, TrajectoryPlanner, sphere_clearances
 from robointel.sim import Workcell
 from robointel.trajectory import Trajectory
 

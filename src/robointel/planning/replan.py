@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
 from robointel.outcome import Failure, TrialOutcome
-from robointel.planning.trajectory import PlannerSettings, TrajectoryPlanner
+from robointel.planning.waypoints import PlannerSettings, TrajectoryPlanner
 
 if TYPE_CHECKING:  # pragma: no cover
     from robointel.geometry.obstacles import Obstacle

@@ -37,7 +37,7 @@ from robointel.geometry.obstacles import Obstacle
 from robointel.geometry.rotations import rpy_to_matrix
 from robointel.geometry.table import ENVIRONMENT_NAMES, table_obstacles
 from robointel.io.scene import read_scene_file, write_scene_file
-from robointel.planning.trajectory import PlannerSettings
+from robointel.planning.waypoints import PlannerSettings
 from robointel.robot import Robot
 
 __all__ = ["SCENES", "Scene", "builtin_scenes", "load_scene", "scene_from_dict"]
@@ -62,7 +62,7 @@ class Scene:
         vmax, amax: (n,) joint velocity / acceleration limits (rad/s, rad/s^2).
         d_min: clearance (m).
         weights: w1, w2 of (7.1), w3, w4 of (7.7).
-        planner: extra :class:`robointel.planning.trajectory.PlannerSettings` fields.
+        planner: extra :class:`robointel.planning.waypoints.PlannerSettings` fields.
         source: the file it came from (None for built in code).
     """
 

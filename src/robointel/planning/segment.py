@@ -1,6 +1,6 @@
 """The CFS segment problem (7.1)-(7.3): settings, result, straight reference and clearances.
 
-The solver is :class:`robointel.planning.trajectory.TrajectoryPlanner`.
+The solver is :class:`robointel.planning.waypoints.TrajectoryPlanner`.
 """
 
 from __future__ import annotations

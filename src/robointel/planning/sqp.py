@@ -17,10 +17,10 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import minimize
 
 from robointel.planning.cfs import NonlinearConstraint
-from robointel.planning.trajectory import straight_reference
+from robointel.planning.waypoints import straight_reference
 
 if TYPE_CHECKING:  # pragma: no cover
-    from robointel.planning.trajectory import TrajectoryPlanner
+    from robointel.planning.waypoints import TrajectoryPlanner
 
 
 @dataclass

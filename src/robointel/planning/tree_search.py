@@ -7,16 +7,13 @@ at the fine resolution.
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robointel.planning import _edge_kernels as E
 from robointel.planning import _rrt_kernels as R
 from robointel.planning.environment import Environment
-
-if TYPE_CHECKING:
-    from robointel.planning.motion import MotionSettings
+from robointel.planning.motion_settings import MotionSettings
 
 
 def warm_search(env: Environment) -> None:

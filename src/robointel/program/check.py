@@ -20,12 +20,12 @@ from robointel.learning.grasp import ParallelGripper
 from robointel.learning.grasp.pipeline import lrmate_with_gripper
 from robointel.planning.frmp import check_trajectory, plan_scene, planner_settings
 from robointel.planning.scene import Scene
-from robointel.planning.trajectory import TrajectoryPlanner
+from robointel.planning.waypoints import TrajectoryPlanner
 from robointel.program.format import SKILL_KINDS, Program, Step, Target
 from robointel.program.motion import CellPlanner, gripper_geometry
 from robointel.program.skill_file import load_skill, skill_kind
-from robointel.programming.keypoints import blended_trajectory, joint_velocity_reference
 from robointel.robot import Robot
+from robointel.teach.keypoints import blended_trajectory, joint_velocity_reference
 from robointel.trajectory import Trajectory
 
 CLEARANCE_TOLERANCE = 0.001  # m below d_min that a dense 1 ms check still accepts

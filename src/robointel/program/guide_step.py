@@ -1,6 +1,6 @@
 """The ``guide`` step: the robot is handed to the operator for lead-through until they press continue.
 
-Lead-through is :func:`robointel.programming.lead_through.lead_through` on the cell's robot interface:
+Lead-through is :func:`robointel.teach.lead_through.lead_through` on the cell's robot interface:
 the measured F/T wrench drives the guidance controller (compliance (3.10)-(3.13) with collision
 avoidance (4.11) around the scene's obstacles) into streamed joint position targets. The step ends when
 the operator presses continue (the robot then holds), or fails at its timeout (the robot holds where it
@@ -22,9 +22,9 @@ import numpy.typing as npt
 
 from robointel.interface.backend import Backend
 from robointel.outcome import Failure, TrialOutcome
-from robointel.programming.guidance import GuidanceConfig, GuidanceController
-from robointel.programming.lead_through import LeadThroughResult, lead_through
 from robointel.sim import Workcell
+from robointel.teach.guidance import GuidanceConfig, GuidanceController
+from robointel.teach.lead_through import LeadThroughResult, lead_through
 
 
 class Operator(Protocol):

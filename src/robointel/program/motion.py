@@ -20,7 +20,8 @@ from robointel.errors import InfeasibleProblem, InvalidInput
 from robointel.geometry.obstacles import Box, Obstacle
 from robointel.learning.grasp import ParallelGripper
 from robointel.planning.environment import Environment
-from robointel.planning.motion import MotionSettings, plan_motion
+from robointel.planning.motion import plan_motion
+from robointel.planning.motion_settings import MotionSettings
 from robointel.planning.scene import Scene
 from robointel.trajectory import Trajectory
 

@@ -1,11 +1,11 @@
 """Teaching writes programs: teleoperated waypoints become ``move`` steps, a guided path a ``path`` step.
 
 * The teleoperation page saves its recorded waypoints as a planning scene
-  (:func:`robointel.programming.teleop_program.save_program`); :func:`program_from_teleop` turns that
+  (:func:`robointel.teach.teleop_program.save_program`); :func:`program_from_teleop` turns that
   file into a task program whose scene is the file (its obstacles and limits) and whose steps move through
   the waypoints in order.
 * A path guided by hand (the ``guide`` step, lead-through) becomes a ``path`` step through its key points
-  (:func:`robointel.programming.keypoints.extract_keypoints`: start, end, dwells, direction changes):
+  (:func:`robointel.teach.keypoints.extract_keypoints`: start, end, dwells, direction changes):
   :func:`path_step_from_guided`.
 """
 
@@ -19,9 +19,9 @@ import numpy.typing as npt
 from robointel.errors import InvalidInput
 from robointel.program.format import Program, program_from_dict
 from robointel.program.step import Step
-from robointel.programming.keypoints import extract_keypoints
-from robointel.programming.teleop_program import load_program as load_teleop
 from robointel.robot import Robot
+from robointel.teach.keypoints import extract_keypoints
+from robointel.teach.teleop_program import load_program as load_teleop
 
 
 def program_from_teleop(path: str | Path, *, name: str | None = None) -> Program:

@@ -12,15 +12,32 @@ import sys
 from collections.abc import Sequence
 from functools import lru_cache
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
 
 from robointel.errors import InvalidInput, RobointelError
 
-if TYPE_CHECKING:  # pragma: no cover
-    from robointel.sim import Workcell
+
+class Workcell(Protocol):
+    """What rendering reads of a :class:`~robointel.sim.Workcell`: its MuJoCo model and data, its joints."""
+
+    @property
+    def model(self) -> Any:
+        """The ``mujoco.MjModel``."""
+
+    @property
+    def data(self) -> Any:
+        """The ``mujoco.MjData``."""
+
+    @property
+    def n(self) -> int:
+        """Number of arm joints."""
+
+    @property
+    def qpos_index(self) -> Any:
+        """(n,) indices of the arm's joints in ``qpos``."""
 
 _PROBE = ("import mujoco, numpy as np\n"
           "m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom size=\".1\"/></worldbody></mujoco>')\n"

@@ -14,7 +14,7 @@ from robointel.batch.kinds.params import param
 from robointel.batch.registry import TrialKind
 from robointel.batch.spec import TaskSpec
 from robointel.outcome import TrialOutcome
-from robointel.programming.scenarios import run_scenario
+from robointel.teach.scenarios import run_scenario
 
 TIMINGS = ("step_us_median", "step_us_p99", "step_cpu_us_median", "step_cpu_us_p99")  # wall clock, not outcome
 

@@ -188,7 +188,7 @@ def fit_template(target: npt.ArrayLike, template: Template, *, n_points: int = 2
 
     The initial alignment (footprint rectangle or yaw search, below) is followed by rigid CPD
     (6.8)-(6.10) and non-rigid CPD (6.11)-(6.13); the score is the residual (6.17)-(6.19) times two
-    shape terms. The choice of every default is recorded in ``docs/decisions.md`` ("Classification
+    shape terms. The choice of every default is recorded in ``docs/design/grasp.md`` ("Classification
     fit parameters").
 
     Args:

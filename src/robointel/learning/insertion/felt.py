@@ -1,7 +1,7 @@
 """Feel the part's face, then align and insert: the strategy a person uses at a tight chamferless fit.
 
 Without a chamfer a 20 um fit admits about 0.1 deg of tilt within the first millimetres below the rim,
-and once two points touch the peg wedges (see docs/decisions.md). A person does not find the hole's axis
+and once two points touch the peg wedges (see docs/design/skills.md). A person does not find the hole's axis
 by pushing into the hole: they first rest the peg's ball tip on the flat face beside the hole, slide it
 round a small circle under a light push and feel how the hand rises and falls (the face's slope in the
 hand's frame: proprioception), lift off, turn the peg square to the face, go back over the hole and push
