@@ -160,11 +160,11 @@ class Environment:
         else:
             links, centres, radii = _urdf_spheres(robot, spheres)
         if attached:
-            link = attach_link or robot.model.frames[robot._flange_id].name
+            link = attach_link or robot.flange_frame
             if attach_link is not None:
                 robot.link_joint(attach_link)
             else:  # the flange frame may be an operational frame: attach to its body
-                fr = robot.model.frames[robot._flange_id]
+                fr = robot.model.frames[robot.frame_id(robot.flange_frame)]
                 link = robot.model.frames[fr.parentFrame].name if fr.type != pin.FrameType.BODY else fr.name
             for k, o in enumerate(attached):
                 c, r = _obstacle_spheres(o, k)
@@ -407,29 +407,8 @@ def _variable_pairs(W: tuple, robot: Robot, smask: np.ndarray, samples: int = 50
 
 
 def _chain_arrays(robot: Robot) -> tuple:
-    """Joint tree of the robot's Pinocchio model for :func:`chain_fk` (1-DoF joints only)."""
-    model = robot.model
-    nj = model.njoints
-    parent = np.array([int(p) for p in model.parents], np.int64)
-    place = np.array([model.jointPlacements[j].homogeneous for j in range(nj)])
-    axis = np.zeros((nj, 3))
-    kind = np.zeros(nj, np.int64)
-    qidx = np.full(nj, -1, np.int64)
-    q0 = pin.neutral(model)
-    for j in range(1, nj):
-        jm = model.joints[j]
-        if jm.nq != 1 or jm.nv != 1:
-            raise InvalidInput(f"joint {model.names[j]!r} has {jm.nq} coordinates; the planner supports 1-DoF "
-                               "revolute and prismatic joints", value=model.names[j])
-        jd = jm.createData()
-        jm.calc(jd, q0)
-        S = np.asarray(jd.S).reshape(6)
-        if np.linalg.norm(S[3:]) > 0.5:
-            axis[j], kind[j] = S[3:] / np.linalg.norm(S[3:]), 0
-        else:
-            axis[j], kind[j] = S[:3] / np.linalg.norm(S[:3]), 1
-        qidx[j] = jm.idx_q
-    return (parent, place, axis, kind, qidx)
+    """Joint tree of the robot's Pinocchio model for :func:`chain_fk` (see :mod:`robointel.robot.chain`)."""
+    return tuple(robot.chain)
 
 
 def _sphere_levers(robot: Robot, chain: tuple, sj: np.ndarray, sp: np.ndarray) -> np.ndarray:

@@ -14,8 +14,8 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from robointel.errors import DescriptionError
 from robointel.geometry.obstacles import Box, Capsule, Cylinder, Obstacle, Sphere
-from robointel.robot.collision import _resolve_mesh
 from robointel.robot.model import Robot
 
 
@@ -240,14 +240,18 @@ def _parts(robot: Robot) -> list[_Part]:
     for link, prims in robot.collision_primitives().items():
         if link not in robot.link_names or robot.link_joint(link) == 0:
             continue
-        fid = int(robot.model.getFrameId(link))
+        fid = robot.frame_id(link)
         for p in prims:
             if p["type"] != "mesh":
                 continue
-            path = _resolve_mesh(robot, p.get("filename") or "")
+            path = p.get("path")
             if path is None:
                 continue
-            mesh = coal.MeshLoader().load(str(path), np.asarray(p["size"], float))
+            try:
+                mesh = coal.MeshLoader().load(str(path), np.asarray(p["size"], float))
+            except Exception as exc:  # coal raises RuntimeError/ValueError wrappers of assimp failures
+                raise DescriptionError(f"cannot read the collision mesh {path} of link {link!r}: {exc}",
+                                       value=str(path)) from None
             mesh.buildConvexHull(True, "Qt")
             v = np.asarray(mesh.vertices())
             c = 0.5 * (v.min(0) + v.max(0))

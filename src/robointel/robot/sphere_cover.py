@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from robointel.robot.collision import SphereModel, _resolve_mesh
+from robointel.robot.collision import SphereModel
 from robointel.robot.model import Robot
 
 _CACHE: dict[tuple, np.ndarray] = {}
@@ -28,11 +28,9 @@ def _surface(robot: Robot, samples: int, seed: int) -> dict[int, np.ndarray]:
             continue
         j = robot.link_joint(link)
         for p in prims:
-            if p["type"] != "mesh" or not p.get("filename"):
+            if p["type"] != "mesh" or p.get("path") is None:
                 continue
-            path = _resolve_mesh(robot, p["filename"])
-            if path is None:
-                continue
+            path = p["path"]
             mesh: Any = trimesh.load(path, force="mesh")
             mesh.apply_scale(np.asarray(p["size"], float))
             pts = np.vstack([trimesh.sample.sample_surface(mesh, samples, seed=seed)[0], mesh.vertices])
