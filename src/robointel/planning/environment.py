@@ -129,6 +129,12 @@ class Environment:
         floor: height (m) of a floor plane (a large box below it), or None.
         attached: objects carried by the tool, each given in the frame of ``attach_link``.
         attach_link: link the attached objects move with (default: the robot's flange frame's link).
+        exact_self: decide self-collision on the exact collision geometry wherever the covering
+            spheres of two links overlap (default: True with the robot's own fitted spheres,
+            :attr:`Robot.spheres`, which lie inside the meshes; False with given spheres).
+        self_padding: clearance required between the robot's own links, m, separate from the
+            obstacle clearance ``d_min`` of a plan (the planner offsets the self-collision radii by
+            (d_min - self_padding) / 2 each, so that both hold with one threshold).
         cover_meshes: also build spheres grown to cover the URDF's collision meshes
             (:func:`robointel.robot.sphere_cover.cover_meshes`) and check obstacles against them
             (see :meth:`use`); self-collision always uses the spheres as given.
@@ -149,11 +155,21 @@ class Environment:
     def __init__(self, robot: Robot, obstacles: Iterable[Obstacle] = (), *, srdf: str | Path | None = None,
                  spheres: SphereModel | str | Path | None = None, floor: float | None = None,
                  attached: Sequence[Obstacle] = (), attach_link: str | None = None,
-                 cover_meshes: bool = True) -> None:
+                 cover_meshes: bool = True, exact_self: bool | None = None, self_padding: float = 1e-3) -> None:
         if not isinstance(robot, Robot):
             raise InvalidInput(f"robot must be a robointel Robot, got {type(robot).__name__}", value=robot)
         self.robot = robot
         self.cover_meshes = bool(cover_meshes)
+        if srdf is None:
+            srdf = robot.srdf_path
+        #: self-collision decided on the exact geometry wherever the covering spheres of two links overlap
+        #: (default: with the robot's own fitted spheres, which lie inside the meshes)
+        self.exact_self = bool(spheres is None and robot.fitted_spheres) if exact_self is None else bool(exact_self)
+        if not (np.isfinite(self_padding) and self_padding >= 0):
+            raise InvalidInput(f"self_padding must be >= 0 m, got {self_padding}", value=self_padding)
+        self.self_padding = float(self_padding)
+        #: subtracted from every self-collision radius, twice (set by the planner for its d_min: d_min - self_padding)
+        self.self_offset = 0.0
         if spheres is None or isinstance(spheres, SphereModel):
             sm = robot.spheres if spheres is None else spheres
             links, centres, radii = list(sm.links), np.asarray(sm.centers, float), np.asarray(sm.radii, float)
@@ -185,7 +201,7 @@ class Environment:
         # the robot side (bound spheres, joint tree, self-collision pairs, levers, covering radii) depends on the
         # robot and these inputs only: packed once and shared by every environment of the robot (read-only)
         key = ("pack", tuple(links), np.asarray(centres, float).tobytes(), np.asarray(radii, float).tobytes(),
-               frozenset(self.disabled), self.cover_meshes)
+               frozenset(self.disabled), self.cover_meshes, self.exact_self)
         pack = _robot_cache(robot).get(key)
         if pack is None:
             self.spheres = SphereModel(links, centres, radii).bind(robot)
@@ -242,7 +258,7 @@ class Environment:
         self._fitted = self._spheres
         self._cover = self._spheres
         if self.cover_meshes:
-            grown = cover_meshes(self.robot, sm).radii[order]
+            grown = cover_meshes(self.robot, sm, primitives=self.exact_self).radii[order]
             ggr = np.array([np.max(np.linalg.norm(sp[gs[k]:gs[k + 1]] - gc[k], axis=1) + grown[gs[k]:gs[k + 1]])
                             for k in range(len(groups))])
             self._cover = (sj, sp, np.ascontiguousarray(grown), groups.astype(np.int64), gc, ggr,
@@ -279,11 +295,39 @@ class Environment:
     @property
     def world_cover(self) -> tuple:
         """The packed world with the mesh-covering spheres."""
-        return self._chain + self._cover + self._prims + self._self + self._cloud + self._rel
+        return self._chain + self._cover + self._prims + self._self + self._cloud + self._rel_offset()
 
+    @property
+    def world_self_cover(self) -> tuple:
+        """The packed world with no obstacles and the mesh-covering spheres as self-collision radii.
+
+        Its clearance is the covering spheres' self-collision clearance: a lower bound of the meshes'.
+        """
+        c = self._cover
+        empty = (np.zeros(0, np.int64), np.zeros((0, GK.NPARAM)))
+        return self._chain + c + empty + self._self + _empty_cloud() + (self._rel[0], c[2], c[5], self._rel[3])
+
+
+    def _rel_offset(self) -> tuple:
+        """The self-collision entries of the world with every radius less ``self_offset / 2``."""
+        if self.self_offset == 0.0:
+            return self._rel
+        h = 0.5 * self.self_offset
+        return (self._rel[0], self._rel[1] - h, self._rel[2] - h, self._rel[3])
+
+    def set_self_offset(self, d_min: float) -> None:
+        """Make one threshold ``d_min`` check obstacles at ``d_min`` and self-collision at :attr:`self_padding`.
+
+        Every self-collision radius is reduced by (d_min - self_padding) / 2 (the planner calls this
+        with its ``d_min``; 0 restores the spheres' own radii).
+        """
+        off = float(d_min) - self.self_padding if d_min else 0.0
+        if off != self.self_offset:
+            self.self_offset = off
+            self._rebuild()
 
     def _rebuild(self) -> None:
-        self.world = self._chain + self._spheres + self._prims + self._self + self._cloud + self._rel
+        self.world = self._chain + self._spheres + self._prims + self._self + self._cloud + self._rel_offset()
 
     def update_pointcloud(self, points: npt.ArrayLike, *, radius: float = 0.0) -> None:
         """Replace the environment's point cloud (m, world frame) by ``points`` (N, 3).
@@ -330,14 +374,14 @@ class Environment:
             return Contact(d, "", "", False)
         link = self.sphere_links[i]
         if kind == K.SELF:
-            return Contact(d, link, self.sphere_links[j], True)
+            return Contact(d - self.self_offset, link, self.sphere_links[j], True)
         other = "point cloud" if kind == K.CLOUD else self.labels[j]
         return Contact(d, link, other, False)
 
     def check_free(self, q: npt.ArrayLike, *, d_min: float = 0.0, what: str = "start configuration") -> None:
         """Raise :class:`CollisionAtStart` naming the pair when q is closer than ``d_min``."""
         c = self.contact(q, cap=max(d_min, 0.0) + 1.0)
-        if c.distance < d_min:
+        if c.distance < (d_min - self.self_offset if c.self_collision else d_min):
             raise CollisionAtStart(c.message(what) + (f" (required clearance {d_min * 1e3:.1f} mm)" if d_min else "")
                                    + "; move it or lower d_min", value=np.asarray(q, float))
 

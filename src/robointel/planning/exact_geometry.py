@@ -30,6 +30,17 @@ class _Part:
     link: str
 
 
+def contact_distance(ga: Any, Ta: Any, gb: Any, Tb: Any, req: Any) -> float:
+    """Coal's distance of two placed geometries, negative (at most -1e-9 m) when they touch or overlap.
+
+    Coal reports 0 (not a depth) for meshes in contact: a collision query decides those.
+    """
+    d = float(coal.distance(ga, Ta, gb, Tb, req, coal.DistanceResult()))
+    if d <= 1e-9 and coal.collide(ga, Ta, gb, Tb, coal.CollisionRequest(), coal.CollisionResult()) > 0:
+        return min(d, -1e-9)
+    return d
+
+
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The cross product a x b of two 3-vectors (``np.cross`` without its broadcasting overhead)."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
@@ -122,8 +133,9 @@ class MeshGeometry:
                 Tp = placed[p] = coal.Transform3s(T[:3, :3], T[:3, 3])
             label, g, To = self.obstacles[o][:3]
             d = coal.distance(part.hull, Tp, g, To, req, coal.DistanceResult())
-            if d < thresh and d < best:  # (a hull at or beyond the best cannot hold a closer mesh)
-                d = coal.distance(part.mesh, Tp, g, To, req, coal.DistanceResult())
+            if d <= thresh and d < best:  # (a hull at or beyond the best cannot hold a closer mesh; <=: a hull
+                # touching at thresh 0 still needs the mesh's sign)
+                d = contact_distance(part.mesh, Tp, g, To, req)
             if d < best:
                 best, bl, bo = float(d), part.link, label
         return best, bl, bo

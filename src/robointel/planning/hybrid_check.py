@@ -11,9 +11,13 @@ import time
 import numpy as np
 from numba import njit
 
+from robointel.errors import CollisionAtStart
 from robointel.planning import _dense_kernels as D
+from robointel.planning._collision_kernels import clearance as K_clearance
+from robointel.planning._collision_kernels import sphere_centres as K_sphere_centres
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
+from robointel.planning.exact_self import self_geometry
 from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, window_clearance
 from robointel.trajectory import Trajectory
 
@@ -136,4 +140,115 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
     return chk
 
 
-__all__ = ["MESH_CHUNK", "exact_check", "interior_check", "interior_window", "mesh_geometry", "timed_out"]
+
+
+@njit(cache=True)
+def _self_below(Q: np.ndarray, W: tuple, T: np.ndarray, C: np.ndarray, G: np.ndarray, out: np.ndarray,
+                lever: np.ndarray, thresh: float) -> np.ndarray:  # pragma: no cover - compiled
+    """Mask (K,) of the nearby samples Q (K, n) whose self-collision clearance in ``W`` may be below ``thresh``.
+
+    ``W`` holds no obstacles (:attr:`Environment.world_self_cover`). A sample is cleared when its
+    own clearance is >= ``thresh`` or when the last evaluated sample's clearance minus twice the
+    sphere travel since (both spheres of a pair move) stays >= ``thresh``.
+    """
+    K = Q.shape[0]
+    mask = np.zeros(K, np.bool_)
+    cap = thresh + 0.25
+    k = 0
+    while k < K:
+        K_sphere_centres(Q[k], W, T, C, G)
+        c = K_clearance(C, G, W, cap, -np.inf, out)
+        j = k + 1
+        if c < thresh:
+            mask[k] = True
+        else:
+            moved = 0.0
+            while j < K:
+                for i in range(Q.shape[1]):
+                    moved += 2.0 * lever[i] * abs(Q[j, i] - Q[j - 1, i])
+                if c - moved < thresh:
+                    break
+                j += 1
+        k = j
+    return mask
+
+
+def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float,
+               deadline: float = float("inf")) -> DenseCheck:
+    """Check self-collision on the exact geometry wherever the covering spheres of two links overlap.
+
+    Every ``dt`` sample whose covering-sphere self clearance (:attr:`Environment.world_self_cover`)
+    is below ``env.self_padding - 1 mm`` (never below 0) is measured on the collision meshes and
+    primitives (:class:`~robointel.planning.exact_self.SelfGeometry`); one closer than that fails
+    the check (kind ``"collision"``). Clock as :func:`interior_check`.
+    """
+    if not chk.ok or not env.exact_self:
+        return chk
+    sg = self_geometry(env.robot, env.disabled)
+    if sg.empty:
+        return chk
+    thr = max(env.self_padding - CLEARANCE_TOL, 0.0)
+    dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
+    Q = np.ascontiguousarray(dense.q)
+    s = env.scratch
+    doubt = np.flatnonzero(_self_below(Q, env.world_self_cover, s.T, s.C, s.G, s.out, env.lever, thr))
+    if len(doubt) == 0:
+        return chk
+    # both solids of a pair move: the distance changes at most twice the travel of any of their points
+    moved = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(Q, axis=0)) @ (2.0 * sg.lever))])
+    last_d, last_at, n = -np.inf, 0.0, 0
+    for k in doubt:
+        if last_d - (moved[k] - last_at) >= thr:
+            continue  # proven clear by the last exact measurement and the travel since
+        if n % MESH_CHUNK == 0 and time.perf_counter() >= deadline:
+            return timed_out("the self-collision check", chk)
+        n += 1
+        d, la, lb = sg.clearance(Q[k], cap=thr + 0.1, thresh=thr)
+        last_d, last_at = d, moved[k]
+        if d < thr:
+            return DenseCheck(False, f"self-collision check: link {la!r} is {d * 1e3:.2f} mm from link {lb!r} at "
+                              f"t = {dense.t[k]:.3f} s", "collision", min(d, chk.min_clearance_m), chk.samples)
+    return chk
+
+
+
+
+def exact_roots(env: Environment, q0: np.ndarray, goals: np.ndarray, floor: float) -> np.ndarray:
+    """The start and goals judged on the exact geometry: the goals kept, or :class:`CollisionAtStart`.
+
+    A configuration is refused only when the collision meshes (obstacles: the moving links'
+    meshes, :class:`MeshGeometry`; self: :class:`~robointel.planning.exact_self.SelfGeometry`)
+    come closer than ``floor`` (obstacles) or ``max(self_padding - 1 mm, 0)`` (self).
+
+    Returns:
+        The goals (G', n) whose exact clearance holds (at least one).
+
+    Raises:
+        CollisionAtStart: the start, or every goal, is closer than that (the pair named).
+    """
+    mg, sg = mesh_geometry(env), self_geometry(env.robot, env.disabled)
+    sthr = max(env.self_padding - CLEARANCE_TOL, 0.0)
+
+    def why(q: np.ndarray) -> str:
+        d, link, obs = mg.clearance(q, cap=floor + 0.1, thresh=floor)
+        if d < floor:
+            return f"robot link {link!r} is {d * 1e3:.1f} mm from obstacle {obs!r}"
+        d, la, lb = sg.clearance(q, cap=sthr + 0.1, thresh=sthr)
+        if d < sthr:
+            return f"robot link {la!r} is {d * 1e3:.1f} mm from link {lb!r}"
+        return ""
+
+    w = why(q0)
+    if w:
+        raise CollisionAtStart(f"start configuration is in collision on the collision meshes: {w}; move it",
+                               value=np.asarray(q0, float))
+    reasons = [why(g) for g in goals]
+    keep = [k for k, r in enumerate(reasons) if not r]
+    if not keep:
+        raise CollisionAtStart(f"{'goal configuration' if len(goals) == 1 else 'every goal; goal 0'} is in "
+                               f"collision on the collision meshes: {reasons[0]}; move it", value=goals[0])
+    return goals[keep]
+
+
+__all__ = ["MESH_CHUNK", "exact_check", "exact_roots", "interior_check", "interior_window", "mesh_geometry",
+           "self_check", "timed_out"]

@@ -33,6 +33,7 @@ from robointel.robot.collision import SphereModel
 from robointel.robot.description import load_description
 from robointel.robot.geometry_urdf import read_collision_geometry
 from robointel.robot.ik import LRMateIK
+from robointel.robot.sphere_fit import fit_spheres
 from robointel.robot.srdf import SRDF, read_srdf
 
 DESCRIPTIONS = Path(__file__).resolve().parent / "descriptions"
@@ -42,6 +43,8 @@ BUILTIN = {
 }
 #: velocity limit given to a planned joint whose URDF gives none (rad/s or m/s), with a warning
 DEFAULT_VELOCITY = 1.0
+#: a configuration this close outside a limit (rad or m) is put on it at the planner's boundary
+LIMIT_SNAP = 1e-5
 #: frame types in the order a name shared by several frames resolves to
 _FRAME_ORDER = (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT, pin.FrameType.JOINT,
                 pin.FrameType.SENSOR)
@@ -181,11 +184,42 @@ class Robot:
         self._Jw = self.data.J
         self._T = np.empty((model.njoints, 4, 4))
         self._primitives = self._read_primitives()
-        self.spheres: SphereModel = SphereModel.from_robot(self)
+        self._spheres: SphereModel | None = None
+        self._fitted = False
         self._ik = None
         if name == "lrmate200id7l":
             fl = model.frames[self._flange_id].placement.homogeneous
             self._ik = LRMateIK(model, fl, self.lower, self.upper)
+
+    @property
+    def fitted_spheres(self) -> bool:
+        """True when :attr:`spheres` is (or will be) fitted to the collision meshes (inside them)."""
+        if self._spheres is not None:
+            return self._fitted
+        return any(p["type"] == "mesh" for ps in self._primitives.values() for p in ps)
+
+    @property
+    def spheres(self) -> SphereModel:
+        """The robot's collision spheres, made on first use (assignable).
+
+        Fitted to its collision meshes (:func:`~robointel.robot.sphere_fit.fit_spheres`, cached on disk)
+        when it has meshes, else covering its collision primitives.
+        """
+        if self._spheres is None:
+            if any(p["type"] == "mesh" for ps in self._primitives.values() for p in ps):
+                links, centres, radii = fit_spheres(self)
+                self._spheres = SphereModel(links, centres, radii).bind(self)
+                self._fitted = True
+            else:
+                self._spheres = SphereModel.from_robot(self)
+        return self._spheres
+
+    @spheres.setter
+    def spheres(self, model: SphereModel) -> None:
+        if not isinstance(model, SphereModel):
+            raise InvalidInput(f"spheres must be a SphereModel, got {type(model).__name__}", value=model)
+        self._spheres = model.bind(self)
+        self._fitted = False
 
     def clone(self) -> Robot:
         """A new robot of the same description, group, held values, flange frame and tool (its own Pinocchio data)."""
@@ -257,6 +291,16 @@ class Robot:
             q = as_array(q, name, (self.nq,))
         if limits:
             check_limits(q, self.lower, self.upper, self.joint_names, name)
+        return q
+
+    def snap_to_limits(self, q: ArrayLike, tol: float = LIMIT_SNAP) -> np.ndarray:
+        """``q`` (nq,) with values at most ``tol`` (rad or m) outside a limit put on it (rounding in stored files).
+
+        Values farther out are left as they are (so that :meth:`check_q` names them).
+        """
+        q = np.array(self.check_q(q), dtype=float)
+        near = ((q < self.lower) & (q >= self.lower - tol)) | ((q > self.upper) & (q <= self.upper + tol))
+        q[near] = np.clip(q[near], self.lower[near], self.upper[near])
         return q
 
     def wrap_goal(self, goal: ArrayLike, ref: ArrayLike) -> np.ndarray:

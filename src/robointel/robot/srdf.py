@@ -108,7 +108,7 @@ def read_srdf(path: str | Path, link_names: Iterable[str] | None = None, *, warn
         groups[name] = GroupSpec(name, joints, glinks, chains, subs)
     states: dict[str, dict[str, dict[str, float]]] = {}
     for k, s in enumerate(root.findall("group_state")):
-        sname, gname = _element(p, "group_state", k, s, "name"), _element(p, "group_state", k, s, "group")
+        sname, gname = _element(p, "group_state", k, s, "name"), s.get("group", "")  # "": the whole robot
         vals: dict[str, float] = {}
         for i, e in enumerate(s.findall("joint")):
             jn = _element(p, f"group_state {sname!r} joint", i, e, "name")
