@@ -109,23 +109,49 @@ class SelfGeometry:
         self._solid_frame = np.array([self._frames.index(s.frame) for s in self.solids], int)
         self._centres = np.array([s.centre for s in self.solids], float).reshape(-1, 3)
         self._radii = np.array([s.radius for s in self.solids], float)
-        self.lever = self._levers()
+        solid_lever = self._levers()
+        #: (P, n): the distance of pair p changes at most sum_k pair_lever[p, k] |dq_k| (m)
+        # a joint that moves both solids of a pair moves them together: only the others change their distance
+        moves = robot._ancestor[[robot.link_joint(s.link) for s in self.solids]].reshape(-1, robot.nq)
+        a, b = self.pairs[:, 0], self.pairs[:, 1]
+        rel = moves[a] ^ moves[b]
+        self.pair_lever = ((solid_lever[a] + solid_lever[b]) * rel).reshape(-1, robot.nq)
 
     def _levers(self) -> np.ndarray:
-        """(n,) bound of the speed of any point of the solids per unit joint speed, m/rad (1 for a prismatic joint)."""
+        """(S, n) bound of the speed of any point of each solid per unit joint speed, m/rad (1: prismatic)."""
         m = self.robot.model
         kind = self.robot.chain[3]
-        lev = np.zeros(self.robot.nq)
-        for s in self.solids:
+        lev = np.zeros((len(self.solids), self.robot.nq))
+        for i, s in enumerate(self.solids):
             f = m.frames[s.frame]
             j = int(f.parentJoint)
             reach = float(np.linalg.norm(f.placement.act(s.centre))) + s.radius
             while j > 0:
                 k = int(m.joints[j].idx_q)
-                lev[k] = max(lev[k], 1.0 if kind[j] == 1 else reach)
+                lev[i, k] = 1.0 if kind[j] == 1 else reach
                 reach += float(np.linalg.norm(m.jointPlacements[j].translation))
                 j = int(m.parents[j])
         return lev
+
+    def pair_distances(self, q: np.ndarray, which: np.ndarray, *, thresh: float) -> np.ndarray:
+        """Distances (len(which),) of the pairs ``which`` at q: exact below ``thresh``, else lower bounds above it."""
+        robot = self.robot
+        pin.framesForwardKinematics(robot.model, robot.data, q)
+        req = coal.DistanceRequest()
+        placed: dict[int, Any] = {}
+        out = np.empty(len(which))
+        for n, p in enumerate(which):
+            i, j = int(self.pairs[p, 0]), int(self.pairs[p, 1])
+            for k in (i, j):
+                if k not in placed:
+                    T = robot.data.oMf[self.solids[k].frame].homogeneous @ self.solids[k].placement
+                    placed[k] = coal.Transform3s(T[:3, :3], T[:3, 3])
+            si, sj = self.solids[i], self.solids[j]
+            d = coal.distance(si.hull, placed[i], sj.hull, placed[j], req, coal.DistanceResult())
+            if d <= thresh:
+                d = contact_distance(si.geom, placed[i], sj.geom, placed[j], req)
+            out[n] = d
+        return out
 
     @property
     def empty(self) -> bool:

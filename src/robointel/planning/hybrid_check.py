@@ -13,8 +13,6 @@ from numba import njit
 
 from robointel.errors import CollisionAtStart
 from robointel.planning import _dense_kernels as D
-from robointel.planning._collision_kernels import clearance as K_clearance
-from robointel.planning._collision_kernels import sphere_centres as K_sphere_centres
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
 from robointel.planning.exact_self import self_geometry
@@ -142,45 +140,16 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
 
 
 
-@njit(cache=True)
-def _self_below(Q: np.ndarray, W: tuple, T: np.ndarray, C: np.ndarray, G: np.ndarray, out: np.ndarray,
-                lever: np.ndarray, thresh: float) -> np.ndarray:  # pragma: no cover - compiled
-    """Mask (K,) of the nearby samples Q (K, n) whose self-collision clearance in ``W`` may be below ``thresh``.
-
-    ``W`` holds no obstacles (:attr:`Environment.world_self_cover`). A sample is cleared when its
-    own clearance is >= ``thresh`` or when the last evaluated sample's clearance minus twice the
-    sphere travel since (both spheres of a pair move) stays >= ``thresh``.
-    """
-    K = Q.shape[0]
-    mask = np.zeros(K, np.bool_)
-    cap = thresh + 0.25
-    k = 0
-    while k < K:
-        K_sphere_centres(Q[k], W, T, C, G)
-        c = K_clearance(C, G, W, cap, -np.inf, out)
-        j = k + 1
-        if c < thresh:
-            mask[k] = True
-        else:
-            moved = 0.0
-            while j < K:
-                for i in range(Q.shape[1]):
-                    moved += 2.0 * lever[i] * abs(Q[j, i] - Q[j - 1, i])
-                if c - moved < thresh:
-                    break
-                j += 1
-        k = j
-    return mask
-
-
 def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float,
                deadline: float = float("inf")) -> DenseCheck:
-    """Check self-collision on the exact geometry wherever the covering spheres of two links overlap.
+    """Check self-collision on the exact geometry at every ``dt`` sample (``env.exact_self``).
 
-    Every ``dt`` sample whose covering-sphere self clearance (:attr:`Environment.world_self_cover`)
-    is below ``env.self_padding - 1 mm`` (never below 0) is measured on the collision meshes and
-    primitives (:class:`~robointel.planning.exact_self.SelfGeometry`); one closer than that fails
-    the check (kind ``"collision"``). Clock as :func:`interior_check`.
+    The fitted spheres lie inside the meshes, so their self-collision verdict may miss a contact:
+    every self-collision pair of :class:`~robointel.planning.exact_self.SelfGeometry` is measured
+    on the collision meshes and primitives at the first sample and again only at the first sample
+    where its last distance minus the relative travel of its two links since (``pair_lever``) may
+    have fallen below ``max(env.self_padding - 1 mm, 0)``: the samples in between are proven. A
+    pair closer than that fails the check (kind ``"collision"``). Clock as :func:`interior_check`.
     """
     if not chk.ok or not env.exact_self:
         return chk
@@ -190,27 +159,28 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
     thr = max(env.self_padding - CLEARANCE_TOL, 0.0)
     dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
     Q = np.ascontiguousarray(dense.q)
-    s = env.scratch
-    doubt = np.flatnonzero(_self_below(Q, env.world_self_cover, s.T, s.C, s.G, s.out, env.lever, thr))
-    if len(doubt) == 0:
-        return chk
-    # both solids of a pair move: the distance changes at most twice the travel of any of their points
-    moved = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(Q, axis=0)) @ (2.0 * sg.lever))])
-    last_d, last_at, n = -np.inf, 0.0, 0
-    for k in doubt:
-        if last_d - (moved[k] - last_at) >= thr:
-            continue  # proven clear by the last exact measurement and the travel since
+    K, P = len(Q), len(sg.pairs)
+    # M[k, p]: bound of the change of pair p's distance from sample 0 to sample k
+    M = np.vstack([np.zeros((1, P)), np.cumsum(np.abs(np.diff(Q, axis=0)) @ sg.pair_lever.T, axis=0)])
+    due = np.zeros(P, np.int64)  # the next sample at which each pair must be measured
+    n = 0
+    while True:
+        k = int(due.min())
+        if k >= K:
+            return chk
         if n % MESH_CHUNK == 0 and time.perf_counter() >= deadline:
             return timed_out("the self-collision check", chk)
-        n += 1
-        d, la, lb = sg.clearance(Q[k], cap=thr + 0.1, thresh=thr)
-        last_d, last_at = d, moved[k]
-        if d < thr:
-            return DenseCheck(False, f"self-collision check: link {la!r} is {d * 1e3:.2f} mm from link {lb!r} at "
-                              f"t = {dense.t[k]:.3f} s", "collision", min(d, chk.min_clearance_m), chk.samples)
-    return chk
-
-
+        which = np.flatnonzero(due == k)
+        n += len(which)
+        d = sg.pair_distances(Q[k], which, thresh=thr)
+        if d.min() < thr:
+            w = int(which[int(np.argmin(d))])
+            la, lb = sg.solids[sg.pairs[w, 0]].link, sg.solids[sg.pairs[w, 1]].link
+            return DenseCheck(False, f"self-collision check: link {la!r} is {d.min() * 1e3:.2f} mm from link {lb!r} "
+                              f"at t = {dense.t[k]:.3f} s", "collision", min(float(d.min()), chk.min_clearance_m),
+                              chk.samples)
+        for p, dp in zip(which, d):  # proven until the travel since eats the margin
+            due[p] = max(k + 1, int(np.searchsorted(M[:, p], M[k, p] + (dp - thr), side="left")))
 
 
 def exact_roots(env: Environment, q0: np.ndarray, goals: np.ndarray, floor: float) -> np.ndarray:
