@@ -113,9 +113,9 @@ class SelfGeometry:
         #: (P, n): the distance of pair p changes at most sum_k pair_lever[p, k] |dq_k| (m)
         # a joint that moves both solids of a pair moves them together: only the others change their distance
         moves = robot._ancestor[[robot.link_joint(s.link) for s in self.solids]].reshape(-1, robot.nq)
-        a, b = self.pairs[:, 0], self.pairs[:, 1]
-        rel = moves[a] ^ moves[b]
-        self.pair_lever = ((solid_lever[a] + solid_lever[b]) * rel).reshape(-1, robot.nq)
+        pa, pb = self.pairs[:, 0], self.pairs[:, 1]
+        rel = moves[pa] ^ moves[pb]
+        self.pair_lever = ((solid_lever[pa] + solid_lever[pb]) * rel).reshape(-1, robot.nq)
 
     def _levers(self) -> np.ndarray:
         """(S, n) bound of the speed of any point of each solid per unit joint speed, m/rad (1: prismatic)."""
