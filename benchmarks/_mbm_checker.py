@@ -60,10 +60,11 @@ class MBMChecker:
     """Exact collision checker of one robot (URDF + optional SRDF) against MBM problem scenes."""
 
     def __init__(self, urdf: str | Path, srdf: str | Path | None = None, *, joints: list[str] | None = None,
-                 held: dict[str, float] | None = None) -> None:
+                 held: dict[str, float] | None = None, package_dirs: list[str] | None = None) -> None:
         urdf = Path(urdf)
         full = pin.buildModelFromUrdf(str(urdf))
-        geom = pin.buildGeomFromUrdf(full, str(urdf), pin.COLLISION, package_dirs=[str(urdf.parent)])
+        geom = pin.buildGeomFromUrdf(full, str(urdf), pin.COLLISION,
+                                     package_dirs=[str(urdf.parent)] + list(package_dirs or []))
         names = [full.names[j] for j in range(1, full.njoints)]
         lock = [n for n in names if joints is not None and n not in joints]
         if lock:  # held joints: locked at the given value (default 0, or mid-range when 0 is outside the limits)

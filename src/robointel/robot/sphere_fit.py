@@ -31,7 +31,7 @@ from robointel.errors import DescriptionError
 from robointel.robot.protocol import KinematicRobot
 
 #: bump when the fit changes, so that cached fits are made again
-FIT_VERSION = 3
+FIT_VERSION = 4
 #: at most this many surface samples and candidate centres per link
 MAX_SAMPLES, MAX_CANDIDATES = 8000, 3000
 #: the fitted (inscribed) spheres stay this far inside the surface, m
@@ -101,10 +101,11 @@ def _link_spheres(parts: list[Any], *, spacing: float, slack: float, seed: int) 
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
     cand = np.vstack([grid, pts - nrm * min(h, 0.25 * ext)])  # inward offsets of the samples reach thin parts
     d, k = tree.query(cand)
-    near = np.einsum("ij,ij->i", cand - pts[k], nrm[k]) < 0.0  # a cheap first guess, wrong near edges
-    cand, d = cand[near], d[near]
-    inside = winding_numbers(np.asarray(mesh.triangles), cand) > 0.5
+    # a cheap first guess (the nearest sample's normal), wrong near edges: each centre picked below is
+    # confirmed by its winding number before it is kept
+    inside = np.einsum("ij,ij->i", cand - pts[k], nrm[k]) < 0.0
     cand, rin = cand[inside], d[inside]
+    tri = np.asarray(mesh.triangles)
     if len(cand) > MAX_CANDIDATES:  # the deepest half and an even draw of the rest
         order = np.argsort(-rin)
         rng = np.random.default_rng(seed)
@@ -126,12 +127,14 @@ def _link_spheres(parts: list[Any], *, spacing: float, slack: float, seed: int) 
         if len(new) < gain[i]:  # a stale count: refresh it and look again (lazy greedy)
             gain[i] = len(new)
             continue
+        if winding_numbers(tri, cand[i][None])[0] < 0.5:  # outside after all: never a centre
+            gain[i] = 0.0
+            continue
         covered[new] = True
         centres.append(cand[i])
         radii.append(max(rin[i], 1e-4))
         gain[i] = 0.0
     if centres:  # inscribed radii from the exact surface (samples alone overstate them by up to their spacing)
-        tri = np.asarray(mesh.triangles)
         dist = np.array([np.linalg.norm(trimesh.triangles.closest_point(tri, np.repeat(c[None], len(tri), 0)) - c,
                                         axis=1).min() for c in centres])
         radii = list(np.maximum(np.minimum(np.array(radii), dist) - INSET, 1e-4))
