@@ -78,7 +78,7 @@ def test_missing_mesh_names_the_path_and_where_it_was_looked_for(tmp_path):
     src = example_robot_urdf("ur_description/urdf/ur5_robot.urdf")
     copy = tmp_path / "ur5_robot.urdf"
     shutil.copy(src, copy)  # without its meshes
-    with pytest.raises(DescriptionError, match=r"mesh 'package://.*not found; looked in package_dirs.*ROS_PACKAGE_PATH"):
+    with pytest.raises(DescriptionError, match=r"mesh 'package://.*not found; looked in package_dirs.*ROS_PACKAGE"):
         Robot.load(copy)
     r = Robot.load(copy, package_dirs=[src.parents[4]])  # the folder holding example-robot-data/
     assert r.nq == 6
