@@ -18,8 +18,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from robointel.errors import DescriptionError
-from robointel.planning.exact_geometry import contact_distance
+from robointel.planning.exact_geometry import coal_geometry, contact_distance
 from robointel.robot.model import Robot
 
 
@@ -35,33 +34,11 @@ class _Solid:
 
 
 def _solid(robot: Robot, link: str, p: dict) -> _Solid | None:
-    size = np.asarray(p["size"], float)
-    M = np.asarray(p["origin"], float)
-    if p["type"] == "mesh":
-        try:
-            g = coal.MeshLoader().load(str(p["path"]), size)
-        except Exception as exc:  # coal wraps assimp failures in RuntimeError/ValueError
-            raise DescriptionError(f"cannot read the collision mesh {p['path']} of link {link!r}: {exc}",
-                                   value=str(p["path"])) from None
-        g.buildConvexHull(True, "Qt")
-        hull = g.convex
-        v = np.asarray(g.vertices())
-        c = 0.5 * (v.min(0) + v.max(0))
-        r = float(np.max(np.linalg.norm(v - c, axis=1)))
-    elif p["type"] == "box":
-        g, c, r = coal.Box(*size), np.zeros(3), float(np.linalg.norm(size) / 2)
-        hull = g
-    elif p["type"] == "cylinder":
-        g, c, r = coal.Cylinder(size[0], size[1]), np.zeros(3), float(np.hypot(size[0], size[1] / 2))
-        hull = g
-    elif p["type"] == "capsule":
-        g, c, r = coal.Capsule(size[0], size[1]), np.zeros(3), float(size[0] + size[1] / 2)
-        hull = g
-    elif p["type"] == "sphere":
-        g, c, r = coal.Sphere(size[0]), np.zeros(3), float(size[0])
-        hull = g
-    else:
+    got = coal_geometry(link, p)
+    if got is None:
         return None
+    g, hull, c, r = got
+    M = np.asarray(p["origin"], float)
     return _Solid(link, robot.frame_id(link), M, g, hull, M[:3, :3] @ c + M[:3, 3], r)
 
 
