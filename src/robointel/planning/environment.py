@@ -297,6 +297,14 @@ class Environment:
         """The packed world with the mesh-covering spheres."""
         return self._chain + self._cover + self._prims + self._self + self._cloud + self._rel_offset()
 
+    def self_clearance(self, q: npt.ArrayLike, *, cap: float = 1.0) -> float:
+        """Smallest self-collision distance (m) of the spheres' own radii at q (no offset, no obstacles), capped."""
+        qq = self.robot.check_q(np.asarray(q, float))
+        empty = (np.zeros(0, np.int64), np.zeros((0, GK.NPARAM)))
+        W = self._chain + self._spheres + empty + self._self + _empty_cloud() + self._rel
+        s = self.scratch
+        return float(K.config_clearance(qq, W, s.T, s.C, s.G, s.out, cap))
+
     @property
     def world_self_cover(self) -> tuple:
         """The packed world with no obstacles and the mesh-covering spheres as self-collision radii.
@@ -315,13 +323,14 @@ class Environment:
         h = 0.5 * self.self_offset
         return (self._rel[0], self._rel[1] - h, self._rel[2] - h, self._rel[3])
 
-    def set_self_offset(self, d_min: float) -> None:
+    def set_self_offset(self, d_min: float, margin: float = 0.0) -> None:
         """Make one threshold ``d_min`` check obstacles at ``d_min`` and self-collision at :attr:`self_padding`.
 
-        Every self-collision radius is reduced by (d_min - self_padding) / 2 (the planner calls this
-        with its ``d_min``; 0 restores the spheres' own radii).
+        Every self-collision radius is reduced by (d_min - self_padding) / 2 and grown by ``margin``
+        (m; the planner grows fitted spheres, which lie inside the meshes, toward them). The planner
+        calls this with its ``d_min``; 0 restores the spheres' own radii.
         """
-        off = float(d_min) - self.self_padding if d_min else 0.0
+        off = float(d_min) - self.self_padding - 2.0 * float(margin) if d_min or margin else 0.0
         if off != self.self_offset:
             self.self_offset = off
             self._rebuild()

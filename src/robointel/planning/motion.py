@@ -45,6 +45,8 @@ from robointel.planning.tree_search import path_valid, search, warm_search
 from robointel.robot.model import Robot
 from robointel.trajectory import Trajectory
 
+#: how far the fitted spheres (inside the meshes) are grown for self-collision during a plan, at most, m
+SELF_MARGIN = 0.01
 #: random seeds of the numeric IK for a pose goal (each distinct solution joins the goal set)
 IK_SEEDS = 32
 
@@ -172,6 +174,10 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     robot = env.robot
     if env.exact_self:  # the roots judged on the exact geometry (the fitted spheres lie inside it)
         goals = exact_roots(env, q0, goals, max(st.d_min - CLEARANCE_TOL, 0.0))
+        # the fitted spheres grown toward the meshes for self-collision, as far as the roots allow
+        gap = min(env.self_clearance(q, cap=1.0) for q in [q0, *goals])
+        margin = float(np.clip(0.5 * (gap - env.self_padding + CLEARANCE_TOL) - 1e-4, 0.0, SELF_MARGIN))
+        env.set_self_offset(st.d_min, margin)
     # the mesh-covering spheres where start and a goal allow them, else the spheres as given
     env.use("cover")
     hybrid = env.cover_meshes and not _roots_free(env, q0, goals, st.d_min)
@@ -226,7 +232,8 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
             return _fail(f"{chk.reason} (attempt {attempt + 1})", Failure.TIMEOUT, t0, timings, path, traj,
                          chk.min_clearance_m, int(goal_ids[gi]))
         # a start/goal edge that touches the real meshes: another tree may approach differently
-        if chk.ok or not (hybrid or exact) or chk.kind != "collision" or time.perf_counter() >= deadline:
+        if chk.ok or not (hybrid or exact or env.exact_self) or chk.kind != "collision" or \
+                time.perf_counter() >= deadline:
             break
         attempt += 1
     goal_index = int(goal_ids[gi])
