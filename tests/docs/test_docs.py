@@ -4,7 +4,7 @@ Code blocks in the docs follow one rule: a ``python`` block runs (every block of
 namespace, in a fresh folder), a ``bash`` block holds ``robointel`` commands that run, and a block that
 cannot run here carries a title saying so, shown on the rendered page:
 
-- ``title="needs hardware: ..."``: a real controller or sensor; not run;
+- ``title="needs hardware: ..."``: a real controller or sensor; not run (a python block must compile);
 - ``title="long run: ..."``: minutes of work (benchmarks, learning runs); each ``robointel`` line is parsed
   against the command (the command, its options and their values must exist), each ``python benchmarks/X.py``
   line must name a benchmark script that takes the options given.
@@ -123,6 +123,8 @@ def test_every_code_block_runs_or_says_why_not():
                     bad.append(f"{where}: a runnable bash block holds robointel commands only, not {others}")
             elif b["lang"] == "yaml":
                 yaml.safe_load(b["body"])
+            elif b["lang"] == "python" and _mark(b):
+                compile(b["body"], where, "exec")  # not run here, but it must be Python
     assert not bad, "\n".join(bad)
 
 
