@@ -159,7 +159,7 @@ class Robot:
         if flange_frame is None:
             last = [f.name for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint == model.njoints - 1]
             flange_frame = tip_link if tip_link is not None else (
-                "flange" if "flange" in self._frame_index else (last[0] if last else model.frames[-1].name))
+                "flange" if "flange" in self._frame_index else (last[-1] if last else model.frames[-1].name))
         self._flange_id = self._frame_id(flange_frame)
         self.flange_frame = flange_frame
         self._tool = np.eye(4)
