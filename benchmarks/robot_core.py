@@ -51,7 +51,8 @@ def ik_robots():
         fetch = Robot.load(d / "fetch.urdf", srdf=d / "fetch.srdf", group="arm_with_torso")
     lrmate = Robot.load("lrmate200id7l")
     return [("ur5", Robot.load("ur5"), "base_link", example_robot_urdf("ur5")),
-            ("panda", Robot.load("panda"), "panda_link0", example_robot_urdf("panda")),
+            ("panda", Robot.load("panda", joints=[f"panda_joint{i}" for i in range(1, 8)]), "panda_link0",
+             example_robot_urdf("panda")),
             ("fetch", fetch, "base_link", d / "fetch.urdf"),
             ("lrmate200id7l", lrmate, "base_link", lrmate.urdf_path)]
 

@@ -235,7 +235,7 @@ class Robot(RigidBodyDynamics):
         """Load a built-in robot, an ``example-robot-data`` arm or a URDF file (and optionally an SRDF and a group).
 
         Load a built-in robot (``"lrmate200id7l"``, ``"scara2"``), an ``example-robot-data`` arm (``"ur5"``,
-        ``"panda"``: the Panda's seven arm joints, the fingers held) or a URDF file. The other keyword
+        ``"panda"``) or a URDF file. The other keyword
         arguments are those of :class:`Robot`.
 
         Raises:
@@ -250,8 +250,6 @@ class Robot(RigidBodyDynamics):
             path, name = example_robot_urdf(key), key
             if flange_frame is None and tip_link is None:
                 flange_frame = {"ur5": "tool0", "panda": "panda_hand"}[key]
-            if key == "panda" and joints is None and group is None and tip_link is None:
-                joints = [f"panda_joint{i}" for i in range(1, 8)]
         else:
             path = Path(key).expanduser()
             if not path.exists():
