@@ -41,7 +41,7 @@ console = Console()
 
 # modules in robointel.commands, in demo order; each may define register(app) and demo_stage
 COMMAND_MODULES = ("core", "planning", "guidance", "learning", "grasp", "skills", "insertion", "teach", "dataset",
-                   "batch", "program")
+                   "batch", "program", "emulator")
 
 
 def _load_commands() -> list:
