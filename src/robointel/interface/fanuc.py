@@ -32,7 +32,7 @@ from airo_fanuc.exceptions import (
 from robointel.errors import ConnectionLost, ControllerFault, InvalidInput, UnsafeCommand
 from robointel.interface import stream_state as ss
 from robointel.interface.backend import Backend, ExecutionResult, Recorder, sleep_until
-from robointel.interface.fanuc_faults import bringup_cause, probe_rmi
+from robointel.interface.fanuc_faults import bringup_cause, probe_rmi, read_alarms
 from robointel.interface.fanuc_registers import RegisterIO
 from robointel.interface.ft_sensor import WrenchSource, open_ft_sensor
 from robointel.interface.profile import lrmate_profile
@@ -271,6 +271,20 @@ class FanucRobot(RegisterIO, Backend):
 
     def _needs_monitor(self) -> bool:
         return True
+
+    def _latch_fault(self, mode: RobotMode, why: str, faults: tuple[str, ...]) -> None:
+        """Stop commanding (the base class), then name the controller's active alarms in the reason.
+
+        A fault always carries a reason: the fault names when the caller gave none, and for an alarm or an
+        e-stop the alarm texts the controller reports over RMI (``FRC_ReadError``), e.g. ``SRVO-002 Teach
+        pendant E-stop``; a failed read leaves the reason as it was.
+        """
+        super()._latch_fault(mode, why or f"controller fault [{', '.join(faults) or 'unknown'}]", faults)
+        if mode is RobotMode.FAULTED and {"in_error", "e_stop", "motion_not_possible"} & set(faults):
+            texts = read_alarms(self.driver, streaming=self.stream_process)
+            if texts:
+                self._why = f"{self._why}; controller alarms: {'; '.join(texts)}"
+
 
     def _send(self, q: npt.NDArray[np.float64]) -> None:
         try:

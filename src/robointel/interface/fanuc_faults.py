@@ -11,8 +11,9 @@ from __future__ import annotations
 import errno
 import re
 import socket
+from typing import Any
 
-__all__ = ["RMI_OPTION", "STREAM_MOTION_OPTION", "alarm_codes", "bringup_cause", "probe_rmi"]
+__all__ = ["RMI_OPTION", "STREAM_MOTION_OPTION", "alarm_codes", "bringup_cause", "probe_rmi", "read_alarms"]
 
 RMI_OPTION = "R912 (Remote Motion Interface, RMI)"
 """The controller option the RMI session needs."""
@@ -111,3 +112,25 @@ def bringup_cause(message: str, *, host: str, rmi_port: int, sm_port: int) -> st
         return f"controller alarm {', '.join(codes)}: clear it on the teach pendant (RESET)"
     first = m.split(" — ")[0].removeprefix("airo_fanuc: ")
     return first or "the driver gave no reason"
+
+
+def read_alarms(driver: Any, *, streaming: bool, count: int = 3) -> list[str]:
+    """The controller's most recent alarm texts over RMI (``FRC_ReadError``), best effort.
+
+    Args:
+        driver: The ``airo_fanuc`` driver, or the streaming process that owns it.
+        streaming: ``driver`` is a :class:`~robointel.interface.stream_process.StreamProcess`.
+        count: How many recent alarms to read (1-5).
+
+    Returns:
+        The texts, one line each (``SRVO-002 Teach pendant E-stop``...); [] when they cannot be read.
+    """
+    try:
+        if streaming:
+            texts = driver.call("alarms", count)
+        else:
+            rmi = getattr(driver, "rmi", None)
+            texts = [] if rmi is None else list(rmi.read_error(count).messages)
+    except Exception:  # noqa: BLE001 - a diagnostic: the fault is reported whether or not it is read
+        return []
+    return [" ".join(str(t).split()) for t in texts if str(t).strip()]

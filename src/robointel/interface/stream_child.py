@@ -473,6 +473,8 @@ def _request(name: str, args: tuple, kwargs: dict, driver: Any, player: Player, 
         if driver.rmi is None:
             raise FanucConnectionError("no RMI session")
         return getattr(driver.rmi, name[4:])(*args)
+    if name == "alarms":  # the controller's active alarm texts (FRC_ReadError), for the fault's reason
+        return [] if driver.rmi is None else list(driver.rmi.read_error(int(args[0]) if args else 3).messages)
     raise ValueError(f"unknown request {name!r}")
 
 
