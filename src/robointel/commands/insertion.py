@@ -129,8 +129,16 @@ def learn_insertion(out: Path = typer.Option(Path("robointel-learn"), help="fold
             save_skill(skill_path, r["learned"].skill, meta={"task": "insertion", "strategy": "gmr",
                                                               "demos": n_demos, "seed": seed})
             results = r["results"]
-            console.print(_trial_table("insertion (gmr), clearance 20 um", results))
-            console.print(f"decomposition median boundary error {r['boundary_ms']:.0f} ms; plots in {out}")
+            t = Table(title="insertion (gmr), clearance 20 um")
+            for c in ("trial", "result", "time [s]", "max force [N]", "penetration [um]", "position-only"):
+                t.add_column(c, justify="right")
+            for k, (a, b) in enumerate(zip(results, r["baseline"])):
+                t.add_row(str(k), "seated" if a.success else f"[red]{a.reason}[/red]", f"{a.time:.2f}",
+                          f"{a.max_force:.1f}", f"{a.max_penetration * 1e6:.1f}",
+                          "seated" if b.success else f"fail ({b.reason})")
+            console.print(t)
+            console.print(f"position-only {r['success_pos']}/{len(r['baseline'])}; decomposition median boundary "
+                          f"error {r['boundary_ms']:.0f} ms; plots in {out}")
         else:
             with Progress(console=console) as prog:
                 task_id = prog.add_task("felt demonstrations", total=1.0)
