@@ -7,9 +7,9 @@
   benchmark's task (20 um, chamferless, starts up to +-2 mm and 5 deg; start seed 7, never used in tuning).
   Target >= 9 of 10.
 - ``cli_plan_execute_agree``: random scenes, half the MotionBenchMaker UR5 (its URDF from the reference
-  data; two clear configurations whose straight joint-space line passes through self-collision), half the
-  LR Mate (two clear configurations and a box across the straight line between them; self-collision
-  constrained by CFS as in every scene). ``robointel plan scene S`` prints the verdict ``--execute`` will give
+  data; two clear configurations whose straight joint-space line passes through self-collision, topped up
+  with box scenes when the draw holds too few such pairs), half the LR Mate (two clear configurations and
+  a box across the straight line between them); CFS constrains self-collision in every scene. ``robointel plan scene S`` prints the verdict ``--execute`` will give
   (exit 0 accepted, 1 refused); ``robointel plan scene S --execute`` then runs it in the MuJoCo workcell
   (exit 0 executed without touching anything, 2 refused before moving, 1 touched something). Agreement:
   accepted and executed, or refused and not executed. Target 20 of 20.
@@ -111,38 +111,40 @@ def _scene(name: str, robot: str, a: np.ndarray, b: np.ndarray, vmax: np.ndarray
 def ur5_scenes(n: int, rng: np.random.Generator) -> list[dict[str, Any]]:
     """``n`` UR5 scenes: two clear configurations whose straight joint-space line passes through self-collision.
 
-    From a clear configuration a, a configuration c in self-collision (some pair of spheres on non-adjacent
-    links 2 mm into each other) is drawn within 1.5 rad per joint; b, as far beyond c, must be clear.
+    When the draw holds fewer such pairs, the rest are :func:`box_scenes` of the UR5.
+
+    Clear configurations (the collision guard: the table, the floor, the arm itself) are drawn uniformly within
+    the joint limits (+-pi); pairs are taken in order, each configuration in four at most, when some pair of spheres on
+    non-adjacent links comes 2 mm into each other on the line between them (large wrist turns, mostly).
     """
     urdf = data_path("mbm", "ur5", "ur5.urdf")
     robot = Robot.load(urdf)
     guard = CollisionGuard(robot, table_obstacles())
-    pool = _clear_configs(robot, guard, rng, 3 * n)
-    lo, hi = np.maximum(robot.lower, -np.pi) + 1e-3, np.minimum(robot.upper, np.pi) - 1e-3
+    pool = _clear_configs(robot, guard, rng, max(60, 6 * n))
+    line = np.linspace(0.0, 1.0, 100)[:, None]
     out: list[dict[str, Any]] = []
-    for a in pool:
-        for _ in range(400):  # c: in self-collision near a; b: beyond c on the line from a, clear
-            c = np.clip(a + rng.uniform(-1.5, 1.5, robot.nq), lo, hi)
-            if self_clearances(robot, c[None])[0].min() > -0.002:
+    uses = np.zeros(len(pool), int)
+    for i in range(len(pool)):
+        for j in range(i + 1, len(pool)):
+            if uses[i] >= 4 or uses[j] >= 4:  # each configuration in at most four scenes
                 continue
-            b = np.clip(a + 2.0 * (c - a), lo, hi)
-            try:
-                guard.check(b)
-            except TargetInCollision:
-                continue
-            out.append(_scene(f"ur5_self_{len(out)}", str(urdf), a, b, robot.velocity_limit, []))
-            break
-        if len(out) == n:
-            break
-    return out
+            a, b = pool[i], pool[j]
+            if self_clearances(robot, a + line * (b - a))[0].min() < -0.002:
+                out.append(_scene(f"ur5_self_{len(out)}", str(urdf), a, b, robot.velocity_limit, []))
+                uses[[i, j]] += 1
+                if len(out) == n:
+                    return out
+    return out + box_scenes(str(urdf), n - len(out), rng, "ur5_box")
 
 
-def lrmate_scenes(n: int, rng: np.random.Generator) -> list[dict[str, Any]]:
-    """``n`` LR Mate scenes: two clear configurations and a box across the straight line between them."""
-    robot = Robot.load("lrmate200id7l")
+def box_scenes(robot_ref: str, n: int, rng: np.random.Generator, prefix: str) -> list[dict[str, Any]]:
+    """``n`` scenes: two clear configurations 0.8-2.5 rad apart and an 8 cm box across the straight line."""
+    robot = Robot.load(robot_ref)
     guard = CollisionGuard(robot, table_obstacles())
     out: list[dict[str, Any]] = []
     for _ in range(400 * n):
+        if len(out) >= n:
+            break
         a, b = _clear_configs(robot, guard, rng, 2)
         if not 0.8 <= np.max(np.abs(b - a)) <= 2.5:
             continue
@@ -154,10 +156,14 @@ def lrmate_scenes(n: int, rng: np.random.Generator) -> list[dict[str, Any]]:
             ends.check(b)
         except TargetInCollision:
             continue
-        out.append(_scene(f"lrmate_box_{len(out)}", "lrmate200id7l", a, b, robot.velocity_limit, [box]))
-        if len(out) == n:
-            break
+        out.append(_scene(f"{prefix}_{len(out)}", robot_ref, a, b, robot.velocity_limit, [box]))
     return out
+
+
+def lrmate_scenes(n: int, rng: np.random.Generator) -> list[dict[str, Any]]:
+    """``n`` LR Mate scenes: :func:`box_scenes` (its straight lines between clear configurations do not self-collide:
+    0 of 1,770 pairs of 60 random clear configurations)."""
+    return box_scenes("lrmate200id7l", n, rng, "lrmate_box")
 
 
 def _verdict(res: subprocess.CompletedProcess[str]) -> str:
@@ -184,7 +190,7 @@ def cli_plan_execute_agree(folder: Path, *, scenes: int = 20, seed: int = 11) ->
         rows.append({"scene": d["name"], "verdict": verdict, "execute_rc": ex.returncode, "agree": agree,
                      "plan_says": last[:240], "execute_says": (ex.stderr.strip() or ex.stdout.strip()[-240:])[:240],
                      "wall_s": time.perf_counter() - t0})
-    by = {k: [r for r in rows if r["scene"].startswith(k)] for k in ("ur5", "lrmate")}
+    by = {k: [r for r in rows if r["scene"].startswith(k)] for k in ("ur5_self", "ur5_box", "lrmate")}
     return {"cli_plan_execute_agree": int(sum(r["agree"] for r in rows)), "cli_plan_scenes": len(rows),
             "cli_plan_scene_seed": seed,
             "cli_plan_accepted": {k: sum(r["verdict"] == "accepted" for r in v) for k, v in by.items()},
