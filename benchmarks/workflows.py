@@ -9,10 +9,11 @@
 - ``cli_plan_execute_agree``: random scenes, half the MotionBenchMaker UR5 (its URDF from the reference
   data; two clear configurations whose straight joint-space line passes through self-collision, topped up
   with box scenes when the draw holds too few such pairs), half the LR Mate (two clear configurations and
-  a box across the straight line between them); CFS constrains self-collision in every scene. ``robointel plan scene S`` prints the verdict ``--execute`` will give
-  (exit 0 accepted, 1 refused); ``robointel plan scene S --execute`` then runs it in the MuJoCo workcell
-  (exit 0 executed without touching anything, 2 refused before moving, 1 touched something). Agreement:
-  accepted and executed, or refused and not executed. Target 20 of 20.
+  a box across the straight line between them); CFS constrains self-collision in every scene.
+  ``robointel plan scene S`` prints the verdict ``--execute`` will give (exit 0 accepted, 1 refused);
+  ``robointel plan scene S --execute`` then runs it in the MuJoCo workcell (exit 0 executed without
+  touching anything, 2 refused before moving, 1 touched something). Agreement: accepted and executed, or
+  refused and not executed. Target 20 of 20.
 - ``programs_refused_before_motion``: 10 malformed or impossible programs (a part off the table, inside a
   fixture, out of reach, a place spot off the table and inside a fixture, a pose outside the workspace,
   a joint target beyond the limits, an unknown key, an unknown step kind, a missing skill file):
