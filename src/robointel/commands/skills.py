@@ -1,6 +1,8 @@
-"""Learned skills and grasps on a robot: ``robointel skill insert|grind`` and ``robointel grasp execute``.
+"""Learned skills and grasps on a robot: ``robointel skill grind`` and ``robointel grasp execute``.
 
-Each learns (or plans) as the Ch. 5-6 commands do, then runs on the robot interface,
+``skill insert`` is in :mod:`robointel.commands.insertion` (it runs a skill file at the learning benchmark's
+task); the helpers here (robot URL, recorder, wrench source) serve it too. Each learns (or plans) as the
+Ch. 5-6 commands do, then runs on the robot interface,
 ``--robot sim`` (the MuJoCo workcell; ``sim?process=1``: the paced workcell in a streaming process, not for
 grasps) or ``--robot fanuc://HOST`` (Stream Motion + RMI), with
 ``--record run.mcap`` writing the run as a ROS 2 bag. On a FANUC controller without force telemetry
@@ -40,7 +42,8 @@ from robointel.skills.grasp_execution import GraspMotion, execute_grasp, joint_m
 from robointel.skills.grinding import run_grinding
 
 console = Console()
-skill_app = typer.Typer(no_args_is_help=True, help="Learned skills on a robot (--robot sim|fanuc://HOST).")
+skill_app = typer.Typer(no_args_is_help=True, help="Run learned skills: insert (a skill file from `learn "
+                        "insertion`; 20 um on sim by default), grind (--robot sim|sim?process=1|fanuc://HOST).")
 
 ROBOT_HELP = ROBOT_FORMS
 RECORD_HELP = "record the run as a ROS 2 bag (.mcap)"
