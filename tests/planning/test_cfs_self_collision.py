@@ -8,8 +8,8 @@ from robointel.planning.waypoints import TrajectoryPlanner
 from robointel.robot import Robot
 
 # two configurations of the MotionBenchMaker UR5 clear of itself, the straight line between them through itself
-A = np.radians([52.6673, -73.8153, -97.5792, -5.9062, -22.9467, -19.1507])
-B = np.radians([20.9799, -120.4477, -46.9698, 170.1723, -14.0755, -43.8557])
+A = np.radians([-149.1188, -94.7181, 108.4243, 29.5689, -146.0672, -24.0666])
+B = np.radians([-45.2578, -147.2461, 57.7616, 155.2775, -105.3776, 46.8176])
 
 
 @pytest.fixture(scope="module")
@@ -35,10 +35,10 @@ def test_cfs_sees_self_collision_and_its_verdict_matches_a_dense_check(ur5):
     def dense_min(X):
         return self_clearances(ur5, np.concatenate([X[k] + s * (X[k + 1] - X[k]) for k in range(len(X) - 1)]))[0].min()
 
-    blind = TrajectoryPlanner(ur5, (), N=40, dt=0.4, settings=PlannerSettings(d_min=0.02, self_collision=False))
+    blind = TrajectoryPlanner(ur5, (), N=40, dt=0.3, settings=PlannerSettings(d_min=0.02, self_collision=False))
     old = blind.plan_segment(A, B)
     assert old.feasible and dense_min(old.path) < -0.002  # without the pairs: "feasible" through itself
-    pl = TrajectoryPlanner(ur5, (), N=40, dt=0.4, settings=PlannerSettings(d_min=0.02))
+    pl = TrajectoryPlanner(ur5, (), N=40, dt=0.3, settings=PlannerSettings(d_min=0.02))
     plan = pl.plan_segment(A, B)
     assert plan.blocked
     assert plan.feasible == (dense_min(plan.path) > -1e-3)  # the planner's verdict is the dense check's
