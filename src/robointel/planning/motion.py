@@ -20,9 +20,9 @@ import numpy.typing as npt
 
 from robointel.errors import IKFailure, InvalidInput
 from robointel.outcome import Failure
+from robointel.planning import _batch_edges as BE
 from robointel.planning import _collision_kernels as K
 from robointel.planning import _dense_kernels as D
-from robointel.planning import _edge_kernels as E
 from robointel.planning import _rrt_kernels as R
 from robointel.planning import _time_shortcut as TS
 from robointel.planning.environment import Environment
@@ -34,9 +34,12 @@ from robointel.planning.motion_settings import MotionSettings
 from robointel.planning.polyline_timing import polyline_timing
 from robointel.planning.temporal import temporal_optimize
 from robointel.planning.topp import densify, topp_spline
-from robointel.planning.tree_search import path_valid, search, warm_search
+from robointel.planning.tree_search import batch_state, path_valid, search, warm_search
 from robointel.robot.model import Robot
 from robointel.trajectory import Trajectory
+
+#: the process CPU clock of the stage times (bound once: tests replace the module's ``time`` with a fake wall clock)
+_cpu_clock = time.process_time
 
 #: random seeds of the numeric IK for a pose goal (each distinct solution joins the goal set)
 IK_SEEDS = 32
@@ -81,9 +84,9 @@ class StageTimes(dict):
         self.cpu: dict[str, float] = {}
 
     def add(self, name: str, wall0: float, cpu0: float) -> None:
-        """Add the time since ``wall0`` (``time.perf_counter``) and ``cpu0`` (``time.process_time``) to ``name``."""
+        """Add the time since ``wall0`` (``time.perf_counter``) and ``cpu0`` (``_cpu_clock``) to ``name``."""
         self[name] = self.get(name, 0.0) + (time.perf_counter() - wall0) * 1e3
-        self.cpu[name] = self.cpu.get(name, 0.0) + (time.process_time() - cpu0) * 1e3
+        self.cpu[name] = self.cpu.get(name, 0.0) + (_cpu_clock() - cpu0) * 1e3
 
 
 def _goal_set(robot: Robot, goal: npt.ArrayLike | Sequence[npt.ArrayLike], seed: int) -> np.ndarray:
@@ -145,7 +148,7 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
     if not isinstance(environment, Environment) or environment.robot is not robot:
         raise InvalidInput("environment must be an Environment built for this robot", value=environment)
     _warmup(environment)
-    t0, c0 = time.perf_counter(), time.process_time()
+    t0, c0 = time.perf_counter(), _cpu_clock()
     timings = StageTimes()
     if not isinstance(settings, MotionSettings):
         raise InvalidInput("settings must be a MotionSettings", value=settings)
@@ -257,7 +260,7 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     spheres leave in doubt is checked on the collision meshes (:func:`exact_check`).
     """
     # global stage ----------------------------------------------------------------------------
-    t1, c1 = time.perf_counter(), time.process_time()
+    t1, c1 = time.perf_counter(), _cpu_clock()
     path, gi, why = None, -1, ""
     res = float(st.search_resolution)
     while path is None:
@@ -289,12 +292,12 @@ def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
     """
     robot = env.robot
     hybrid = rcap != float("inf")
-    t2, c2 = time.perf_counter(), time.process_time()
+    t2, c2 = time.perf_counter(), _cpu_clock()
     s = env.scratch
     P = np.empty((max(len(path) * 2 + 64, 256), robot.nq))
     P[:len(path)] = path
     R.seed(int(st.seed) + 1 + 7 * attempt)
-    m = TS.shortcut_time(P, len(path), int(st.shortcut_iters), Wc, Wr, rcap, s.T, s.C, s.G, s.out, float(thr),
+    m = TS.shortcut_time(P, len(path), int(st.shortcut_iters), Wc, Wr, rcap, batch_state(env), s.out, float(thr),
                          env.lever, float(st.resolution), 1.0 / vmax, 1.0 / amax)
     path = P[:m].copy()
     keep = np.concatenate([[True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-9])
@@ -313,7 +316,7 @@ def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
     Args and clock as :func:`_finish`; ``hybrid``: relaxed spheres at the roots (``rcap`` finite).
     """
     robot = env.robot
-    t3, c3 = time.perf_counter(), time.process_time()
+    t3, c3 = time.perf_counter(), _cpu_clock()
     names = list(robot.joint_names)
     traj, chk = None, None
     # hybrid: the interior (between the inner vertices) is checked in the covering spheres Wc alone (they
@@ -340,7 +343,7 @@ def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
     if chk is not None and not chk.ok and chk.kind != "timeout" and time.perf_counter() >= deadline:
         chk = timed_out("the smoothing", chk)  # a collision or a limit: no rest-to-rest fallback past the budget
     if chk is None or (not chk.ok and chk.kind != "timeout"):  # rest to rest along the checked polyline
-        t4, c4 = time.perf_counter(), time.process_time()
+        t4, c4 = time.perf_counter(), _cpu_clock()
         if st.jerk_limited:
             jmax = np.asarray(st.jerk_limit if st.jerk_limit is not None else 10 * amax, float)
             traj = jerk_limited_polyline(path, vmax, amax, jmax, dt=st.check_dt, joint_names=names)
@@ -387,9 +390,9 @@ def _warmup(env: Environment) -> None:
     warm_search(env)
     P = np.array([q, q + 1e-3 * (env.robot.upper - q)])
     one = np.ones(env.robot.nq)
-    TS.shortcut_time(P, 2, 0, W, W, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, one, one)
-    E.root_edge(P[0], P[1], W, W, True, True, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, 0.0)
-    E.edge_valid(P[0], P[1], W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
+    BS = batch_state(env)
+    TS.shortcut_time(P, 2, 0, W, W, 0.2, BS, s.out, 0.0, env.lever, 0.01, one, one)
+    BE.root_edge_batch(P[0], P[1], W, W, True, True, 0.2, BS, 0.0, 0.01, s.out)
     K.samples_clearance(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1)
     K.samples_env_below(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0)
     V = np.empty(P.shape)  # the dense check's kernels (called directly: tests count check_dense's calls)
