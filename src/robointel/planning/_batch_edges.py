@@ -144,7 +144,7 @@ def batch_advance(B, W, BS, thresh, res, cap, out):  # pragma: no cover - compil
             for b in range(LANES):
                 amax = max(amax, adv[b])
     gpairs, sgr, gL = W[14], W[22], BS[9]
-    start, ca, cb, cr = P[0], P[4], P[5], P[9]
+    start, ca, cb, cr = P[0], P[4], P[5], S[14]
     CX, CY, CZ = S[11], S[12], S[13]
     clustered = False
     for p in range(gpairs.shape[0]):
@@ -163,7 +163,7 @@ def batch_advance(B, W, BS, thresh, res, cap, out):  # pragma: no cover - compil
         if not need:
             continue
         if not clustered:
-            place_clusters(P, S)
+            place_clusters(W, P, S)
             clustered = True
         ensure_spheres(a, B, W, S)
         ensure_spheres(c, B, W, S)

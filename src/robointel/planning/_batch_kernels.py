@@ -60,11 +60,12 @@ class BatchScratch:
         self.placed = np.zeros(g, np.int64)  # 1 where the group's sphere centres are computed
         c = max(clusters, 1)
         self.CX, self.CY, self.CZ = np.empty((c, lanes)), np.empty((c, lanes)), np.empty((c, lanes))
+        self.CR = np.empty(c)  # cluster radii over the current self-collision radii
 
     def arrays(self) -> tuple:
-        """The tuple the kernels take: (Q, TB, X, Y, Z, GX, GY, GZ, L, GB, placed, CX, CY, CZ)."""
+        """The tuple the kernels take: (Q, TB, X, Y, Z, GX, GY, GZ, L, GB, placed, CX, CY, CZ, CR)."""
         return (self.Q, self.TB, self.X, self.Y, self.Z, self.GX, self.GY, self.GZ, self.L, self.GB, self.placed,
-                self.CX, self.CY, self.CZ)
+                self.CX, self.CY, self.CZ, self.CR)
 
 
 #: most spheres in a cluster (a group's spheres are split into clusters for the self-collision pairs)
@@ -75,14 +76,16 @@ def batch_world(W: tuple) -> tuple:
     """The batch view of ``W``'s geometry.
 
     (start (p + 1,), i (s,), j (s,), obstacle boxes (k, 6), ca (c2,), cb (c2,), sstart (c2 + 1,),
-    cj (c,), cc (c, 3), cr (c,)): each group's spheres split into clusters of at most
-    :data:`CLUSTER` (joint ``cj``, bounding-sphere centre ``cc`` in the joint frame and radius
-    ``cr`` over the self-collision radii); group pair ``p`` (``W[14][p]``) holds the cluster pairs
+    cj (c,), cc (c, 3), cdist (m,), mstart (c + 1,), members (m,)): each group's spheres split into
+    clusters of at most :data:`CLUSTER` (joint ``cj``, centre ``cc`` in the joint frame, the spheres
+    ``members[mstart[c]:mstart[c+1]]`` at ``cdist`` from it; the radius over the world's current
+    self-collision radii is computed per batch, :func:`place_clusters`, since the planner shifts
+    those radii per plan); group pair ``p`` (``W[14][p]``) holds the cluster pairs
     ``start[p]:start[p+1]`` (clusters ``ca``, ``cb``), cluster pair ``t`` the sphere pairs
     ``i[sstart[t]:sstart[t+1]]``, ``j[...]`` (those with ``W[15][i, j] == 1``); each obstacle's
     axis-aligned bounding box (min xyz, max xyz, m).
     """
-    gs, sp, ssr, gj, gpairs, smask = W[11], W[6], W[21], W[8], W[14], W[15]
+    gs, sp, gj, gpairs, smask = W[11], W[6], W[8], W[14], W[15]
     cl_of = np.empty(len(sp), np.int64)
     members: list[np.ndarray] = []
     for k in range(len(gj)):
@@ -99,7 +102,11 @@ def batch_world(W: tuple) -> tuple:
             stack += [order[len(order) // 2:], order[:len(order) // 2]]
     cj = np.array([int(W[5][m[0]]) for m in members], np.int64)
     cc = np.array([(sp[m].min(0) + sp[m].max(0)) / 2 for m in members]).reshape(-1, 3)
-    cr = np.array([np.max(np.linalg.norm(sp[m] - c, axis=1) + ssr[m]) for m, c in zip(members, cc)])
+    cdist = np.zeros(len(sp))
+    for m, c in zip(members, cc):
+        cdist[m] = np.linalg.norm(sp[m] - c, axis=1)
+    mstart = np.concatenate([[0], np.cumsum([len(m) for m in members])]).astype(np.int64)
+    midx = np.concatenate(members).astype(np.int64) if members else np.zeros(0, np.int64)
     start, ca, cb, sstart, pi, pj = [0], [], [], [0], [], []
     for a, b in gpairs:
         pairs: dict[tuple[int, int], list[tuple[int, int]]] = {}
@@ -116,7 +123,8 @@ def batch_world(W: tuple) -> tuple:
         start.append(len(ca))
     i64 = np.int64
     return (np.array(start, i64), np.array(pi, i64), np.array(pj, i64), obstacle_boxes(W[12], W[13]),
-            np.array(ca, i64), np.array(cb, i64), np.array(sstart, i64), cj, np.ascontiguousarray(cc), cr)
+            np.array(ca, i64), np.array(cb, i64), np.array(sstart, i64), cj, np.ascontiguousarray(cc), cdist, mstart,
+            midx)
 
 
 @njit(cache=True)
@@ -251,12 +259,22 @@ def batch_groups(B, W, S):  # pragma: no cover - compiled
 
 
 @njit(cache=True, fastmath=FM)
-def place_clusters(P, S):  # pragma: no cover - compiled
-    """Cluster centres ``S[11:14]`` (c, lanes) of the batch (after :func:`batch_groups`)."""
-    cj, cc = P[7], P[8]
-    TB, CX, CY, CZ = S[1], S[11], S[12], S[13]
+def place_clusters(W, P, S):  # pragma: no cover - compiled
+    """Cluster centres ``S[11:14]`` (c, lanes) of the batch (after :func:`batch_groups`) and radii ``S[14]``.
+
+    A cluster's radius is the largest of its spheres' distance from its centre plus the sphere's
+    current self-collision radius (``W[21]``).
+    """
+    cj, cc, cdist, mstart, midx = P[7], P[8], P[9], P[10], P[11]
+    ssr = W[21]
+    TB, CX, CY, CZ, CR = S[1], S[11], S[12], S[13], S[14]
     for c in range(cj.shape[0]):
         _place(TB, cj[c], cc[c, 0], cc[c, 1], cc[c, 2], CX, CY, CZ, c, LANES)
+        r = 0.0
+        for t in range(mstart[c], mstart[c + 1]):
+            i = midx[t]
+            r = max(r, cdist[i] + ssr[i])
+        CR[c] = r
 
 
 @njit(cache=True, fastmath=FM, inline="always")
@@ -391,7 +409,7 @@ def batch_free(B, W, P, S, thresh, out):  # pragma: no cover - compiled
                         out[0], out[1], out[2] = 2, i, 0
                         return b
     gpairs, ssr, sgr = W[14], W[21], W[22]
-    start, pi, pj, ca, cb, sstart, cr = P[0], P[1], P[2], P[4], P[5], P[6], P[9]
+    start, pi, pj, ca, cb, sstart, cr = P[0], P[1], P[2], P[4], P[5], P[6], S[14]
     CX, CY, CZ = S[11], S[12], S[13]
     clustered = False
     for p in range(gpairs.shape[0]):
@@ -406,7 +424,7 @@ def batch_free(B, W, P, S, thresh, out):  # pragma: no cover - compiled
         if _lane_min(D, B) >= lim * lim:
             continue
         if not clustered:
-            place_clusters(P, S)
+            place_clusters(W, P, S)
             clustered = True
         ensure_spheres(a, B, W, S)
         ensure_spheres(c, B, W, S)
@@ -482,7 +500,7 @@ def batch_clearance(B, W, P, S, cap, best):  # pragma: no cover - compiled
             for b in range(LANES):
                 worst = max(worst, best[b])
     gpairs, ssr, sgr = W[14], W[21], W[22]
-    start, pi, pj, ca, cb, sstart, cr = P[0], P[1], P[2], P[4], P[5], P[6], P[9]
+    start, pi, pj, ca, cb, sstart, cr = P[0], P[1], P[2], P[4], P[5], P[6], S[14]
     CX, CY, CZ = S[11], S[12], S[13]
     clustered = False
     for p in range(gpairs.shape[0]):
@@ -498,7 +516,7 @@ def batch_clearance(B, W, P, S, cap, best):  # pragma: no cover - compiled
         if not need:
             continue
         if not clustered:
-            place_clusters(P, S)
+            place_clusters(W, P, S)
             clustered = True
         ensure_spheres(a, B, W, S)
         ensure_spheres(c, B, W, S)
