@@ -3,12 +3,12 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint install bench clean
+.PHONY: demo test lint install bench clean wheel-check docs-check
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	$(BIN)/python -m pip install --quiet -e ".[all,dev,docs]"
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -20,11 +20,22 @@ lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples tools
 	$(BIN)/mypy
 
-# the suite on 2 pytest-xdist workers, grouped as tests/conftest.py says (docs/design/testing.md);
-# TEST_WORKERS=0 runs it in one process
+# lint, the wheel and the front door's figures, then the suite on 2 pytest-xdist workers, grouped as
+# tests/conftest.py says (docs/design/testing.md); TEST_WORKERS=0 runs it in one process
 TEST_WORKERS ?= 2
-test: $(STAMP) lint
+test: $(STAMP) lint docs-check
 	$(BIN)/python -m pytest -q -p no:cacheprovider -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder tests
+
+# the wheel built, installed with its core dependencies in a fresh virtual environment outside the repository,
+# and used from there (tools/wheel_check.py: packaged files, the first quickstart, robointel demo --quick)
+wheel-check: $(STAMP)
+	$(BIN)/python tools/wheel_check.py --out build/wheel-check.json
+
+# the front door's figures (tools/docs_check.py: README length, process words, import cycles, core
+# dependencies, mkdocs --strict, the wheel's quickstart); with the gate on, make test fails when one misses
+FRONT_DOOR_GATE ?= off
+docs-check: wheel-check
+	$(BIN)/python tools/docs_check.py --json --wheel-report build/wheel-check.json || [ "$(FRONT_DOOR_GATE)" = off ]
 
 bench: $(STAMP)
 	for b in benchmarks/*.py; do $(BIN)/python $$b --json || exit 1; done

