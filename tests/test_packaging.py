@@ -155,3 +155,22 @@ def test_the_wheel_holds_exactly_the_package_files(tmp_path):
     assert found["missing"] == [] and found["unexpected"] == [], found
     assert len(found["core_requires"]) == len(PYPROJECT["dependencies"])
     assert set(_extras.EXTRAS) <= set(found["extras"]) and found["console_scripts"] == ["robointel"]
+
+
+def test_demo_runs_the_chosen_stages_and_skips_one_whose_extra_is_missing(tmp_path):
+    from typer.testing import CliRunner
+
+    from robointel.cli import app
+    from robointel.report.demo import StageResult, run_demo
+
+    bad = CliRunner().invoke(app, ["demo", "--quick", "--stages", "core,nope", "--out", str(tmp_path / "x")])
+    assert bad.exit_code == 2 and "unknown demo stage 'nope'" in bad.output and "planning" in bad.output
+
+    def needs_teleop(ctx):
+        raise _extras.missing_extra("teleop", "the teleoperation stage", "viser")
+
+    def runs(ctx):
+        return StageResult(title="runs", text="ran")
+
+    page = run_demo([needs_teleop, runs], tmp_path / "report", quick=True).read_text()
+    assert "skipped: the teleoperation stage needs the &#x27;teleop&#x27; extra" in page and "ran" in page
