@@ -174,3 +174,22 @@ def test_demo_runs_the_chosen_stages_and_skips_one_whose_extra_is_missing(tmp_pa
 
     page = run_demo([needs_teleop, runs], tmp_path / "report", quick=True).read_text()
     assert "skipped: the teleoperation stage needs the &#x27;teleop&#x27; extra" in page and "ran" in page
+
+
+def test_wheel_contents_finds_missing_and_unexpected_files(tmp_path):
+    import zipfile
+
+    wheel = tmp_path / "robointel-0.1.0-py3-none-any.whl"
+    with zipfile.ZipFile(wheel, "w") as z:
+        for name in ("robointel/__init__.py", "robointel/robot/model.py", "robointel/stray.txt"):
+            z.writestr(name, "")
+        z.writestr("robointel-0.1.0.dist-info/METADATA",
+                   "Name: robointel\nRequires-Dist: numpy>=1.26\nRequires-Dist: viser>=0.2; extra == \"teleop\"\n"
+                   "Provides-Extra: teleop\n")
+        z.writestr("robointel-0.1.0.dist-info/entry_points.txt", "[console_scripts]\nrobointel = robointel.cli:app\n")
+    expected = {"robointel/__init__.py", "robointel/robot/model.py", "robointel/robot/descriptions/arm.urdf"}
+    found = _tool("wheel_check").wheel_contents(wheel, expected)
+    assert found["missing"] == ["robointel/robot/descriptions/arm.urdf"]
+    assert found["unexpected"] == ["robointel/stray.txt"]
+    assert found["core_requires"] == ["numpy>=1.26"] and found["extras"] == ["teleop"]
+    assert found["console_scripts"] == ["robointel"] and found["files"] == 3

@@ -13,8 +13,8 @@ Steps (each timed; the JSON printed at the end holds them all, ``ok`` is true wh
 4. ``smoke``: ``tools/wheel_smoke.py`` with that environment's interpreter, from a folder outside the
    repository, with no ``PYTHONPATH``: every packaged file loads, ``robointel`` comes from the
    environment, and a motion is planned for an arm from its URDF around a box.
-5. ``quickstart``: ``examples/quickstart_plan.py`` (the README's first quickstart) run the same way, when
-   the repository has it.
+5. ``quickstart``: ``examples/quickstart_plan.py`` (the README's first quickstart) run the same way, from a
+   copy of ``examples/``, when the repository has it.
 6. ``demo``: ``robointel demo --quick --stages STAGES`` with the environment's command.
 
 Usage: ``python tools/wheel_check.py [--extras fanuc,teleop] [--stages core,planning] [--out FILE] [--keep]``.
@@ -195,9 +195,9 @@ def check(root: Path, work: Path, *, extras: str = "", stages: str = "core,plann
     except (ValueError, KeyError, IndexError):
         smoke["ok"] = False
     steps.append(smoke)
-    if (root / QUICKSTART).is_file():
-        shutil.copy2(root / QUICKSTART, run / QUICKSTART.name)
-        steps.append(_run("quickstart", [py, QUICKSTART.name], cwd=run, env=env))
+    if (root / QUICKSTART).is_file():  # with the examples beside it, as a user who copied the folder has them
+        shutil.copytree(root / QUICKSTART.parent, run / QUICKSTART.parent)
+        steps.append(_run("quickstart", [py, str(QUICKSTART)], cwd=run, env=env))
         report["quickstart"] = str(QUICKSTART)
     else:
         report["quickstart"] = f"the motion of tools/wheel_smoke.py ({QUICKSTART} not found)"
