@@ -8,7 +8,8 @@ everything loaded and the motion was planned:
 - ``robots``, ``scenes``, ``programs``, ``skills``: every built-in robot description, planning scene, task
   program and skill file, loaded through the public API (the files the package reads at run time);
 - ``plan``: a URDF copied out of the package, loaded by path, and a start-to-goal motion around a box
-  (the first quickstart): success, duration and minimum clearance.
+  (the first quickstart): success, duration and minimum clearance;
+- ``seconds``: the time each of the two took (the first run in an environment compiles the numba kernels).
 
 Usage: ``python wheel_smoke.py`` (no arguments).
 """
@@ -18,6 +19,7 @@ from __future__ import annotations
 import json
 import shutil
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -82,8 +84,11 @@ def main() -> int:
 
     out: dict[str, Any] = {"robointel_file": robointel.__file__, "version": robointel.__version__,
                            "python": sys.executable}
+    t0 = time.perf_counter()
     out.update(packaged_files())
+    t1 = time.perf_counter()
     out["plan"] = plan_from_urdf(Path.cwd())
+    out["seconds"] = {"packaged_files": round(t1 - t0, 2), "plan": round(time.perf_counter() - t1, 2)}
     print(json.dumps(out))
     return 0 if out["plan"]["success"] else 1
 
