@@ -32,7 +32,8 @@ docs: $(STAMP)
 
 # the wheel built, installed with its core dependencies (and WHEEL_EXTRAS) in a fresh virtual environment outside
 # the repository, and used from there (tools/wheel_check.py: packaged files, the first quickstart, demo --quick)
-WHEEL_EXTRAS ?=
+# (the first quickstart plans for the UR5 of example-robot-data: the robots extra)
+WHEEL_EXTRAS ?= robots
 wheel-check: $(STAMP)
 	$(BIN)/python tools/wheel_check.py --extras "$(WHEEL_EXTRAS)" --out build/wheel-check.json
 
