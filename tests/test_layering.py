@@ -26,7 +26,7 @@ LAYERS = [
     ("skills", "teach", "learning", "planning"),
     ("interface", "sim", "control", "io"),
     ("robot", "geometry", "trajectory"),
-    ("outcome", "_validate", "_extras"),
+    ("outcome", "_validate", "_extras", "_lazy"),
     ("errors",),
 ]
 

@@ -15,10 +15,10 @@ The entry points a user starts from; each is imported from its module on first a
 
 from __future__ import annotations
 
-import importlib
 from importlib.metadata import PackageNotFoundError, version
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from robointel._lazy import lazy_exports
 from robointel.errors import (
     CollisionAtStart,
     ControllerFault,
@@ -70,14 +70,4 @@ __all__ = [
     "DescriptionError", "SafetyStop", "ControllerFault", "MissingExtra", "__version__",
 ]
 
-
-def __getattr__(name: str) -> Any:
-    """Import a public name from its module on first access."""
-    if name in _EXPORTS:
-        return getattr(importlib.import_module(_EXPORTS[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    """The public names."""
-    return list(__all__)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, __all__)

@@ -8,8 +8,9 @@ access, so reading a scene or a trajectory does not load h5py.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from robointel._lazy import lazy_exports
 
 if TYPE_CHECKING:
     from robointel.io.demonstrations import DemonstrationFile, DemonstrationRecord
@@ -36,14 +37,4 @@ __all__ = [
     "load_trajectory", "read_scene_file", "save_trajectory", "write_scene_file",
 ]
 
-
-def __getattr__(name: str) -> Any:
-    """Import a public name from its module on first access."""
-    if name in _EXPORTS:
-        return getattr(importlib.import_module(_EXPORTS[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    """The public names."""
-    return list(__all__)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, __all__)
