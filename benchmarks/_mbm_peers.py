@@ -4,9 +4,9 @@
   check: Pinocchio/coal collision of the URDF's collision meshes with the obstacles and between
   non-adjacent links (SRDF pairs removed), one C++ call per state, motions checked every
   ``1/32`` rad (VAMP's resolution).
-* VAMP: ``vamp.ur5.rrtc`` + ``vamp.ur5.simplify`` on VAMP's own UR5 sphere model and its own reading
-  of the problem (``vamp.problem_dict_to_vamp``). Built by ``../shared/tools/vamp/build.sh``; a
-  benchmark peer only.
+* VAMP: ``vamp.<robot>.rrtc`` + ``vamp.<robot>.simplify`` (``ur5`` or ``fetch``) on VAMP's own sphere
+  model of the robot and its own reading of the problem (``vamp.problem_dict_to_vamp``). Built by
+  ``../shared/tools/vamp/build.sh``; a benchmark peer only.
 
 Both geometric paths are timed by TOPP-RA (``toppra``) on a cubic spline through the waypoints
 (points every 0.1 rad along the polyline so the spline stays near the checked edges, chord-length

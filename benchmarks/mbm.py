@@ -1,4 +1,4 @@
-"""MotionBenchMaker UR5 problems: robointel's start-to-goal planner beside OMPL and VAMP, one core.
+"""MotionBenchMaker problems (UR5, Fetch): robointel's start-to-goal planner beside OMPL and VAMP, one core.
 
 Ours: ``robointel.planning.plan_motion`` (global search, smoothing, time parametrisation) on the
 problem read by ``robointel.io.mbm``. Peers, in the same run on the same problems and limits:
@@ -9,8 +9,13 @@ RRT-Connect + simplification + TOPP-RA (VAMP's own UR5 spheres). Every trajector
 Limits: the URDF's joint velocity limits (0.5 rad/s on this UR5) and accelerations of 3x the
 velocity limit (1.5 rad/s^2, robointel's default ``Robot.acceleration_limit``) for all three.
 
-    python benchmarks/mbm.py --json [--all | --per-family N] [--families cage box] [--peers ompl vamp] [--frmp]
-                             [--jsonl rows.jsonl [--resume]]
+    python benchmarks/mbm.py --json [--robot ur5|fetch] [--spheres file|auto] [--all | --per-family N]
+                             [--families cage box] [--peers ompl vamp] [--frmp] [--jsonl rows.jsonl [--resume]]
+
+``--robot`` picks the folder under ``../shared/data/mbm`` (its URDF, SRDF and ``problems.json``; the planned
+joints are the file's ``joints``, the others held); ``--spheres auto`` plans with the spheres robointel fits
+to the meshes instead of the folder's ``<robot>_spherized.urdf``. ``refused_free_starts`` counts the
+problems whose start or goal we refused although the checker finds it >= 1 mm clear.
 
 ``--all`` runs every valid problem (689); ``--jsonl`` appends one line per planner and problem as soon as
 it is judged, so a long run loses nothing, and ``--resume`` skips the problems already in that file

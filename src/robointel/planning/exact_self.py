@@ -19,6 +19,7 @@ import numpy as np
 import pinocchio as pin
 
 from robointel.planning.exact_geometry import coal_geometry, contact_distance
+from robointel.robot._ik_kernels import chain_placements
 from robointel.robot.model import Robot
 
 
@@ -86,6 +87,11 @@ class SelfGeometry:
         self._solid_frame = np.array([self._frames.index(s.frame) for s in self.solids], int)
         self._centres = np.array([s.centre for s in self.solids], float).reshape(-1, 3)
         self._radii = np.array([s.radius for s in self.solids], float)
+        # each solid's placement in its joint's frame, for the compiled joint placements
+        self._solid_joint = [robot.link_joint(s.link) for s in self.solids]
+        self._in_joint = [robot._link_in_joint[s.link] @ s.placement for s in self.solids]
+        self._T = np.zeros((robot.model.njoints, 4, 4))
+        self._T[0] = np.eye(4)
         solid_lever = self._levers()
         #: (P, n): the distance of pair p changes at most sum_k pair_lever[p, k] |dq_k| (m)
         # a joint that moves both solids of a pair moves them together: only the others change their distance
@@ -112,8 +118,7 @@ class SelfGeometry:
 
     def pair_distances(self, q: np.ndarray, which: np.ndarray, *, thresh: float) -> np.ndarray:
         """Distances (len(which),) of the pairs ``which`` at q: exact below ``thresh``, else lower bounds above it."""
-        robot = self.robot
-        pin.framesForwardKinematics(robot.model, robot.data, q)
+        chain_placements(q, *self.robot.chain, self._T)  # compiled joint placements (no Pinocchio call)
         req = coal.DistanceRequest()
         placed: dict[int, Any] = {}
         out = np.empty(len(which))
@@ -121,7 +126,7 @@ class SelfGeometry:
             i, j = int(self.pairs[p, 0]), int(self.pairs[p, 1])
             for k in (i, j):
                 if k not in placed:
-                    T = robot.data.oMf[self.solids[k].frame].homogeneous @ self.solids[k].placement
+                    T = self._T[self._solid_joint[k]] @ self._in_joint[k]
                     placed[k] = coal.Transform3s(T[:3, :3], T[:3, 3])
             si, sj = self.solids[i], self.solids[j]
             d = coal.distance(si.hull, placed[i], sj.hull, placed[j], req, coal.DistanceResult())

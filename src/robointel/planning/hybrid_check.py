@@ -6,6 +6,7 @@ exact check looks at the clock so that a plan's time budget holds inside an atte
 """
 from __future__ import annotations
 
+import heapq
 import time
 
 import numpy as np
@@ -160,27 +161,33 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
     dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
     Q = np.ascontiguousarray(dense.q)
     K, P = len(Q), len(sg.pairs)
-    # M[k, p]: bound of the change of pair p's distance from sample 0 to sample k
-    M = np.vstack([np.zeros((1, P)), np.cumsum(np.abs(np.diff(Q, axis=0)) @ sg.pair_lever.T, axis=0)])
-    due = np.zeros(P, np.int64)  # the next sample at which each pair must be measured
+    # M[p, k]: bound of the change of pair p's distance from sample 0 to sample k
+    M = np.ascontiguousarray(np.hstack([np.zeros((P, 1)), np.cumsum(sg.pair_lever @ np.abs(np.diff(Q, axis=0)).T,
+                                                                     axis=1)]))
+    heap = [(0, p) for p in range(P)]  # (the next sample at which pair p must be measured, p)
     n = 0
-    while True:
-        k = int(due.min())
+    while heap:
+        k = heap[0][0]
         if k >= K:
             return chk
+        which = []
+        while heap and heap[0][0] == k:
+            which.append(heapq.heappop(heap)[1])
         if n % MESH_CHUNK == 0 and time.perf_counter() >= deadline:
             return timed_out("the self-collision check", chk)
-        which = np.flatnonzero(due == k)
         n += len(which)
-        d = sg.pair_distances(Q[k], which, thresh=thr)
-        if d.min() < thr:
-            w = int(which[int(np.argmin(d))])
-            la, lb = sg.solids[sg.pairs[w, 0]].link, sg.solids[sg.pairs[w, 1]].link
-            return DenseCheck(False, f"self-collision check: link {la!r} is {d.min() * 1e3:.2f} mm from link {lb!r} "
-                              f"at t = {dense.t[k]:.3f} s", "collision", min(float(d.min()), chk.min_clearance_m),
-                              chk.samples)
-        for p, dp in zip(which, d):  # proven until the travel since eats the margin
-            due[p] = max(k + 1, int(np.searchsorted(M[:, p], M[k, p] + (dp - thr), side="left")))
+        d = sg.pair_distances(Q[k], np.asarray(which), thresh=thr)
+        for p, dp in zip(which, d):
+            if dp < thr:
+                la, lb = sg.solids[sg.pairs[p, 0]].link, sg.solids[sg.pairs[p, 1]].link
+                return DenseCheck(False, f"self-collision check: link {la!r} is {dp * 1e3:.2f} mm from link {lb!r} "
+                                  f"at t = {dense.t[k]:.3f} s", "collision", min(float(dp), chk.min_clearance_m),
+                                  chk.samples)
+            # proven until the relative travel since eats the margin
+            nxt = max(k + 1, int(np.searchsorted(M[p], M[p, k] + (dp - thr), side="left")))
+            if nxt < K:
+                heapq.heappush(heap, (nxt, p))
+    return chk
 
 
 def exact_roots(env: Environment, q0: np.ndarray, goals: np.ndarray, floor: float) -> np.ndarray:

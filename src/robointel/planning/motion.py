@@ -46,7 +46,7 @@ from robointel.robot.model import Robot
 from robointel.trajectory import Trajectory
 
 #: how far the fitted spheres (inside the meshes) are grown for self-collision during a plan, at most, m
-SELF_MARGIN = 0.01
+SELF_MARGIN = 0.003
 #: random seeds of the numeric IK for a pose goal (each distinct solution joins the goal set)
 IK_SEEDS = 32
 

@@ -52,6 +52,13 @@ def _fk(q: Arr, parent: Arr, place: Arr, axis: Arr, kind: Arr, qidx: Arr, upto: 
 
 
 @njit(cache=True)
+def chain_placements(q: Arr, parent: Arr, place: Arr, axis: Arr, kind: Arr, qidx: Arr,  # pragma: no cover
+                     T: Arr) -> None:
+    """Every joint's placement T (nj, 4, 4) in the world at q (T[0] must hold the identity)."""
+    _fk(q, parent, place, axis, kind, qidx, parent.shape[0] - 1, T)
+
+
+@njit(cache=True)
 def _log3(R: Arr, w: Arr) -> None:  # pragma: no cover - compiled
     """The rotation vector w (3,) of the rotation matrix R (3, 3)."""
     tr = R[0, 0] + R[1, 1] + R[2, 2]

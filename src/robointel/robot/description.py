@@ -3,8 +3,9 @@
 * Joints: revolute, continuous, prismatic, fixed and mimic. A continuous joint becomes a revolute
   joint over [-2 pi, 2 pi] (planned as an angle; a goal is wrapped by whole turns to the nearest
   representative, see :meth:`robointel.robot.Robot.wrap_goal`). A mimic joint follows its master
-  (value = multiplier * master + offset) and is held with it; a mimic joint whose master is planned
-  is refused (named).
+  (value = multiplier * master + offset) and is held with it; in a planning group, a mimic joint
+  whose master is planned is refused (named); with no group (every joint planned) it is planned as a
+  joint of its own, as before.
 * Planning group: an SRDF group name, a base and tip link, or a list of joint names; every other
   movable joint is held at the value the user gives (default: 0, or the mid-range when 0 is
   outside its limits) and locked out of the model (Pinocchio's ``buildReducedModel``).
@@ -223,8 +224,11 @@ def select_group(full: pin.Model, source: str, *, srdf: SRDF | None, group: str 
 
 
 def reduce(full: pin.Model, source: str, plan: list[str], held: Mapping[str, float] | None,
-           mimic: dict[str, tuple[str, float, float]]) -> tuple[pin.Model, dict[str, float]]:
+           mimic: dict[str, tuple[str, float, float]], *, strict: bool = True) -> tuple[pin.Model, dict[str, float]]:
     """Lock every movable joint outside ``plan`` at its held value.
+
+    With ``strict`` False (no group given: every joint planned), a mimic joint planned with its
+    master is planned as a joint of its own, as Pinocchio models it.
 
     Returns:
         (the reduced model, the held values).
@@ -253,6 +257,8 @@ def reduce(full: pin.Model, source: str, plan: list[str], held: Mapping[str, flo
             raise InvalidInput(f"held value {v} of joint {jn!r} is outside its limits [{lo}, {hi}]", value=v)
         values[jn] = v
     for jn, (master, mult, off) in mimic.items():
+        if not strict and jn in plan and master in plan:
+            continue  # every joint planned (no group given): a mimic joint is planned as a joint of its own
         if jn in plan or master in plan:
             raise DescriptionError(f"URDF {source}: mimic joint {jn!r} follows {master!r}; robointel holds a mimic "
                                    "joint with its master (leave both out of the planning group)", value=jn)
@@ -285,5 +291,6 @@ def load_description(text: str, source: str, *, srdf: SRDF | None = None, group:
     if full.nq == 0:
         raise DescriptionError(f"URDF {source} has no movable joints", value=source)
     plan = select_group(full, source, srdf=srdf, group=group, base_link=base_link, tip_link=tip_link, joints=joints)
-    model, values = reduce(full, source, plan, held, mimic)
+    strict = group is not None or tip_link is not None or joints is not None
+    model, values = reduce(full, source, plan, held, mimic, strict=strict)
     return Description(prepared, source, full, model, plan, values, continuous, mimic)

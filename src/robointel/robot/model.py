@@ -27,13 +27,14 @@ from numpy.typing import ArrayLike, NDArray
 from robointel._extras import missing_extra
 from robointel._validate import as_array, check_limits
 from robointel.errors import DescriptionError, DescriptionWarning, IKFailure, InvalidInput, NotFinite, UnknownRobot
-from robointel.robot._ik_kernels import ik_solve
 from robointel.robot._kernels import points_jacobians, points_jacobians_batch
 from robointel.robot.chain import chain_arrays
 from robointel.robot.collision import SphereModel
 from robointel.robot.description import load_description
+from robointel.robot.dynamics import RigidBodyDynamics
 from robointel.robot.geometry_urdf import read_collision_geometry
 from robointel.robot.ik import LRMateIK
+from robointel.robot.ik_numeric import numeric_ik
 from robointel.robot.sphere_fit import fit_spheres
 from robointel.robot.srdf import SRDF, read_srdf
 
@@ -86,7 +87,7 @@ def example_robot_urdf(name: str) -> Path:
     return d / rel
 
 
-class Robot:
+class Robot(RigidBodyDynamics):
     """A fixed-base robot on Pinocchio: one planning group of a URDF, the other joints held.
 
     Args:
@@ -239,7 +240,7 @@ class Robot:
         """Load a built-in robot, an ``example-robot-data`` arm or a URDF file (and optionally an SRDF and a group).
 
         Load a built-in robot (``"lrmate200id7l"``, ``"scara2"``), an ``example-robot-data`` arm (``"ur5"``,
-        ``"panda"``: the Panda's seven arm joints, the fingers held) or a URDF file. The other keyword
+        ``"panda"``) or a URDF file. The other keyword
         arguments are those of :class:`Robot`.
 
         Raises:
@@ -254,8 +255,6 @@ class Robot:
             path, name = example_robot_urdf(key), key
             if flange_frame is None and tip_link is None:
                 flange_frame = {"ur5": "tool0", "panda": "panda_hand"}[key]
-            if key == "panda" and joints is None and group is None and tip_link is None:
-                joints = [f"panda_joint{i}" for i in range(1, 8)]
         else:
             path = Path(key).expanduser()
             if not path.exists():
@@ -496,57 +495,7 @@ class Robot:
         Raises:
             IKFailure: no start converged (the pose is unreachable within the limits, or needs more restarts).
         """
-        T = as_array(T, "T", (4, 4))
-        seeds = (self.check_q(q0, "q0") if q0 is not None else 0.5 * (self.lower + self.upper))[None]
-        tip = self.model.frames[self._flange_id].placement.homogeneous @ self._tool
-        jt = int(self.model.frames[self._flange_id].parentJoint)
-        out = np.empty(self.nq)
-        seed = int(np.random.default_rng(rng).integers(1 << 31))
-        parent, place, axis, kind, qidx = self.chain
-        k, err2 = ik_solve(np.ascontiguousarray(T), np.ascontiguousarray(seeds), parent, place, axis, kind, qidx, jt,
-                           np.ascontiguousarray(tip), self.lower, self.upper, float(tol), int(max_iter), int(restarts),
-                           seed, out)
-        if k < 0:
-            raise IKFailure(f"numeric IK did not converge in {restarts + 1} starts (best 6-D error "
-                            f"{np.sqrt(err2):.3g} > {tol:g}); the pose at {np.round(T[:3, 3], 4).tolist()} m may be "
-                            "unreachable within the joint limits", value=out)
-        return out
-
-    # ------------------------------------------------------------------ dynamics (2.5)
-    def mass_matrix(self, q: ArrayLike) -> np.ndarray:
-        """M(q), n x n."""
-        q = self.check_q(q)
-        M = pin.crba(self.model, self.data, q)
-        return np.triu(M) + np.triu(M, 1).T
-
-    def nonlinear_effects(self, q: ArrayLike, qd: ArrayLike) -> np.ndarray:
-        """C(q, qd) qd + G(q)."""
-        return pin.nonLinearEffects(self.model, self.data, self.check_q(q), self.check_q(qd, "qd"))
-
-    def coriolis(self, q: ArrayLike, qd: ArrayLike) -> np.ndarray:
-        """C(q, qd) qd (Coriolis and centrifugal torques)."""
-        return self.nonlinear_effects(q, qd) - self.gravity(q)
-
-    def gravity(self, q: ArrayLike) -> np.ndarray:
-        """G(q)."""
-        return pin.computeGeneralizedGravity(self.model, self.data, self.check_q(q))
-
-    def friction(self, qd: ArrayLike, *, smooth: float = 1e-3) -> np.ndarray:
-        """Joint friction torques F_v qd + F_c sign(qd) (tanh-smoothed over ``smooth`` rad/s)."""
-        qd = self.check_q(qd, "qd")
-        return self.viscous * qd + self.coulomb * np.tanh(qd / smooth)
-
-    def inverse_dynamics(self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, *, friction: bool = False) -> np.ndarray:
-        """Tau = M qdd + C qd + G (+ friction) by RNEA."""
-        tau = pin.rnea(self.model, self.data, self.check_q(q), self.check_q(qd, "qd"), self.check_q(qdd, "qdd"))
-        return tau + self.friction(qd) if friction else tau
-
-    def forward_dynamics(self, q: ArrayLike, qd: ArrayLike, tau: ArrayLike, *, friction: bool = False) -> np.ndarray:
-        """Qdd = M^-1 (tau - C qd - G (- friction)) by ABA."""
-        q, qd, tau = self.check_q(q), self.check_q(qd, "qd"), self.check_q(tau, "tau")
-        if friction:
-            tau = tau - self.friction(qd)
-        return pin.aba(self.model, self.data, q, qd, tau)
+        return numeric_ik(self, T, q0=q0, tol=tol, max_iter=max_iter, restarts=restarts, rng=rng)
 
     # ------------------------------------------------------------------ URDF geometry
     def _read_primitives(self) -> dict[str, list[dict]]:
