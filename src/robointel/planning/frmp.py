@@ -20,11 +20,11 @@ from robointel.planning.scene import Scene
 from robointel.planning.segment import self_clearances
 from robointel.planning.temporal import TemporalResult, concatenate_segments, fixed_dt_segment, temporal_optimize
 from robointel.planning.waypoints import PlannerSettings, SegmentPlan, TrajectoryPlanner, sphere_clearances
-from robointel.sim import Workcell
 from robointel.trajectory import Trajectory
 
 if TYPE_CHECKING:  # pragma: no cover
     from robointel.robot import Robot
+    from robointel.sim import Workcell
 
 
 @dataclass
@@ -273,6 +273,8 @@ def execute(result: FRMPResult, *, workcell: Workcell | None = None) -> Executio
     # the workcell builds its own table and floor: pass only the scene's other obstacles
     obstacles = [o for o in scene.obstacles if not (getattr(scene, "table", False)
                                                     and getattr(o, "name", None) in ENVIRONMENT_NAMES)]
+    from robointel.sim import Workcell  # MuJoCo loads here, not with the planner
+
     wc = workcell or Workcell(scene.robot, obstacles=obstacles, ft_sensor=False)
     tr = result.trajectory
     log = wc.run_trajectory(tr, record_ft=False)

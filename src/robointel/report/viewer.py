@@ -13,17 +13,24 @@ import time
 from collections.abc import Sequence
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import viser
-import yourdfpy
-from viser.extras import ViserUrdf
 
+from robointel._extras import optional_module
 from robointel.errors import DescriptionError, InvalidInput
 from robointel.geometry.obstacles import Box, Sphere
 from robointel.geometry.rotations import matrix_to_quat
 from robointel.trajectory import Trajectory
+
+if TYPE_CHECKING:
+    import viser
+    import viser.extras
+    import yourdfpy
+else:
+    viser = optional_module("viser", "teleop", "the trajectory viewer")
+    optional_module("viser.extras", "teleop", "the trajectory viewer")  # viser.extras.ViserUrdf
+    yourdfpy = optional_module("yourdfpy", "teleop", "the trajectory viewer")
 
 __all__ = ["TrajectoryViewer"]
 
@@ -70,7 +77,7 @@ class TrajectoryViewer:
         self._rest = np.array(rest, float)
         self.server = viser.ViserServer(host="127.0.0.1", port=port, verbose=False)
         self.url = f"http://127.0.0.1:{self.server.get_port()}"
-        self._urdf = ViserUrdf(self.server, urdf, root_node_name="/robot",
+        self._urdf = viser.extras.ViserUrdf(self.server, urdf, root_node_name="/robot",
                                load_meshes=urdf.scene is not None, load_collision_meshes=urdf.scene is None)
         self.server.scene.add_grid("/table", width=2.0, height=2.0, position=(0.3, 0.0, 0.0))
         for k, o in enumerate(obstacles):
