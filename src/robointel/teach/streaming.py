@@ -194,17 +194,17 @@ class StreamingServer:
             async for raw in ws:
                 await asyncio.sleep(0)  # one message per turn: a flooding client cannot starve the others
                 now = time.perf_counter()
+                msg = self._parse(raw)
                 c.use_rate(self.controller.owner == c.id)
                 wait = c.limit.delay(now)
-                if wait > 0:  # over the rate: stop reading this client (TCP backpressure slows it down)
-                    c.throttled += 1
+                if wait > 0 and not (isinstance(msg, dict) and msg.get("type") == "stop"):  # a stop is never held
+                    c.throttled += 1  # over the rate: stop reading this client (TCP backpressure slows it down)
                     if now - c.limited_reply > 1.0:
                         c.limited_reply = now
                         await self._error_to(c, "rate_limited", f"over {c.limit.rate:.0f} messages/s: reading "
                                                                 "paused", None)
                     await asyncio.sleep(wait)
                     now = time.perf_counter()
-                msg = self._parse(raw)
                 if msg is _BAD:
                     await self._error_to(c, "malformed", "send JSON text frames under 64 kB holding one object",
                                          None)
