@@ -99,7 +99,8 @@ class SafetyGate:
         if shape != (self.n,):
             raise UnsafeCommand(f"joint target must be a flat sequence of {self.n} numbers, got "
                                 f"{type(q_target).__name__} of shape {shape}", value=q_target)
-        items = q_target.tolist() if isinstance(q_target, np.ndarray) else list(q_target)  # type: ignore[union-attr]
+        assert isinstance(q_target, np.ndarray | list | tuple)
+        items = q_target.tolist() if isinstance(q_target, np.ndarray) else list(q_target)
         if not all(isinstance(x, int | float | np.integer | np.floating) and not isinstance(x, bool | np.bool_)
                    for x in items):
             raise UnsafeCommand(f"joint target must hold {self.n} numbers, got {[type(x).__name__ for x in items]}",
