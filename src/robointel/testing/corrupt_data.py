@@ -69,20 +69,20 @@ def _set_column(table: pa.Table, name: str, values: pa.Array) -> pa.Table:
     return table.set_column(table.column_names.index(name), name, values)
 
 
-def _lerobot_edits() -> dict[str, Callable[[Path], None]]:
-    def truncate(rel: Path) -> Callable[[Path], None]:
+def _lerobot_edits() -> dict[str, Callable[[Path], object]]:
+    def truncate(rel: Path) -> Callable[[Path], object]:
         def f(root: Path) -> None:
             raw = (root / rel).read_bytes()
             (root / rel).write_bytes(raw[: len(raw) // 2])
         return f
 
-    def drop_col(rel: Path, col: str) -> Callable[[Path], None]:
+    def drop_col(rel: Path, col: str) -> Callable[[Path], object]:
         return lambda root: _rewrite(root / rel, lambda t: t.drop_columns([col]))
 
-    def info_set(key: str, value: object) -> Callable[[Path], None]:
+    def info_set(key: str, value: object) -> Callable[[Path], object]:
         return lambda root: _info(root, lambda i: i.__setitem__(key, value))
 
-    def ep_col(col: str, fn: Callable[[list], list]) -> Callable[[Path], None]:
+    def ep_col(col: str, fn: Callable[[list], list]) -> Callable[[Path], object]:
         return lambda root: _rewrite(root / _EPISODES, lambda t: _set_column(
             t, col, pa.array(fn(t.column(col).to_pylist()))))
 
@@ -194,14 +194,14 @@ def corrupt_lerobot(folder: str | Path, episodes: list[Episode] | None = None) -
 
 
 # ----------------------------------------------------------------------------- robomimic
-def _robomimic_edits() -> dict[str, Callable[[Path], None]]:
-    def h5(edit: Callable[[h5py.File], None]) -> Callable[[Path], None]:
+def _robomimic_edits() -> dict[str, Callable[[Path], object]]:
+    def h5(edit: Callable[[h5py.File], object]) -> Callable[[Path], object]:
         def f(path: Path) -> None:
             with h5py.File(path, "a") as fh:
                 edit(fh)
         return f
 
-    def replace(name: str, data: object) -> Callable[[h5py.File], None]:
+    def replace(name: str, data: object) -> Callable[[h5py.File], object]:
         def f(fh: h5py.File) -> None:
             del fh[name]
             fh.create_dataset(name, data=data)
@@ -223,7 +223,7 @@ def _robomimic_edits() -> dict[str, Callable[[Path], None]]:
         a[3, 2] = np.nan
         replace("data/demo_1/actions", a)(fh)
 
-    def set_attr(node: str, key: str, value: object) -> Callable[[h5py.File], None]:
+    def set_attr(node: str, key: str, value: object) -> Callable[[h5py.File], object]:
         return lambda fh: fh[node].attrs.__setitem__(key, value)
 
     n = 40
