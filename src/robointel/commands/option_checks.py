@@ -62,7 +62,8 @@ RANGES: dict[str | tuple[str, str], Range] = {
     "--seed": Range(0, 2 ** 32 - 1), "--index": Range(0, 1_000_000), "--scenario": Range(1, 1000),
     # times, s (a duration 0 may mean "until stopped")
     "--time-limit": POSITIVE, "--time-budget": POSITIVE, "--timeout": POSITIVE, "--duration": NON_NEGATIVE,
-    "--guidance-seconds": POSITIVE, "--latency": Range(0, 2), "--stall-ms": POSITIVE,
+    "--guidance-seconds": POSITIVE, "--latency": Range(0, 2), "--stall-ms": POSITIVE, "--hold": POSITIVE,
+    "--rate": Range(1, 1000),
     # sizes, speeds and tolerances
     "--clearance": POSITIVE, "--speed": POSITIVE, "--tolerance": POSITIVE, "--d-min": NON_NEGATIVE,
     "--cpus-per-task": Range(0, 1024, open_low=True), "--worker-niceness": Range(0, 19),
