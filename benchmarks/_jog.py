@@ -17,11 +17,20 @@ import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 BUSY = "while True: pass"
+
+
+def _child_env(**extra: str) -> dict[str, str]:
+    """The environment of a child process: the robointel this process runs first on its path."""
+    import robointel
+
+    src = str(Path(robointel.__file__).resolve().parents[1])
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([src, os.environ.get("PYTHONPATH", "")]), **extra}
 
 
 def _free_port() -> int:
@@ -41,7 +50,7 @@ def jog_dropped(targets: int = 500, busy_loops: int = 2, rate: float = 50.0,
     folder = tempfile.mkdtemp(prefix="robointel-jog-")
     server = subprocess.Popen([*py, "teleop", "--port", str(page), "--stream-port", str(stream), "--token", token,
                                "--duration", "600", "--program", os.path.join(folder, "program.yaml")],
-                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=_child_env())
     busy: list[subprocess.Popen] = []
     try:
         line = ""
@@ -49,14 +58,14 @@ def jog_dropped(targets: int = 500, busy_loops: int = 2, rate: float = 50.0,
             line = server.stdout.readline()
             if not line and server.poll() is not None:
                 raise RuntimeError("robointel teleop did not start")
-        busy = [subprocess.Popen([sys.executable, "-c", BUSY]) for _ in range(busy_loops)]
+        busy = [subprocess.Popen([sys.executable, "-c", BUSY], env=_child_env()) for _ in range(busy_loops)]
         time.sleep(1.0)
         step = speed_deg_s / rate
         by = targets * step
         load0 = os.getloadavg()[0]
         r = subprocess.run([*py, "jog", "--server", f"ws://127.0.0.1:{stream}", "--token", token, "--joint", "1",
                             "--by", f"{by:g}", "--speed", f"{speed_deg_s:g}", "--rate", f"{rate:g}", "--json"],
-                           capture_output=True, text=True, timeout=600)
+                           capture_output=True, text=True, timeout=600, env=_child_env())
         if r.returncode != 0:
             raise RuntimeError(f"robointel jog failed: {r.stdout[-500:]} {r.stderr[-500:]}")
         out = json.loads(r.stdout.strip().splitlines()[-1])
