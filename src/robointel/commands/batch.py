@@ -15,6 +15,7 @@ from rich.console import Console
 from rich.table import Table
 
 from robointel.batch import kinds, load_sweep, plot_summary, run_batch, summarize
+from robointel.commands.failure import fail
 from robointel.errors import RobointelError
 
 console = Console()
@@ -46,8 +47,7 @@ def run(spec: Annotated[Path, typer.Argument(help="sweep YAML (tasks: [{kind, se
                       max_retries=max_retries, flush_rows=flush_rows, console=console, timeout_s=timeout,
                       worker_niceness=worker_niceness)
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2) from None
+        fail(exc)
     except KeyboardInterrupt:
         console.print("[yellow]interrupted[/yellow]: finished rows are stored; run the same command to resume")
         raise typer.Exit(130) from None
@@ -76,8 +76,7 @@ def report(results: Annotated[Path, typer.Argument(help="result folder")],
         console.print(t)
         path = plot_summary(groups, plot or results / "success.png")
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2) from None
+        fail(exc)
     console.print(f"plot: [bold]{path}[/bold]")
 
 

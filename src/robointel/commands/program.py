@@ -10,6 +10,7 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+from robointel.commands.failure import fail
 from robointel.errors import InvalidInput, RobointelError
 from robointel.interface import open_robot
 from robointel.interface.open import parse_robot_url
@@ -83,11 +84,10 @@ def run(program: str = typer.Argument(..., help="program YAML file, or a built-i
         console.print("[red]interrupted before the run started[/red]: nothing moved")
         raise typer.Exit(130) from None
     except ProgramRejected as exc:
-        console.print(f"[red]refused before moving:[/red] {exc}")
+        typer.echo("refused before moving: " + " ".join(str(exc).split()), err=True)
         raise typer.Exit(2) from None
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2) from None
+        fail(exc)
     finally:
         if rec is not None:
             rec.close()
@@ -113,8 +113,7 @@ def from_teleop(teleop: Path = typer.Argument(..., help="the program file the te
     try:
         prog = program_from_teleop(teleop, name=name)
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2) from None
+        fail(exc)
     prog.save(out)
     console.print(f"wrote {out}: {len(prog.steps)} move steps over {len(prog.waypoints)} waypoints; "
                   f"run it with `robointel run {out}`")
