@@ -96,6 +96,9 @@ def register(app: typer.Typer) -> None:
         if not (np.isfinite(latency) and 0.0 <= latency <= 2.0):
             fail(f"--latency must be in [0, 2] s (the Kinect's delay), got {latency}")
         try:
+            parse_robot_url(robot_url)  # the robot and the recording path are checked before any work
+            if record is not None:
+                McapRecorder(record, [f"joint_{i + 1}" for i in range(6)])
             skel = resolve_recording(recording)
             out.mkdir(parents=True, exist_ok=True)
             robot = Robot.load("lrmate200id7l")
