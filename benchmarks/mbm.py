@@ -1,4 +1,4 @@
-"""MotionBenchMaker UR5 problems: robointel's start-to-goal planner beside OMPL and VAMP, one core.
+"""MotionBenchMaker problems (UR5, Fetch): robointel's start-to-goal planner beside OMPL and VAMP, one core.
 
 Ours: ``robointel.planning.plan_motion`` (global search, smoothing, time parametrisation) on the
 problem read by ``robointel.io.mbm``. Peers, in the same run on the same problems and limits:
@@ -9,8 +9,13 @@ RRT-Connect + simplification + TOPP-RA (VAMP's own UR5 spheres). Every trajector
 Limits: the URDF's joint velocity limits (0.5 rad/s on this UR5) and accelerations of 3x the
 velocity limit (1.5 rad/s^2, robointel's default ``Robot.acceleration_limit``) for all three.
 
-    python benchmarks/mbm.py --json [--all | --per-family N] [--families cage box] [--peers ompl vamp] [--frmp]
-                             [--jsonl rows.jsonl [--resume]]
+    python benchmarks/mbm.py --json [--robot ur5|fetch] [--spheres file|auto] [--all | --per-family N]
+                             [--families cage box] [--peers ompl vamp] [--frmp] [--jsonl rows.jsonl [--resume]]
+
+``--robot`` picks the folder under ``../shared/data/mbm`` (its URDF, SRDF and ``problems.json``; the planned
+joints are the file's ``joints``, the others held); ``--spheres auto`` plans with the spheres robointel fits
+to the meshes instead of the folder's ``<robot>_spherized.urdf``. ``refused_free_starts`` counts the
+problems whose start or goal we refused although the checker finds it >= 1 mm clear.
 
 ``--all`` runs every valid problem (689); ``--jsonl`` appends one line per planner and problem as soon as
 it is judged, so a long run loses nothing, and ``--resume`` skips the problems already in that file
@@ -47,12 +52,28 @@ TARGETS = {"success": 0.999, "collisions_independent": 0, "plan_ms_median": 20.0
 SEED0 = 7919  # planner seeds: SEED0 + problem index (never used for tuning)
 
 
-def data_dir() -> Path:
+def data_dir(robot: str = "ur5") -> Path:
     env = os.environ.get("ROBOINTEL_DATA")
     root = Path(env) if env else Path(__file__).resolve().parents[1].parent / "shared" / "data"
-    if not (root / "mbm" / "ur5").is_dir():
+    if not (root / "mbm" / robot).is_dir():
         root = Path("/work/shared/data")
-    return root / "mbm" / "ur5"
+    return root / "mbm" / robot
+
+
+def robot_files(d: Path) -> tuple[Path, Path, Path]:
+    """(URDF, SRDF, sphere URDF) of an MBM robot folder: ``<robot>.urdf``, ``.srdf`` and ``_spherized.urdf``."""
+    name = d.name
+    return d / f"{name}.urdf", d / f"{name}.srdf", d / f"{name}_spherized.urdf"
+
+
+def refused_free(row: dict, start_mm: float, goals_mm: list[float]) -> bool:
+    """Whether our planner refused a start or goal (``CollisionAtStart``) that the checker finds >= 1 mm clear."""
+    reason = row.get("reason") or ""
+    if not reason.startswith("CollisionAtStart"):
+        return False
+    if "start configuration" in reason:
+        return start_mm >= 1.0
+    return max(goals_mm, default=-1.0) >= 1.0
 
 
 def one_core() -> None:
@@ -99,18 +120,19 @@ def surface_cloud(raw: dict, n: int, seed: int) -> np.ndarray:
 
 
 class Ours:
-    """robointel.planning.plan_motion on the UR5 of the MBM folder."""
+    """robointel.planning.plan_motion on the robot of the MBM folder (its planned joints those of problems.json)."""
 
-    def __init__(self, urdf: Path, srdf: Path, d_min: float, budget: float) -> None:
+    def __init__(self, urdf: Path, srdf: Path, d_min: float, budget: float, *, joints: list[str] | None = None,
+                 spheres: Path | None = None) -> None:
         from robointel.planning import Environment, MotionSettings, plan_motion
         from robointel.robot import Robot
 
         self.Environment, self.MotionSettings, self.plan_motion = Environment, MotionSettings, plan_motion
-        self.robot = Robot.load(urdf)
+        self.robot = Robot.load(urdf, srdf=srdf, joints=joints)
         self.srdf = srdf
         self.d_min, self.budget = d_min, budget
-        sph = urdf.parent / "ur5_spherized.urdf"  # the sphere decomposition shipped with the problems
-        self.env_kw = {"srdf": srdf, "spheres": sph} if sph.exists() else {"srdf": srdf}
+        # spheres: the decomposition shipped with the problems, or None for the automatic model
+        self.env_kw = {"srdf": srdf, "spheres": spheres} if spheres is not None else {"srdf": srdf}
         #: process CPU time of the last :meth:`solve`'s ``plan_motion``, ms (on a shared machine the wall
         #: time counts the other processes' turns too)
         self.last_cpu_ms = float("nan")
@@ -236,13 +258,19 @@ def main() -> None:
                     help="our clearance, m (plan_motion's dense check accepts d_min - 1 mm, i.e. contact)")
     ap.add_argument("--time-budget", type=float, default=1.0, help="our search budget per problem, s")
     ap.add_argument("--frmp", action="store_true", help="also run benchmarks/frmp.py --quick for the SQP speed-up")
+    ap.add_argument("--robot", default="ur5", help="the robot folder under ../shared/data/mbm (ur5, fetch)")
+    ap.add_argument("--spheres", default="file", choices=["file", "auto"],
+                    help="our collision spheres: the folder's <robot>_spherized.urdf, or fitted to the meshes (auto)")
     args = ap.parse_args()
     one_core()
     load = os.getloadavg()[0]
 
     from robointel.io.mbm import load_mbm_problems
 
-    d = data_dir()
+    d = data_dir(args.robot)
+    if not d.is_dir():
+        ap.error(f"no MBM robot folder {d}")
+    urdf, srdf, sphere_urdf = robot_files(d)
     pset = load_mbm_problems(d / "problems.json")
     raw_all = json.loads((d / "problems.json").read_text())["problems"]
     if args.all and args.per_family is not None:
@@ -256,19 +284,24 @@ def main() -> None:
             rank[p.family] = rank.get(p.family, -1) + 1
             keyed.append(((rank[p.family], families.index(p.family)), p))
         problems = [p for _, p in sorted(keyed, key=lambda kp: kp[0])]
-    checker = MBMChecker(d / "ur5.urdf", d / "ur5.srdf")
+    checker = MBMChecker(urdf, srdf, joints=list(pset.joint_names))
     vmax = checker.vmax.copy()
     amax = 3.0 * vmax
     peers = {}
+    vamp_error = None
     if "ompl" in args.peers:
         peers["ompl"] = OMPLPeer(checker)
     if "vamp" in args.peers:
-        peers["vamp"] = VAMPPeer()
+        try:
+            peers["vamp"] = VAMPPeer(args.robot)
+        except (ImportError, AttributeError) as exc:
+            vamp_error = f"VAMP has no {args.robot!r} here: {exc}"
     ours = None
     ours_error = None
     if not args.no_ours:
         try:
-            ours = Ours(d / "ur5.urdf", d / "ur5.srdf", args.d_min, args.time_budget)
+            ours = Ours(urdf, srdf, args.d_min, args.time_budget, joints=list(pset.joint_names),
+                        spheres=sphere_urdf if args.spheres == "file" else None)
         except ImportError as exc:
             ours_error = f"robointel.planning.plan_motion not available in this tree: {exc}"
     rows: dict[str, list[dict]] = {k: [] for k in (["ours"] if ours else []) + list(peers)}
@@ -295,9 +328,10 @@ def main() -> None:
                 bar.advance(task)
                 continue
             raw = raw_by_key[(p.family, p.index)]
-            for q in [raw["start"], *raw["goals"]]:
-                endpoints += 1
-                endpoints_free += not checker.check_configuration(np.asarray(q, float), raw).collision
+            ends = [checker.check_configuration(np.asarray(q, float), raw) for q in [raw["start"], *raw["goals"]]]
+            endpoints += len(ends)
+            endpoints_free += sum(not v.collision for v in ends)
+            end_mm = [1e3 * v.min_clearance for v in ends]
             base = {"family": p.family, "index": p.index}
             if ours is not None:
                 plan, env_ms, plan_ms, reason = ours.solve(p, SEED0 + p.index)
@@ -316,6 +350,7 @@ def main() -> None:
                     if plan.success and not v.ok:
                         row["reason"] = (f"checker: collision {v.pair}" if v.collision else
                                          v.limit_violation or "does not reach the goal")
+                row["refused_free_start"] = refused_free(row, end_mm[0], end_mm[1:])
                 rows["ours"].append(row)
                 stream(sink, "ours", row)
             for name, peer in peers.items():
@@ -349,7 +384,8 @@ def main() -> None:
     for name in rows:  # resumed rows first in the file: back to problem order, problems of this selection only
         rows[name] = sorted((r for r in rows[name] if (r["family"], r["index"]) in order),
                             key=lambda r: order[(r["family"], r["index"])])
-    out: dict = {"benchmark": "MotionBenchMaker UR5 (problems.json of vamp-planner 0.6.4)",
+    out: dict = {"benchmark": f"MotionBenchMaker {args.robot} (problems.json of vamp-planner 0.6.4)",
+                 "robot": args.robot, "spheres": args.spheres, "vamp_error": vamp_error,
                  "ours_settings": {"d_min_m": args.d_min, "time_budget_s": args.time_budget,
                                    "seeds": f"{SEED0} + problem index"},
                  "problems": len(problems), "families": families, "one_core": True, "load_average_1min": load,
@@ -362,6 +398,7 @@ def main() -> None:
                              "valid_endpoints_collision_free": endpoints_free, "valid_endpoints": endpoints}}
     if ours is not None:
         out.update(summarise("", rows["ours"], families))
+        out["refused_free_starts"] = sum(bool(r.get("refused_free_start")) for r in rows["ours"])
         out["env_build_ms"] = stats([r["env_ms"] for r in rows["ours"]])
         stages = sorted({k for r in rows["ours"] for k in r.get("stages_ms", {})})
         out["stage_ms_median"] = {k: float(np.median([r["stages_ms"].get(k, 0.0) for r in rows["ours"]

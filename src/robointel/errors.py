@@ -43,6 +43,10 @@ class DescriptionError(RobointelError):
     """A robot description (URDF) could not be read or is inconsistent."""
 
 
+class DescriptionWarning(UserWarning):
+    """A robot description entry was skipped (e.g. an SRDF entry naming a link the URDF lacks, as MoveIt skips it)."""
+
+
 class IKFailure(RobointelError):
     """Inverse kinematics found no solution (unreachable pose, or outside joint limits)."""
 

@@ -27,7 +27,14 @@ from robointel.planning import _rrt_kernels as R
 from robointel.planning import _time_shortcut as TS
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
-from robointel.planning.hybrid_check import exact_check, interior_check, interior_window, timed_out
+from robointel.planning.hybrid_check import (
+    exact_check,
+    exact_roots,
+    interior_check,
+    interior_window,
+    self_check,
+    timed_out,
+)
 from robointel.planning.jerk_limited import jerk_limited_polyline
 from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, check_dense
 from robointel.planning.motion_settings import MotionSettings
@@ -38,6 +45,8 @@ from robointel.planning.tree_search import path_valid, search, warm_search
 from robointel.robot.model import Robot
 from robointel.trajectory import Trajectory
 
+#: how far the fitted spheres (inside the meshes) are grown for self-collision during a plan, at most, m
+SELF_MARGIN = 0.003
 #: random seeds of the numeric IK for a pose goal (each distinct solution joins the goal set)
 IK_SEEDS = 32
 
@@ -95,7 +104,8 @@ def _goal_set(robot: Robot, goal: npt.ArrayLike | Sequence[npt.ArrayLike], seed:
         g = g[None]
     if g.ndim != 2 or g.shape[1] != n or len(g) == 0:
         raise InvalidInput(f"goal must be ({n},), (G, {n}) or a 4x4 pose, got shape {g.shape}", value=goal)
-    return np.array([robot.check_q(q, f"goal[{k}]", limits=True) for k, q in enumerate(g)])
+    return np.array([robot.check_q(robot.snap_to_limits(robot.check_q(q, f"goal[{k}]")), f"goal[{k}]", limits=True)
+                     for k, q in enumerate(g)])
 
 
 def _fail(reason: str, failure: Failure, t0: float, timings: dict[str, float], path: np.ndarray | None = None,
@@ -140,13 +150,17 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
                            "check_dt, root_relaxed_rad > 0, 0 < velocity_scale, fitted_fallback <= 1 and timing "
                            "'topp' or 'temporal'",
                            value=st)
-    q0 = np.array(robot.check_q(np.asarray(start, float), "start", limits=True), dtype=float)  # writable
+    q0 = robot.check_q(robot.snap_to_limits(robot.check_q(start, "start")), "start", limits=True)  # a writable copy
     goals = _goal_set(robot, goal, st.seed)
+    if robot.continuous.any():  # continuous joints: each goal by the shorter turn
+        goals = np.array([robot.wrap_goal(g, q0) for g in goals])
     env = environment
     model = env.model
+    env.set_self_offset(st.d_min)
     try:
         return _plan(env, q0, goals, st, t0, timings)
     finally:
+        env.set_self_offset(0.0)
         env.use(model)
 
 
@@ -158,6 +172,12 @@ def _roots_free(env: Environment, q0: np.ndarray, goals: np.ndarray, d_min: floa
 def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, t0: float,
           timings: dict[str, float]) -> MotionPlan:
     robot = env.robot
+    if env.exact_self:  # the roots judged on the exact geometry (the fitted spheres lie inside it)
+        goals = exact_roots(env, q0, goals, max(st.d_min - CLEARANCE_TOL, 0.0))
+        # the fitted spheres grown toward the meshes for self-collision, as far as the roots allow
+        gap = min(env.self_clearance(q, cap=1.0) for q in [q0, *goals])
+        margin = float(np.clip(0.5 * (gap - env.self_padding + CLEARANCE_TOL) - 1e-4, 0.0, SELF_MARGIN))
+        env.set_self_offset(st.d_min, margin)
     # the mesh-covering spheres where start and a goal allow them, else the spheres as given
     env.use("cover")
     hybrid = env.cover_meshes and not _roots_free(env, q0, goals, st.d_min)
@@ -212,7 +232,8 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
             return _fail(f"{chk.reason} (attempt {attempt + 1})", Failure.TIMEOUT, t0, timings, path, traj,
                          chk.min_clearance_m, int(goal_ids[gi]))
         # a start/goal edge that touches the real meshes: another tree may approach differently
-        if chk.ok or not (hybrid or exact) or chk.kind != "collision" or time.perf_counter() >= deadline:
+        if chk.ok or not (hybrid or exact or env.exact_self) or chk.kind != "collision" or \
+                time.perf_counter() >= deadline:
             break
         attempt += 1
     goal_index = int(goal_ids[gi])
@@ -347,11 +368,11 @@ def _mesh_checks(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple
     if not chk.ok:
         return chk
     if exact:
-        return exact_check(env, traj, env.world_cover, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
-    if hybrid:
-        return interior_check(env, traj, path, Wc, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline,
-                              window_checked=window_checked, window=window)
-    return chk
+        chk = exact_check(env, traj, env.world_cover, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
+    elif hybrid:
+        chk = interior_check(env, traj, path, Wc, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline,
+                             window_checked=window_checked, window=window)
+    return self_check(env, traj, chk, dt=st.check_dt, deadline=deadline)
 
 
 _WARM: set[int] = set()

@@ -57,7 +57,8 @@ class TrajectoryPlanner:
         obstacles: sequence of :mod:`robointel.geometry` obstacles.
         N: steps per segment (N+1 knots).
         dt: fixed time step (s).
-        vmax, amax: (n,) velocity / acceleration limits (default: the robot's).
+        vmax: (n,) velocity limits, rad/s (default: the robot's).
+        amax: (n,) acceleration limits, rad/s^2 (default: the robot's).
         settings: :class:`PlannerSettings`.
         solver: ``"daqp"`` (dense active set with lazy limit rows, default) or ``"osqp"``
             (sparse ADMM, pattern fixed, updated in place).

@@ -72,8 +72,9 @@ class TeleopApp:
 
     Args:
         controller: a started or not yet started :class:`StreamingController` (owns the robot).
-        host, port: where the page is served (127.0.0.1 by default; others need ``token``, which each
+        host: where the page is served (127.0.0.1 by default; others need ``token``, which each
             browser session must then type before it sees or commands the robot).
+        port: the page's port.
         obstacles: robointel.geometry shapes drawn in the scene and saved with the program.
         program_path: where "Save program" writes.
         stream_hz: keep-alive streaming rate of the live target.
