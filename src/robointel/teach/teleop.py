@@ -184,11 +184,19 @@ class TeleopApp:
             self.desired = q
         return True
 
-    def jog(self, frame: str, axis: int, amount: float, *, speed: float) -> int:
+    def jog(self, frame: str, axis: int, amount: float, *, speed: float, lead: float | None = None) -> int:
         """Jog by ``amount`` (rad or m) from the current target at ``speed`` (rad/s or m/s).
 
         The jog's steps (one per keep-alive period) are streamed by the page's stream thread; more
         steps queue behind those not yet streamed (a button held down keeps adding them).
+
+        Args:
+            frame: ``joint``, ``world`` or ``tool``.
+            axis: the joint index, or 0..5 for x y z rx ry rz.
+            amount: the increment, rad or m.
+            speed: rad/s or m/s (> 0).
+            lead: with a queue already this many seconds of steps long, nothing is added (a held
+                button: the arm stops at most ``lead`` after the release); None: no bound.
 
         Returns:
             The number of steps queued.
@@ -199,7 +207,7 @@ class TeleopApp:
         if not (np.isfinite(speed) and speed > 0):
             raise InvalidInput(f"jog speed must be > 0, got {speed!r}", value=speed)
         with self._lock:
-            if self.replaying:
+            if self.replaying or (lead is not None and len(self._ramp) >= lead * self.stream_hz):
                 return 0
             steps = jog_steps(self.robot, self.reference(), frame, axis, amount, step=speed / self.stream_hz)
             self._ramp.extend(steps)

@@ -320,7 +320,7 @@ class PageSession:
         def by(sign: float, amount: float | None) -> None:
             fr, i, u = units()
             self._act("jog", app.jog, fr, i, sign * u * (amount if amount is not None else float(step.value)),
-                      speed=u * float(speed.value))
+                      speed=u * float(speed.value), lead=None if amount is None else 2.0 / HOLD_HZ)
 
         b_minus.on_click(lambda _e: by(-1.0, None))
         b_plus.on_click(lambda _e: by(1.0, None))
