@@ -20,6 +20,7 @@ from rich.console import Console
 from rich.progress import Progress
 from rich.table import Table
 
+from robointel._extras import require_extra
 from robointel.commands.failure import fail
 from robointel.commands.teach import resolve_recording
 from robointel.errors import InvalidInput, RobointelError
@@ -117,6 +118,8 @@ def register(app: typer.Typer) -> None:
         try:
             if fmt not in FORMATS:
                 raise InvalidInput(f"--format must be one of {FORMATS}, got {fmt!r}", value=fmt)
+            if fmt == "lerobot":
+                require_extra("datasets", "a LeRobot dataset", "pyarrow")  # before recording anything
             episodes: list[Episode] = []
             with Progress(console=console) as prog:
                 task = prog.add_task("recording episodes", total=len(sources))

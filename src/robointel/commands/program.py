@@ -16,6 +16,7 @@ from robointel.interface import open_robot
 from robointel.interface.open import parse_robot_url
 from robointel.io.mcap_log import McapRecorder
 from robointel.program import Cell, GraspCell, ProgramRejected, SimCell, check_program, load_program, run_program
+from robointel.program.format import builtin_programs
 from robointel.program.interface_cell import InterfaceCell, interface_refusal, output_refusal
 from robointel.program.teaching import program_from_teleop
 from robointel.report.demo import Figure, StageContext, StageResult
@@ -24,7 +25,8 @@ from robointel.report.program import StepRecorder, plot_run, write_program_repor
 console = Console()
 
 
-def run(program: str = typer.Argument(..., help="program YAML file, or a built-in program: example, pick_place, moves"),
+def run(program: str = typer.Argument(..., help="program YAML file (format: docs/guides/programs.md), or a built-in "
+                                     f"program: {', '.join(builtin_programs())}"),
         robot: str = typer.Option("sim", "--robot", help="'sim' (the simulated cell), 'sim?process=1' or fanuc://HOST[:PORT][?sm_port=N]"),
         start: str = typer.Option("0", "--from", help="first step to run (index or name)"),
         record: Path = typer.Option(None, "--record", help="record the run as a ROS 2 bag (.mcap)"),
@@ -33,8 +35,10 @@ def run(program: str = typer.Argument(..., help="program YAML file, or a built-i
         check_only: bool = typer.Option(False, "--check", help="only check the program, do not run it")) -> None:
     """Check a task program as a whole, then run it step by step and write an HTML report.
 
-    Every argument is checked before the robot is connected or a file is created. ``--record``
-    writes the run as it goes; Ctrl-C stops the robot where it is, closes the recording with
+    The pre-run check plans every motion and refuses a program that cannot run (a target out of reach or in
+    collision, a part off the table or inside a fixture, a missing skill file), naming the step and the key,
+    before anything moves. Every argument is checked before the robot is connected or a file is created.
+    ``--record`` writes the run as it goes; Ctrl-C stops the robot where it is, closes the recording with
     everything so far and writes the report of the steps run (exit code 130).
     """
     rec = None

@@ -27,17 +27,27 @@ import time
 from pathlib import Path
 from struct import error as struct_error
 from types import TracebackType
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
-from mcap.exceptions import McapError
-from mcap.records import Channel, Message, Schema
-from mcap.stream_reader import StreamReader
-from mcap.writer import Writer
-from rosbags.typesys import Stores, get_typestore
 
+from robointel._extras import optional_module
 from robointel.errors import InvalidInput
+
+if TYPE_CHECKING:
+    from mcap import exceptions as mcap_exceptions
+    from mcap import records as mcap_records
+    from mcap import stream_reader as mcap_stream_reader
+    from mcap import writer as mcap_writer
+    from rosbags import typesys
+else:
+    _why = "recording a run as a ROS 2 bag"
+    mcap_exceptions = optional_module("mcap.exceptions", "datasets", _why)
+    mcap_records = optional_module("mcap.records", "datasets", _why)
+    mcap_stream_reader = optional_module("mcap.stream_reader", "datasets", _why)
+    mcap_writer = optional_module("mcap.writer", "datasets", _why)
+    typesys = optional_module("rosbags.typesys", "datasets", _why)
 
 JOINT_STATES = "/joint_states"
 WRENCH = "/ft_sensor/wrench"
@@ -64,6 +74,7 @@ class McapRecorder:
     Raises:
         InvalidInput: the path does not end in ``.mcap``, its directory does not exist, it is a
             directory, or ``flush_s`` is not in (0, 10] s (nothing is created then).
+        MissingExtra: mcap or rosbags is not installed (the ``datasets`` extra).
     """
 
     def __init__(self, path: str | Path, joint_names: list[str], *, frame_id: str = "ft_sensor",
@@ -79,10 +90,10 @@ class McapRecorder:
         self.flush_s = float(flush_s)
         self._items: collections.deque[tuple[str, int, Any]] = collections.deque()
         self._lock = threading.Lock()  # the writer (file, channels, counts)
-        self._ts = get_typestore(Stores.ROS2_HUMBLE)
+        self._ts = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
         self._closed = False
         self._file: IO[bytes] | None = None
-        self._writer: Writer | None = None
+        self._writer: mcap_writer.Writer | None = None
         self._channels: dict[str, int] = {}
         self._thread: threading.Thread | None = None
         self._wake = threading.Event()
@@ -162,7 +173,7 @@ class McapRecorder:
             if self._thread is not None:
                 return self
             self._file = open(self.path, "wb")  # noqa: SIM115 - closed in close()
-            self._writer = Writer(self._file, chunk_size=256 * 1024)
+            self._writer = mcap_writer.Writer(self._file, chunk_size=256 * 1024)
             self._writer.start(profile="ros2", library="robointel")
             self._last_flush = time.monotonic()
             self._thread = threading.Thread(target=self._run, name="robointel-mcap", daemon=True)
@@ -273,21 +284,21 @@ def read_recording(path: str | Path) -> dict[str, list[tuple[int, Any]]]:
     path = Path(path)
     if not path.is_file():
         raise DataMissing(f"recording {path} does not exist", value=str(path))
-    ts = get_typestore(Stores.ROS2_HUMBLE)
+    ts = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
     schemas: dict[int, str] = {}
     channels: dict[int, tuple[str, str]] = {}
     out: dict[str, list[tuple[int, Any]]] = {}
     with open(path, "rb") as f:
         try:
-            for rec in StreamReader(f, skip_magic=False, emit_chunks=False).records:
-                if isinstance(rec, Schema):
+            for rec in mcap_stream_reader.StreamReader(f, skip_magic=False, emit_chunks=False).records:
+                if isinstance(rec, mcap_records.Schema):
                     schemas[rec.id] = rec.name
-                elif isinstance(rec, Channel):
+                elif isinstance(rec, mcap_records.Channel):
                     channels[rec.id] = (rec.topic, schemas.get(rec.schema_id, ""))
-                elif isinstance(rec, Message) and rec.channel_id in channels:
+                elif isinstance(rec, mcap_records.Message) and rec.channel_id in channels:
                     topic, typ = channels[rec.channel_id]
                     out.setdefault(topic, []).append((rec.log_time, ts.deserialize_cdr(rec.data, typ)))
-        except (McapError, EOFError, ValueError, struct_error) as exc:
+        except (mcap_exceptions.McapError, EOFError, ValueError, struct_error) as exc:
             if not schemas:
                 raise InvalidInput(f"{path} is not an MCAP recording ({type(exc).__name__}: {exc})",
                                    value=str(path)) from None

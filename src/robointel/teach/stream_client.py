@@ -12,6 +12,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from robointel._extras import needs_extra
+
 
 class StreamClient:
     """One WebSocket connection to a streaming server (``websockets`` sync client).
@@ -26,7 +28,8 @@ class StreamClient:
     """
 
     def __init__(self, url: str, *, token: str | None = None, timeout: float = 5.0) -> None:
-        from websockets.sync.client import connect
+        with needs_extra("teleop", "the streaming client"):
+            from websockets.sync.client import connect
 
         self.timeout = float(timeout)
         self.ws = connect(url, compression=None, open_timeout=timeout)
@@ -132,7 +135,8 @@ def flood(url: str, mode: str, seconds: float, hold: float, *, start: Any = None
     import threading
     from urllib.parse import urlparse
 
-    from websockets.sync.client import connect
+    with needs_extra("teleop", "the streaming client"):
+        from websockets.sync.client import connect
 
     u = urlparse(url)
     sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)

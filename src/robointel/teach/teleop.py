@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from robointel._extras import needs_extra
 from robointel._validate import as_array
 from robointel.errors import IKFailure, InvalidInput, RobointelError
 from robointel.robot import Robot
@@ -418,7 +419,8 @@ class TeleopApp:
 
     def start(self) -> TeleopApp:
         """Serve the page (viser), start the controller's control thread and the display and stream threads."""
-        import viser
+        with needs_extra("teleop", "browser teleoperation"):
+            import viser
 
         from robointel.teach.teleop_page import PageSession
 
