@@ -3,7 +3,8 @@
 Each ``float`` option must be finite (``nan``, ``inf`` are refused), and the options below must lie in
 their range: a count of trials is at least 1, a time limit positive, a seed a non-negative 32-bit
 integer. The rules are keyed by option name (the same name means the same thing in every command);
-a ``(command, option)`` key overrides one command's rule. :func:`install` attaches the checks to
+a ``(command, option)`` key overrides one command's rule, and an option that declares its own range
+(``min``/``max``) keeps it (finite only is added). :func:`install` attaches the checks to
 every command of the ``robointel`` group, so a garbage number gives one ``error:`` line and exit
 code 2 before any work starts (:mod:`robointel.commands.failure`).
 """
@@ -105,6 +106,12 @@ def _numeric(param: Any) -> bool:
     return ann in (int, float) or any(a in (int, float) for a in typing.get_args(ann))
 
 
+def _declares_range(param: Any) -> bool:
+    """True when the option declares its own ``min``/``max`` (typer's option, or click's range type)."""
+    holders = (param, getattr(param, "type", None))
+    return any(getattr(h, k, None) is not None for h in holders for k in ("min", "max"))
+
+
 def _commands(group: Any, path: tuple[str, ...] = ()) -> Iterator[tuple[str, Any]]:
     for name, cmd in getattr(group, "commands", {}).items():
         if getattr(cmd, "commands", None) is not None:
@@ -125,6 +132,8 @@ def install(group: Any) -> None:
                 continue
             option = max(p.opts, key=len) if p.opts else p.name
             rule = RANGES.get((path, option), RANGES.get(option))
+            if (path, option) not in RANGES and _declares_range(p):
+                rule = None  # the command declares its own range (``learn insertion --trials 0``: learn only)
             previous = p.callback
 
             def callback(ctx: Any, param: Any, value: Any, _rule: Range | None = rule, _opt: str = option,

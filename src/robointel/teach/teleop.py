@@ -39,6 +39,7 @@ from robointel.robot import Robot
 from robointel.teach.jog import jog_steps
 from robointel.teach.stream_session import same_token
 from robointel.teach.streaming import StreamingController, check_bind
+from robointel.teach.teleop_page import PageSession, quat_matrix
 from robointel.teach.teleop_program import (  # noqa: F401 (the page's file API)
     PROGRAM_FORMAT,
     load_program,
@@ -47,26 +48,6 @@ from robointel.teach.teleop_program import (  # noqa: F401 (the page's file API)
 )
 
 __all__ = ["PROGRAM_FORMAT", "TeleopApp", "load_program", "save_program", "shape_to_dict"]
-
-LOGIN_FAILURES = 5  # wrong tokens before a session's login is locked (reload the page to try again)
-LOGIN_DELAY = 0.5   # s before a wrong token is answered
-
-
-def quat_wxyz(R: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-    """The quaternion [w, x, y, z] of a rotation matrix."""
-    from scipy.spatial.transform import Rotation
-
-    x, y, z, w = Rotation.from_matrix(R).as_quat()
-    return np.array([w, x, y, z])
-
-
-def quat_matrix(wxyz: npt.ArrayLike) -> npt.NDArray[np.float64]:
-    """The rotation matrix of a quaternion [w, x, y, z] (normalised)."""
-    from scipy.spatial.transform import Rotation
-
-    w, x, y, z = np.asarray(wxyz, float)
-    return np.asarray(Rotation.from_quat([x, y, z, w]).as_matrix())
-
 
 class TeleopApp:
     """The teleoperation page on a streaming controller.
@@ -421,8 +402,6 @@ class TeleopApp:
         """Serve the page (viser), start the controller's control thread and the display and stream threads."""
         with needs_extra("teleop", "browser teleoperation"):
             import viser
-
-        from robointel.teach.teleop_page import PageSession
 
         self.server = viser.ViserServer(host=self.host, port=self.port, verbose=False)
         self.port = self.server.get_port()

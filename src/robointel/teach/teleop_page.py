@@ -21,23 +21,36 @@ from __future__ import annotations
 import threading
 import time
 import warnings
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from scipy.spatial.transform import Rotation
 
 from robointel.errors import RobointelError
 from robointel.teach.jog import AXES, axis_index
-from robointel.teach.teleop import LOGIN_DELAY, LOGIN_FAILURES, quat_matrix, quat_wxyz
 from robointel.teach.teleop_program import shape_to_dict
 
-if TYPE_CHECKING:  # pragma: no cover
-    from robointel.teach.teleop import TeleopApp
-
-__all__ = ["PageSession"]
+__all__ = ["LOGIN_DELAY", "LOGIN_FAILURES", "PageSession", "quat_matrix", "quat_wxyz"]
 
 _LINK_COLORS = [(240, 200, 40), (200, 200, 200), (240, 200, 40), (200, 200, 200), (240, 200, 40), (90, 90, 90)]
 HOLD_HZ = 20.0  # callbacks per second while a jog button is held
+LOGIN_FAILURES = 5  # wrong tokens before a session's login is locked (reload the page to try again)
+LOGIN_DELAY = 0.5   # s before a wrong token is answered
+
+
+def quat_wxyz(R: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """The quaternion [w, x, y, z] of a rotation matrix."""
+    x, y, z, w = Rotation.from_matrix(R).as_quat()
+    return np.array([w, x, y, z])
+
+
+def quat_matrix(wxyz: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """The rotation matrix of a quaternion [w, x, y, z] (normalised)."""
+    w, x, y, z = np.asarray(wxyz, float)
+    return np.asarray(Rotation.from_quat([x, y, z, w]).as_matrix())
+
+
 
 
 def _rpy_deg(R: np.ndarray) -> tuple[float, float, float]:
@@ -56,11 +69,11 @@ class PageSession:
     """One browser's view of the page: a login prompt until authenticated, then the scene and controls.
 
     Args:
-        app: the teleoperation app.
+        app: the teleoperation app (:class:`robointel.teach.teleop.TeleopApp`, which imports this module).
         client: the viser client handle of the browser.
     """
 
-    def __init__(self, app: TeleopApp, client: Any) -> None:
+    def __init__(self, app: Any, client: Any) -> None:
         self.app, self.client = app, client
         self.authed = app.token is None
         self.failures = 0
