@@ -7,7 +7,7 @@ has not authenticated within :data:`AUTH_TIMEOUT`, and when more than :data:`MAX
 are pending the oldest is closed to make room. So idle or hostile connections can neither fill the
 server nor keep an operator out.
 
-Every session has its own token buckets (:class:`~robointel.teach.stream_protocol.RateLimit`): the
+Each client session has its own token buckets (:class:`~robointel.teach.stream_protocol.RateLimit`): the
 session in control streams at up to :data:`RATE_CONTROL` messages per second, the others at
 :data:`RATE_OTHER` (``get_state`` polling, ``stop``); a session over its rate is not read from until it
 is back under it, so flooding sessions cannot starve the others or the control loop.
@@ -36,7 +36,7 @@ AUTH_TIMEOUT = 2.0       # s a connection may stay unauthenticated
 MAX_PENDING = 128        # unauthenticated connections at once (the oldest is closed beyond)
 ERROR_REPLIES = 20.0     # error replies per second and session (more are counted, not sent)
 RATE_CONTROL = (1000.0, 200.0)  # messages/s and burst of the session in control (the stream)
-RATE_OTHER = (100.0, 50.0)      # ... of the other sessions
+RATE_OTHER = (100.0, 50.0)      # ... of each client that does not command
 MIN_TOKEN = 16           # characters of a token
 
 

@@ -13,7 +13,7 @@ robot and saved as a YAML scene that ``robointel plan`` loads (:func:`save_progr
 Sessions: every browser is its own session. With a token, a session sees a login prompt only --
 nothing about the robot, no command -- until the token is typed into it; the token is checked on
 the server, never echoed and never shown to another session. Without a token (loopback binds only)
-every session is logged in.
+each browser session is logged in.
 
 While a target is live and a logged-in page is connected, the app keeps streaming it at
 ``stream_hz``, so the controller's deadman (100 ms) stops the robot when the last such page closes
