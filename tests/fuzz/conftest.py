@@ -1,8 +1,8 @@
 """Property-based tests (hypothesis) over what robointel reads from outside: a bounded, seeded budget.
 
 Each test runs a fixed number of examples from a fixed seed (``derandomize``), no example database
-is written, and no example may take longer than the deadline: the whole directory stays within a
-few tens of seconds of the suite.
+is written: the whole directory stays within a few tens of seconds of the suite. No deadline per
+example (a loaded host stretches any example; a hang is caught by the suite's per-test timeout).
 """
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import math
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 
-settings.register_profile("robointel", max_examples=60, deadline=2000, derandomize=True, database=None,
+settings.register_profile("robointel", max_examples=60, deadline=None, derandomize=True, database=None,
                           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture,
                                                  HealthCheck.data_too_large])
 settings.load_profile("robointel")
