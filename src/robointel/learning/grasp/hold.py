@@ -32,7 +32,7 @@ from robointel.learning.grasp.quality import ParallelGripper
 from robointel.learning.grasp.transfer import Grasp
 
 __all__ = ["GRAVITY", "HOLD_TARGET", "DENSITY", "Shake", "PartEstimate", "Hold", "contact_patch", "estimate_part",
-           "hold"]
+           "hold", "hull_volume"]
 
 #: Standard gravity (m/s^2).
 GRAVITY = 9.81
@@ -122,10 +122,7 @@ def estimate_part(warped: npt.ArrayLike, *, mass: float | None = None, template_
     for name, v in (("mass", mass), ("template_volume", template_volume), ("density", density)):
         if v is not None and not (np.isfinite(v) and v > 0):
             raise InvalidInput(f"estimate_part: {name} must be > 0, got {v}", value=v)
-    try:
-        vol = float(ConvexHull(W).volume)
-    except (QhullError, ValueError):
-        vol = 0.0
+    vol = hull_volume(W)
     if mass is None:
         m = density * vol
     elif template_volume is not None and vol > 0:
@@ -133,6 +130,15 @@ def estimate_part(warped: npt.ArrayLike, *, mass: float | None = None, template_
     else:
         m = mass
     return PartEstimate(max(float(m), 1e-3), W.mean(axis=0))
+
+
+def hull_volume(points: npt.ArrayLike) -> float:
+    """Volume (m^3) of the convex hull of ``points`` (n, 3), m; 0 when they span no volume."""
+    P = np.asarray(points, float)
+    try:
+        return float(ConvexHull(P).volume) if len(P) >= 4 else 0.0
+    except (QhullError, ValueError):
+        return 0.0
 
 
 def contact_patch(cloud: npt.ArrayLike, grasp: Grasp, contact_offset: float, gripper: ParallelGripper, *,

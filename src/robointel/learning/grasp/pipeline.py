@@ -24,7 +24,7 @@ from robointel.errors import InvalidInput, RobointelError
 from robointel.learning.grasp.classify import Classification, ComposedWarp, Fit, Template, classify, fit_template
 from robointel.learning.grasp.cpd import RigidWarp, cpd_rigid, single_thread_blas
 from robointel.learning.grasp.hand import between_jaws
-from robointel.learning.grasp.hold import Hold, PartEstimate, Shake, estimate_part, hold
+from robointel.learning.grasp.hold import Hold, PartEstimate, Shake, estimate_part, hold, hull_volume
 from robointel.learning.grasp.objects import ObjectModel
 from robointel.learning.grasp.perception import DepthCamera, default_cameras, depth_image, perceive
 from robointel.learning.grasp.quality import (
@@ -36,7 +36,7 @@ from robointel.learning.grasp.quality import (
 )
 from robointel.learning.grasp.scene import Placement, scene_xml
 from robointel.learning.grasp.search import PENALTY, SearchResult, orientation_search, refine_position
-from robointel.learning.grasp.shape import ShapeClass, shape_class, shape_cost
+from robointel.learning.grasp.shape import ShapeClass, shape_class, shape_cost, shape_grasps
 from robointel.learning.grasp.transfer import Grasp, transfer_grasp
 from robointel.robot import Robot
 
@@ -173,7 +173,9 @@ class GraspPlanner:
             the trial's).
         shape_weight: weight of each candidate's :func:`~robointel.learning.grasp.shape.shape_cost` for the
             perceived part's shape class (a rectangular tin across its short side, near its middle; a
-            long part near its centre of mass, where it is thickest), added to its (6.21) cost. 0: off.
+            long part near its centre of mass, where it is thickest), added to its (6.21) cost; the
+            class's own grasps (:func:`~robointel.learning.grasp.shape.shape_grasps`) join the
+            transferred ones, and a "box"'s short side chooses its gripper. 0: off.
         check_between: a candidate is feasible only when the perceived cloud (not the completion) puts
             the part between its open jaws (:func:`robointel.learning.grasp.hand.between_jaws`), and its
             width is within the gripper's :attr:`~ParallelGripper.grip_range`.
@@ -327,8 +329,10 @@ class GraspPlanner:
         widths = [grasp_quality(full, g, gripper=widest, tree=tree, pad_reach=self.pad_reach,
                                 table_z=self.table_z).width
                   for (full, tree), gs in zip(fulls, per_fit) for g in gs]
-        gripper = only or choose_gripper(widths, self.grippers)
         shape = shape_class(cloud, table_z=self.table_z)
+        # a rectangular tin or box is taken across its short side: that side's width chooses the gripper
+        gripper = only or choose_gripper([float(shape.extents[1])] if self.shape_weight and shape.kind == "box"
+                                         else widths, self.grippers)
         best, bi = self._search(fulls, per_fit, cloud, gripper, parts, shape, avoid)
         fallback = False
         if not best.feasible and gripper != widest and only is None:
@@ -345,11 +349,11 @@ class GraspPlanner:
 
     def _part(self, template: Template, warped: np.ndarray) -> PartEstimate:
         """The part's mass and centre of mass from ``template`` warped onto it (see :func:`estimate_part`)."""
-        vol = None
+        vol: float | None = None
         if template.mass is not None:
             if template.name not in self._volumes:
-                self._volumes[template.name] = estimate_part(template.points, density=1.0).mass
-            vol = self._volumes[template.name]
+                self._volumes[template.name] = hull_volume(template.points)
+            vol = self._volumes[template.name] or None
         return estimate_part(warped, mass=template.mass, template_volume=vol)
 
     def _search(self, fulls: Sequence[tuple[np.ndarray, cKDTree]], per_fit: Sequence[Sequence[Grasp]],
@@ -380,6 +384,8 @@ class GraspPlanner:
                                           pad_reach=self.pad_reach, rest_height=self.rest_height,
                                           toward=centroid, com_weight=self.com_weight)
                           if self.refine else [g])
+            if self.shape_weight and shape is not None:  # the grasps the shape class's rule asks for
+                cands += shape_grasps(shape, cloud, gripper, table_z=self.table_z, com=parts[fi].com)
             for g in cands:
                 r = orientation_search(g, full, robot, gripper=gripper, table_z=self.table_z,
                                        base_pose=self.base_pose, q_ref=self.q_ref, tree=tree, observed=seen,

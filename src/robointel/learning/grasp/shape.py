@@ -13,7 +13,8 @@ cameras see, whatever the category read:
   along its length, where it is thickest (its seen top is highest there).
 * ``"other"``: no rule (round parts, cups, toy arms, clamps): the hold and the isotropy decide.
 
-:func:`shape_cost` turns the rules into a cost added to each candidate's (6.21) cost.
+:func:`shape_cost` turns the rules into a cost added to each candidate's (6.21) cost, and
+:func:`shape_grasps` proposes the grasps each rule asks for, to compete with the transferred ones.
 """
 from __future__ import annotations
 
@@ -26,10 +27,11 @@ from scipy.spatial import ConvexHull, QhullError
 from robointel._validate import as_array
 from robointel.errors import InvalidInput
 from robointel.learning.grasp.classify import footprint_rectangle, yaw_matrix
-from robointel.learning.grasp.transfer import Grasp
+from robointel.learning.grasp.quality import ParallelGripper
+from robointel.learning.grasp.transfer import Grasp, grasp_from_axis
 
 __all__ = ["BOX_FILL", "BOX_ASPECT", "BOX_TOP", "LONG_ASPECT", "LONG_HEIGHT", "ShapeClass", "shape_class",
-           "shape_cost"]
+           "shape_cost", "shape_grasps"]
 
 #: Least ratio of the footprint hull's area to its minimum-area rectangle's for a "box" (a disc: pi/4).
 BOX_FILL = 0.88
@@ -164,3 +166,59 @@ def shape_cost(grasp: Grasp, shape: ShapeClass, *, com: npt.ArrayLike | None = N
         if top > 1e-6:
             thin = 1.0 - (float(near[:, 2].max()) - base) / top if len(near) else 1.0
     return float(off + thin)
+
+
+def shape_grasps(shape: ShapeClass, observed: npt.ArrayLike, gripper: ParallelGripper, *, table_z: float = 0.0,
+                 com: npt.ArrayLike | None = None, clearance: float = 0.003,
+                 offsets: tuple[float, ...] = (0.0, -0.01, 0.01, -0.02, 0.02, -0.03, 0.03),
+                 slab: float = 0.005) -> list[Grasp]:
+    """The grasps a shape class's rule asks for (top-down; none for class "other").
+
+    * "box": across the short side (closing axis along it) through the footprint's centre and at
+      +-15 % of the long side from it, as deep as the fingers go (the palm ``clearance`` m above the
+      seen top, the fingertips ``clearance`` m above the table), and 10 mm higher;
+    * "long": across the part at ``offsets`` (m) along it from the centre of mass ``com`` (default the
+      footprint centre), each centred on the seen cross-section there (the perceived points within
+      ``slab`` m along the part) and at the middle of its height (its underside on the table).
+
+    Args:
+        shape: The part's :class:`ShapeClass`.
+        observed: The perceived points (n, 3), m, world.
+        gripper: The jaws (finger length and tip depth set the heights).
+        table_z: The table's height (m).
+        com: The part's estimated centre of mass (3,), m, world.
+        clearance: Room (m) kept by the fingertips over the table and the palm over the part's top.
+        offsets: Positions (m) along a long part, from its centre of mass.
+        slab: Half-thickness (m) of a long part's cross-section.
+
+    Returns:
+        The grasps (world frame), named ``shape-box-<k>`` / ``shape-long-<k>``.
+    """
+    P = np.asarray(observed, float)
+    down = np.array([0.0, 0.0, -1.0])
+    z_low = table_z + gripper.tip_depth + clearance
+    out: list[Grasp] = []
+    if shape.kind == "box":
+        short = np.r_[shape.short_axis, 0.0]
+        top = table_z + float(shape.extents[2])
+        z_deep = max(top + clearance - (gripper.finger_length - gripper.tip_depth), z_low)
+        for f in (0.0, -0.15, 0.15):
+            c = shape.centre + f * float(shape.extents[0]) * shape.long_axis
+            for z in (z_deep, z_deep + 0.01):
+                if z < top:
+                    out.append(grasp_from_axis([c[0], c[1], z], short, down, float(shape.extents[1]),
+                                               f"shape-box-{len(out)}"))
+    elif shape.kind == "long":
+        ref = shape.centre if com is None else np.asarray(com, float)[:2]
+        along = (P[:, :2] - ref) @ shape.long_axis
+        across = (P[:, :2] - ref) @ shape.short_axis
+        for b in offsets:
+            sl = np.abs(along - b) < slab
+            if np.count_nonzero(sl) < 3:
+                continue
+            mid = 0.5 * (float(across[sl].max()) + float(across[sl].min()))
+            c = ref + b * shape.long_axis + mid * shape.short_axis
+            z = max(0.5 * (table_z + float(P[sl, 2].max())), z_low)
+            out.append(grasp_from_axis([c[0], c[1], z], np.r_[shape.short_axis, 0.0], down,
+                                       float(np.ptp(across[sl])), f"shape-long-{len(out)}"))
+    return out

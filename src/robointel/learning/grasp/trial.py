@@ -394,6 +394,8 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
             cell.place_gripper(q_pre)
             cell.follow(_smooth(q_pre, q_pre, int(0.1 / dt)), 0.0, "approach", attempt)
         # before closing: the perceived part between the jaws where the measured arm pose leads them
+        # (measured once the arm has settled at the pre-grasp)
+        cell.move(q_pre, 0.2, 0.0, None, attempt)
         v = between_jaws(cell.measured_grasp(PRE_GRASP), cloud, g)
         if v.ok:
             cell.move(q_grasp, 0.8, 0.0, "descend", attempt)
