@@ -90,9 +90,10 @@ def grasp(spec: TaskSpec) -> TrialOutcome:
         wide one was taken because the narrow one had no feasible grasp) and ``grip_width_m`` (the
         jaw opening after the last close, NaN when nothing was grasped), ``settle_s`` (simulated time the
         object took to come to rest before the cameras looked) and ``attempts`` (grasp attempts made:
-        the hand's checks let go of the others). ``detail``: the object, the gripper, the trial's reason
-        and why each earlier attempt was let go. Timings: ``setup_s``, ``trial_s`` and ``plan_s`` (the planner's
-        classify-register-transfer-score-search time, when it ran).
+        the hand's checks let go of the others). ``detail``: the object, the gripper, the category it
+        was read as when wrong, the trial's reason and why each earlier attempt was let go. Timings:
+        ``setup_s``, ``trial_s`` and ``plan_s`` (the planner's classify-register-transfer-score-search
+        time, when it ran).
 
     Raises:
         InvalidInput: unknown source or category, or a category with no holdable instance.
@@ -119,7 +120,8 @@ def grasp(spec: TaskSpec) -> TrialOutcome:
     timings = {"setup_s": t1 - t0, "trial_s": time.perf_counter() - t1}
     if r.plan is not None:
         timings["plan_s"] = float(r.plan.timings["total"])
-    detail = f"{obj.name} [{r.gripper or 'none'}]: {r.reason}" + "".join(f"; {w}" for w in r.let_go)
+    read = "" if r.category in (None, cat) else f" read as {r.category}"
+    detail = f"{obj.name} [{r.gripper or 'none'}]{read}: {r.reason}" + "".join(f"; {w}" for w in r.let_go)
     if r.success:
         return TrialOutcome(True, Failure.NONE, detail, figures, timings)
     return TrialOutcome(False, _failure(r.reason), detail, figures, timings)

@@ -16,7 +16,14 @@ import mujoco
 import numpy as np
 
 from robointel.errors import IKFailure, InvalidInput
-from robointel.learning.grasp.hand import HandReading, after_close, after_lift, between_jaws, read_hand
+from robointel.learning.grasp.hand import (
+    EMPTY_OPENING,
+    HandReading,
+    after_close,
+    after_lift,
+    between_jaws,
+    read_hand,
+)
 from robointel.learning.grasp.objects import ObjectModel
 from robointel.learning.grasp.perception import DepthCamera, default_cameras, depth_image, perceive
 from robointel.learning.grasp.pipeline import GraspPlan, GraspPlanner
@@ -183,7 +190,8 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
     partial one); after the lift, they must not have changed (a slip). A failed check lets go, backs
     out to the park pose, waits for the part to come to rest, looks again and plans again with the
     same gripper, avoiding the grasps that failed (:meth:`GraspPlanner.plan`'s ``avoid``), up to
-    ``attempts`` attempts; the shake is never retried.
+    ``attempts`` attempts (the last one goes on to the lift and the shake whatever its checks say); the
+    shake is never retried.
 
     Args:
         obj: The object (a free body in the scene).
@@ -394,30 +402,30 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
             cell.place_gripper(q_pre)
             cell.follow(_smooth(q_pre, q_pre, int(0.1 / dt)), 0.0, "approach", attempt)
         # before closing: the perceived part between the jaws where the measured arm pose leads them
-        # (measured once the arm has settled at the pre-grasp)
+        # (measured once the arm has settled at the pre-grasp). A failed check lets go and tries again
+        # while attempts are left; the last attempt goes on whatever its checks say.
+        last = attempt == attempts
         cell.move(q_pre, 0.2, 0.0, None, attempt)
         v = between_jaws(cell.measured_grasp(PRE_GRASP), cloud, g)
-        if v.ok:
+        if v.ok or last:
+            if not v.ok:
+                let_go.append(f"attempt {attempt}: {v.state} ({v.detail}), the last: closed anyway")
             cell.move(q_grasp, 0.8, 0.0, "descend", attempt)
             z_rest = float(d.xpos[body][2])  # the object's height before the jaws close
             cell.move(q_grasp, 0.6, shut, "close", attempt)
             closed = cell.hand()
             v = after_close(closed, res.detail.width if res.detail is not None else float("nan"), g)
-            if v.ok:
+            if v.ok or last:
                 cell.move(q_up, 1.0, shut, "lift", attempt)
                 rel_after_lift = (d.xpos[body] - d.xpos[cell.gbody]).copy()
                 h_lift = float(d.xpos[body][2])
-                v = after_lift(closed, cell.hand(), g)
-        if not v.ok:
+                if v.ok:
+                    v = after_lift(closed, cell.hand(), g)
+        if not v.ok and not last:
             failed.append(res.grasp)
             let_go.append(f"attempt {attempt}: {v.state} ({v.detail})")
-            if attempt < attempts:
-                cell.back_off(q_hover, attempt)
-                continue
-            reason = {"empty": "dropped: fingers closed on nothing", "partial": "dropped: partial grasp",
-                      "slipped": "dropped: slipped during lift"}.get(v.state, f"let go: {v.state}")
-            return result(False, f"{reason} ({v.detail}; {attempt} attempts)",
-                          final_height=float(d.xpos[body][2]))
+            cell.back_off(q_hover, attempt)
+            continue
         break
     n_sh = int(1.5 / dt)
     tt = np.arange(n_sh) * dt
@@ -435,6 +443,8 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
     held = h - z_rest > LIFT_MIN and moved < 0.03 and cell.log[-1]["contacts"] > 0
     if held:
         reason = "held"
+    elif grip < EMPTY_OPENING:
+        reason = "dropped: fingers closed on nothing"
     elif h_lift - z_rest < LIFT_MIN:
         reason = f"dropped: slipped during lift (height {h_lift:.3f} m, grip {grip:.3f} m)"
     else:
