@@ -87,3 +87,34 @@ def test_the_planner_avoids_a_grasp_that_failed():
     moved = np.linalg.norm(again.centre - first.centre)
     turned = np.degrees(np.arccos(min(1.0, abs(float(again.axis @ first.axis)))))
     assert moved > 0.01 or turned > 30
+
+
+def test_a_trial_lets_go_of_a_stale_plan_and_grasps_again():
+    """A plan made where the box stood before it moved 3 cm: at the pre-grasp the perceived box is not
+    between the jaws (a finger would come down on it), so the trial backs off without closing, looks
+    again, plans again (the same gripper) and holds the box through the lift and the shake on its
+    second attempt."""
+    import mujoco
+
+    from robointel.learning.grasp import default_cameras, depth_image, grasp_trial, perceive, primitive_object
+
+    box_t = primitive_object("box", 10)
+    planner = GraspPlanner([Template("box_t", "box", sample_points(box_t, 600, 0), taught_grasps(box_t), 0.12)])
+    target = primitive_object("box", 12)
+    before = Placement(target, 0.5, 0.02, 0.6)
+    cams = default_cameras()
+    m0 = mujoco.MjModel.from_xml_string(scene_xml([]))
+    d0 = mujoco.MjData(m0)
+    mujoco.mj_forward(m0, d0)
+    bgs = [depth_image(m0, d0, c, 0) for c in cams]
+    m = mujoco.MjModel.from_xml_string(scene_xml([before]))
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    stale = planner.plan(perceive(m, d, cams, bgs, rng=1)[0])
+    assert stale.search.feasible
+    res = grasp_trial(target, Placement(target, 0.5, 0.05, 0.6), planner, rng=0, plan=stale, attempts=2)
+    assert res.attempts == 2
+    assert len(res.let_go) == 1
+    assert res.let_go[0].startswith(("attempt 1: not between the jaws", "attempt 1: finger on the part"))
+    assert [s["phase"] for s in res.log if s["attempt"] == 1] == ["approach", "back off"]  # never closed
+    assert res.success, res.reason

@@ -168,7 +168,7 @@ ATTEMPTS = 3
 def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *,
                 rng: np.random.Generator | int | None = None, cameras: list[DepthCamera] | None = None,
                 shake_amplitude: float = 0.15, settle: float = 0.3, arm: bool = True,
-                attempts: int = ATTEMPTS) -> GraspTrialResult:
+                attempts: int = ATTEMPTS, plan: GraspPlan | None = None) -> GraspTrialResult:
     """Run one lift-and-shake trial (Table 6.2) in MuJoCo, the loop closed at the hand.
 
     Place ``obj`` (free body), perceive, plan, approach, close, lift 10 cm, shake; success if the
@@ -205,6 +205,8 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
             latest after :data:`SETTLE_MAX`.
         arm: Simulate the whole arm (else the gripper alone, one attempt).
         attempts: Most grasp attempts (>= 1; :data:`ATTEMPTS`).
+        plan: The first attempt's plan, made beforehand (None: planned on the trial's first look); its
+            gripper goes on the flange.
 
     Returns:
         The trial's result (``success``, ``reason``, the plan, the state at the end of each phase, the
@@ -221,8 +223,8 @@ def grasp_trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, *
     Tb = planner.base_pose
     # the scene is built before the plan (the cameras look at it); the plan may choose the wide gripper
     # (then the scene is rebuilt with it, the object and the noise draws as they were)
-    return _trial(obj, placement, planner, planner.gripper, rng, cams, shake_amplitude, settle, arm, Tb,
-                  dict(rng.bit_generator.state), int(attempts) if arm else 1)
+    return _trial(obj, placement, planner, plan.gripper if plan is not None else planner.gripper, rng, cams,
+                  shake_amplitude, settle, arm, Tb, dict(rng.bit_generator.state), int(attempts) if arm else 1, plan)
 
 
 class _Cell:
