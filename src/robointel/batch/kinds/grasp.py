@@ -65,7 +65,7 @@ def setup(source: str, per_category: int = 4,
 
 
 def _failure(reason: str) -> Failure:
-    if reason.startswith("no feasible grasp") or reason in ("nothing perceived", "cloud too small"):
+    if reason.startswith(("no feasible grasp", "nothing perceived")) or reason == "cloud too small":
         return Failure.NO_GRASP
     if reason.startswith("approach or lift unreachable"):
         return Failure.IK
