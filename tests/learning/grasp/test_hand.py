@@ -45,7 +45,8 @@ def test_after_close_and_after_lift_verdicts():
     assert after_close(HandReading(0.004, (20.0, 20.0)), 0.006, g).ok  # a thin part is thin
     closed = HandReading(0.019, (20.0, 20.0))
     assert after_lift(closed, HandReading(0.0188, (19.0, 19.0)), g).ok
-    assert after_lift(closed, HandReading(0.015, (20.0, 20.0)), g).state == "slipped"
+    assert after_lift(closed, HandReading(0.012, (20.0, 20.0)), g).ok  # turned in the jaws, still held
+    assert after_lift(closed, HandReading(0.009, (20.0, 20.0)), g).state == "slipped"  # sliding out
     assert after_lift(closed, HandReading(0.0185, (2.0, 20.0)), g).state == "slipped"
     assert after_lift(closed, HandReading(0.0, (0.0, 0.0)), g).state == "empty"
 

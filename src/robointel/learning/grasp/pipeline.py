@@ -36,7 +36,7 @@ from robointel.learning.grasp.quality import (
 )
 from robointel.learning.grasp.scene import Placement, scene_xml
 from robointel.learning.grasp.search import PENALTY, SearchResult, orientation_search, refine_position
-from robointel.learning.grasp.shape import ShapeClass, shape_class, shape_cost, shape_grasps
+from robointel.learning.grasp.shape import ShapeClass, box_sides, shape_class, shape_cost, shape_grasps
 from robointel.learning.grasp.transfer import Grasp, transfer_grasp
 from robointel.robot import Robot
 
@@ -314,22 +314,24 @@ class GraspPlanner:
         per_fit = [[self._transfer(fit, g, cloud) for g in fit.template.grasps] for fit in fits]
         grasps = per_fit[0]
         t2 = time.perf_counter()
-        # the warped template completes the sides the cameras do not see; it also tells the part's mass
-        # and centre of mass (the hold, :mod:`.hold`)
+        # the warped template completes the sides the cameras do not see (a box's sides also come from
+        # its seen top, :func:`box_sides`); it also tells the part's mass and centre of mass (the hold,
+        # :mod:`.hold`)
+        shape = shape_class(cloud, table_z=self.table_z)
+        sides = box_sides(shape, table_z=self.table_z) if self.shape_weight else np.zeros((0, 3))
         fulls, parts = [], []
         for fit in fits:
             W = fit.warp(fit.template.points)
             parts.append(self._part(fit.template, W))
             if self.carve:
                 W = carve_above_seen(W, cloud)
-            full = np.vstack([cloud, W])
+            full = np.vstack([cloud, W, sides])
             fulls.append((full, cKDTree(full)))
         # the transferred grasps' widths (line search of the widest gripper) choose the gripper
         widest = max(self.grippers, key=lambda g_: g_.max_width)
         widths = [grasp_quality(full, g, gripper=widest, tree=tree, pad_reach=self.pad_reach,
                                 table_z=self.table_z).width
                   for (full, tree), gs in zip(fulls, per_fit) for g in gs]
-        shape = shape_class(cloud, table_z=self.table_z)
         # a rectangular tin or box is taken across its short side: that side's width chooses the gripper
         gripper = only or choose_gripper([float(shape.extents[1])] if self.shape_weight and shape.kind == "box"
                                          else widths, self.grippers)

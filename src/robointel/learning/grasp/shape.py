@@ -5,10 +5,11 @@ category can be misread (a rectangular tin read as a box) and a template's grasp
 target is weak (a screwdriver's handle grasp on a fork's tines). The shape class comes from what the
 cameras see, whatever the category read:
 
-* ``"box"``: a rectangular footprint (the footprint's hull fills its minimum-area rectangle) whose long
-  side is clearly longer than the short one, under a flat top that covers it (a prism standing on the
-  table, not a posed toy arm): a tin or a box. Taken across its short side (the closing axis along the
-  footprint's short axis), near the middle of its long side.
+* ``"box"``: a rectangular footprint (the footprint's hull fills its minimum-area rectangle) under a
+  flat top that covers it (a prism standing or lying on the table, not a posed toy arm): a tin or a
+  box. Taken across its short side (the closing axis along the footprint's short axis), near the
+  middle of its long side. Its sides are vertical under the seen top: :func:`box_sides` completes
+  them where the cameras saw little of them (a low box's sides, its far sides).
 * ``"long"``: a long, low part lying on the table (a utensil, a tool): taken near its centre of mass
   along its length, where it is thickest (its seen top is highest there).
 * ``"other"``: no rule (round parts, cups, toy arms, clamps): the hold and the isotropy decide.
@@ -30,14 +31,15 @@ from robointel.learning.grasp.classify import footprint_rectangle, yaw_matrix
 from robointel.learning.grasp.quality import ParallelGripper
 from robointel.learning.grasp.transfer import Grasp, grasp_from_axis
 
-__all__ = ["BOX_FILL", "BOX_ASPECT", "BOX_TOP", "LONG_ASPECT", "LONG_HEIGHT", "ShapeClass", "shape_class",
-           "shape_cost", "shape_grasps"]
+__all__ = ["BOX_FILL", "BOX_ASPECT", "BOX_TOP", "LONG_ASPECT", "LONG_HEIGHT", "ShapeClass", "box_sides",
+           "shape_class", "shape_cost", "shape_grasps"]
 
 #: Least ratio of the footprint hull's area to its minimum-area rectangle's for a "box" (a disc: pi/4).
 BOX_FILL = 0.88
 
-#: Least long-to-short footprint ratio for a "box" (a square block has no short side).
-BOX_ASPECT = 1.3
+#: Least long-to-short footprint ratio for a "box" (1: any rectangle; a square block is taken across
+#: either side, never across its corners).
+BOX_ASPECT = 1.0
 
 #: Least share of the footprint hull's area covered by the hull of the seen points within 10 mm of the
 #: top, for a "box" (its flat top spans its footprint).
@@ -121,6 +123,31 @@ def _area(xy: np.ndarray) -> float:
         return float(ConvexHull(xy).volume) if len(xy) >= 3 else 0.0
     except (QhullError, ValueError):
         return 0.0
+
+
+def box_sides(shape: ShapeClass, *, table_z: float = 0.0, spacing: float = 0.004) -> np.ndarray:
+    """Points on the four vertical sides of a "box" (its footprint rectangle, from the table to the seen top).
+
+    Args:
+        shape: The part's :class:`ShapeClass` (kind "box"; any other kind gives no points).
+        table_z: The table's height (m).
+        spacing: Distance between the points (m).
+
+    Returns:
+        The points (k, 3), m, world (k = 0 for a kind other than "box").
+    """
+    if shape.kind != "box":
+        return np.zeros((0, 3))
+    L, S, H = (float(v) for v in shape.extents)
+    u, v = shape.long_axis, shape.short_axis
+    zs = table_z + np.arange(spacing, H, spacing)
+    out = []
+    for half, along, side, across in ((0.5 * S, L, v, u), (0.5 * L, S, u, v)):
+        ts = np.arange(-0.5 * along, 0.5 * along + 1e-9, spacing)
+        for sgn in (-1.0, 1.0):
+            xy = shape.centre + sgn * half * side + ts[:, None] * across
+            out.append(np.column_stack([np.repeat(xy, len(zs), axis=0), np.tile(zs, len(ts))]))
+    return np.vstack(out) if out else np.zeros((0, 3))
 
 
 def shape_cost(grasp: Grasp, shape: ShapeClass, *, com: npt.ArrayLike | None = None,

@@ -19,6 +19,7 @@ from robointel.errors import IKFailure, InvalidInput
 from robointel.learning.grasp.hand import (
     EMPTY_OPENING,
     HandReading,
+    HandVerdict,
     after_close,
     after_lift,
     between_jaws,
@@ -408,7 +409,11 @@ def _trial(obj: ObjectModel, placement: Placement, planner: GraspPlanner, g: Par
         # while attempts are left; the last attempt goes on whatever its checks say.
         last = attempt == attempts
         cell.move(q_pre, 0.2, 0.0, None, attempt)
-        v = between_jaws(cell.measured_grasp(PRE_GRASP), cloud, g)
+        at = cell.measured_grasp(PRE_GRASP)
+        v = between_jaws(at, cloud, g)
+        if not v.ok:
+            off = float(np.linalg.norm(at.centre - res.grasp.centre))
+            v = HandVerdict(False, v.state, f"{v.detail}; the arm {off * 1e3:.1f} mm off the planned grasp")
         if v.ok or last:
             if not v.ok:
                 let_go.append(f"attempt {attempt}: {v.state} ({v.detail}), the last: closed anyway")
