@@ -62,7 +62,7 @@ def _templates(objs: dict[str, list[ObjectModel]], db: Path | None = None, *,
             out.append(seen_template(o))
             continue
         grasps = sampled_grasps(o) if cat != "toy_arm" else []
-        out.append(Template(o.name, cat, sample_points(o, 800, 0), grasps or taught_grasps(o)))
+        out.append(Template(o.name, cat, sample_points(o, 800, 0), grasps or taught_grasps(o), o.mass))
     return out
 
 
