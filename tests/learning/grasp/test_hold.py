@@ -96,3 +96,27 @@ def test_shape_classes_of_a_tin_a_utensil_and_a_round_can():
     assert s.kind == "other" and shape_cost(across, s) == 0.0
     with pytest.raises(InvalidInput):
         shape_class(np.zeros((2, 3)))
+
+
+def test_shape_grasps_take_a_tin_across_its_short_side_and_a_utensil_near_its_centre_of_mass():
+    from robointel.learning.grasp.quality import WIDE_GRIPPER
+    from robointel.learning.grasp.shape import box_sides, shape_grasps
+
+    tin = _box_points([0.10, 0.06, 0.085], at=(0.5, 0.0))
+    tin = tin[tin[:, 2] > 0.004]
+    s = shape_class(tin)
+    gs = shape_grasps(s, tin, WIDE_GRIPPER)
+    assert gs and all(abs(g.axis @ [0, 1, 0]) > 0.99 and g.approach[2] == pytest.approx(-1.0) for g in gs)
+    deepest = min(g.centre[2] for g in gs)  # the palm 3 mm over the top, the fingers as deep as they go
+    assert deepest == pytest.approx(0.085 + 0.003 - (WIDE_GRIPPER.finger_length - WIDE_GRIPPER.tip_depth), abs=0.003)
+    assert any(np.linalg.norm(g.centre[:2] - [0.5, 0.0]) < 0.003 for g in gs)
+    sides = box_sides(s)
+    assert np.abs(np.abs(sides[:, 1]) - 0.03).min() < 0.003 and sides[:, 2].max() < 0.086
+    bar = _box_points([0.18, 0.02, 0.01])
+    s = shape_class(bar)
+    gs = shape_grasps(s, bar, NARROW_GRIPPER, com=[0.03, 0.0, 0.005])
+    assert gs[0].centre[:2] == pytest.approx([0.03, 0.0], abs=0.003)  # the first at the centre of mass
+    assert all(abs(g.axis @ [0, 1, 0]) > 0.99 and abs(g.centre[0] - 0.03) <= 0.0301 for g in gs)
+    assert all(0.005 <= g.centre[2] <= 0.01 for g in gs)
+    assert shape_grasps(shape_class(np.asarray(trimesh.creation.icosphere(radius=0.03).vertices)), bar,
+                        NARROW_GRIPPER) == []
