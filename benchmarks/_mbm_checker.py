@@ -59,17 +59,40 @@ def _quat_xyzw(q) -> np.ndarray:
 class MBMChecker:
     """Exact collision checker of one robot (URDF + optional SRDF) against MBM problem scenes."""
 
-    def __init__(self, urdf: str | Path, srdf: str | Path | None = None) -> None:
+    def __init__(self, urdf: str | Path, srdf: str | Path | None = None, *, joints: list[str] | None = None,
+                 held: dict[str, float] | None = None, package_dirs: list[str] | None = None) -> None:
         urdf = Path(urdf)
-        self.model = pin.buildModelFromUrdf(str(urdf))
+        full = pin.buildModelFromUrdf(str(urdf))
+        geom = pin.buildGeomFromUrdf(full, str(urdf), pin.COLLISION,
+                                     package_dirs=[str(urdf.parent)] + list(package_dirs or []))
+        names = [full.names[j] for j in range(1, full.njoints)]
+        lock = [n for n in names if joints is not None and n not in joints]
+        if lock:  # held joints: locked at the given value (default 0, or mid-range when 0 is outside the limits)
+            q = pin.neutral(full)
+            for n in lock:
+                jm = full.joints[full.getJointId(n)]
+                lo, hi = full.lowerPositionLimit[jm.idx_q], full.upperPositionLimit[jm.idx_q]
+                v = (held or {}).get(n, 0.0 if lo <= 0.0 <= hi else 0.5 * (lo + hi))
+                if jm.nq == 2:
+                    q[jm.idx_q:jm.idx_q + 2] = np.cos(v), np.sin(v)
+                else:
+                    q[jm.idx_q] = v
+            self.model, self.geom = pin.buildReducedModel(full, geom, [full.getJointId(n) for n in lock], q)
+        else:
+            self.model, self.geom = full, geom
         self.data = self.model.createData()
-        self.geom = pin.buildGeomFromUrdf(self.model, str(urdf), pin.COLLISION, package_dirs=[str(urdf.parent)])
-        self.nq = self.model.nq
-        if self.model.nq != self.model.nv:
-            raise ValueError("the checker handles revolute/prismatic joints only (nq == nv)")
+        self.nq = self.model.nv  # configurations are angles (a continuous joint's cos/sin made here)
+        # continuous joints (nq 2, nv 1): index of each angle in pinocchio's q
+        self._cont = [(self.model.joints[j].idx_v, self.model.joints[j].idx_q) for j in range(1, self.model.njoints)
+                      if self.model.joints[j].nq == 2]
         self.joint_names = [self.model.names[j] for j in range(1, self.model.njoints)]
-        self.lower = self.model.lowerPositionLimit.copy()
-        self.upper = self.model.upperPositionLimit.copy()
+        self.lower = np.full(self.nq, -np.inf)
+        self.upper = np.full(self.nq, np.inf)
+        for j in range(1, self.model.njoints):
+            jm = self.model.joints[j]
+            if jm.nq == 1:
+                self.lower[jm.idx_v] = self.model.lowerPositionLimit[jm.idx_q]
+                self.upper[jm.idx_v] = self.model.upperPositionLimit[jm.idx_q]
         self.vmax = self.model.velocityLimit.copy()
         self.links = [self.model.frames[g.parentFrame].name for g in self.geom.geometryObjects]
         self.hulls = [self._hull(g.geometry) for g in self.geom.geometryObjects]
@@ -89,9 +112,9 @@ class MBMChecker:
             jm = self.model.joints[j]
             kind = jm.shortname()
             if "Prismatic" in kind or kind in ("JointModelPX", "JointModelPY", "JointModelPZ"):
-                w[jm.idx_q] = 1.0
-            elif jm.nq == 1 and ("Revolute" in kind or kind in ("JointModelRX", "JointModelRY", "JointModelRZ")):
-                w[jm.idx_q] = reach
+                w[jm.idx_v] = 1.0
+            elif "Revolute" in kind or kind.startswith("JointModelR"):  # revolute, continuous (RUB)
+                w[jm.idx_v] = reach
             else:
                 raise ValueError(f"joint {self.model.names[j]} of type {kind} is not handled")
             reach += float(np.linalg.norm(self.model.jointPlacements[j].translation))
@@ -117,10 +140,8 @@ class MBMChecker:
             known = {f.name for f in self.model.frames}
             for d in ET.parse(srdf).getroot().iter("disable_collisions"):
                 a, b = d.get("link1"), d.get("link2")
-                for x in (a, b):
-                    if x not in known:
-                        raise ValueError(f"{srdf}: disable_collisions names unknown link {x!r}")
-                disabled.add(frozenset((a, b)))
+                if a in known and b in known:  # an entry naming an absent link is skipped, as MoveIt does
+                    disabled.add(frozenset((a, b)))
         pairs = []
         objs = self.geom.geometryObjects
         for a in range(len(objs)):
@@ -151,6 +172,19 @@ class MBMChecker:
         return out
 
     # checking -----------------------------------------------------------------------------------
+    def _pin_q(self, q: np.ndarray) -> np.ndarray:
+        """Pinocchio's configuration of the angle vector q (a continuous joint as cos, sin)."""
+        if not self._cont and self.model.nq == self.nq:
+            return q
+        out = np.empty(self.model.nq)
+        for j in range(1, self.model.njoints):
+            jm = self.model.joints[j]
+            if jm.nq == 2:
+                out[jm.idx_q:jm.idx_q + 2] = np.cos(q[jm.idx_v]), np.sin(q[jm.idx_v])
+            else:
+                out[jm.idx_q] = q[jm.idx_v]
+        return out
+
     def _pair_distance(self, ga, Ta, gb, Tb, ha=None, hb=None, bound: float = np.inf) -> tuple[float, bool]:
         """Exact distance (or, when the convex hulls ``ha``, ``hb`` are already farther apart than
         ``bound``, their distance: a lower bound that is above ``bound``) and the collision flag."""
@@ -191,7 +225,7 @@ class MBMChecker:
             due = np.flatnonzero(lb <= best)
             if due.size == 0:
                 continue
-            pin.forwardKinematics(self.model, self.data, Q[k])
+            pin.forwardKinematics(self.model, self.data, self._pin_q(Q[k]))
             Ts: dict[int, coal.Transform3s] = {}  # placements of the geometries needed at this sample
             for p in due:
                 a, b = pairs[p]

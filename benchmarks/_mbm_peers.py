@@ -4,9 +4,9 @@
   check: Pinocchio/coal collision of the URDF's collision meshes with the obstacles and between
   non-adjacent links (SRDF pairs removed), one C++ call per state, motions checked every
   ``1/32`` rad (VAMP's resolution).
-* VAMP: ``vamp.ur5.rrtc`` + ``vamp.ur5.simplify`` on VAMP's own UR5 sphere model and its own reading
-  of the problem (``vamp.problem_dict_to_vamp``). Built by ``../shared/tools/vamp/build.sh``; a
-  benchmark peer only.
+* VAMP: ``vamp.<robot>.rrtc`` + ``vamp.<robot>.simplify`` (``ur5`` or ``fetch``) on VAMP's own sphere
+  model of the robot and its own reading of the problem (``vamp.problem_dict_to_vamp``). Built by
+  ``../shared/tools/vamp/build.sh``; a benchmark peer only.
 
 Both geometric paths are timed by TOPP-RA (``toppra``) on a cubic spline through the waypoints
 (points every 0.1 rad along the polyline so the spline stays near the checked edges, chord-length
@@ -162,29 +162,33 @@ class OMPLPeer:
 
 
 class VAMPPeer:
-    """VAMP RRT-Connect + simplification on VAMP's UR5 (its own spheres)."""
+    """VAMP RRT-Connect + simplification on VAMP's model of the robot (its own spheres): ``ur5`` or ``fetch``."""
 
-    def __init__(self) -> None:
+    def __init__(self, robot: str = "ur5") -> None:
         import vamp
 
         self.vamp = vamp
+        self.robot = robot
+        self.module = getattr(vamp, robot)  # AttributeError: VAMP built without this robot
 
     def solve(self, problem: dict, vmax, amax, *, seed: int = 0) -> PeerResult:
         vamp = self.vamp
         t0 = time.perf_counter()
         env = vamp.problem_dict_to_vamp(problem)
         st = vamp.RRTCSettings()
-        st.range = vamp.ROBOT_RRT_RANGES["ur5"]
+        st.range = vamp.ROBOT_RRT_RANGES[self.robot]
         st.max_iterations = vamp.DEFAULT_ITERATIONS
         st.max_samples = vamp.DEFAULT_ITERATIONS
-        rng = vamp.ur5.xorshift()
+        mod = self.module
+        rng = mod.xorshift()
         for _ in range(seed):
             rng.next()
-        res = vamp.ur5.rrtc(problem["start"], problem["goals"][0], env, st, rng)
+        res = mod.rrtc(problem["start"], problem["goals"][0], env, st, rng)
         t1 = time.perf_counter()
         if not res.solved:
-            return PeerResult(False, np.zeros((0, 6)), None, None, None, (t1 - t0) * 1e3, 0.0, 0.0, "not solved")
-        simp = vamp.ur5.simplify(res.path, env, vamp.SimplifySettings(), rng)
+            return PeerResult(False, np.zeros((0, len(problem["start"]))), None, None, None, (t1 - t0) * 1e3, 0.0, 0.0,
+                              "not solved")
+        simp = mod.simplify(res.path, env, vamp.SimplifySettings(), rng)
         t2 = time.perf_counter()
         path = np.asarray(simp.path.numpy(), float)
         timed, tms = toppra_time(path, vmax, amax)

@@ -1,4 +1,4 @@
-"""MotionBenchMaker UR5 problems: robointel's start-to-goal planner beside OMPL and VAMP, one core.
+"""MotionBenchMaker problems (UR5, Fetch): robointel's start-to-goal planner beside OMPL and VAMP, one core.
 
 Ours: ``robointel.planning.plan_motion`` (global search, smoothing, time parametrisation) on the
 problem read by ``robointel.io.mbm``. Peers, in the same run on the same problems and limits:
@@ -9,15 +9,24 @@ RRT-Connect + simplification + TOPP-RA (VAMP's own UR5 spheres). Every trajector
 Limits: the URDF's joint velocity limits (0.5 rad/s on this UR5) and accelerations of 3x the
 velocity limit (1.5 rad/s^2, robointel's default ``Robot.acceleration_limit``) for all three.
 
-    python benchmarks/mbm.py --json [--all | --per-family N] [--families cage box] [--peers ompl vamp] [--frmp]
-                             [--jsonl rows.jsonl [--resume]]
+    python benchmarks/mbm.py --json [--robot ur5|fetch] [--spheres file|auto] [--all | --per-family N]
+                             [--families cage box] [--peers ompl vamp] [--frmp] [--jsonl rows.jsonl [--resume]]
+
+``--robot`` picks the folder under ``../shared/data/mbm`` (its URDF, SRDF and ``problems.json``; the planned
+joints are the file's ``joints``, the others held); ``--spheres auto`` plans with the spheres robointel fits
+to the meshes instead of the folder's ``<robot>_spherized.urdf``. ``refused_free_starts`` counts the
+problems whose start or goal we refused although the checker finds it >= 1 mm clear.
 
 ``--all`` runs every valid problem (689); ``--jsonl`` appends one line per planner and problem as soon as
 it is judged, so a long run loses nothing, and ``--resume`` skips the problems already in that file
 (the summary is then computed over all rows of the file).
 
-Prints one JSON object (``--json``) or a table; a progress bar goes to stderr. cuRobo's figures are
-the published ones (RTX 6000 Ada GPU), not run here.
+Prints one JSON object (``--json``) or a table; a progress bar goes to stderr. Beside the summary keys it prints
+the stage profile of ours (``stage_ms`` and ``stage_cpu_ms``: median, p95 and sum per stage, wall and process CPU
+time), each peer's stages (``vamp_stage_ms``: search, simplification, TOPP-RA) and, with VAMP,
+``plan_ms_ratio_vs_vamp_median`` (our median plan_ms over VAMP + simplification + TOPP-RA's, same run), and the
+same ratio of process CPU times (``plan_cpu_ratio_vs_vamp_median``).
+cuRobo's figures are the published ones (RTX 6000 Ada GPU), not run here.
 """
 from __future__ import annotations
 
@@ -42,17 +51,34 @@ from _mbm_peers import OMPLPeer, VAMPPeer  # noqa: E402
 CUROBO_PUBLISHED = {"source": "cuRobo (Sundaralingam et al. 2023), published on MotionBenchMaker, RTX 6000 Ada GPU",
                     "run_here": False, "success": 1.0, "plan_ms_median": 31.0, "plan_ms_p98": 161.0,
                     "duration_s_median": 1.33}
-TARGETS = {"success": 0.999, "collisions_independent": 0, "plan_ms_median": 20.0, "plan_ms_p95": 100.0,
+TARGETS = {"success": 0.999, "collisions_independent": 0, "plan_ms_median": 20.0, "plan_ms_p95": 30.0,
+           "plan_ms_ratio_vs_vamp_median": 0.4,
            "pointcloud_update_ms": 20.0, "frmp_speedup_vs_sqp": 100.0}
 SEED0 = 7919  # planner seeds: SEED0 + problem index (never used for tuning)
 
 
-def data_dir() -> Path:
+def data_dir(robot: str = "ur5") -> Path:
     env = os.environ.get("ROBOINTEL_DATA")
     root = Path(env) if env else Path(__file__).resolve().parents[1].parent / "shared" / "data"
-    if not (root / "mbm" / "ur5").is_dir():
+    if not (root / "mbm" / robot).is_dir():
         root = Path("/work/shared/data")
-    return root / "mbm" / "ur5"
+    return root / "mbm" / robot
+
+
+def robot_files(d: Path) -> tuple[Path, Path, Path]:
+    """(URDF, SRDF, sphere URDF) of an MBM robot folder: ``<robot>.urdf``, ``.srdf`` and ``_spherized.urdf``."""
+    name = d.name
+    return d / f"{name}.urdf", d / f"{name}.srdf", d / f"{name}_spherized.urdf"
+
+
+def refused_free(row: dict, start_mm: float, goals_mm: list[float]) -> bool:
+    """Whether our planner refused a start or goal (``CollisionAtStart``) that the checker finds >= 1 mm clear."""
+    reason = row.get("reason") or ""
+    if not reason.startswith("CollisionAtStart"):
+        return False
+    if "start configuration" in reason:
+        return start_mm >= 1.0
+    return max(goals_mm, default=-1.0) >= 1.0
 
 
 def one_core() -> None:
@@ -99,18 +125,19 @@ def surface_cloud(raw: dict, n: int, seed: int) -> np.ndarray:
 
 
 class Ours:
-    """robointel.planning.plan_motion on the UR5 of the MBM folder."""
+    """robointel.planning.plan_motion on the robot of the MBM folder (its planned joints those of problems.json)."""
 
-    def __init__(self, urdf: Path, srdf: Path, d_min: float, budget: float) -> None:
+    def __init__(self, urdf: Path, srdf: Path, d_min: float, budget: float, *, joints: list[str] | None = None,
+                 spheres: Path | None = None) -> None:
         from robointel.planning import Environment, MotionSettings, plan_motion
         from robointel.robot import Robot
 
         self.Environment, self.MotionSettings, self.plan_motion = Environment, MotionSettings, plan_motion
-        self.robot = Robot.load(urdf)
+        self.robot = Robot.load(urdf, srdf=srdf, joints=joints)
         self.srdf = srdf
         self.d_min, self.budget = d_min, budget
-        sph = urdf.parent / "ur5_spherized.urdf"  # the sphere decomposition shipped with the problems
-        self.env_kw = {"srdf": srdf, "spheres": sph} if sph.exists() else {"srdf": srdf}
+        # spheres: the decomposition shipped with the problems, or None for the automatic model
+        self.env_kw = {"srdf": srdf, "spheres": spheres} if spheres is not None else {"srdf": srdf}
         #: process CPU time of the last :meth:`solve`'s ``plan_motion``, ms (on a shared machine the wall
         #: time counts the other processes' turns too)
         self.last_cpu_ms = float("nan")
@@ -213,6 +240,38 @@ def summarise(prefix: str, rows: list[dict], families: list[str]) -> dict:
             f"{prefix}per_family": fam}
 
 
+def stage_profile(rows: list[dict]) -> dict:
+    """Per-stage wall and process-CPU time over the problems: ``stage_ms`` and ``stage_cpu_ms``.
+
+    Each is {stage: {median, p95, sum}} in ms over every problem that reached the planner (a stage a
+    problem did not run counts 0 there); with ``plan_cpu_to_wall_median``, the median over problems
+    of the plan's CPU time over its wall time (below 1: the process waited for a core).
+    """
+    out: dict = {}
+    for key, name in (("stages_ms", "stage_ms"), ("stages_cpu_ms", "stage_cpu_ms")):
+        have = [r[key] for r in rows if key in r]
+        stages = sorted({k for r in have for k in r})
+        out[name] = {k: {"median": float(np.median(v)), "p95": float(np.percentile(v, 95)), "sum": float(np.sum(v))}
+                     for k in stages for v in [[r.get(k, 0.0) for r in have]]}
+    ratio = [r["plan_cpu_ms"] / r["plan_ms"] for r in rows
+             if r.get("plan_cpu_ms", float("nan")) == r.get("plan_cpu_ms") and r.get("plan_ms", 0) > 0]
+    if ratio:
+        out["plan_cpu_to_wall_median"] = float(np.median(ratio))
+    return out
+
+
+def vamp_ratio(out: dict) -> dict:
+    """``plan_ms_ratio_vs_vamp_median``: our median plan_ms over VAMP + simplification + TOPP-RA's, same run."""
+    ours, vamp = (out.get("plan_ms") or {}).get("median"), (out.get("vamp_plan_ms") or {}).get("median")
+    cpu, vcpu = (out.get("plan_cpu_ms") or {}).get("median"), (out.get("vamp_plan_cpu_ms") or {}).get("median")
+    return {"plan_ms_ratio_vs_vamp_median": ours / vamp if ours is not None and vamp else None,
+            "plan_cpu_ratio_vs_vamp_median": cpu / vcpu if cpu is not None and vcpu else None,
+            "plan_ms_ratio_vs_vamp_note": "median plan_ms of ours over the median of VAMP RRT-Connect + simplify + "
+                                          "TOPP-RA on the same problems, one process, one core; "
+                                          "plan_cpu_ratio_vs_vamp_median: the same with process CPU time (on a "
+                                          "loaded machine the wall times count the other processes' turns)"}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--json", action="store_true", help="print one JSON object")
@@ -236,13 +295,19 @@ def main() -> None:
                     help="our clearance, m (plan_motion's dense check accepts d_min - 1 mm, i.e. contact)")
     ap.add_argument("--time-budget", type=float, default=1.0, help="our search budget per problem, s")
     ap.add_argument("--frmp", action="store_true", help="also run benchmarks/frmp.py --quick for the SQP speed-up")
+    ap.add_argument("--robot", default="ur5", help="the robot folder under ../shared/data/mbm (ur5, fetch)")
+    ap.add_argument("--spheres", default="file", choices=["file", "auto"],
+                    help="our collision spheres: the folder's <robot>_spherized.urdf, or fitted to the meshes (auto)")
     args = ap.parse_args()
     one_core()
     load = os.getloadavg()[0]
 
     from robointel.io.mbm import load_mbm_problems
 
-    d = data_dir()
+    d = data_dir(args.robot)
+    if not d.is_dir():
+        ap.error(f"no MBM robot folder {d}")
+    urdf, srdf, sphere_urdf = robot_files(d)
     pset = load_mbm_problems(d / "problems.json")
     raw_all = json.loads((d / "problems.json").read_text())["problems"]
     if args.all and args.per_family is not None:
@@ -256,19 +321,24 @@ def main() -> None:
             rank[p.family] = rank.get(p.family, -1) + 1
             keyed.append(((rank[p.family], families.index(p.family)), p))
         problems = [p for _, p in sorted(keyed, key=lambda kp: kp[0])]
-    checker = MBMChecker(d / "ur5.urdf", d / "ur5.srdf")
+    checker = MBMChecker(urdf, srdf, joints=list(pset.joint_names))
     vmax = checker.vmax.copy()
     amax = 3.0 * vmax
     peers = {}
+    vamp_error = None
     if "ompl" in args.peers:
         peers["ompl"] = OMPLPeer(checker)
     if "vamp" in args.peers:
-        peers["vamp"] = VAMPPeer()
+        try:
+            peers["vamp"] = VAMPPeer(args.robot)
+        except (ImportError, AttributeError) as exc:
+            vamp_error = f"VAMP has no {args.robot!r} here: {exc}"
     ours = None
     ours_error = None
     if not args.no_ours:
         try:
-            ours = Ours(d / "ur5.urdf", d / "ur5.srdf", args.d_min, args.time_budget)
+            ours = Ours(urdf, srdf, args.d_min, args.time_budget, joints=list(pset.joint_names),
+                        spheres=sphere_urdf if args.spheres == "file" else None)
         except ImportError as exc:
             ours_error = f"robointel.planning.plan_motion not available in this tree: {exc}"
     rows: dict[str, list[dict]] = {k: [] for k in (["ours"] if ours else []) + list(peers)}
@@ -295,9 +365,10 @@ def main() -> None:
                 bar.advance(task)
                 continue
             raw = raw_by_key[(p.family, p.index)]
-            for q in [raw["start"], *raw["goals"]]:
-                endpoints += 1
-                endpoints_free += not checker.check_configuration(np.asarray(q, float), raw).collision
+            ends = [checker.check_configuration(np.asarray(q, float), raw) for q in [raw["start"], *raw["goals"]]]
+            endpoints += len(ends)
+            endpoints_free += sum(not v.collision for v in ends)
+            end_mm = [1e3 * v.min_clearance for v in ends]
             base = {"family": p.family, "index": p.index}
             if ours is not None:
                 plan, env_ms, plan_ms, reason = ours.solve(p, SEED0 + p.index)
@@ -311,21 +382,26 @@ def main() -> None:
                                reaches=v.reaches_goal,
                                min_clearance=v.min_clearance, duration_s=float(tr.t[-1] - tr.t[0]),
                                planner_clearance=plan.min_clearance_m, pair=v.pair, stages_ms=plan.timings,
+                               stages_cpu_ms=plan.cpu_timings,
                                timing=tr.meta.get("timing", ""))
                     row["success"] = bool(plan.success) and v.ok
                     if plan.success and not v.ok:
                         row["reason"] = (f"checker: collision {v.pair}" if v.collision else
                                          v.limit_violation or "does not reach the goal")
+                row["refused_free_start"] = refused_free(row, end_mm[0], end_mm[1:])
                 rows["ours"].append(row)
                 stream(sink, "ours", row)
             for name, peer in peers.items():
                 bar.update(task, description=f"{p.name} {name}")
+                c_peer = time.process_time()
                 if name == "ompl":
                     r = peer.solve(raw, vmax, amax, timeout=args.ompl_timeout, seed=SEED0 + p.index)
                 else:
                     r = peer.solve(raw, vmax, amax, seed=p.index)
+                c_peer = (time.process_time() - c_peer) * 1e3
                 row = dict(base, solved=r.solved, success=False, collision=False, limit=None, plan_ms=r.total_ms,
-                           duration_s=None, min_clearance=float("nan"), reason=r.reason)
+                           plan_cpu_ms=c_peer, duration_s=None, min_clearance=float("nan"), reason=r.reason,
+                           stages_ms={"plan": r.plan_ms, "simplify": r.simplify_ms, "toppra": r.toppra_ms})
                 if r.solved:
                     v = checker.check_trajectory(r.t, r.q, raw, qd=r.qd, amax=amax)
                     row.update(success=v.ok, collision=v.collision, limit=v.limit_violation, reaches=v.reaches_goal,
@@ -349,7 +425,8 @@ def main() -> None:
     for name in rows:  # resumed rows first in the file: back to problem order, problems of this selection only
         rows[name] = sorted((r for r in rows[name] if (r["family"], r["index"]) in order),
                             key=lambda r: order[(r["family"], r["index"])])
-    out: dict = {"benchmark": "MotionBenchMaker UR5 (problems.json of vamp-planner 0.6.4)",
+    out: dict = {"benchmark": f"MotionBenchMaker {args.robot} (problems.json of vamp-planner 0.6.4)",
+                 "robot": args.robot, "spheres": args.spheres, "vamp_error": vamp_error,
                  "ours_settings": {"d_min_m": args.d_min, "time_budget_s": args.time_budget,
                                    "seeds": f"{SEED0} + problem index"},
                  "problems": len(problems), "families": families, "one_core": True, "load_average_1min": load,
@@ -362,10 +439,12 @@ def main() -> None:
                              "valid_endpoints_collision_free": endpoints_free, "valid_endpoints": endpoints}}
     if ours is not None:
         out.update(summarise("", rows["ours"], families))
+        out["refused_free_starts"] = sum(bool(r.get("refused_free_start")) for r in rows["ours"])
         out["env_build_ms"] = stats([r["env_ms"] for r in rows["ours"]])
         stages = sorted({k for r in rows["ours"] for k in r.get("stages_ms", {})})
         out["stage_ms_median"] = {k: float(np.median([r["stages_ms"].get(k, 0.0) for r in rows["ours"]
                                                       if "stages_ms" in r])) for k in stages}
+        out.update(stage_profile(rows["ours"]))
         out["plan_ms_note"] = "plan_motion wall time (search + smoothing + time parametrisation + its dense check)"
         cpu = [r.get("plan_cpu_ms", float("nan")) for r in rows["ours"]]  # rows resumed from older runs lack it
         out["plan_cpu_ms"] = stats([c for c in cpu if c == c])
@@ -382,7 +461,11 @@ def main() -> None:
         if args.check_polylines:
             out[f"{name}_polyline_collisions_independent"] = sum(r.get("polyline_collision", False)
                                                                  for r in rows[name])
+    for name in peers:
+        out[f"{name}_stage_ms"] = stage_profile(rows[name])["stage_ms"]
+        out[f"{name}_plan_cpu_ms"] = stats([r["plan_cpu_ms"] for r in rows[name] if "plan_cpu_ms" in r])
     if ours is not None and "vamp" in peers:
+        out.update(vamp_ratio(out))
         common = [(a["duration_s"], b["duration_s"]) for a, b in zip(rows["ours"], rows["vamp"])
                   if a["success"] and b["success"]]
         out["duration_ratio_vs_vamp_median"] = float(np.median([a / b for a, b in common])) if common else None

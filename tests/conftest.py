@@ -141,9 +141,9 @@ XDIST_GROUPS = {
         "skills/test_skills_cli.py", "skills/test_skills_fanuc.py", "interface/test_stream_process.py",
         "interface/test_stream_state.py", "program/test_program_io.py", "program/test_program_steps.py",
         "teach/test_stream_interface.py", "teach/test_stream_safety.py", "teach/test_streaming.py",
-        "teach/test_teleop.py", "teach/test_teleop_browser.py",
+        "teach/test_teleop.py", "teach/test_teleop_browser.py", "docs/test_quickstarts.py",
     ),
-    "planning": ("planning/",),
+    "planning": ("planning/", "docs/test_quickstart_plan.py"),
     "ray": ("batch/test_ray.py",),
 }
 

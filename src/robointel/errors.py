@@ -43,6 +43,10 @@ class DescriptionError(RobointelError):
     """A robot description (URDF) could not be read or is inconsistent."""
 
 
+class DescriptionWarning(UserWarning):
+    """A robot description entry was skipped (e.g. an SRDF entry naming a link the URDF lacks, as MoveIt skips it)."""
+
+
 class IKFailure(RobointelError):
     """Inverse kinematics found no solution (unreachable pose, or outside joint limits)."""
 
@@ -111,4 +115,11 @@ class TargetInCollision(SafetyStop):
     """A target configuration (or the motion to it) would hit the table, the floor, an obstacle or itself.
 
     The message names the link; ``.value`` holds link, obstacle and distance.
+    """
+
+
+class MissingExtra(RobointelError, ImportError):
+    """A feature needs an optional part of robointel that is not installed; ``.value`` is the extra's name.
+
+    The message names the extra and the command that installs it (``pip install 'robointel[teleop]'``).
     """

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from robointel.errors import CollisionAtStart, IKFailure, InvalidInput, NotFinite
+from robointel.errors import CollisionAtStart, DescriptionWarning, IKFailure, InvalidInput, NotFinite
 from robointel.geometry.obstacles import Box, Cylinder, PointCloud, Sphere
 from robointel.geometry.rotations import quat_to_matrix
 from robointel.outcome import Failure
@@ -186,11 +186,15 @@ def test_bad_input_and_time_budget(mbm):
         assert plan.failure is Failure.TIMEOUT and "time budget" in plan.reason
 
 
-def test_srdf_unknown_link_raises(mbm, tmp_path):
+def test_srdf_unknown_link_is_skipped_with_a_warning_and_a_malformed_entry_raises(mbm, tmp_path):
     root, robot, _ = mbm
     bad = tmp_path / "bad.srdf"
     bad.write_text('<robot name="x"><disable_collisions link1="base_link" link2="nope" reason="x"/></robot>')
-    with pytest.raises(InvalidInput, match="nope"):
+    with pytest.warns(DescriptionWarning, match="nope"):
+        env = Environment(robot, [], srdf=bad)
+    assert env.disabled == set()
+    bad.write_text('<robot name="x"><disable_collisions link1="base_link" reason="x"/></robot>')
+    with pytest.raises(InvalidInput, match=r"bad\.srdf.*disable_collisions.*link2"):
         Environment(robot, [], srdf=bad)
 
 

@@ -138,7 +138,8 @@ class AdmittanceController:
         robot: a :class:`robointel.robot.Robot` (Jacobian at its TCP, limits).
         period: controller period, s.
         gains: :class:`AdmittanceGains`.
-        epsilon, max_damping: of :func:`damped_pinv`.
+        epsilon: of :func:`damped_pinv`.
+        max_damping: of :func:`damped_pinv`.
 
     Raises:
         InvalidInput: non-positive period.

@@ -257,9 +257,10 @@ class SimStreamRobot(Backend):
         queued, so it lags the targets by the look-ahead.
 
         Raises:
-            As :meth:`Backend.execute <robointel.interface.backend.Backend.execute>`; a stop of the child
-            while it plays the queue (a divergence, its death) raises ``ControllerFault`` /
-            ``ConnectionLost`` with ``.value`` = (state, result).
+            ControllerFault: as :meth:`Backend.execute <robointel.interface.backend.Backend.execute>`, or
+                the child stopped while it played the queue (a divergence); ``.value`` = (state, result).
+            ConnectionLost: as :meth:`Backend.execute <robointel.interface.backend.Backend.execute>`, or
+                the child died while it played the queue; ``.value`` = (state, result).
         """
         res = super().execute(trajectory, on_cycle=on_cycle)
         deadline = time.monotonic() + self.lookahead_s + SETTLE_TIMEOUT_S

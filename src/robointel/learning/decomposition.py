@@ -188,7 +188,8 @@ class ActionSegmenter:
         band: Sakoe-Chiba band of the window alignment (samples).
         stride: windows are scored every ``stride`` samples.
         resample: points kept per aligned window for the SVM descriptor.
-        C, gamma: the SVM's soft-margin penalty and RBF width (scikit-learn ``SVC``).
+        C: the SVM's soft-margin penalty (scikit-learn ``SVC``).
+        gamma: the SVM's RBF width (scikit-learn ``SVC``).
     """
 
     def __init__(self, *, window: int = 30, band: int = 6, stride: int = 2, resample: int = 10,

@@ -65,7 +65,9 @@ class GaussianMixtureRegression:
     Args:
         n_components: number of Gaussians K.
         reg_covar: diagonal added to covariances during EM (scikit-learn's ``reg_covar``).
-        max_iter, n_init, random_state: passed to ``sklearn.mixture.GaussianMixture`` (k-means init).
+        max_iter: passed to ``sklearn.mixture.GaussianMixture`` (k-means init).
+        n_init: passed to ``sklearn.mixture.GaussianMixture``.
+        random_state: passed to ``sklearn.mixture.GaussianMixture``.
 
     After :meth:`fit`: ``priors_`` (K,), ``means_`` (K, D), ``covariances_`` (K, D, D) with
     D = dx + dy, and ``n_inputs_``.

@@ -129,6 +129,12 @@ class Environment:
         floor: height (m) of a floor plane (a large box below it), or None.
         attached: objects carried by the tool, each given in the frame of ``attach_link``.
         attach_link: link the attached objects move with (default: the robot's flange frame's link).
+        exact_self: decide self-collision on the exact collision geometry wherever the covering
+            spheres of two links overlap (default: True with the robot's own fitted spheres,
+            :attr:`Robot.spheres`, which lie inside the meshes; False with given spheres).
+        self_padding: clearance required between the robot's own links, m, separate from the
+            obstacle clearance ``d_min`` of a plan (the planner offsets the self-collision radii by
+            (d_min - self_padding) / 2 each, so that both hold with one threshold).
         cover_meshes: also build spheres grown to cover the URDF's collision meshes
             (:func:`robointel.robot.sphere_cover.cover_meshes`) and check obstacles against them
             (see :meth:`use`); self-collision always uses the spheres as given.
@@ -149,22 +155,32 @@ class Environment:
     def __init__(self, robot: Robot, obstacles: Iterable[Obstacle] = (), *, srdf: str | Path | None = None,
                  spheres: SphereModel | str | Path | None = None, floor: float | None = None,
                  attached: Sequence[Obstacle] = (), attach_link: str | None = None,
-                 cover_meshes: bool = True) -> None:
+                 cover_meshes: bool = True, exact_self: bool | None = None, self_padding: float = 1e-3) -> None:
         if not isinstance(robot, Robot):
             raise InvalidInput(f"robot must be a robointel Robot, got {type(robot).__name__}", value=robot)
         self.robot = robot
         self.cover_meshes = bool(cover_meshes)
+        if srdf is None:
+            srdf = robot.srdf_path
+        #: self-collision decided on the exact geometry wherever the covering spheres of two links overlap
+        #: (default: with the robot's own fitted spheres, which lie inside the meshes)
+        self.exact_self = bool(spheres is None and robot.fitted_spheres) if exact_self is None else bool(exact_self)
+        if not (np.isfinite(self_padding) and self_padding >= 0):
+            raise InvalidInput(f"self_padding must be >= 0 m, got {self_padding}", value=self_padding)
+        self.self_padding = float(self_padding)
+        #: subtracted from every self-collision radius, twice (set by the planner for its d_min: d_min - self_padding)
+        self.self_offset = 0.0
         if spheres is None or isinstance(spheres, SphereModel):
             sm = robot.spheres if spheres is None else spheres
             links, centres, radii = list(sm.links), np.asarray(sm.centers, float), np.asarray(sm.radii, float)
         else:
             links, centres, radii = _urdf_spheres(robot, spheres)
         if attached:
-            link = attach_link or robot.model.frames[robot._flange_id].name
+            link = attach_link or robot.flange_frame
             if attach_link is not None:
                 robot.link_joint(attach_link)
             else:  # the flange frame may be an operational frame: attach to its body
-                fr = robot.model.frames[robot._flange_id]
+                fr = robot.model.frames[robot.frame_id(robot.flange_frame)]
                 link = robot.model.frames[fr.parentFrame].name if fr.type != pin.FrameType.BODY else fr.name
             for k, o in enumerate(attached):
                 c, r = _obstacle_spheres(o, k)
@@ -185,7 +201,7 @@ class Environment:
         # the robot side (bound spheres, joint tree, self-collision pairs, levers, covering radii) depends on the
         # robot and these inputs only: packed once and shared by every environment of the robot (read-only)
         key = ("pack", tuple(links), np.asarray(centres, float).tobytes(), np.asarray(radii, float).tobytes(),
-               frozenset(self.disabled), self.cover_meshes)
+               frozenset(self.disabled), self.cover_meshes, self.exact_self)
         pack = _robot_cache(robot).get(key)
         if pack is None:
             self.spheres = SphereModel(links, centres, radii).bind(robot)
@@ -242,7 +258,7 @@ class Environment:
         self._fitted = self._spheres
         self._cover = self._spheres
         if self.cover_meshes:
-            grown = cover_meshes(self.robot, sm).radii[order]
+            grown = cover_meshes(self.robot, sm, primitives=self.exact_self).radii[order]
             ggr = np.array([np.max(np.linalg.norm(sp[gs[k]:gs[k + 1]] - gc[k], axis=1) + grown[gs[k]:gs[k + 1]])
                             for k in range(len(groups))])
             self._cover = (sj, sp, np.ascontiguousarray(grown), groups.astype(np.int64), gc, ggr,
@@ -279,11 +295,48 @@ class Environment:
     @property
     def world_cover(self) -> tuple:
         """The packed world with the mesh-covering spheres."""
-        return self._chain + self._cover + self._prims + self._self + self._cloud + self._rel
+        return self._chain + self._cover + self._prims + self._self + self._cloud + self._rel_offset()
 
+    def self_clearance(self, q: npt.ArrayLike, *, cap: float = 1.0) -> float:
+        """Smallest self-collision distance (m) of the spheres' own radii at q (no offset, no obstacles), capped."""
+        qq = self.robot.check_q(np.asarray(q, float))
+        empty = (np.zeros(0, np.int64), np.zeros((0, GK.NPARAM)))
+        W = self._chain + self._spheres + empty + self._self + _empty_cloud() + self._rel
+        s = self.scratch
+        return float(K.config_clearance(qq, W, s.T, s.C, s.G, s.out, cap))
+
+    @property
+    def world_self_cover(self) -> tuple:
+        """The packed world with no obstacles and the mesh-covering spheres as self-collision radii.
+
+        Its clearance is the covering spheres' self-collision clearance: a lower bound of the meshes'.
+        """
+        c = self._cover
+        empty = (np.zeros(0, np.int64), np.zeros((0, GK.NPARAM)))
+        return self._chain + c + empty + self._self + _empty_cloud() + (self._rel[0], c[2], c[5], self._rel[3])
+
+
+    def _rel_offset(self) -> tuple:
+        """The self-collision entries of the world with every radius less ``self_offset / 2``."""
+        if self.self_offset == 0.0:
+            return self._rel
+        h = 0.5 * self.self_offset
+        return (self._rel[0], self._rel[1] - h, self._rel[2] - h, self._rel[3])
+
+    def set_self_offset(self, d_min: float, margin: float = 0.0) -> None:
+        """Make one threshold ``d_min`` check obstacles at ``d_min`` and self-collision at :attr:`self_padding`.
+
+        Every self-collision radius is reduced by (d_min - self_padding) / 2 and grown by ``margin``
+        (m; the planner grows fitted spheres, which lie inside the meshes, toward them). The planner
+        calls this with its ``d_min``; 0 restores the spheres' own radii.
+        """
+        off = float(d_min) - self.self_padding - 2.0 * float(margin) if d_min or margin else 0.0
+        if off != self.self_offset:
+            self.self_offset = off
+            self._rebuild()
 
     def _rebuild(self) -> None:
-        self.world = self._chain + self._spheres + self._prims + self._self + self._cloud + self._rel
+        self.world = self._chain + self._spheres + self._prims + self._self + self._cloud + self._rel_offset()
 
     def update_pointcloud(self, points: npt.ArrayLike, *, radius: float = 0.0) -> None:
         """Replace the environment's point cloud (m, world frame) by ``points`` (N, 3).
@@ -330,14 +383,14 @@ class Environment:
             return Contact(d, "", "", False)
         link = self.sphere_links[i]
         if kind == K.SELF:
-            return Contact(d, link, self.sphere_links[j], True)
+            return Contact(d - self.self_offset, link, self.sphere_links[j], True)
         other = "point cloud" if kind == K.CLOUD else self.labels[j]
         return Contact(d, link, other, False)
 
     def check_free(self, q: npt.ArrayLike, *, d_min: float = 0.0, what: str = "start configuration") -> None:
         """Raise :class:`CollisionAtStart` naming the pair when q is closer than ``d_min``."""
         c = self.contact(q, cap=max(d_min, 0.0) + 1.0)
-        if c.distance < d_min:
+        if c.distance < (d_min - self.self_offset if c.self_collision else d_min):
             raise CollisionAtStart(c.message(what) + (f" (required clearance {d_min * 1e3:.1f} mm)" if d_min else "")
                                    + "; move it or lower d_min", value=np.asarray(q, float))
 
@@ -407,29 +460,8 @@ def _variable_pairs(W: tuple, robot: Robot, smask: np.ndarray, samples: int = 50
 
 
 def _chain_arrays(robot: Robot) -> tuple:
-    """Joint tree of the robot's Pinocchio model for :func:`chain_fk` (1-DoF joints only)."""
-    model = robot.model
-    nj = model.njoints
-    parent = np.array([int(p) for p in model.parents], np.int64)
-    place = np.array([model.jointPlacements[j].homogeneous for j in range(nj)])
-    axis = np.zeros((nj, 3))
-    kind = np.zeros(nj, np.int64)
-    qidx = np.full(nj, -1, np.int64)
-    q0 = pin.neutral(model)
-    for j in range(1, nj):
-        jm = model.joints[j]
-        if jm.nq != 1 or jm.nv != 1:
-            raise InvalidInput(f"joint {model.names[j]!r} has {jm.nq} coordinates; the planner supports 1-DoF "
-                               "revolute and prismatic joints", value=model.names[j])
-        jd = jm.createData()
-        jm.calc(jd, q0)
-        S = np.asarray(jd.S).reshape(6)
-        if np.linalg.norm(S[3:]) > 0.5:
-            axis[j], kind[j] = S[3:] / np.linalg.norm(S[3:]), 0
-        else:
-            axis[j], kind[j] = S[:3] / np.linalg.norm(S[:3]), 1
-        qidx[j] = jm.idx_q
-    return (parent, place, axis, kind, qidx)
+    """Joint tree of the robot's Pinocchio model for :func:`chain_fk` (see :mod:`robointel.robot.chain`)."""
+    return tuple(robot.chain)
 
 
 def _sphere_levers(robot: Robot, chain: tuple, sj: np.ndarray, sp: np.ndarray) -> np.ndarray:

@@ -14,8 +14,8 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from robointel.errors import DescriptionError
 from robointel.geometry.obstacles import Box, Capsule, Cylinder, Obstacle, Sphere
-from robointel.robot.collision import _resolve_mesh
 from robointel.robot.model import Robot
 
 
@@ -28,6 +28,17 @@ class _Part:
     centre: np.ndarray  # bounding-sphere centre in the link frame
     radius: float
     link: str
+
+
+def contact_distance(ga: Any, Ta: Any, gb: Any, Tb: Any, req: Any) -> float:
+    """Coal's distance of two placed geometries, negative (at most -1e-9 m) when they touch or overlap.
+
+    Coal reports 0 (not a depth) for meshes in contact: a collision query decides those.
+    """
+    d = float(coal.distance(ga, Ta, gb, Tb, req, coal.DistanceResult()))
+    if d <= 1e-9 and coal.collide(ga, Ta, gb, Tb, coal.CollisionRequest(), coal.CollisionResult()) > 0:
+        return min(d, -1e-9)
+    return d
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -122,8 +133,9 @@ class MeshGeometry:
                 Tp = placed[p] = coal.Transform3s(T[:3, :3], T[:3, 3])
             label, g, To = self.obstacles[o][:3]
             d = coal.distance(part.hull, Tp, g, To, req, coal.DistanceResult())
-            if d < thresh and d < best:  # (a hull at or beyond the best cannot hold a closer mesh)
-                d = coal.distance(part.mesh, Tp, g, To, req, coal.DistanceResult())
+            if d <= thresh and d < best:  # (a hull at or beyond the best cannot hold a closer mesh; <=: a hull
+                # touching at thresh 0 still needs the mesh's sign)
+                d = contact_distance(part.mesh, Tp, g, To, req)
             if d < best:
                 best, bl, bo = float(d), part.link, label
         return best, bl, bo
@@ -234,26 +246,56 @@ def _mesh_levers(robot: Robot, parts: list[_Part]) -> np.ndarray:
     return lev
 
 
+def coal_geometry(link: str, p: dict) -> tuple[Any, Any, np.ndarray, float] | None:
+    """Coal geometry of one collision primitive of ``link``: (geometry, hull, bounding centre, radius).
+
+    The hull is a mesh's convex hull (a primitive is its own); the centre (3,) is in the
+    primitive's own frame; meshes are scaled. None for an unknown type.
+
+    Raises:
+        DescriptionError: a mesh file coal cannot read.
+    """
+    size = np.asarray(p["size"], float)
+    if p["type"] == "mesh":
+        try:
+            g = coal.MeshLoader().load(str(p["path"]), size)
+        except Exception as exc:  # coal raises RuntimeError/ValueError wrappers of assimp failures
+            raise DescriptionError(f"cannot read the collision mesh {p['path']} of link {link!r}: {exc}",
+                                   value=str(p["path"])) from None
+        g.buildConvexHull(True, "Qt")
+        v = np.asarray(g.vertices())
+        c = 0.5 * (v.min(0) + v.max(0))
+        return g, g.convex, c, float(np.max(np.linalg.norm(v - c, axis=1)))
+    if p["type"] == "box":
+        return coal.Box(*size), coal.Box(*size), np.zeros(3), float(np.linalg.norm(size) / 2)
+    if p["type"] == "cylinder":
+        g = coal.Cylinder(size[0], size[1])
+        return g, g, np.zeros(3), float(np.hypot(size[0], size[1] / 2))
+    if p["type"] == "capsule":
+        g = coal.Capsule(size[0], size[1])
+        return g, g, np.zeros(3), float(size[0] + size[1] / 2)
+    if p["type"] == "sphere":
+        g = coal.Sphere(size[0])
+        return g, g, np.zeros(3), float(size[0])
+    return None
+
+
 def _parts(robot: Robot) -> list[_Part]:
-    """Meshes and convex hulls of the moving links' collision geometry (loaded once per robot)."""
+    """Geometry (meshes and primitives) and convex hulls of the moving links (loaded once per robot)."""
     parts: list[_Part] = []
     for link, prims in robot.collision_primitives().items():
         if link not in robot.link_names or robot.link_joint(link) == 0:
             continue
-        fid = int(robot.model.getFrameId(link))
+        fid = robot.frame_id(link)
         for p in prims:
-            if p["type"] != "mesh":
+            if p["type"] == "mesh" and p.get("path") is None:
                 continue
-            path = _resolve_mesh(robot, p.get("filename") or "")
-            if path is None:
+            got = coal_geometry(link, p)
+            if got is None:
                 continue
-            mesh = coal.MeshLoader().load(str(path), np.asarray(p["size"], float))
-            mesh.buildConvexHull(True, "Qt")
-            v = np.asarray(mesh.vertices())
-            c = 0.5 * (v.min(0) + v.max(0))
+            g, hull, c, r = got
             M = np.asarray(p["origin"], float)
-            parts.append(_Part(fid, M, mesh, mesh.convex, M[:3, :3] @ c + M[:3, 3],
-                               float(np.max(np.linalg.norm(v - c, axis=1))), link))
+            parts.append(_Part(fid, M, g, hull, M[:3, :3] @ c + M[:3, 3], r, link))
     return parts
 
 

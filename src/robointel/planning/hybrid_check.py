@@ -6,14 +6,17 @@ exact check looks at the clock so that a plan's time budget holds inside an atte
 """
 from __future__ import annotations
 
+import heapq
 import time
 
 import numpy as np
 from numba import njit
 
+from robointel.errors import CollisionAtStart
 from robointel.planning import _dense_kernels as D
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
+from robointel.planning.exact_self import self_geometry
 from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, window_clearance
 from robointel.trajectory import Trajectory
 
@@ -136,4 +139,93 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
     return chk
 
 
-__all__ = ["MESH_CHUNK", "exact_check", "interior_check", "interior_window", "mesh_geometry", "timed_out"]
+
+
+def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float,
+               deadline: float = float("inf")) -> DenseCheck:
+    """Check self-collision on the exact geometry at every ``dt`` sample (``env.exact_self``).
+
+    The fitted spheres lie inside the meshes, so their self-collision verdict may miss a contact:
+    every self-collision pair of :class:`~robointel.planning.exact_self.SelfGeometry` is measured
+    on the collision meshes and primitives at the first sample and again only at the first sample
+    where its last distance minus the relative travel of its two links since (``pair_lever``) may
+    have fallen below ``max(env.self_padding - 1 mm, 0)``: the samples in between are proven. A
+    pair closer than that fails the check (kind ``"collision"``). Clock as :func:`interior_check`.
+    """
+    if not chk.ok or not env.exact_self:
+        return chk
+    sg = self_geometry(env.robot, env.disabled)
+    if sg.empty:
+        return chk
+    thr = max(env.self_padding - CLEARANCE_TOL, 0.0)
+    dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
+    Q = np.ascontiguousarray(dense.q)
+    K, P = len(Q), len(sg.pairs)
+    # M[p, k]: bound of the change of pair p's distance from sample 0 to sample k
+    M = np.ascontiguousarray(np.hstack([np.zeros((P, 1)), np.cumsum(sg.pair_lever @ np.abs(np.diff(Q, axis=0)).T,
+                                                                     axis=1)]))
+    heap = [(0, p) for p in range(P)]  # (the next sample at which pair p must be measured, p)
+    n = 0
+    while heap:
+        k = heap[0][0]
+        if k >= K:
+            return chk
+        which = []
+        while heap and heap[0][0] == k:
+            which.append(heapq.heappop(heap)[1])
+        if n % MESH_CHUNK == 0 and time.perf_counter() >= deadline:
+            return timed_out("the self-collision check", chk)
+        n += len(which)
+        d = sg.pair_distances(Q[k], np.asarray(which), thresh=thr)
+        for p, dp in zip(which, d):
+            if dp < thr:
+                la, lb = sg.solids[sg.pairs[p, 0]].link, sg.solids[sg.pairs[p, 1]].link
+                return DenseCheck(False, f"self-collision check: link {la!r} is {dp * 1e3:.2f} mm from link {lb!r} "
+                                  f"at t = {dense.t[k]:.3f} s", "collision", min(float(dp), chk.min_clearance_m),
+                                  chk.samples)
+            # proven until the relative travel since eats the margin
+            nxt = max(k + 1, int(np.searchsorted(M[p], M[p, k] + (dp - thr), side="left")))
+            if nxt < K:
+                heapq.heappush(heap, (nxt, p))
+    return chk
+
+
+def exact_roots(env: Environment, q0: np.ndarray, goals: np.ndarray, floor: float) -> np.ndarray:
+    """The start and goals judged on the exact geometry: the goals kept, or :class:`CollisionAtStart`.
+
+    A configuration is refused only when the collision meshes (obstacles: the moving links'
+    meshes, :class:`MeshGeometry`; self: :class:`~robointel.planning.exact_self.SelfGeometry`)
+    come closer than ``floor`` (obstacles) or ``max(self_padding - 1 mm, 0)`` (self).
+
+    Returns:
+        The goals (G', n) whose exact clearance holds (at least one).
+
+    Raises:
+        CollisionAtStart: the start, or every goal, is closer than that (the pair named).
+    """
+    mg, sg = mesh_geometry(env), self_geometry(env.robot, env.disabled)
+    sthr = max(env.self_padding - CLEARANCE_TOL, 0.0)
+
+    def why(q: np.ndarray) -> str:
+        d, link, obs = mg.clearance(q, cap=floor + 0.1, thresh=floor)
+        if d < floor:
+            return f"robot link {link!r} is {d * 1e3:.1f} mm from obstacle {obs!r}"
+        d, la, lb = sg.clearance(q, cap=sthr + 0.1, thresh=sthr)
+        if d < sthr:
+            return f"robot link {la!r} is {d * 1e3:.1f} mm from link {lb!r}"
+        return ""
+
+    w = why(q0)
+    if w:
+        raise CollisionAtStart(f"start configuration is in collision on the collision meshes: {w}; move it",
+                               value=np.asarray(q0, float))
+    reasons = [why(g) for g in goals]
+    keep = [k for k, r in enumerate(reasons) if not r]
+    if not keep:
+        raise CollisionAtStart(f"{'goal configuration' if len(goals) == 1 else 'every goal; goal 0'} is in "
+                               f"collision on the collision meshes: {reasons[0]}; move it", value=goals[0])
+    return goals[keep]
+
+
+__all__ = ["MESH_CHUNK", "exact_check", "exact_roots", "interior_check", "interior_window", "mesh_geometry",
+           "self_check", "timed_out"]

@@ -20,24 +20,35 @@ import numpy.typing as npt
 
 from robointel.errors import IKFailure, InvalidInput
 from robointel.outcome import Failure
+from robointel.planning import _batch_edges as BE
 from robointel.planning import _collision_kernels as K
 from robointel.planning import _dense_kernels as D
-from robointel.planning import _edge_kernels as E
 from robointel.planning import _rrt_kernels as R
 from robointel.planning import _time_shortcut as TS
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
-from robointel.planning.hybrid_check import exact_check, interior_check, interior_window, timed_out
+from robointel.planning.hybrid_check import (
+    exact_check,
+    exact_roots,
+    interior_check,
+    interior_window,
+    self_check,
+    timed_out,
+)
 from robointel.planning.jerk_limited import jerk_limited_polyline
 from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, check_dense
 from robointel.planning.motion_settings import MotionSettings
 from robointel.planning.polyline_timing import polyline_timing
 from robointel.planning.temporal import temporal_optimize
 from robointel.planning.topp import densify, topp_spline
-from robointel.planning.tree_search import path_valid, search, warm_search
+from robointel.planning.tree_search import batch_state, path_valid, search, warm_search
 from robointel.robot.model import Robot
 from robointel.trajectory import Trajectory
 
+#: the process CPU clock of the stage times (bound once: tests replace the module's ``time`` with a fake wall clock)
+_cpu_clock = time.process_time
+#: how far the fitted spheres (inside the meshes) are grown for self-collision during a plan, at most, m
+SELF_MARGIN = 0.003
 #: random seeds of the numeric IK for a pose goal (each distinct solution joins the goal set)
 IK_SEEDS = 32
 
@@ -53,10 +64,12 @@ class MotionPlan:
         trajectory: the time-parametrised trajectory (None when no path was found).
         path: (k, n) geometric waypoints before timing, rad.
         plan_ms: wall time of the whole call, ms.
-        timings: wall time per stage, ms.
+        timings: wall time per stage, ms (summed over the attempts).
         min_clearance_m: smallest clearance of the checked trajectory, m (capped at d_min + 0.1;
             see :class:`~robointel.planning.motion_check.DenseCheck`).
         goal_index: index of the goal reached in the goal set (-1 when none).
+        cpu_timings: process CPU time per stage, ms (the keys of ``timings``; on a shared machine the
+            wall time also counts the other processes' turns).
     """
 
     success: bool
@@ -68,6 +81,20 @@ class MotionPlan:
     timings: dict[str, float] = field(default_factory=dict)
     min_clearance_m: float = float("nan")
     goal_index: int = -1
+    cpu_timings: dict[str, float] = field(default_factory=dict)
+
+
+class StageTimes(dict):
+    """Wall time per stage, ms (the dict itself), with the process CPU time per stage, ms, in ``cpu``."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.cpu: dict[str, float] = {}
+
+    def add(self, name: str, wall0: float, cpu0: float) -> None:
+        """Add the time since ``wall0`` (``time.perf_counter``) and ``cpu0`` (``_cpu_clock``) to ``name``."""
+        self[name] = self.get(name, 0.0) + (time.perf_counter() - wall0) * 1e3
+        self.cpu[name] = self.cpu.get(name, 0.0) + (_cpu_clock() - cpu0) * 1e3
 
 
 def _goal_set(robot: Robot, goal: npt.ArrayLike | Sequence[npt.ArrayLike], seed: int) -> np.ndarray:
@@ -95,12 +122,14 @@ def _goal_set(robot: Robot, goal: npt.ArrayLike | Sequence[npt.ArrayLike], seed:
         g = g[None]
     if g.ndim != 2 or g.shape[1] != n or len(g) == 0:
         raise InvalidInput(f"goal must be ({n},), (G, {n}) or a 4x4 pose, got shape {g.shape}", value=goal)
-    return np.array([robot.check_q(q, f"goal[{k}]", limits=True) for k, q in enumerate(g)])
+    return np.array([robot.check_q(robot.snap_to_limits(robot.check_q(q, f"goal[{k}]")), f"goal[{k}]", limits=True)
+                     for k, q in enumerate(g)])
 
 
-def _fail(reason: str, failure: Failure, t0: float, timings: dict[str, float], path: np.ndarray | None = None,
+def _fail(reason: str, failure: Failure, t0: float, timings: StageTimes, path: np.ndarray | None = None,
           traj: Trajectory | None = None, clearance: float = float("nan"), goal: int = -1) -> MotionPlan:
-    return MotionPlan(False, reason, failure, traj, path, (time.perf_counter() - t0) * 1e3, timings, clearance, goal)
+    return MotionPlan(False, reason, failure, traj, path, (time.perf_counter() - t0) * 1e3, dict(timings), clearance,
+                      goal, dict(timings.cpu))
 
 
 def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
@@ -128,8 +157,8 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
     if not isinstance(environment, Environment) or environment.robot is not robot:
         raise InvalidInput("environment must be an Environment built for this robot", value=environment)
     _warmup(environment)
-    t0 = time.perf_counter()
-    timings: dict[str, float] = {}
+    t0, c0 = time.perf_counter(), _cpu_clock()
+    timings = StageTimes()
     if not isinstance(settings, MotionSettings):
         raise InvalidInput("settings must be a MotionSettings", value=settings)
     st = settings
@@ -140,13 +169,17 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
                            "check_dt, root_relaxed_rad > 0, 0 < velocity_scale, fitted_fallback <= 1 and timing "
                            "'topp' or 'temporal'",
                            value=st)
-    q0 = np.array(robot.check_q(np.asarray(start, float), "start", limits=True), dtype=float)  # writable
+    q0 = robot.check_q(robot.snap_to_limits(robot.check_q(start, "start")), "start", limits=True)  # a writable copy
     goals = _goal_set(robot, goal, st.seed)
+    if robot.continuous.any():  # continuous joints: each goal by the shorter turn
+        goals = np.array([robot.wrap_goal(g, q0) for g in goals])
     env = environment
     model = env.model
+    env.set_self_offset(st.d_min)
     try:
-        return _plan(env, q0, goals, st, t0, timings)
+        return _plan(env, q0, goals, st, t0, c0, timings)
     finally:
+        env.set_self_offset(0.0)
         env.use(model)
 
 
@@ -155,9 +188,15 @@ def _roots_free(env: Environment, q0: np.ndarray, goals: np.ndarray, d_min: floa
             and any(env.clearance(g, cap=d_min + 1.0) >= d_min for g in goals))
 
 
-def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, t0: float,
-          timings: dict[str, float]) -> MotionPlan:
+def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, t0: float, c0: float,
+          timings: StageTimes) -> MotionPlan:
     robot = env.robot
+    if env.exact_self:  # the roots judged on the exact geometry (the fitted spheres lie inside it)
+        goals = exact_roots(env, q0, goals, max(st.d_min - CLEARANCE_TOL, 0.0))
+        # the fitted spheres grown toward the meshes for self-collision, as far as the roots allow
+        gap = min(env.self_clearance(q, cap=1.0) for q in [q0, *goals])
+        margin = float(np.clip(0.5 * (gap - env.self_padding + CLEARANCE_TOL) - 1e-4, 0.0, SELF_MARGIN))
+        env.set_self_offset(st.d_min, margin)
     # the mesh-covering spheres where start and a goal allow them, else the spheres as given
     env.use("cover")
     hybrid = env.cover_meshes and not _roots_free(env, q0, goals, st.d_min)
@@ -188,7 +227,7 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     amax = np.asarray(st.acceleration_limit if st.acceleration_limit is not None else robot.acceleration_limit, float)
     if amax.shape != (robot.nq,) or np.any(amax <= 0):
         raise InvalidInput(f"acceleration_limit must be ({robot.nq},) positive", value=amax)
-    timings["validate"] = (time.perf_counter() - t0) * 1e3
+    timings.add("validate", t0, c0)
 
     now = time.perf_counter()
     deadline = now + st.time_budget_s
@@ -212,7 +251,8 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
             return _fail(f"{chk.reason} (attempt {attempt + 1})", Failure.TIMEOUT, t0, timings, path, traj,
                          chk.min_clearance_m, int(goal_ids[gi]))
         # a start/goal edge that touches the real meshes: another tree may approach differently
-        if chk.ok or not (hybrid or exact) or chk.kind != "collision" or time.perf_counter() >= deadline:
+        if chk.ok or not (hybrid or exact or env.exact_self) or chk.kind != "collision" or \
+                time.perf_counter() >= deadline:
             break
         attempt += 1
     goal_index = int(goal_ids[gi])
@@ -223,13 +263,13 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
         fail = Failure.COLLISION if chk.kind == "collision" else Failure.LIMIT
         return _fail(f"dense check failed: {chk.reason}", fail, t0, timings, path, traj, chk.min_clearance_m,
                      goal_index)
-    return MotionPlan(True, "", Failure.NONE, traj, path, (time.perf_counter() - t0) * 1e3, timings,
-                      chk.min_clearance_m, goal_index)
+    return MotionPlan(True, "", Failure.NONE, traj, path, (time.perf_counter() - t0) * 1e3, dict(timings),
+                      chk.min_clearance_m, goal_index, dict(timings.cpu))
 
 
 def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, deadline: float,
              search_end: float, Wc: tuple, Wr: tuple, rcap: float, vmax: np.ndarray, amax: np.ndarray,
-             timings: dict[str, float], attempt: int, thr: float,
+             timings: StageTimes, attempt: int, thr: float,
              exact: bool = False) -> tuple[np.ndarray | None, int, Trajectory | None, DenseCheck | None, str]:
     """One search, shortcut, timing and dense check: (path, goal, trajectory, check, why not).
 
@@ -240,29 +280,29 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     spheres leave in doubt is checked on the collision meshes (:func:`exact_check`).
     """
     # global stage ----------------------------------------------------------------------------
-    t1 = time.perf_counter()
+    t1, c1 = time.perf_counter(), _cpu_clock()
     path, gi, why = None, -1, ""
     res = float(st.search_resolution)
     while path is None:
         path, gi, why = search(env, q0, goals, st, res, search_end, Wc, Wr, attempt, thr, rcap)
         if path is None:
-            timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
+            timings.add("search", t1, c1)
             return None, -1, None, None, why
         if path_valid(env, path, thr, st.resolution, Wc, Wr, rcap):
             break
         if time.perf_counter() >= deadline:
-            timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
+            timings.add("search", t1, c1)
             return None, -1, None, None, f"the time budget of {st.time_budget_s:g} s ran out re-checking a path"
         path, res = None, res / 4  # an edge failed the fine check: search again, finer
         if res < st.resolution:
             res = float(st.resolution)
-    timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
+    timings.add("search", t1, c1)
     path, traj, chk = _finish(env, path, st, deadline, Wc, Wr, rcap, vmax, amax, timings, attempt, thr, exact)
     return path, gi, traj, chk, ""
 
 
 def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: float, Wc: tuple, Wr: tuple,
-            rcap: float, vmax: np.ndarray, amax: np.ndarray, timings: dict[str, float], attempt: int, thr: float,
+            rcap: float, vmax: np.ndarray, amax: np.ndarray, timings: StageTimes, attempt: int, thr: float,
             exact: bool) -> tuple[np.ndarray, Trajectory | None, DenseCheck | None]:
     """The stages after the search: shortcut, timing and the dense (and mesh) checks of one attempt.
 
@@ -272,31 +312,31 @@ def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
     """
     robot = env.robot
     hybrid = rcap != float("inf")
-    t2 = time.perf_counter()
+    t2, c2 = time.perf_counter(), _cpu_clock()
     s = env.scratch
     P = np.empty((max(len(path) * 2 + 64, 256), robot.nq))
     P[:len(path)] = path
     R.seed(int(st.seed) + 1 + 7 * attempt)
-    m = TS.shortcut_time(P, len(path), int(st.shortcut_iters), Wc, Wr, rcap, s.T, s.C, s.G, s.out, float(thr),
+    m = TS.shortcut_time(P, len(path), int(st.shortcut_iters), Wc, Wr, rcap, batch_state(env), s.out, float(thr),
                          env.lever, float(st.resolution), 1.0 / vmax, 1.0 / amax)
     path = P[:m].copy()
     keep = np.concatenate([[True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-9])
     keep[-1] = True
     path = path[keep]
-    timings["shortcut"] = (time.perf_counter() - t2) * 1e3
+    timings.add("shortcut", t2, c2)
     traj, chk = _smooth(env, path, st, deadline, Wc, hybrid, vmax, amax, timings, exact)
     return path, traj, chk
 
 
 def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: float, Wc: tuple, hybrid: bool,
-            vmax: np.ndarray, amax: np.ndarray, timings: dict[str, float],
+            vmax: np.ndarray, amax: np.ndarray, timings: StageTimes,
             exact: bool) -> tuple[Trajectory | None, DenseCheck | None]:
     """Timing and the dense (and mesh) checks of the shortened ``path``: (trajectory, check).
 
     Args and clock as :func:`_finish`; ``hybrid``: relaxed spheres at the roots (``rcap`` finite).
     """
     robot = env.robot
-    t3 = time.perf_counter()
+    t3, c3 = time.perf_counter(), _cpu_clock()
     names = list(robot.joint_names)
     traj, chk = None, None
     # hybrid: the interior (between the inner vertices) is checked in the covering spheres Wc alone (they
@@ -319,11 +359,11 @@ def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
             chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win, tw)
             if chk.ok or chk.kind != "collision":
                 break
-        timings["smooth"] = (time.perf_counter() - t3) * 1e3
+        timings.add("smooth", t3, c3)
     if chk is not None and not chk.ok and chk.kind != "timeout" and time.perf_counter() >= deadline:
         chk = timed_out("the smoothing", chk)  # a collision or a limit: no rest-to-rest fallback past the budget
     if chk is None or (not chk.ok and chk.kind != "timeout"):  # rest to rest along the checked polyline
-        t4 = time.perf_counter()
+        t4, c4 = time.perf_counter(), _cpu_clock()
         if st.jerk_limited:
             jmax = np.asarray(st.jerk_limit if st.jerk_limit is not None else 10 * amax, float)
             traj = jerk_limited_polyline(path, vmax, amax, jmax, dt=st.check_dt, joint_names=names)
@@ -333,7 +373,7 @@ def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
         chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt,
                           window=(*tw, Wc) if win and tw is not None else None)
         chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win, tw)
-        timings["timing"] = (time.perf_counter() - t4) * 1e3
+        timings.add("timing", t4, c4)
     return traj, chk
 
 
@@ -347,11 +387,11 @@ def _mesh_checks(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple
     if not chk.ok:
         return chk
     if exact:
-        return exact_check(env, traj, env.world_cover, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
-    if hybrid:
-        return interior_check(env, traj, path, Wc, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline,
-                              window_checked=window_checked, window=window)
-    return chk
+        chk = exact_check(env, traj, env.world_cover, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
+    elif hybrid:
+        chk = interior_check(env, traj, path, Wc, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline,
+                             window_checked=window_checked, window=window)
+    return self_check(env, traj, chk, dt=st.check_dt, deadline=deadline)
 
 
 _WARM: set[int] = set()
@@ -370,9 +410,9 @@ def _warmup(env: Environment) -> None:
     warm_search(env)
     P = np.array([q, q + 1e-3 * (env.robot.upper - q)])
     one = np.ones(env.robot.nq)
-    TS.shortcut_time(P, 2, 0, W, W, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, one, one)
-    E.root_edge(P[0], P[1], W, W, True, True, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, 0.0)
-    E.edge_valid(P[0], P[1], W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
+    BS = batch_state(env)
+    TS.shortcut_time(P, 2, 0, W, W, 0.2, BS, s.out, 0.0, env.lever, 0.01, one, one)
+    BE.root_edge_batch(P[0], P[1], W, W, True, True, 0.2, BS, 0.0, 0.01, s.out)
     K.samples_clearance(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1)
     K.samples_env_below(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0)
     V = np.empty(P.shape)  # the dense check's kernels (called directly: tests count check_dense's calls)

@@ -6,17 +6,13 @@ Spheres are generated from each link's collision primitives so that they cover t
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from robointel._validate import as_array
-from robointel.errors import InvalidInput
-
-if TYPE_CHECKING:  # pragma: no cover
-    from robointel.robot.model import Robot
+from robointel.errors import DescriptionError, InvalidInput
+from robointel.robot.protocol import KinematicRobot
 
 
 def _spine_spheres(half_length: float, radius: float, count: int | None, inflate: float) -> tuple[np.ndarray, float]:
@@ -77,13 +73,13 @@ class SphereModel:
     joints: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     _in_joint: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), repr=False)
     self_pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), int), repr=False)
-    _robot: Robot | None = field(default=None, repr=False)
+    _robot: KinematicRobot | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return len(self.links)
 
     @classmethod
-    def from_robot(cls, robot: Robot, *, count: int | None = None, inflate: float = 0.0,
+    def from_robot(cls, robot: KinematicRobot, *, count: int | None = None, inflate: float = 0.0,
                    include_base: bool = True) -> SphereModel:
         """Generate spheres covering every collision primitive of ``robot``'s URDF.
 
@@ -102,7 +98,7 @@ class SphereModel:
                 continue
             for p in plist:
                 if p["type"] == "mesh":
-                    p = dict(p, vertices=_mesh_vertices(robot, p))
+                    p = dict(p, vertices=_mesh_vertices(p))
                 c, r = primitive_spheres(p, count, inflate)
                 links += [link] * len(r)
                 centers.append(c)
@@ -112,7 +108,7 @@ class SphereModel:
         m.bind(robot)
         return m
 
-    def bind(self, robot: Robot) -> SphereModel:
+    def bind(self, robot: KinematicRobot) -> SphereModel:
         """Attach to a robot: resolve joints, joint-frame centres and self-collision pairs."""
         self.centers = as_array(self.centers, "centers", (len(self.links), 3))
         self.radii = as_array(self.radii, "radii", (len(self.links),))
@@ -125,7 +121,7 @@ class SphereModel:
         self.self_pairs = self._self_pairs(robot)
         return self
 
-    def _self_pairs(self, robot: Robot) -> np.ndarray:
+    def _self_pairs(self, robot: KinematicRobot) -> np.ndarray:
         """Sphere pairs to check for self-collision.
 
         Not on the same or adjacent links, and not already overlapping at the zero configuration (pairs that always
@@ -204,7 +200,7 @@ class SphereModel:
                             for l, c, r in zip(self.links, self.centers, self.radii)]}
 
     @classmethod
-    def from_dict(cls, d: dict, robot: Robot) -> SphereModel:
+    def from_dict(cls, d: dict, robot: KinematicRobot) -> SphereModel:
         """Inverse of :meth:`to_dict`, bound to ``robot``."""
         try:
             s = d["spheres"]
@@ -215,37 +211,15 @@ class SphereModel:
         return m.bind(robot)
 
 
-def _mesh_vertices(robot: Robot, prim: dict) -> np.ndarray | None:
-    """Vertices of a mesh collision primitive (scaled), or None if it cannot be loaded."""
-    fn = prim.get("filename")
-    if not fn:
-        return None
-    path = _resolve_mesh(robot, fn)
+def _mesh_vertices(prim: dict) -> np.ndarray | None:
+    """Vertices of a mesh collision primitive (scaled; the file found when the robot was loaded)."""
+    path = prim.get("path")
     if path is None:
         return None
+    import trimesh
+
     try:
-        import trimesh
-
         mesh = trimesh.load(path, force="mesh", process=False)
-        return np.asarray(mesh.vertices) * np.asarray(prim["size"], float)  # type: ignore[union-attr,attr-defined]
-    except Exception:
-        return None
-
-
-def _resolve_mesh(robot: Robot, fn: str) -> Path | None:
-
-    if fn.startswith("package://"):
-        rel = fn[len("package://"):]
-        pkg, _, rest = rel.partition("/")
-        base = robot.urdf_path
-        if base is None:
-            return None
-        for parent in base.resolve().parents:
-            for cand in (parent / pkg / rest, parent / rest):
-                if cand.exists():
-                    return cand
-        return None
-    p = Path(fn.replace("file://", ""))
-    if not p.is_absolute() and robot.urdf_path is not None:
-        p = robot.urdf_path.parent / p
-    return p if p.exists() else None
+    except Exception as exc:  # trimesh raises many types for unreadable files
+        raise DescriptionError(f"cannot read mesh {path}: {exc}", value=str(path)) from None
+    return np.asarray(mesh.vertices) * np.asarray(prim["size"], float)  # type: ignore[union-attr,attr-defined]

@@ -6,15 +6,12 @@ rotation, so R_0^3 = Rz(q1) Ry(q2 - q3) and R_3^6 = Rx(-q4) Ry(-q5) Rx(-q6).
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
+import pinocchio as pin
 
 from robointel.errors import DescriptionError
 from robointel.robot._kernels import lrmate_ik
 
-if TYPE_CHECKING:  # pragma: no cover
-    from robointel.robot.model import Robot
 
 class LRMateIK:
     """Analytic IK reading its link lengths from the robot model (so a re-measured description stays exact).
@@ -22,9 +19,10 @@ class LRMateIK:
     Returns up to 8 solutions (shoulder x elbow x wrist).
     """
 
-    def __init__(self, robot: Robot) -> None:
-        m = robot.model
-        if robot.nq != 6:
+    def __init__(self, model: pin.Model, flange: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> None:
+        """Read the link lengths of ``model`` (6 joints); ``flange``: the flange frame in the last joint's frame."""
+        m = model
+        if model.nq != 6:
             raise DescriptionError("closed-form LR Mate IK needs a 6-joint arm")
         xyz = np.array([m.jointPlacements[i].translation for i in range(1, 7)])
         rots = np.array([m.jointPlacements[i].rotation for i in range(1, 7)])
@@ -35,9 +33,9 @@ class LRMateIK:
         self.a2 = xyz[2, 2]
         self.a3 = xyz[3, 2]
         self.d4 = xyz[4, 0]
-        self.flange = robot.model.frames[robot._flange_id].placement.homogeneous
+        self.flange = np.asarray(flange, float)
         self.d6 = xyz[5, 0]
-        self.lower, self.upper = robot.lower, robot.upper
+        self.lower, self.upper = lower, upper
         self._flange_inv = np.linalg.inv(self.flange)
         self._flange_identity = bool(np.allclose(self.flange, np.eye(4), atol=0))
         self.L3 = float(np.hypot(self.d4, self.a3))

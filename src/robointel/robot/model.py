@@ -1,34 +1,55 @@
-"""The robot core (Ch. 2): one serial-arm model on Pinocchio.
+"""The robot core (Ch. 2): one fixed-base robot model on Pinocchio, from its URDF (and SRDF) as shipped.
 
-:class:`Robot` loads a URDF (a built-in name or a path), and gives forward kinematics of any frame,
-world-aligned Jacobians of any point on any link, inverse kinematics (closed form for the LR Mate's
-spherical wrist, damped least squares for any arm), rigid-body dynamics (2.5) with viscous and
-Coulomb friction, and the sphere collision model of Fig. 4.2.
+:class:`Robot` loads a URDF (a built-in name or a path) with revolute, continuous, prismatic, fixed
+and mimic joints, optionally one planning group of it (an SRDF group, a base and tip link, or a
+list of joints; the other joints held), and gives forward kinematics of any frame, world-aligned
+Jacobians of any point on any link, inverse kinematics (closed form for the LR Mate's spherical
+wrist, a compiled Levenberg-Marquardt search for any chain), rigid-body dynamics (2.5) with viscous
+and Coulomb friction, and the sphere collision model of Fig. 4.2.
 
 Conventions: SI units; the model's world frame is the URDF root link (for the built-in LR Mate,
 ``base_link`` on the mounting plane; the FANUC world frame ``base`` is 0.330 m above it). Joint
-vectors are ordered as ``Robot.joint_names``.
+vectors are ordered as ``Robot.joint_names`` (the planned joints); a continuous joint is an angle
+in [-2 pi, 2 pi].
 """
 from __future__ import annotations
 
+import warnings
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
+from robointel._extras import missing_extra
 from robointel._validate import as_array, check_limits
-from robointel.errors import DescriptionError, IKFailure, InvalidInput, NotFinite, UnknownRobot
+from robointel.errors import DescriptionError, DescriptionWarning, IKFailure, InvalidInput, NotFinite, UnknownRobot
 from robointel.robot._kernels import points_jacobians, points_jacobians_batch
+from robointel.robot.chain import chain_arrays
 from robointel.robot.collision import SphereModel
+from robointel.robot.description import load_description
+from robointel.robot.dynamics import RigidBodyDynamics
+from robointel.robot.geometry_urdf import read_collision_geometry
 from robointel.robot.ik import LRMateIK
+from robointel.robot.ik_numeric import numeric_ik
+from robointel.robot.sphere_fit import fit_spheres
+from robointel.robot.srdf import SRDF, read_srdf
 
 DESCRIPTIONS = Path(__file__).resolve().parent / "descriptions"
 BUILTIN = {
     "lrmate200id7l": DESCRIPTIONS / "lrmate200id7l.urdf",
     "scara2": DESCRIPTIONS / "scara2.urdf",
 }
+#: velocity limit given to a planned joint whose URDF gives none (rad/s or m/s), with a warning
+DEFAULT_VELOCITY = 1.0
+#: a configuration this close outside a limit (rad or m) is put on it at the planner's boundary
+LIMIT_SNAP = 1e-5
+#: frame types in the order a name shared by several frames resolves to
+_FRAME_ORDER = (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT, pin.FrameType.JOINT,
+                pin.FrameType.SENSOR)
 
 
 def builtin_names() -> list[str]:
@@ -37,10 +58,6 @@ def builtin_names() -> list[str]:
 
 
 def _example_robot_data_dir() -> Path | None:
-    try:
-        import example_robot_data  # noqa: F401
-    except Exception:  # pragma: no cover - optional
-        pass
     import sys
 
     for base in [Path(sys.prefix)] + [Path(p) for p in sys.path]:
@@ -50,57 +67,105 @@ def _example_robot_data_dir() -> Path | None:
     return None
 
 
+_EXAMPLES = {"ur5": "ur_description/urdf/ur5_robot.urdf", "panda": "panda_description/urdf/panda.urdf"}
+
+
 def example_robot_urdf(name: str) -> Path:
-    """Path of a URDF shipped by ``example-robot-data``: ``"ur5"`` or ``"panda"``."""
+    """Path of a URDF shipped by ``example-robot-data``: ``"ur5"``, ``"panda"``, or a path below its ``robots`` folder.
+
+    Raises:
+        MissingExtra: example-robot-data is not installed (the ``robots`` extra).
+        UnknownRobot: it has no such file.
+    """
     d = _example_robot_data_dir()
-    rel = {"ur5": "ur_description/urdf/ur5_robot.urdf",
-           "panda": "panda_description/urdf/panda.urdf"}
-    if d is None or name not in rel or not (d / rel[name]).exists():
-        raise UnknownRobot(f"example-robot-data robot {name!r} not found; install example-robot-data", value=name)
-    return d / rel[name]
+    if d is None:
+        raise missing_extra("robots", f"the example-robot-data robot {name!r}", "example-robot-data")
+    rel = _EXAMPLES.get(name, name)
+    if not (d / rel).is_file():
+        raise UnknownRobot(f"example-robot-data has no robot {name!r}: name one of {sorted(_EXAMPLES)} or a URDF path "
+                           f"below {d}", value=name)
+    return d / rel
 
 
-class Robot:
-    """A fixed-base serial robot on Pinocchio.
+class Robot(RigidBodyDynamics):
+    """A fixed-base robot on Pinocchio: one planning group of a URDF, the other joints held.
 
     Args:
         urdf: the URDF text.
         name: a short name.
-        urdf_path: where the text came from (used to resolve ``package://`` meshes).
-        flange_frame: the frame :meth:`fk` reports (default: ``"flange"`` if present, else the
-            last frame of the chain).
+        urdf_path: where the text came from (mesh paths are resolved from it).
+        flange_frame: the frame :meth:`fk` reports (default: ``tip_link``, else ``"flange"`` if
+            present, else the last frame of the model).
         tool: optional 4x4 tool transform (TCP in the flange frame).
+        srdf: SRDF file: its groups and its disabled collision pairs (entries naming absent
+            links are skipped with a :class:`~robointel.errors.DescriptionWarning`).
+        group: SRDF planning group to plan.
+        base_link: with ``tip_link``: plan the joints of the chain between them.
+        tip_link: see ``base_link`` (the root link when ``base_link`` is None).
+        joints: plan these joints (names).
+        held: values of movable joints outside the group, rad or m (default: 0, or the mid-range
+            when 0 is outside the joint's limits; a mimic joint follows its master).
+        package_dirs: extra directories for ``package://`` mesh paths (before ``ROS_PACKAGE_PATH``).
+
+    Raises:
+        DescriptionError: a malformed URDF, a joint Pinocchio cannot model, or a collision mesh
+            that cannot be found (named with where it was looked for).
+        InvalidInput: a bad SRDF, group, chain, joint list or held value.
     """
 
     def __init__(self, urdf: str, *, name: str = "robot", urdf_path: Path | None = None,
-                 flange_frame: str | None = None, tool: np.ndarray | None = None) -> None:
-        try:
-            model = pin.buildModelFromXML(urdf)
-        except Exception as exc:
-            raise DescriptionError(f"could not build a model from the URDF of {name!r}: {exc}", value=name) from None
-        if model.nq != model.nv:
-            raise DescriptionError(
-                f"{name!r} has joints with nq != nv (continuous or free joints); robointel supports "
-                "revolute and prismatic joints only", value=name)
-        if model.nq == 0:
-            raise DescriptionError(f"{name!r} has no movable joints", value=name)
+                 flange_frame: str | None = None, tool: np.ndarray | None = None, srdf: str | Path | None = None,
+                 group: str | None = None, base_link: str | None = None, tip_link: str | None = None,
+                 joints: Sequence[str] | None = None, held: Mapping[str, float] | None = None,
+                 package_dirs: Sequence[str | Path] = ()) -> None:
+        source = str(urdf_path) if urdf_path is not None else f"<{name}>"
+        self._init_args: dict[str, Any] = dict(name=name, urdf_path=urdf_path, srdf=srdf, group=group,
+                                               base_link=base_link, tip_link=tip_link, joints=joints, held=held,
+                                               package_dirs=package_dirs)
+        self.srdf_path = Path(srdf) if srdf is not None else None
+        self.srdf: SRDF | None = None
+        if srdf is not None:
+            try:
+                links = {lk.get("name") or "" for lk in ET.fromstring(urdf).iter("link")}
+            except ET.ParseError:
+                links = set()
+            self.srdf = read_srdf(srdf, links)
+        desc = load_description(urdf, source, srdf=self.srdf, group=group, base_link=base_link, tip_link=tip_link,
+                                joints=joints, held=held)
+        self.description = desc
+        model = desc.model
         self.name = name
         self.urdf = urdf
         self.urdf_path = urdf_path
+        self.package_dirs = [Path(d) for d in package_dirs]
         self.model = model
         self.data = model.createData()
         self.nq = int(model.nq)
         self.joint_names: list[str] = [model.names[i] for i in range(1, model.njoints)]
+        self.held: dict[str, float] = dict(desc.held)
+        self.continuous = np.array([n in desc.continuous for n in self.joint_names], dtype=bool)
         self.lower = np.array(model.lowerPositionLimit, dtype=float)
         self.upper = np.array(model.upperPositionLimit, dtype=float)
         self.velocity_limit = np.array(model.velocityLimit, dtype=float)
+        if np.any(self.velocity_limit <= 0):
+            bad = [n for n, v in zip(self.joint_names, self.velocity_limit) if v <= 0]
+            warnings.warn(f"URDF {source}: joints {bad} give no velocity limit; {DEFAULT_VELOCITY} used",
+                          DescriptionWarning, stacklevel=2)
+            self.velocity_limit[self.velocity_limit <= 0] = DEFAULT_VELOCITY
         self.effort_limit = np.array(model.effortLimit, dtype=float)
         self.viscous = np.array(model.damping, dtype=float)
         self.coulomb = np.array(model.friction, dtype=float)
         self.acceleration_limit = 3.0 * self.velocity_limit  # reachable in ~0.33 s; override per task
         self.frame_names: list[str] = [f.name for f in model.frames]
+        self._frame_index: dict[str, int] = {}
+        for kind in _FRAME_ORDER:
+            for i, f in enumerate(model.frames):
+                if f.type == kind and f.name not in self._frame_index:
+                    self._frame_index[f.name] = i
         if flange_frame is None:
-            flange_frame = "flange" if model.existFrame("flange") else model.frames[model.nframes - 1].name
+            last = [f.name for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint == model.njoints - 1]
+            flange_frame = tip_link if tip_link is not None else (
+                "flange" if "flange" in self._frame_index else (last[-1] if last else model.frames[-1].name))
         self._flange_id = self._frame_id(flange_frame)
         self.flange_frame = flange_frame
         self._tool = np.eye(4)
@@ -113,46 +178,88 @@ class Robot:
         self._link_joint = {f.name: int(f.parentJoint) for f in model.frames if f.type == pin.FrameType.BODY}
         self._link_in_joint = {f.name: f.placement.homogeneous.copy()
                                for f in model.frames if f.type == pin.FrameType.BODY}
-        # supports[m, k]: does joint k+1 move joint j?  (tree-safe ancestry mask)
+        # ancestor[j, k]: does configuration index k move joint j?  (tree-safe ancestry mask)
         self._ancestor = np.zeros((model.njoints, self.nq), dtype=bool)
         for j in range(1, model.njoints):
             for a in model.supports[j]:
                 if a > 0:
                     self._ancestor[j, model.joints[a].idx_v] = True
+        self.chain = chain_arrays(model)
         # live references into Pinocchio's data (they follow every kinematics call)
         self._oMi = [self.data.oMi[i] for i in range(model.njoints)]
         self._Jw = self.data.J
         self._T = np.empty((model.njoints, 4, 4))
-        self.spheres: SphereModel = SphereModel.from_robot(self)
+        self._primitives = self._read_primitives()
+        self._spheres: SphereModel | None = None
+        self._fitted = False
         self._ik = None
         if name == "lrmate200id7l":
-            self._ik = LRMateIK(self)
+            fl = model.frames[self._flange_id].placement.homogeneous
+            self._ik = LRMateIK(model, fl, self.lower, self.upper)
+
+    @property
+    def fitted_spheres(self) -> bool:
+        """True when :attr:`spheres` is (or will be) fitted to the collision meshes (inside them)."""
+        if self._spheres is not None:
+            return self._fitted
+        return any(p["type"] == "mesh" for ps in self._primitives.values() for p in ps)
+
+    @property
+    def spheres(self) -> SphereModel:
+        """The robot's collision spheres, made on first use (assignable).
+
+        Fitted to its collision meshes (:func:`~robointel.robot.sphere_fit.fit_spheres`, cached on disk)
+        when it has meshes, else covering its collision primitives.
+        """
+        if self._spheres is None:
+            if any(p["type"] == "mesh" for ps in self._primitives.values() for p in ps):
+                links, centres, radii = fit_spheres(self)
+                self._spheres = SphereModel(links, centres, radii).bind(self)
+                self._fitted = True
+            else:
+                self._spheres = SphereModel.from_robot(self)
+        return self._spheres
+
+    @spheres.setter
+    def spheres(self, model: SphereModel) -> None:
+        if not isinstance(model, SphereModel):
+            raise InvalidInput(f"spheres must be a SphereModel, got {type(model).__name__}", value=model)
+        self._spheres = model.bind(self)
+        self._fitted = False
+
+    def clone(self) -> Robot:
+        """A new robot of the same description, group, held values, flange frame and tool (its own Pinocchio data)."""
+        return Robot(self.urdf, flange_frame=self.flange_frame, tool=self.tool, **self._init_args)
 
     # ------------------------------------------------------------------ loading
     @classmethod
-    def load(cls, name_or_path: str | Path, *, flange_frame: str | None = None,
-             tool: np.ndarray | None = None) -> Robot:
-        """Load a built-in robot, an ``example-robot-data`` arm or a URDF file.
+    def load(cls, name_or_path: str | Path, *, flange_frame: str | None = None, tool: np.ndarray | None = None,
+             srdf: str | Path | None = None, group: str | None = None, base_link: str | None = None,
+             tip_link: str | None = None, joints: Sequence[str] | None = None,
+             held: Mapping[str, float] | None = None, package_dirs: Sequence[str | Path] = ()) -> Robot:
+        """Load a built-in robot, an ``example-robot-data`` arm or a URDF file (and optionally an SRDF and a group).
 
         Load a built-in robot (``"lrmate200id7l"``, ``"scara2"``), an ``example-robot-data`` arm (``"ur5"``,
-        ``"panda"``) or a URDF file.
+        ``"panda"``) or a URDF file. The other keyword
+        arguments are those of :class:`Robot`.
 
         Raises:
             UnknownRobot: the name is not built in and no such file exists.
-            DescriptionError: the file is not a readable URDF.
+            DescriptionError: the file is not a readable URDF, or a mesh cannot be found.
+            InvalidInput: a bad SRDF, group or held value.
         """
         key = str(name_or_path)
         if key in BUILTIN:
             path, name = BUILTIN[key], key
-        elif key in ("ur5", "panda"):
+        elif key in _EXAMPLES:
             path, name = example_robot_urdf(key), key
-            if flange_frame is None:
+            if flange_frame is None and tip_link is None:
                 flange_frame = {"ur5": "tool0", "panda": "panda_hand"}[key]
         else:
             path = Path(key).expanduser()
             if not path.exists():
                 raise UnknownRobot(
-                    f"unknown robot {key!r}: not a built-in name ({', '.join(builtin_names() + ['ur5', 'panda'])}) "
+                    f"unknown robot {key!r}: not a built-in name ({', '.join(builtin_names() + list(_EXAMPLES))}) "
                     "and no URDF file at that path", value=key)
             name = path.stem
         try:
@@ -161,13 +268,23 @@ class Robot:
         except (OSError, UnicodeDecodeError, ET.ParseError) as exc:
             raise DescriptionError(f"cannot read URDF {path}: {exc}; check that it is a valid URDF XML file",
                                    value=str(path)) from None
-        return cls(text, name=name, urdf_path=path, flange_frame=flange_frame, tool=tool)
+        return cls(text, name=name, urdf_path=path, flange_frame=flange_frame, tool=tool, srdf=srdf, group=group,
+                   base_link=base_link, tip_link=tip_link, joints=joints, held=held, package_dirs=package_dirs)
 
     # ------------------------------------------------------------------ helpers
     def _frame_id(self, frame: str) -> int:
-        if not self.model.existFrame(frame):
+        i = self._frame_index.get(frame)
+        if i is None:
             raise InvalidInput(f"robot {self.name!r} has no frame {frame!r}; frames: {self.frame_names}", value=frame)
-        return int(self.model.getFrameId(frame))
+        return i
+
+    def frame_id(self, frame: str) -> int:
+        """Pinocchio index of the frame named ``frame``: a link (BODY frame) first when several frames share the name.
+
+        Raises:
+            InvalidInput: no frame of that name.
+        """
+        return self._frame_id(frame)
 
     def check_q(self, q: ArrayLike, name: str = "q", *, limits: bool = False) -> np.ndarray:
         """Validate a configuration: shape (nq,), finite, and (``limits=True``) within limits."""
@@ -179,6 +296,36 @@ class Robot:
         if limits:
             check_limits(q, self.lower, self.upper, self.joint_names, name)
         return q
+
+    def snap_to_limits(self, q: ArrayLike, tol: float = LIMIT_SNAP) -> np.ndarray:
+        """``q`` (nq,) with values at most ``tol`` (rad or m) outside a limit put on it (rounding in stored files).
+
+        Values farther out are left as they are (so that :meth:`check_q` names them).
+        """
+        q = np.array(self.check_q(q), dtype=float)
+        near = ((q < self.lower) & (q >= self.lower - tol)) | ((q > self.upper) & (q <= self.upper + tol))
+        q[near] = np.clip(q[near], self.lower[near], self.upper[near])
+        return q
+
+    def wrap_goal(self, goal: ArrayLike, ref: ArrayLike) -> np.ndarray:
+        """``goal`` with each continuous joint turned by whole turns to the value nearest ``ref`` within limits.
+
+        Args:
+            goal: (nq,) configuration, rad.
+            ref: (nq,) the configuration the motion starts from, rad.
+
+        Returns:
+            (nq,) the same pose of the robot, reached by the shorter turn of each continuous joint.
+        """
+        g = np.array(self.check_q(goal, "goal"), dtype=float)
+        r = self.check_q(ref, "ref")
+        for j in np.flatnonzero(self.continuous):
+            k = np.round((r[j] - g[j]) / (2 * np.pi))
+            for cand in (g[j] + 2 * np.pi * k, g[j] + 2 * np.pi * (k - 1), g[j] + 2 * np.pi * (k + 1)):
+                if self.lower[j] <= cand <= self.upper[j] and abs(cand - r[j]) <= np.pi + 1e-12:
+                    g[j] = cand
+                    break
+        return g
 
     @property
     def link_names(self) -> list[str]:
@@ -227,7 +374,7 @@ class Robot:
         """4x4 world pose of every link."""
         q = self.check_q(q)
         pin.framesForwardKinematics(self.model, self.data, q)
-        return {n: self.data.oMf[self.model.getFrameId(n)].homogeneous for n in self._link_names}
+        return {n: self.data.oMf[self._frame_index[n]].homogeneous for n in self._link_names}
 
     def jacobian(self, q: ArrayLike) -> np.ndarray:
         """6xn world-aligned Jacobian [v; w] of the TCP: linear velocity of the TCP point."""
@@ -325,114 +472,42 @@ class Robot:
             sols.sort(key=lambda s: float(np.linalg.norm(s - q_ref)))
         return sols
 
-    def ik_numeric(self, T: ArrayLike, *, q0: ArrayLike | None = None, tol: float = 1e-10, max_iter: int = 300,
-                   damping: float = 1e-6, restarts: int = 20, rng: int | None = 0) -> np.ndarray:
-        """Damped least-squares IK for any arm: q such that fk(q) = T, within joint limits.
+    def ik_numeric(self, T: ArrayLike, *, q0: ArrayLike | None = None, tol: float = 1e-9, max_iter: int = 100,
+                   restarts: int = 200, rng: int | None = 0, damping: float | None = None) -> np.ndarray:
+        """Numeric IK for any chain: q within the joint limits such that fk(q) = T.
 
-        Iterates dq = J^T (J J^T + lambda I)^-1 e on the SE(3) log error (local frame), clipped to
-        the limits, with random restarts.
+        Levenberg-Marquardt on the 6-D pose error [p* - p; log(R* R^T)] (world frame) with
+        error-adapted damping, each step clipped to the limits, compiled; from ``q0`` (or the
+        mid-range), then from uniform random configurations until one converges.
+
+        Args:
+            T: (4, 4) TCP pose (flange composed with :attr:`tool`) in the world frame.
+            q0: first start (nq,), rad.
+            tol: converged when the 6-D error's norm is below it (m and rad).
+            max_iter: iterations per start.
+            restarts: random starts after the first.
+            rng: seed of the random starts.
+            damping: unused (kept for callers of the damped least-squares solver it replaced).
+
+        Returns:
+            (nq,) the solution, rad (m for prismatic joints).
 
         Raises:
-            IKFailure: no restart converged to ``tol`` on the 6-D error.
+            IKFailure: no start converged (the pose is unreachable within the limits, or needs more restarts).
         """
-        T = as_array(T, "T", (4, 4))
-        target = pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
-        gen = np.random.default_rng(rng)
-        starts = [self.check_q(q0)] if q0 is not None else []
-        starts += [0.5 * (self.lower + self.upper)] + list(self.random_configuration(gen, restarts))
-        best, best_err = None, np.inf
-        tool = pin.SE3(self._tool[:3, :3].copy(), self._tool[:3, 3].copy())
-        for q in starts:
-            q = np.clip(q, self.lower, self.upper)
-            for _ in range(max_iter):
-                pin.framesForwardKinematics(self.model, self.data, q)
-                cur = self.data.oMf[self._flange_id] * tool
-                err = pin.log6(cur.actInv(target)).vector
-                nerr = float(np.linalg.norm(err))
-                if nerr < tol:
-                    break
-                J = pin.computeFrameJacobian(self.model, self.data, q, self._flange_id, pin.LOCAL)
-                J = tool.toActionMatrixInverse() @ J
-                Jl = pin.Jlog6(cur.actInv(target))
-                J = -Jl @ J
-                dq = -J.T @ np.linalg.solve(J @ J.T + damping * np.eye(6), err)
-                q = np.clip(q + dq, self.lower, self.upper)
-            if nerr < best_err:
-                best, best_err = q.copy(), nerr
-            if best is not None and best_err < tol:
-                return best
-        raise IKFailure(f"numeric IK did not converge (best 6-D error {best_err:.3g} > {tol:g}); the pose may be "
-                        "unreachable or outside joint limits", value=best)
-
-    # ------------------------------------------------------------------ dynamics (2.5)
-    def mass_matrix(self, q: ArrayLike) -> np.ndarray:
-        """M(q), n x n."""
-        q = self.check_q(q)
-        M = pin.crba(self.model, self.data, q)
-        return np.triu(M) + np.triu(M, 1).T
-
-    def nonlinear_effects(self, q: ArrayLike, qd: ArrayLike) -> np.ndarray:
-        """C(q, qd) qd + G(q)."""
-        return pin.nonLinearEffects(self.model, self.data, self.check_q(q), self.check_q(qd, "qd"))
-
-    def coriolis(self, q: ArrayLike, qd: ArrayLike) -> np.ndarray:
-        """C(q, qd) qd (Coriolis and centrifugal torques)."""
-        return self.nonlinear_effects(q, qd) - self.gravity(q)
-
-    def gravity(self, q: ArrayLike) -> np.ndarray:
-        """G(q)."""
-        return pin.computeGeneralizedGravity(self.model, self.data, self.check_q(q))
-
-    def friction(self, qd: ArrayLike, *, smooth: float = 1e-3) -> np.ndarray:
-        """Joint friction torques F_v qd + F_c sign(qd) (tanh-smoothed over ``smooth`` rad/s)."""
-        qd = self.check_q(qd, "qd")
-        return self.viscous * qd + self.coulomb * np.tanh(qd / smooth)
-
-    def inverse_dynamics(self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, *, friction: bool = False) -> np.ndarray:
-        """Tau = M qdd + C qd + G (+ friction) by RNEA."""
-        tau = pin.rnea(self.model, self.data, self.check_q(q), self.check_q(qd, "qd"), self.check_q(qdd, "qdd"))
-        return tau + self.friction(qd) if friction else tau
-
-    def forward_dynamics(self, q: ArrayLike, qd: ArrayLike, tau: ArrayLike, *, friction: bool = False) -> np.ndarray:
-        """Qdd = M^-1 (tau - C qd - G (- friction)) by ABA."""
-        q, qd, tau = self.check_q(q), self.check_q(qd, "qd"), self.check_q(tau, "tau")
-        if friction:
-            tau = tau - self.friction(qd)
-        return pin.aba(self.model, self.data, q, qd, tau)
+        return numeric_ik(self, T, q0=q0, tol=tol, max_iter=max_iter, restarts=restarts, rng=rng)
 
     # ------------------------------------------------------------------ URDF geometry
+    def _read_primitives(self) -> dict[str, list[dict]]:
+        return read_collision_geometry(self._root, self.urdf_path, self.package_dirs, set(self._link_names))
+
     def collision_primitives(self) -> dict[str, list[dict]]:
         """Collision geometry of each link from the URDF.
 
-        Dicts with ``type`` (box, cylinder, sphere, capsule, mesh), ``size`` and ``origin`` (4x4 in the link frame).
+        Dicts with ``type`` (box, cylinder, sphere, capsule, mesh), ``size`` (a mesh's scale),
+        ``origin`` (4x4 in the link frame), ``filename`` and, for a mesh, ``path`` (the resolved file).
         """
-        out: dict[str, list[dict]] = {}
-        for link in self._root.iter("link"):
-            prims = []
-            for col in link.findall("collision"):
-                origin = col.find("origin")
-                xyz = np.fromstring(origin.get("xyz", "0 0 0"), sep=" ") if origin is not None else np.zeros(3)
-                rpy = np.fromstring(origin.get("rpy", "0 0 0"), sep=" ") if origin is not None else np.zeros(3)
-                T = np.eye(4)
-                T[:3, :3] = pin.rpy.rpyToMatrix(*rpy)
-                T[:3, 3] = xyz
-                g = col.find("geometry")
-                if g is None or len(g) == 0:
-                    continue
-                shape = g[0]
-                if shape.tag == "box":
-                    size = np.fromstring(shape.get("size", ""), sep=" ")
-                elif shape.tag in ("cylinder", "capsule"):
-                    size = np.array([float(shape.get("radius", "nan")), float(shape.get("length", "nan"))])
-                elif shape.tag == "sphere":
-                    size = np.array([float(shape.get("radius", "nan"))])
-                elif shape.tag == "mesh":
-                    size = np.fromstring(shape.get("scale", "1 1 1"), sep=" ")
-                else:
-                    continue
-                prims.append({"type": shape.tag, "size": size, "origin": T, "filename": shape.get("filename")})
-            out[link.get("name", "")] = prims
-        return out
+        return {k: [dict(p) for p in v] for k, v in self._primitives.items()}
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, nq={self.nq}, flange={self.flange_frame!r})"

@@ -14,35 +14,37 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from robointel.robot.collision import SphereModel, _resolve_mesh
+from robointel.robot.collision import SphereModel
 from robointel.robot.model import Robot
+from robointel.robot.sphere_fit import primitive_mesh
 
 _CACHE: dict[tuple, np.ndarray] = {}
 
 
-def _surface(robot: Robot, samples: int, seed: int) -> dict[int, np.ndarray]:
-    """Surface samples (and vertices) of every collision mesh, per joint, in the joint frame."""
+def _surface(robot: Robot, samples: int, seed: int, primitives: bool = False) -> dict[int, np.ndarray]:
+    """Surface samples (and vertices) of every collision mesh (and, ``primitives``, primitive), per joint frame."""
     out: dict[int, list[np.ndarray]] = {}
     for link, prims in robot.collision_primitives().items():
         if link not in robot.link_names:
             continue
         j = robot.link_joint(link)
         for p in prims:
-            if p["type"] != "mesh" or not p.get("filename"):
+            if p["type"] == "mesh" and p.get("path") is not None:
+                mesh: Any = trimesh.load(p["path"], force="mesh")
+                mesh.apply_scale(np.asarray(p["size"], float))
+                T = robot._link_in_joint[link] @ p["origin"]
+            elif primitives and p["type"] != "mesh":
+                mesh = primitive_mesh(p)  # already placed in the link frame
+                T = robot._link_in_joint[link]
+            else:
                 continue
-            path = _resolve_mesh(robot, p["filename"])
-            if path is None:
-                continue
-            mesh: Any = trimesh.load(path, force="mesh")
-            mesh.apply_scale(np.asarray(p["size"], float))
             pts = np.vstack([trimesh.sample.sample_surface(mesh, samples, seed=seed)[0], mesh.vertices])
-            T = robot._link_in_joint[link] @ p["origin"]
             out.setdefault(j, []).append(pts @ T[:3, :3].T + T[:3, 3])
     return {j: np.vstack(v) for j, v in out.items()}
 
 
 def cover_meshes(robot: Robot, spheres: SphereModel, *, samples: int = 20000, tol: float = 5e-4,
-                 seed: int = 0) -> SphereModel:
+                 seed: int = 0, primitives: bool = False) -> SphereModel:
     """A copy of ``spheres`` whose radii are grown until every collision-mesh sample is inside one.
 
     Args:
@@ -51,15 +53,17 @@ def cover_meshes(robot: Robot, spheres: SphereModel, *, samples: int = 20000, to
         samples: surface samples per mesh (plus its vertices).
         tol: margin added to every grown radius, m (covers the gaps between samples).
         seed: sampling seed.
+        primitives: cover the collision primitives (boxes, cylinders, spheres) too (their spheres
+            may lie inside them, as the fitted spheres do).
 
     Returns:
         The grown sphere model, bound to ``robot`` (same links and centres).
     """
-    key = (str(robot.urdf_path), spheres.centers.tobytes(), spheres.radii.tobytes(), samples, tol, seed)
+    key = (str(robot.urdf_path), spheres.centers.tobytes(), spheres.radii.tobytes(), samples, tol, seed, primitives)
     rad = _CACHE.get(key)
     if rad is None:
         rad = np.asarray(spheres.radii, float).copy()
-        for j, P in _surface(robot, samples, seed).items():
+        for j, P in _surface(robot, samples, seed, primitives).items():
             own = np.flatnonzero(spheres.joints == j)
             if not len(own):
                 continue

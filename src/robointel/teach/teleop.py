@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from robointel._extras import needs_extra
 from robointel._validate import as_array
 from robointel.errors import IKFailure, InvalidInput
 from robointel.robot import Robot
@@ -55,8 +56,9 @@ class TeleopApp:
 
     Args:
         controller: a started or not yet started :class:`StreamingController` (owns the robot).
-        host, port: where the page is served (127.0.0.1 by default; others need ``token``, which
-            must then be typed into the page's token field before anything is sent).
+        host: where the page is served (127.0.0.1 by default; others need ``token``, which must
+            then be typed into the page's token field before anything is sent).
+        port: the page's port.
         obstacles: robointel.geometry shapes drawn in the scene and saved with the program.
         program_path: where "Save" writes the program.
         stream_hz: keep-alive streaming rate of the live target.
@@ -239,7 +241,8 @@ class TeleopApp:
                                                             position=p) for i, p in enumerate(pts)]
 
     def _build_scene(self) -> None:
-        import viser
+        with needs_extra("teleop", "browser teleoperation"):
+            import viser
 
         s = self.server
         s.scene.add_grid("/table", width=1.6, height=1.6, cell_size=0.1, section_size=0.5, position=(0.3, 0, 0))
@@ -376,7 +379,8 @@ class TeleopApp:
 
     def start(self) -> TeleopApp:
         """Serve the page (viser), start the controller's control thread and the display and stream threads."""
-        import viser
+        with needs_extra("teleop", "browser teleoperation"):
+            import viser
 
         self._syncing = False
         self.server = viser.ViserServer(host=self.host, port=self.port, verbose=False)

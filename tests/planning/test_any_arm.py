@@ -1,0 +1,58 @@
+"""Arms as their makers ship them plan with the automatic collision model (no sphere file).
+
+A Kinova Gen3-style arm with continuous joints and a Unitree Z1 whose frame names repeat, both from
+the installed ``example-robot-data``: random start/goal pairs that the exact geometry finds free,
+around a box, planned and judged by the independent exact-mesh checker of the benchmarks.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robointel.geometry.obstacles import Box
+from robointel.planning import Environment, MotionSettings, plan_motion
+from robointel.planning.exact_self import self_geometry
+from robointel.planning.hybrid_check import mesh_geometry
+from robointel.robot import Robot
+from robointel.robot.model import example_robot_urdf
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+from _mbm_checker import MBMChecker  # noqa: E402
+
+ARMS = {"kinova": ("kinova_description/robots/kinova.urdf", "kinova_description/srdf/kinova.srdf"),
+        "z1": ("z1_description/urdf/z1.urdf", "z1_description/srdf/z1.srdf")}
+
+
+def _free_pair(env: Environment, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Two configurations >= 5 mm clear on the exact geometry."""
+    r, mg, sg = env.robot, mesh_geometry(env), self_geometry(env.robot, env.disabled)
+    out = []
+    while len(out) < 2:
+        q = r.random_configuration(rng)
+        if mg.clearance(q, thresh=0.01)[0] >= 0.005 and sg.clearance(q, thresh=0.01)[0] >= 0.005:
+            out.append(q)
+    return out[0], out[1]
+
+
+@pytest.mark.parametrize("arm", sorted(ARMS))
+def test_arm_from_example_robot_data_plans_with_its_own_spheres(arm):
+    urdf, srdf = (example_robot_urdf(p) for p in ARMS[arm])
+    robot = Robot.load(urdf, srdf=srdf)
+    box = Box(center=np.array([0.35, 0.0, 0.15]), size=np.array([0.1, 0.3, 0.3]), name="block")
+    env = Environment(robot, [box])
+    assert env.exact_self and robot.fitted_spheres
+    checker = MBMChecker(urdf, srdf, joints=robot.joint_names, package_dirs=[str(urdf.parents[4])])
+    rng = np.random.default_rng(3)
+    for _ in range(2):
+        q0, q1 = _free_pair(env, rng)
+        plan = plan_motion(robot, env, q0, q1, settings=MotionSettings(d_min=0.002, time_budget_s=3.0))
+        assert plan.success, plan.reason
+        tr = plan.trajectory
+        raw = {"start": q0.tolist(), "goals": [robot.wrap_goal(q1, q0).tolist()], "sphere": [], "cylinder": [],
+               "box": [{"name": "block", "position": [0.35, 0.0, 0.15], "half_extents": [0.05, 0.15, 0.15],
+                        "orientation_quat_xyzw": [0.0, 0.0, 0.0, 1.0]}]}
+        v = checker.check_trajectory(tr.t, tr.q, raw, qd=tr.qd, dt=4e-3)
+        assert not v.collision and v.reaches_goal, (v.pair, v.min_clearance)
