@@ -41,6 +41,7 @@ def test_guidance_kinematic_scenario():
 
 @pytest.mark.parametrize("reason,failure", [
     ("no feasible grasp (ik)", Failure.NO_GRASP), ("nothing perceived", Failure.NO_GRASP),
+    ("nothing perceived after attempt 1 (attempt 1: slipped (...))", Failure.NO_GRASP),
     ("approach or lift unreachable", Failure.IK), ("dropped: fingers closed on nothing", Failure.MISSED),
     ("dropped: slipped during shake (moved 0.040 m in hand, grip 0.030 m)", Failure.SLIP),
 ])

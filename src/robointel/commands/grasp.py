@@ -62,7 +62,7 @@ def _templates(objs: dict[str, list[ObjectModel]], db: Path | None = None, *,
             out.append(seen_template(o))
             continue
         grasps = sampled_grasps(o) if cat != "toy_arm" else []
-        out.append(Template(o.name, cat, sample_points(o, 800, 0), grasps or taught_grasps(o)))
+        out.append(Template(o.name, cat, sample_points(o, 800, 0), grasps or taught_grasps(o), o.mass))
     return out
 
 
@@ -261,8 +261,14 @@ def trial(category: str = typer.Option("all", help="a category or 'all'"),
           n: int = typer.Option(5, help="trials per category"),
           seed: int = typer.Option(0), source: str = typer.Option("demo"), db: Path = typer.Option(None),
           arm: bool = typer.Option(True, help="the whole LR Mate in MuJoCo (--no-arm: the gripper alone on the FK "
-                                              "path)")) -> None:
-    """MuJoCo lift-and-shake trials (Table 6.2): random placements, perceive, plan, grasp, lift 10 cm, shake."""
+                                              "path, one attempt)"),
+          attempts: int = typer.Option(3, min=1, help="grasp attempts per trial: an empty, partial or slipping grasp "
+                                                     "is let go and planned again from a new look")) -> None:
+    """MuJoCo lift-and-shake trials (Table 6.2): random placements, perceive, plan, grasp, lift 10 cm, shake.
+
+    The hand's checks (the part between the jaws before closing, the jaw opening and pad forces after
+    closing and after the lift) let go of a failing grasp and try again, up to ``--attempts``.
+    """
     from rich.progress import track
 
     from robointel.learning.grasp import GraspPlanner, grasp_trial, random_placements
@@ -277,20 +283,21 @@ def trial(category: str = typer.Option("all", help="a category or 'all'"),
         rng = np.random.default_rng(seed)
         cats = list(objs) if category == "all" else [category]
         t = Table(title="lift-and-shake trials")
-        for c in ("category", "success", "classified right", "gripper (48 mm / 85 mm)"):
+        for c in ("category", "success", "classified right", "gripper (48 mm / 85 mm)", "attempts per trial"):
             t.add_column(c, justify="right")
         tot = 0
         for cat in cats:
             held = objs[cat][1:]
-            ok = right = wide = 0
+            ok = right = wide = tries = 0
             for k in track(range(n), description=cat):
                 o = held[k % len(held)]
-                r = grasp_trial(o, random_placements([o], rng)[0], planner, rng=rng, arm=arm)
+                r = grasp_trial(o, random_placements([o], rng)[0], planner, rng=rng, arm=arm, attempts=attempts)
                 ok += int(r.success)
                 right += int(r.category == cat)
                 wide += int(r.plan is not None and r.plan.gripper != planner.gripper)
+                tries += r.attempts
             tot += ok
-            t.add_row(cat, f"{ok}/{n}", f"{right}/{n}", f"{n - wide} / {wide}")
+            t.add_row(cat, f"{ok}/{n}", f"{right}/{n}", f"{n - wide} / {wide}", f"{tries / n:.2f}")
         console.print(t)
         console.print(f"total {tot}/{n * len(cats)} (dissertation: 18.8/20)")
     except RobointelError as exc:

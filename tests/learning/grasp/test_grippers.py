@@ -38,8 +38,10 @@ def test_wide_gripper_is_the_85mm_class():
 def test_choose_gripper_by_width():
     both = [WIDE_GRIPPER, NARROW_GRIPPER]  # any order
     assert choose_gripper([0.030, 0.070], both) is NARROW_GRIPPER  # the part fits the narrow one somewhere
-    assert choose_gripper([0.044, np.nan], both) is NARROW_GRIPPER
-    assert choose_gripper([0.047], both) is WIDE_GRIPPER  # within the 3 mm margin of the 48 mm stroke
+    assert choose_gripper([0.042, np.nan], both) is NARROW_GRIPPER
+    assert NARROW_GRIPPER.grip_range[1] == pytest.approx(0.043)  # 2.5 mm room each side of the part
+    assert choose_gripper([0.044], both) is WIDE_GRIPPER  # beyond the 48 mm gripper's range
+    assert choose_gripper([0.044], both, margin=0.003) is NARROW_GRIPPER  # a margin given by the caller
     assert choose_gripper([0.068, 0.070], both) is WIDE_GRIPPER
     assert choose_gripper([0.120], both) is WIDE_GRIPPER  # none fits: the widest
     assert choose_gripper([np.nan], both) is NARROW_GRIPPER  # unknown: the default

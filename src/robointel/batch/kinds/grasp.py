@@ -65,7 +65,7 @@ def setup(source: str, per_category: int = 4,
 
 
 def _failure(reason: str) -> Failure:
-    if reason.startswith("no feasible grasp") or reason in ("nothing perceived", "cloud too small"):
+    if reason.startswith(("no feasible grasp", "nothing perceived")) or reason == "cloud too small":
         return Failure.NO_GRASP
     if reason.startswith("approach or lift unreachable"):
         return Failure.IK
@@ -88,10 +88,12 @@ def grasp(spec: TaskSpec) -> TrialOutcome:
         ``classified_right`` (1 when the planner classified the object into its category),
         ``wide_gripper`` (1 when the plan chose the 85 mm gripper), ``gripper_fallback`` (1 when the
         wide one was taken because the narrow one had no feasible grasp) and ``grip_width_m`` (the
-        jaw opening after closing, NaN when nothing was grasped) and ``settle_s`` (simulated time the
-        object took to come to rest before the cameras looked). ``detail``: the object, the gripper
-        and the trial's reason. Timings: ``setup_s``, ``trial_s`` and ``plan_s`` (the planner's
-        classify-register-transfer-score-search time, when it ran).
+        jaw opening after the last close, NaN when nothing was grasped), ``settle_s`` (simulated time the
+        object took to come to rest before the cameras looked) and ``attempts`` (grasp attempts made:
+        the hand's checks let go of the others). ``detail``: the object, the gripper, the category it
+        was read as when wrong, the trial's reason and why each earlier attempt was let go. Timings:
+        ``setup_s``, ``trial_s`` and ``plan_s`` (the planner's classify-register-transfer-score-search
+        time, when it ran).
 
     Raises:
         InvalidInput: unknown source or category, or a category with no holdable instance.
@@ -110,15 +112,16 @@ def grasp(spec: TaskSpec) -> TrialOutcome:
     obj = held[(int(rng.integers(len(held))) if k is None else k) % len(held)]
     t1 = time.perf_counter()
     r = grasp_trial(obj, random_placements([obj], rng)[0], planner, rng=rng, arm=param(spec, "arm", True, bool))
-    closed = next((s["opening"] for s in r.log if s["phase"] == "close"), float("nan"))
+    closed = next((s["opening"] for s in reversed(r.log) if s["phase"] == "close"), float("nan"))
     figures = {"final_height_m": float(r.final_height), "classified_right": float(r.category == cat),
                "wide_gripper": float(r.gripper == "wide_85mm"),
                "gripper_fallback": float(r.plan is not None and r.plan.gripper_fallback),
-               "grip_width_m": float(closed), "settle_s": float(r.settle_s)}
+               "grip_width_m": float(closed), "settle_s": float(r.settle_s), "attempts": float(r.attempts)}
     timings = {"setup_s": t1 - t0, "trial_s": time.perf_counter() - t1}
     if r.plan is not None:
         timings["plan_s"] = float(r.plan.timings["total"])
-    detail = f"{obj.name} [{r.gripper or 'none'}]: {r.reason}"
+    read = "" if r.category in (None, cat) else f" read as {r.category}"
+    detail = f"{obj.name} [{r.gripper or 'none'}]{read}: {r.reason}" + "".join(f"; {w}" for w in r.let_go)
     if r.success:
         return TrialOutcome(True, Failure.NONE, detail, figures, timings)
     return TrialOutcome(False, _failure(r.reason), detail, figures, timings)

@@ -33,19 +33,23 @@ class Template:
     """A taught object: its points, grasps, category and name.
 
     A taught object: ``points`` (M, 3) in its own frame (metres), taught ``grasps`` in that frame,
-    its ``category`` and ``name``.
+    its ``category``, ``name`` and ``mass`` (kg, weighed at teach time; None: unknown, the planner
+    then assumes a density, see :func:`robointel.learning.grasp.hold.estimate_part`).
     """
 
     name: str
     category: str
     points: np.ndarray
     grasps: list[Grasp] = field(default_factory=list)
+    mass: float | None = None
 
     def __post_init__(self) -> None:
         self.points = as_array(self.points, f"template {self.name} points", (None, 3))
         if len(self.points) < 4:
             raise InvalidInput(f"template {self.name} has {len(self.points)} points; need at least 4",
                                value=len(self.points))
+        if self.mass is not None and not (np.isfinite(self.mass) and self.mass > 0):
+            raise InvalidInput(f"template {self.name}: mass must be > 0 kg, got {self.mass}", value=self.mass)
 
 
 @dataclass(frozen=True)

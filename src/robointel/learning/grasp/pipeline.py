@@ -23,6 +23,8 @@ from scipy.spatial import cKDTree
 from robointel.errors import InvalidInput, RobointelError
 from robointel.learning.grasp.classify import Classification, ComposedWarp, Fit, Template, classify, fit_template
 from robointel.learning.grasp.cpd import RigidWarp, cpd_rigid, single_thread_blas
+from robointel.learning.grasp.hand import between_jaws
+from robointel.learning.grasp.hold import Hold, PartEstimate, Shake, estimate_part, hold, hull_volume
 from robointel.learning.grasp.objects import ObjectModel
 from robointel.learning.grasp.perception import DepthCamera, default_cameras, depth_image, perceive
 from robointel.learning.grasp.quality import (
@@ -33,12 +35,13 @@ from robointel.learning.grasp.quality import (
     grasp_quality,
 )
 from robointel.learning.grasp.scene import Placement, scene_xml
-from robointel.learning.grasp.search import SearchResult, orientation_search, refine_position
+from robointel.learning.grasp.search import PENALTY, SearchResult, orientation_search, refine_position
+from robointel.learning.grasp.shape import ShapeClass, box_sides, shape_class, shape_cost, shape_grasps
 from robointel.learning.grasp.transfer import Grasp, transfer_grasp
 from robointel.robot import Robot
 
-__all__ = ["COM_WEIGHT", "TILT_WEIGHT", "GraspPlan", "GraspPlanner", "carve_above_seen", "closing_tilt",
-           "lrmate_with_gripper", "perceived_template"]
+__all__ = ["AVOID_COST", "COM_WEIGHT", "HOLD_WEIGHT", "SHAPE_WEIGHT", "TILT_WEIGHT", "GraspPlan", "GraspPlanner",
+           "carve_above_seen", "closing_tilt", "lrmate_with_gripper", "perceived_template"]
 
 
 #: Default :attr:`GraspPlanner.com_weight` (cost per metre of a grasp's horizontal distance from the
@@ -48,6 +51,18 @@ COM_WEIGHT = 0.0
 #: Default :attr:`GraspPlanner.tilt_weight` (cost per radian of a grasp's closing axis above or below
 #: the horizontal).
 TILT_WEIGHT = 0.0
+
+#: Default :attr:`GraspPlanner.hold_weight`: cost of a grasp's hold shortfall (:meth:`Hold.cost`, 0..1)
+#: added to its (6.21) cost.
+HOLD_WEIGHT = 1.0
+
+#: Default :attr:`GraspPlanner.shape_weight`: weight of :func:`~robointel.learning.grasp.shape.shape_cost` (0..2)
+#: in a candidate's (6.21) cost.
+SHAPE_WEIGHT = 0.5
+
+#: Cost added to a candidate within 10 mm and 30 deg of a grasp that failed on this part before
+#: (:meth:`GraspPlanner.plan`'s ``avoid``): another grasp is taken when one of comparable cost exists.
+AVOID_COST = 1.0
 
 
 def lrmate_with_gripper(gripper: ParallelGripper = NARROW_GRIPPER) -> Robot:
@@ -92,8 +107,10 @@ class GraspPlan:
 
     A planned grasp: the classification, the transferred grasps, the chosen search result, the
     wall-clock time of each step (s), the ``gripper`` the grasp is planned for (its tool in the IK),
-    the contact ``widths`` (m) of the transferred grasps that chose it, and ``gripper_fallback``: True
-    when the width chose the narrow gripper, it had no feasible grasp and the wide one did.
+    the contact ``widths`` (m) of the transferred grasps that chose it, ``gripper_fallback``: True
+    when the width chose the narrow gripper, it had no feasible grasp and the wide one did, the chosen
+    grasp's ``hold`` and the ``part`` estimate it was rated on (:mod:`robointel.learning.grasp.hold`), and
+    the perceived part's ``shape`` class (:mod:`robointel.learning.grasp.shape`).
     """
 
     classification: Classification
@@ -103,6 +120,9 @@ class GraspPlan:
     gripper: ParallelGripper = NARROW_GRIPPER
     widths: list[float] = field(default_factory=list)
     gripper_fallback: bool = False
+    hold: Hold | None = None
+    part: PartEstimate | None = None
+    shape: ShapeClass | None = None
 
     @property
     def feasible(self) -> bool:
@@ -146,6 +166,19 @@ class GraspPlanner:
         tilt_weight: cost per radian of elevation of a grasp's closing axis from the horizontal
             (:func:`closing_tilt`), added to the (6.21) cost of each candidate: jaws closing level on a
             part lying on the table rather than one above and one under it. 0: off.
+        hold_weight: cost of each candidate's hold shortfall (:func:`robointel.learning.grasp.hold.hold`:
+            the pads' friction against the part's estimated weight and the shake's inertia, about the
+            closing axis above all; :meth:`Hold.cost`), added to its (6.21) cost. 0: off.
+        shake: the motion the hold is rated for (default :class:`~robointel.learning.grasp.hold.Shake`,
+            the trial's).
+        shape_weight: weight of each candidate's :func:`~robointel.learning.grasp.shape.shape_cost` for the
+            perceived part's shape class (a rectangular tin across its short side, near its middle; a
+            long part near its centre of mass, where it is thickest), added to its (6.21) cost; the
+            class's own grasps (:func:`~robointel.learning.grasp.shape.shape_grasps`) join the
+            transferred ones, and a "box"'s short side chooses its gripper. 0: off.
+        check_between: a candidate is feasible only when the perceived cloud (not the completion) puts
+            the part between its open jaws (:func:`robointel.learning.grasp.hand.between_jaws`), and its
+            width is within the gripper's :attr:`~ParallelGripper.grip_range`.
     """
 
     def __init__(self, templates: list[Template], *, gripper: ParallelGripper = NARROW_GRIPPER,
@@ -155,7 +188,8 @@ class GraspPlanner:
                  classifiers: list[Template] | None = None, edge_normals: bool = True, carve: bool = True,
                  pad_reach: float | None = 0.003, rest_height: bool = True,
                  wide_gripper: ParallelGripper | None = WIDE_GRIPPER, com_weight: float = COM_WEIGHT,
-                 tilt_weight: float = TILT_WEIGHT) -> None:
+                 tilt_weight: float = TILT_WEIGHT, hold_weight: float = HOLD_WEIGHT, shake: Shake | None = None,
+                 shape_weight: float = SHAPE_WEIGHT, check_between: bool = True) -> None:
         if not templates:
             raise InvalidInput("GraspPlanner needs at least one template", value=templates)
         self.templates = templates
@@ -181,6 +215,11 @@ class GraspPlanner:
         self.rest_height = rest_height
         self.com_weight = com_weight
         self.tilt_weight = tilt_weight
+        self.hold_weight = hold_weight
+        self.shake = shake or Shake()
+        self.shape_weight = shape_weight
+        self.check_between = check_between
+        self._volumes: dict[str, float] = {}
         self.q_ref = np.radians([0, 20, -10, 0, -70, 0]) if q_ref is None else np.asarray(q_ref, float)
 
     def robot_for(self, gripper: ParallelGripper) -> Robot | None:
@@ -221,14 +260,28 @@ class GraspPlanner:
             return h  # the local fit jumped to another part: keep the global transfer
         return transfer_grasp(ComposedWarp(fit.warp, rr.warp), g)
 
-    def plan(self, cloud: npt.ArrayLike, exclude: Iterable[str] = ()) -> GraspPlan:
+    def plan(self, cloud: npt.ArrayLike, exclude: Iterable[str] = (), *, gripper: ParallelGripper | None = None,
+             avoid: Sequence[Grasp] = ()) -> GraspPlan:
         """Plan a grasp on a perceived cloud.
 
-        Plan a grasp on ``cloud`` (n, 3) in the world frame; classifying templates named in
-        ``exclude`` are left out (a held-out target is never its own template).
+        Args:
+            cloud: The perceived part (n, 3), m, world frame.
+            exclude: Classifying templates left out by name (a held-out target is never its own template).
+            gripper: Plan for this one of :attr:`grippers` only (the one on the flange when a grasp is
+                tried again); None: chosen by the part's width (see the class).
+            avoid: Grasps that failed on this part (world frame): candidates within 10 mm and 30 deg of
+                one pay :data:`AVOID_COST`.
+
+        Returns:
+            The :class:`GraspPlan`.
+
+        Raises:
+            InvalidInput: ``gripper`` is not one of the planner's, or every template is excluded.
         """
+        if gripper is not None:
+            self.robot_for(gripper)
         with single_thread_blas():
-            return self._plan(cloud, set(exclude))
+            return self._plan(cloud, set(exclude), gripper, list(avoid))
 
     def _grasp_template(self, cls: Classification) -> Template:
         t = cls.best.template
@@ -239,7 +292,8 @@ class GraspPlanner:
                 return u
         raise InvalidInput(f"no template of category {cls.category!r} has taught grasps", value=cls.category)
 
-    def _plan(self, cloud: npt.ArrayLike, exclude: set[str] | frozenset[str] = frozenset()) -> GraspPlan:
+    def _plan(self, cloud: npt.ArrayLike, exclude: set[str] | frozenset[str] = frozenset(),
+              only: ParallelGripper | None = None, avoid: Sequence[Grasp] = ()) -> GraspPlan:
         t0 = time.perf_counter()
         cands = [t for t in self.classifiers if t.name not in exclude]
         if not cands:
@@ -260,44 +314,71 @@ class GraspPlanner:
         per_fit = [[self._transfer(fit, g, cloud) for g in fit.template.grasps] for fit in fits]
         grasps = per_fit[0]
         t2 = time.perf_counter()
-        # the warped template completes the sides the cameras do not see
-        fulls = []
+        # the warped template completes the sides the cameras do not see (a box's sides also come from
+        # its seen top, :func:`box_sides`); it also tells the part's mass and centre of mass (the hold,
+        # :mod:`.hold`)
+        shape = shape_class(cloud, table_z=self.table_z)
+        sides = box_sides(shape, table_z=self.table_z) if self.shape_weight else np.zeros((0, 3))
+        fulls, parts = [], []
         for fit in fits:
             W = fit.warp(fit.template.points)
+            parts.append(self._part(fit.template, W))
             if self.carve:
                 W = carve_above_seen(W, cloud)
-            full = np.vstack([cloud, W])
+            full = np.vstack([cloud, W, sides])
             fulls.append((full, cKDTree(full)))
         # the transferred grasps' widths (line search of the widest gripper) choose the gripper
         widest = max(self.grippers, key=lambda g_: g_.max_width)
         widths = [grasp_quality(full, g, gripper=widest, tree=tree, pad_reach=self.pad_reach,
                                 table_z=self.table_z).width
                   for (full, tree), gs in zip(fulls, per_fit) for g in gs]
-        gripper = choose_gripper(widths, self.grippers)
-        best = self._search(fulls, per_fit, cloud, gripper)
+        # a rectangular tin or box is taken across its short side: that side's width chooses the gripper
+        gripper = only or choose_gripper([float(shape.extents[1])] if self.shape_weight and shape.kind == "box"
+                                         else widths, self.grippers)
+        best, bi = self._search(fulls, per_fit, cloud, gripper, parts, shape, avoid)
         fallback = False
-        if not best.feasible and gripper != widest:
-            wide = self._search(fulls, per_fit, cloud, widest)
+        if not best.feasible and gripper != widest and only is None:
+            wide, wi = self._search(fulls, per_fit, cloud, widest, parts, shape, avoid)
             if wide.feasible:
-                best, gripper, fallback = wide, widest, True
+                best, bi, gripper, fallback = wide, wi, widest, True
         t3 = time.perf_counter()
+        h = (hold(best.grasp, best.detail.contacts, fulls[bi][0], parts[bi], gripper, shake=self.shake,
+                  base=self.base_pose[:2, 3])
+             if best.detail is not None and np.all(np.isfinite(best.detail.contacts)) else None)
         return GraspPlan(cls, grasps, best, {"classify_register": t1 - t0, "transfer": t2 - t1,
                                              "score_search": t3 - t2, "total": t3 - t0},
-                         gripper, [float(w) for w in widths], fallback)
+                         gripper, [float(w) for w in widths], fallback, h, parts[bi], shape)
+
+    def _part(self, template: Template, warped: np.ndarray) -> PartEstimate:
+        """The part's mass and centre of mass from ``template`` warped onto it (see :func:`estimate_part`)."""
+        vol: float | None = None
+        if template.mass is not None:
+            if template.name not in self._volumes:
+                self._volumes[template.name] = hull_volume(template.points)
+            vol = self._volumes[template.name] or None
+        return estimate_part(warped, mass=template.mass, template_volume=vol)
 
     def _search(self, fulls: Sequence[tuple[np.ndarray, cKDTree]], per_fit: Sequence[Sequence[Grasp]],
-                cloud: np.ndarray, gripper: ParallelGripper) -> SearchResult:
+                cloud: np.ndarray, gripper: ParallelGripper, parts: Sequence[PartEstimate],
+                shape: ShapeClass | None = None, avoid: Sequence[Grasp] = ()) -> tuple[SearchResult, int]:
         """Refine and search (6.21) the transferred grasps with ``gripper``; the lowest cost wins.
 
         Each fit's grasps are refined (:func:`refine_position`) and searched on that fit's completed
-        cloud, the IK with the robot carrying ``gripper``.
+        cloud, the IK with the robot carrying ``gripper``; each candidate's cost then gains the hold
+        shortfall (``hold_weight``), the shape class's cost (``shape_weight``), the centroid and tilt
+        terms and :data:`AVOID_COST` near a failed
+        grasp; with ``check_between`` a candidate whose width is outside the gripper's range or whose
+        jaws would not have perceived points between them is infeasible (cost + :data:`PENALTY`).
+        Returns the best result and the index of its fit.
         """
         robot = self.robot_for(gripper)
         best: SearchResult | None = None
+        bi = 0
         centroid = cloud.mean(axis=0)
         # contacts on perceived points only (off by default, see ``seen_contacts``)
         seen = cKDTree(cloud) if self.seen_contacts else None
-        for (full, tree), gs in zip(fulls, per_fit):
+        cos_avoid = np.cos(np.radians(30.0))
+        for fi, ((full, tree), gs) in enumerate(zip(fulls, per_fit)):
             cands: list[Grasp] = []
             for g in gs:
                 cands += (refine_position(g, full, gripper=gripper, tree=tree, table_z=self.table_z,
@@ -305,20 +386,39 @@ class GraspPlanner:
                                           pad_reach=self.pad_reach, rest_height=self.rest_height,
                                           toward=centroid, com_weight=self.com_weight)
                           if self.refine else [g])
+            if self.shape_weight and shape is not None:  # the grasps the shape class's rule asks for
+                cands += shape_grasps(shape, cloud, gripper, table_z=self.table_z, com=parts[fi].com)
             for g in cands:
                 r = orientation_search(g, full, robot, gripper=gripper, table_z=self.table_z,
                                        base_pose=self.base_pose, q_ref=self.q_ref, tree=tree, observed=seen,
                                        edge_normals=self.edge_normals, pad_reach=self.pad_reach)
+                extra = 0.0
                 if self.com_weight:
-                    r = replace(r, cost=r.cost + self.com_weight * float(np.linalg.norm(r.grasp.centre[:2]
-                                                                                         - centroid[:2])))
+                    extra += self.com_weight * float(np.linalg.norm(r.grasp.centre[:2] - centroid[:2]))
                 if self.tilt_weight:
-                    r = replace(r, cost=r.cost + self.tilt_weight * closing_tilt(r.grasp))
+                    extra += self.tilt_weight * closing_tilt(r.grasp)
+                gq = r.detail
+                if self.hold_weight and gq is not None and r.quality > 0:
+                    h = hold(r.grasp, gq.contacts, full, parts[fi], gripper, shake=self.shake,
+                             base=self.base_pose[:2, 3])
+                    extra += self.hold_weight * h.cost()
+                if self.shape_weight and shape is not None:
+                    extra += self.shape_weight * shape_cost(r.grasp, shape, com=parts[fi].com, observed=cloud)
+                if any(np.linalg.norm(r.grasp.centre - a.centre) < 0.01 and abs(r.grasp.axis @ a.axis) > cos_avoid
+                       for a in avoid):
+                    extra += AVOID_COST
+                feasible = r.feasible
+                if self.check_between and feasible:
+                    if (gq is not None and gq.width > gripper.grip_range[1]) or \
+                            not between_jaws(r.grasp, cloud, gripper).ok:
+                        feasible, extra = False, extra + PENALTY
+                if extra or feasible != r.feasible:
+                    r = replace(r, cost=r.cost + extra, feasible=feasible)
                 if best is None or r.cost < best.cost:
-                    best = r
+                    best, bi = r, fi
         if best is None:
             raise InvalidInput("the template has no taught grasps to transfer", value=len(per_fit))
-        return best
+        return best, bi
 
 
 def closing_tilt(grasp: Grasp) -> float:

@@ -44,7 +44,9 @@ class ParallelGripper:
     :data:`WIDE_GRIPPER` is an 85 mm one (Robotiq 2F-85 class). Grasp frame: origin between the
     finger pads, y = closing axis, z = approach. The fingertips reach ``tip_depth`` past the centre
     along z. Sizes in metres, ``mass`` in kg, ``grip_force`` (N) the
-    force limit of each finger's drive in the MuJoCo trials.
+    force limit of each finger's drive in the MuJoCo trials, ``clearance`` (m) the room each open pad
+    must keep from the part on the way in (perception's 5 mm voxels, the arm's tracking): the jaws
+    grip parts up to :attr:`grip_range`'s upper end, not their full stroke.
     """
 
     max_width: float = 0.048
@@ -58,6 +60,12 @@ class ParallelGripper:
     mass: float = 0.4
     grip_force: float = 20.0
     name: str = "narrow_48mm"
+    clearance: float = 0.0025
+
+    @property
+    def grip_range(self) -> tuple[float, float]:
+        """Widths (m) of parts the jaws can take: (0, ``max_width - 2 clearance``)."""
+        return 0.0, self.max_width - 2 * self.clearance
 
     def boxes(self, opening: float | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
         """(centre, full size) of the two fingers and the palm in the grasp frame at ``opening``."""
@@ -109,16 +117,18 @@ WIDE_GRIPPER = ParallelGripper(max_width=0.085, finger_length=0.05, finger_bread
                                grip_force=40.0, name="wide_85mm")
 
 
-def choose_gripper(widths: list[float], grippers: list[ParallelGripper], margin: float = 0.003) -> ParallelGripper:
+def choose_gripper(widths: list[float], grippers: list[ParallelGripper],
+                   margin: float | None = None) -> ParallelGripper:
     """The gripper for a part, chosen by the contact widths of its transferred grasps.
 
-    The narrowest of ``grippers`` whose stroke exceeds the smallest known width by ``margin``; the
-    narrowest when no width is known; the widest when none fits.
+    The narrowest of ``grippers`` that takes the smallest known width (within its
+    :attr:`~ParallelGripper.grip_range`, or its stroke less ``margin`` when given); the narrowest when
+    no width is known; the widest when none fits.
 
     Args:
         widths: contact widths of the transferred grasps (m), any length, NaN allowed.
         grippers: candidate grippers, at least one.
-        margin: stroke left beyond the width (m).
+        margin: stroke left beyond the width (m; None: each gripper's ``2 * clearance``).
 
     Returns:
         The chosen gripper.
@@ -133,7 +143,8 @@ def choose_gripper(widths: list[float], grippers: list[ParallelGripper], margin:
     if not known:
         return by_stroke[0]
     w = min(known)
-    return next((g for g in by_stroke if w + margin <= g.max_width), by_stroke[-1])
+    top = (lambda g: g.grip_range[1]) if margin is None else (lambda g: g.max_width - margin)
+    return next((g for g in by_stroke if w <= top(g)), by_stroke[-1])
 
 
 @dataclass

@@ -59,7 +59,8 @@ def ycb_teaching_set(toy_arms: int = 6, template_points: int = 800) -> TeachingS
         lst.insert(0, lst.pop(i))
         o = lst[0]
         grasps = (sampled_grasps(o) or sampled_grasps(o, gripper=WIDE_GRIPPER)) if cat != "toy_arm" else []
-        templates.append(Template(o.name, cat, sample_points(o, template_points, 0), grasps or taught_grasps(o)))
+        templates.append(Template(o.name, cat, sample_points(o, template_points, 0), grasps or taught_grasps(o),
+                                  o.mass))
     return objs, templates
 
 
@@ -81,7 +82,7 @@ def classifying_templates(objs: dict[str, list[ObjectModel]], templates: Sequenc
     for t, (cat, lst) in zip(templates, objs.items()):
         out.append(t)
         more = lst[1:] if per_category <= 0 else lst[1:per_category]
-        out += [Template(o.name, cat, sample_points(o, template_points, 0), []) for o in more]
+        out += [Template(o.name, cat, sample_points(o, template_points, 0), [], o.mass) for o in more]
     return out
 
 
@@ -121,4 +122,4 @@ def seen_template(obj: ObjectModel, grasps: Sequence[Grasp] | None = None, *, rn
         InvalidInput: the cameras do not see the object.
     """
     return Template(obj.name, obj.category, perceived_template(obj, rng=rng),
-                    list(grasps) if grasps is not None else taught_grasps(obj))
+                    list(grasps) if grasps is not None else taught_grasps(obj), obj.mass)
