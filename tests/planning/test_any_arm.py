@@ -7,13 +7,17 @@ around a box, planned and judged by the independent exact-mesh checker of the be
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from robointel.errors import InvalidInput
 from robointel.geometry.obstacles import Box
 from robointel.planning import Environment, MotionSettings, plan_motion
+from robointel.planning.budget_clock import budget_clock
+from robointel.planning.budget_clock import now as budget_now
 from robointel.planning.exact_self import self_geometry
 from robointel.planning.hybrid_check import mesh_geometry
 from robointel.robot import Robot
@@ -46,9 +50,10 @@ def test_arm_from_example_robot_data_plans_with_its_own_spheres(arm):
     assert env.exact_self and robot.fitted_spheres
     checker = MBMChecker(urdf, srdf, joints=robot.joint_names, package_dirs=[str(urdf.parents[4])])
     rng = np.random.default_rng(3)
-    for _ in range(2):
+    for _ in range(2):  # the budget in CPU time: the same work on a loaded machine as on an idle one
         q0, q1 = _free_pair(env, rng)
-        plan = plan_motion(robot, env, q0, q1, settings=MotionSettings(d_min=0.002, time_budget_s=3.0))
+        plan = plan_motion(robot, env, q0, q1, settings=MotionSettings(d_min=0.002, time_budget_s=3.0,
+                                                                         budget_clock="cpu"))
         assert plan.success, plan.reason
         tr = plan.trajectory
         raw = {"start": q0.tolist(), "goals": [robot.wrap_goal(q1, q0).tolist()], "sphere": [], "cylinder": [],
@@ -56,3 +61,12 @@ def test_arm_from_example_robot_data_plans_with_its_own_spheres(arm):
                         "orientation_quat_xyzw": [0.0, 0.0, 0.0, 1.0]}]}
         v = checker.check_trajectory(tr.t, tr.q, raw, qd=tr.qd, dt=4e-3)
         assert not v.collision and v.reaches_goal, (v.pair, v.min_clearance)
+
+
+def test_budget_clock_counts_the_process_cpu_time():
+    with budget_clock("cpu") as clock:
+        assert clock is time.process_time and budget_now() == pytest.approx(time.process_time(), abs=0.05)
+    assert budget_now() == pytest.approx(time.perf_counter(), abs=0.05)  # the wall clock again after the block
+    with pytest.raises(InvalidInput, match="budget_clock"):
+        with budget_clock("gpu"):
+            pass

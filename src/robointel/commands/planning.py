@@ -152,7 +152,7 @@ def plot_path_3d(result: FRMPResult, path: Path) -> Path:
 
 def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | None = None, index: int | None = None,
              per_family: int | None = None, out: Path | None = None, time_budget_s: float = 1.0,
-             d_min: float = 0.001, console: Console | None = None) -> list[MotionPlan]:
+             d_min: float = 0.001, budget_clock: str = "wall", console: Console | None = None) -> list[MotionPlan]:
     """``robointel plan --mbm PROBLEMS.json --robot URDF``: plan the valid MBM problems start to goal.
 
     Each selected problem is read by :func:`robointel.io.mbm.load_mbm_problems`, planned by
@@ -169,6 +169,8 @@ def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | No
         out: when given, each trajectory is saved as ``<out stem>_<family>_<index>.npz``.
         time_budget_s: search budget per problem, s.
         d_min: required clearance, m (the dense check accepts clearance >= d_min - 1 mm).
+        budget_clock: ``"wall"`` or ``"cpu"``: the clock the budget is counted on
+            (:attr:`robointel.planning.MotionSettings.budget_clock`).
         console: a rich console for the table and the progress bar.
 
     Returns:
@@ -197,7 +199,8 @@ def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | No
                 env = Environment(robot, p.obstacles, srdf=srdf if srdf.exists() else None,
                                   spheres=spheres if spheres.exists() else None)
                 plans.append(plan_motion(robot, env, p.start, p.goals,
-                                         settings=MotionSettings(d_min=d_min, time_budget_s=time_budget_s)))
+                                         settings=MotionSettings(d_min=d_min, time_budget_s=time_budget_s,
+                                                                 budget_clock=budget_clock)))
                 bar.advance(task)
     except RobointelError as exc:
         fail(exc)
@@ -243,6 +246,8 @@ def register(app: typer.Typer) -> None:
              time_budget: float = typer.Option(1.0, "--time-budget", help="with --mbm: search budget, s"),
              d_min: float = typer.Option(0.001, "--d-min", help="with --mbm: clearance, m (the dense check "
                                          "allows d_min - 1 mm)"),
+             budget_clock: str = typer.Option("wall", "--budget-clock", help="with --mbm: count the budget in "
+                                              "wall time or in the process's CPU time ('cpu')"),
              ) -> None:
         """Plan a scene with the FRMP (CFS path + temporal optimization) and save the trajectory.
 
@@ -251,7 +256,7 @@ def register(app: typer.Typer) -> None:
         if mbm is not None or scene is None:
             plan_mbm(mbm, None if robot == "sim" else Path(robot), family=family, index=index,
                      per_family=per_family, out=out if mbm else None, time_budget_s=time_budget, d_min=d_min,
-                     console=console)
+                     budget_clock=budget_clock, console=console)
             return
         try:
             sc = load_scene(scene)

@@ -7,13 +7,13 @@ exact check looks at the clock so that a plan's time budget holds inside an atte
 from __future__ import annotations
 
 import heapq
-import time
 
 import numpy as np
 from numba import njit
 
 from robointel.errors import CollisionAtStart
 from robointel.planning import _dense_kernels as D
+from robointel.planning.budget_clock import now as clock_now
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
 from robointel.planning.exact_self import self_geometry
@@ -127,7 +127,7 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
             continue
         idx = np.flatnonzero(doubt)
         for c0 in range(0, len(idx), MESH_CHUNK):
-            if time.perf_counter() >= deadline:
+            if clock_now() >= deadline:
                 return timed_out("the collision-mesh check", chk)
             lo, hi = int(idx[c0]), int(idx[min(c0 + MESH_CHUNK, len(idx)) - 1]) + 1
             d, k, link, obs = mg.samples_clearance(Q[lo:hi], env.lever, thresh=thr, cap=d_min + 0.1,
@@ -173,7 +173,7 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
         which = []
         while heap and heap[0][0] == k:
             which.append(heapq.heappop(heap)[1])
-        if n % MESH_CHUNK == 0 and time.perf_counter() >= deadline:
+        if n % MESH_CHUNK == 0 and clock_now() >= deadline:
             return timed_out("the self-collision check", chk)
         n += len(which)
         d = sg.pair_distances(Q[k], np.asarray(which), thresh=thr)

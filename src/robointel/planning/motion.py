@@ -25,6 +25,8 @@ from robointel.planning import _dense_kernels as D
 from robointel.planning import _edge_kernels as E
 from robointel.planning import _rrt_kernels as R
 from robointel.planning import _time_shortcut as TS
+from robointel.planning.budget_clock import budget_clock
+from robointel.planning.budget_clock import now as clock_now
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
 from robointel.planning.hybrid_check import (
@@ -145,10 +147,11 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
     st = settings
     if not (st.d_min >= 0 and st.time_budget_s > 0 and st.resolution > 0 and st.rrt_range > 0
             and 0 < st.velocity_scale <= 1 and st.knot_step > 0 and st.spline_step > 0 and st.check_dt > 0
-            and st.root_relaxed_rad > 0 and st.timing in ("topp", "temporal") and 0 < st.fitted_fallback <= 1):
+            and st.root_relaxed_rad > 0 and st.timing in ("topp", "temporal") and 0 < st.fitted_fallback <= 1
+            and st.budget_clock in ("wall", "cpu")):
         raise InvalidInput("settings need d_min >= 0, time_budget_s, resolution, rrt_range, knot_step, spline_step, "
-                           "check_dt, root_relaxed_rad > 0, 0 < velocity_scale, fitted_fallback <= 1 and timing "
-                           "'topp' or 'temporal'",
+                           "check_dt, root_relaxed_rad > 0, 0 < velocity_scale, fitted_fallback <= 1, timing "
+                           "'topp' or 'temporal' and budget_clock 'wall' or 'cpu'",
                            value=st)
     q0 = robot.check_q(robot.snap_to_limits(robot.check_q(start, "start")), "start", limits=True)  # a writable copy
     goals = _goal_set(robot, goal, st.seed)
@@ -158,7 +161,8 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
     model = env.model
     env.set_self_offset(st.d_min)
     try:
-        return _plan(env, q0, goals, st, t0, timings)
+        with budget_clock(st.budget_clock):
+            return _plan(env, q0, goals, st, t0, timings)
     finally:
         env.set_self_offset(0.0)
         env.use(model)
@@ -210,7 +214,7 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
         raise InvalidInput(f"acceleration_limit must be ({robot.nq},) positive", value=amax)
     timings["validate"] = (time.perf_counter() - t0) * 1e3
 
-    now = time.perf_counter()
+    now = clock_now()
     deadline = now + st.time_budget_s
     fallback = hybrid and len(env._cloud[0]) == 0 and st.fitted_fallback < 1
     search_end = now + st.fitted_fallback * st.time_budget_s if fallback else deadline
@@ -218,12 +222,12 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     while True:
         path, gi, traj, chk, why = _attempt(env, q0, goals, st, deadline, search_end, Wc, Wr, rcap, vmax, amax,
                                             timings, attempt, thr, exact)
-        if path is None and not exact and fallback and time.perf_counter() < deadline:
+        if path is None and not exact and fallback and clock_now() < deadline:
             # the covering spheres leave no way found in time: the spheres as given, checked on the meshes
             env.use("fitted")
             Wc = Wr = env.world
             rcap, exact, search_end, attempt = float("inf"), True, deadline, attempt + 1
-            timings["fitted_after"] = (time.perf_counter() - now) * 1e3
+            timings["fitted_after"] = (clock_now() - now) * 1e3
             continue
         if path is None:
             return _fail(f"no collision-free path found: {why}", Failure.TIMEOUT, t0, timings)
@@ -233,7 +237,7 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
                          chk.min_clearance_m, int(goal_ids[gi]))
         # a start/goal edge that touches the real meshes: another tree may approach differently
         if chk.ok or not (hybrid or exact or env.exact_self) or chk.kind != "collision" or \
-                time.perf_counter() >= deadline:
+                clock_now() >= deadline:
             break
         attempt += 1
     goal_index = int(goal_ids[gi])
@@ -271,7 +275,7 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
             return None, -1, None, None, why
         if path_valid(env, path, thr, st.resolution, Wc, Wr, rcap):
             break
-        if time.perf_counter() >= deadline:
+        if clock_now() >= deadline:
             timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
             return None, -1, None, None, f"the time budget of {st.time_budget_s:g} s ran out re-checking a path"
         path, res = None, res / 4  # an edge failed the fine check: search again, finer
@@ -326,7 +330,7 @@ def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
     if st.smooth and not st.jerk_limited and len(path) > 2:
         steps = (st.knot_step,) if st.timing == "temporal" else (st.spline_step, st.spline_step / 4)
         for step in steps:  # a spline that leaves the checked polyline too far: knots closer together
-            if chk is not None and time.perf_counter() >= deadline:
+            if chk is not None and clock_now() >= deadline:
                 chk = timed_out("the smoothing", chk)
                 break
             if st.timing == "temporal":
@@ -341,7 +345,7 @@ def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
             if chk.ok or chk.kind != "collision":
                 break
         timings["smooth"] = (time.perf_counter() - t3) * 1e3
-    if chk is not None and not chk.ok and chk.kind != "timeout" and time.perf_counter() >= deadline:
+    if chk is not None and not chk.ok and chk.kind != "timeout" and clock_now() >= deadline:
         chk = timed_out("the smoothing", chk)  # a collision or a limit: no rest-to-rest fallback past the budget
     if chk is None or (not chk.ok and chk.kind != "timeout"):  # rest to rest along the checked polyline
         t4 = time.perf_counter()
