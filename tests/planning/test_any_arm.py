@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robointel.errors import InvalidInput
+from robointel.errors import CollisionAtStart, InvalidInput
 from robointel.geometry.obstacles import Box
 from robointel.planning import Environment, MotionSettings, plan_motion
 from robointel.planning.budget_clock import budget_clock
@@ -70,3 +70,19 @@ def test_budget_clock_counts_the_process_cpu_time():
     with pytest.raises(InvalidInput, match="budget_clock"):
         with budget_clock("gpu"):
             pass
+
+
+def test_a_sphere_file_does_not_decide_self_collision(shared_data):
+    """VAMP's Fetch spheres keep the base and the right finger 4 mm apart where their meshes touch."""
+    root = shared_data("mbm", "fetch")
+    robot = Robot.load(root / "fetch.urdf", srdf=root / "fetch.srdf", joints=[
+        "torso_lift_joint", "shoulder_pan_joint", "shoulder_lift_joint", "upperarm_roll_joint", "elbow_flex_joint",
+        "forearm_roll_joint", "wrist_flex_joint", "wrist_roll_joint"])
+    q = np.array([0.1588, -0.43938, 0.35267, 0.24127, 1.03646, -0.10060, 1.00662, -1.03483])
+    trusted = Environment(robot, [], spheres=root / "fetch_spherized.urdf", exact_self=False)
+    assert trusted.self_clearance(q) > 0.003  # the file's spheres alone find it free
+    env = Environment(robot, [], spheres=root / "fetch_spherized.urdf")
+    assert env.exact_self
+    assert self_geometry(robot, env.disabled).clearance(q, thresh=0.001)[0] <= 0.0
+    with pytest.raises(CollisionAtStart, match="r_gripper_finger_link|base_link"):
+        plan_motion(robot, env, q, q + 0.05, settings=MotionSettings(d_min=0.001, time_budget_s=1.0))

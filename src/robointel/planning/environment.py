@@ -129,9 +129,11 @@ class Environment:
         floor: height (m) of a floor plane (a large box below it), or None.
         attached: objects carried by the tool, each given in the frame of ``attach_link``.
         attach_link: link the attached objects move with (default: the robot's flange frame's link).
-        exact_self: decide self-collision on the exact collision geometry wherever the covering
-            spheres of two links overlap (default: True with the robot's own fitted spheres,
-            :attr:`Robot.spheres`, which lie inside the meshes; False with given spheres).
+        exact_self: decide self-collision on the exact collision geometry (the URDF's meshes and
+            primitives) at the start, the goals and along every trajectory. Default: True with the
+            robot's own fitted spheres (:attr:`Robot.spheres`, which lie inside the meshes) and with a
+            spherized URDF (such files leave parts of the meshes outside every sphere: VAMP's UR5 and
+            Fetch files 3-57 mm); False with a :class:`SphereModel` given as such, which is trusted.
         self_padding: clearance required between the robot's own links, m, separate from the
             obstacle clearance ``d_min`` of a plan (the planner offsets the self-collision radii by
             (d_min - self_padding) / 2 each, so that both hold with one threshold).
@@ -164,7 +166,9 @@ class Environment:
             srdf = robot.srdf_path
         #: self-collision decided on the exact geometry wherever the covering spheres of two links overlap
         #: (default: with the robot's own fitted spheres, which lie inside the meshes)
-        self.exact_self = bool(spheres is None and robot.fitted_spheres) if exact_self is None else bool(exact_self)
+        from_file = spheres is not None and not isinstance(spheres, SphereModel)
+        self.exact_self = bool((spheres is None and robot.fitted_spheres) or from_file) if exact_self is None \
+            else bool(exact_self)
         if not (np.isfinite(self_padding) and self_padding >= 0):
             raise InvalidInput(f"self_padding must be >= 0 m, got {self_padding}", value=self_padding)
         self.self_padding = float(self_padding)

@@ -139,15 +139,14 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
     return chk
 
 
-
-
 def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float,
                deadline: float = float("inf")) -> DenseCheck:
     """Check self-collision on the exact geometry at every ``dt`` sample (``env.exact_self``).
 
-    The fitted spheres lie inside the meshes, so their self-collision verdict may miss a contact:
-    every self-collision pair of :class:`~robointel.planning.exact_self.SelfGeometry` is measured
-    on the collision meshes and primitives at the first sample and again only at the first sample
+    Fitted spheres lie inside the meshes and a sphere file's leave parts of them uncovered, so
+    the spheres' self-collision verdict may miss a contact: every self-collision pair of
+    :class:`~robointel.planning.exact_self.SelfGeometry` is measured on the collision meshes
+    and primitives at the first sample and again only at the first sample
     where its last distance minus the relative travel of its two links since (``pair_lever``) may
     have fallen below ``max(env.self_padding - 1 mm, 0)``: the samples in between are proven. A
     pair closer than that fails the check (kind ``"collision"``). Clock as :func:`interior_check`.
@@ -198,7 +197,7 @@ def exact_roots(env: Environment, q0: np.ndarray, goals: np.ndarray, floor: floa
     come closer than ``floor`` (obstacles) or ``max(self_padding - 1 mm, 0)`` (self).
 
     Returns:
-        The goals (G', n) whose exact clearance holds (at least one).
+        The indices into ``goals`` of the goals whose exact clearance holds (at least one).
 
     Raises:
         CollisionAtStart: the start, or every goal, is closer than that (the pair named).
@@ -224,7 +223,7 @@ def exact_roots(env: Environment, q0: np.ndarray, goals: np.ndarray, floor: floa
     if not keep:
         raise CollisionAtStart(f"{'goal configuration' if len(goals) == 1 else 'every goal; goal 0'} is in "
                                f"collision on the collision meshes: {reasons[0]}; move it", value=goals[0])
-    return goals[keep]
+    return np.asarray(keep, int)
 
 
 __all__ = ["MESH_CHUNK", "exact_check", "exact_roots", "interior_check", "interior_window", "mesh_geometry",

@@ -176,11 +176,15 @@ def _roots_free(env: Environment, q0: np.ndarray, goals: np.ndarray, d_min: floa
 def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, t0: float,
           timings: dict[str, float]) -> MotionPlan:
     robot = env.robot
-    if env.exact_self:  # the roots judged on the exact geometry (the fitted spheres lie inside it)
-        goals = exact_roots(env, q0, goals, max(st.d_min - CLEARANCE_TOL, 0.0))
+    exact_ids = np.arange(len(goals))  # the caller's index of each goal kept
+    if env.exact_self:  # the roots judged on the exact geometry (fitted spheres lie inside it, a file's miss parts)
+        exact_ids = exact_roots(env, q0, goals, max(st.d_min - CLEARANCE_TOL, 0.0))
+        goals = goals[exact_ids]
         # the fitted spheres grown toward the meshes for self-collision, as far as the roots allow
         gap = min(env.self_clearance(q, cap=1.0) for q in [q0, *goals])
-        margin = float(np.clip(0.5 * (gap - env.self_padding + CLEARANCE_TOL) - 1e-4, 0.0, SELF_MARGIN))
+        # (the roots must keep the dense check's floor max(d_min - 1 mm, 0): d_min - floor below d_min)
+        slack = st.d_min - max(st.d_min - CLEARANCE_TOL, 0.0)
+        margin = float(np.clip(0.5 * (gap - env.self_padding + slack) - 1e-4, 0.0, SELF_MARGIN))
         env.set_self_offset(st.d_min, margin)
     # the mesh-covering spheres where start and a goal allow them, else the spheres as given
     env.use("cover")
@@ -205,8 +209,8 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     ok = cg >= floor
     if not any(ok):
         env.check_free(goals[0], d_min=floor, what="goal configuration" if len(goals) == 1 else "every goal; goal 0")
-    goal_ids = np.flatnonzero(ok)
-    goals = goals[goal_ids]
+    goal_ids = exact_ids[np.flatnonzero(ok)]
+    goals = goals[np.flatnonzero(ok)]
     thr = min(st.d_min, env.clearance(q0, cap=st.d_min + 1.0), float(cg[ok].min()))
     vmax = robot.velocity_limit * st.velocity_scale
     amax = np.asarray(st.acceleration_limit if st.acceleration_limit is not None else robot.acceleration_limit, float)
