@@ -27,8 +27,12 @@ the CPU time, and the JSON names the clock (``ours_settings.budget_clock``).
 it is judged, so a long run loses nothing, and ``--resume`` skips the problems already in that file
 (the summary is then computed over all rows of the file).
 
-Prints one JSON object (``--json``) or a table; a progress bar goes to stderr. cuRobo's figures are
-the published ones (RTX 6000 Ada GPU), not run here.
+Prints one JSON object (``--json``) or a table; a progress bar goes to stderr. Beside the summary keys it prints
+the stage profile of ours (``stage_ms`` and ``stage_cpu_ms``: median, p95 and sum per stage, wall and process CPU
+time), each peer's stages (``vamp_stage_ms``: search, simplification, TOPP-RA) and, with VAMP,
+``plan_ms_ratio_vs_vamp_median`` (our median plan_ms over VAMP + simplification + TOPP-RA's, same run), and the
+same ratio of process CPU times (``plan_cpu_ratio_vs_vamp_median``).
+cuRobo's figures are the published ones (RTX 6000 Ada GPU), not run here.
 """
 from __future__ import annotations
 
@@ -53,7 +57,8 @@ from _mbm_peers import OMPLPeer, VAMPPeer  # noqa: E402
 CUROBO_PUBLISHED = {"source": "cuRobo (Sundaralingam et al. 2023), published on MotionBenchMaker, RTX 6000 Ada GPU",
                     "run_here": False, "success": 1.0, "plan_ms_median": 31.0, "plan_ms_p98": 161.0,
                     "duration_s_median": 1.33}
-TARGETS = {"success": 0.999, "collisions_independent": 0, "plan_ms_median": 20.0, "plan_ms_p95": 100.0,
+TARGETS = {"success": 0.999, "collisions_independent": 0, "plan_ms_median": 20.0, "plan_ms_p95": 30.0,
+           "plan_ms_ratio_vs_vamp_median": 0.4,
            "pointcloud_update_ms": 20.0, "frmp_speedup_vs_sqp": 100.0}
 SEED0 = 7919  # planner seeds: SEED0 + problem index (never used for tuning)
 
@@ -241,6 +246,38 @@ def summarise(prefix: str, rows: list[dict], families: list[str]) -> dict:
             f"{prefix}per_family": fam}
 
 
+def stage_profile(rows: list[dict]) -> dict:
+    """Per-stage wall and process-CPU time over the problems: ``stage_ms`` and ``stage_cpu_ms``.
+
+    Each is {stage: {median, p95, sum}} in ms over every problem that reached the planner (a stage a
+    problem did not run counts 0 there); with ``plan_cpu_to_wall_median``, the median over problems
+    of the plan's CPU time over its wall time (below 1: the process waited for a core).
+    """
+    out: dict = {}
+    for key, name in (("stages_ms", "stage_ms"), ("stages_cpu_ms", "stage_cpu_ms")):
+        have = [r[key] for r in rows if key in r]
+        stages = sorted({k for r in have for k in r})
+        out[name] = {k: {"median": float(np.median(v)), "p95": float(np.percentile(v, 95)), "sum": float(np.sum(v))}
+                     for k in stages for v in [[r.get(k, 0.0) for r in have]]}
+    ratio = [r["plan_cpu_ms"] / r["plan_ms"] for r in rows
+             if r.get("plan_cpu_ms", float("nan")) == r.get("plan_cpu_ms") and r.get("plan_ms", 0) > 0]
+    if ratio:
+        out["plan_cpu_to_wall_median"] = float(np.median(ratio))
+    return out
+
+
+def vamp_ratio(out: dict) -> dict:
+    """``plan_ms_ratio_vs_vamp_median``: our median plan_ms over VAMP + simplification + TOPP-RA's, same run."""
+    ours, vamp = (out.get("plan_ms") or {}).get("median"), (out.get("vamp_plan_ms") or {}).get("median")
+    cpu, vcpu = (out.get("plan_cpu_ms") or {}).get("median"), (out.get("vamp_plan_cpu_ms") or {}).get("median")
+    return {"plan_ms_ratio_vs_vamp_median": ours / vamp if ours is not None and vamp else None,
+            "plan_cpu_ratio_vs_vamp_median": cpu / vcpu if cpu is not None and vcpu else None,
+            "plan_ms_ratio_vs_vamp_note": "median plan_ms of ours over the median of VAMP RRT-Connect + simplify + "
+                                          "TOPP-RA on the same problems, one process, one core; "
+                                          "plan_cpu_ratio_vs_vamp_median: the same with process CPU time (on a "
+                                          "loaded machine the wall times count the other processes' turns)"}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--json", action="store_true", help="print one JSON object")
@@ -354,6 +391,7 @@ def main() -> None:
                                reaches=v.reaches_goal,
                                min_clearance=v.min_clearance, duration_s=float(tr.t[-1] - tr.t[0]),
                                planner_clearance=plan.min_clearance_m, pair=v.pair, stages_ms=plan.timings,
+                               stages_cpu_ms=plan.cpu_timings,
                                timing=tr.meta.get("timing", ""))
                     row["success"] = bool(plan.success) and v.ok
                     if plan.success and not v.ok:
@@ -364,12 +402,15 @@ def main() -> None:
                 stream(sink, "ours", row)
             for name, peer in peers.items():
                 bar.update(task, description=f"{p.name} {name}")
+                c_peer = time.process_time()
                 if name == "ompl":
                     r = peer.solve(raw, vmax, amax, timeout=args.ompl_timeout, seed=SEED0 + p.index)
                 else:
                     r = peer.solve(raw, vmax, amax, seed=p.index)
+                c_peer = (time.process_time() - c_peer) * 1e3
                 row = dict(base, solved=r.solved, success=False, collision=False, limit=None, plan_ms=r.total_ms,
-                           duration_s=None, min_clearance=float("nan"), reason=r.reason)
+                           plan_cpu_ms=c_peer, duration_s=None, min_clearance=float("nan"), reason=r.reason,
+                           stages_ms={"plan": r.plan_ms, "simplify": r.simplify_ms, "toppra": r.toppra_ms})
                 if r.solved:
                     v = checker.check_trajectory(r.t, r.q, raw, qd=r.qd, amax=amax)
                     row.update(success=v.ok, collision=v.collision, limit=v.limit_violation, reaches=v.reaches_goal,
@@ -413,6 +454,7 @@ def main() -> None:
         stages = sorted({k for r in rows["ours"] for k in r.get("stages_ms", {})})
         out["stage_ms_median"] = {k: float(np.median([r["stages_ms"].get(k, 0.0) for r in rows["ours"]
                                                       if "stages_ms" in r])) for k in stages}
+        out.update(stage_profile(rows["ours"]))
         out["plan_ms_note"] = "plan_motion wall time (search + smoothing + time parametrisation + its dense check)"
         cpu = [r.get("plan_cpu_ms", float("nan")) for r in rows["ours"]]  # rows resumed from older runs lack it
         out["plan_cpu_ms"] = stats([c for c in cpu if c == c])
@@ -429,7 +471,11 @@ def main() -> None:
         if args.check_polylines:
             out[f"{name}_polyline_collisions_independent"] = sum(r.get("polyline_collision", False)
                                                                  for r in rows[name])
+    for name in peers:
+        out[f"{name}_stage_ms"] = stage_profile(rows[name])["stage_ms"]
+        out[f"{name}_plan_cpu_ms"] = stats([r["plan_cpu_ms"] for r in rows[name] if "plan_cpu_ms" in r])
     if ours is not None and "vamp" in peers:
+        out.update(vamp_ratio(out))
         common = [(a["duration_s"], b["duration_s"]) for a, b in zip(rows["ours"], rows["vamp"])
                   if a["success"] and b["success"]]
         out["duration_ratio_vs_vamp_median"] = float(np.median([a / b for a, b in common])) if common else None

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from mbm import SEED0, Ours, data_dir, one_core, stats  # noqa: E402
+from mbm import SEED0, Ours, data_dir, one_core, stage_profile, stats  # noqa: E402
 
 
 class PostProbe:
@@ -51,6 +51,7 @@ class PostProbe:
             setattr(M, name, self._timed(key, getattr(M, name)))
         TS.shortcut_time = self._timed("shortcut", TS.shortcut_time)
         self.finish = M._finish
+        self.M = M
         M._finish = self._finish
 
     def _timed(self, key, fn):
@@ -74,7 +75,7 @@ class PostProbe:
         again = []
         for _ in range(self.reps):
             a = list(args)
-            a[3], a[9] = float("inf"), {}  # no deadline, timings apart
+            a[3], a[9] = float("inf"), self.M.StageTimes()  # no deadline, timings apart
             again.append(self._run(copy.copy(a))[1])
         keys = sorted({k for r in [first, *again] for k in r})
         self.calls.append({"first": first, "min": {k: min(r.get(k, 0.0) for r in again) for k in keys}
@@ -128,6 +129,7 @@ def main() -> None:
             prof.disable()
         rows.append({"problem": p.name, "success": plan.success, "plan_ms": plan_ms, "cpu_ms": cpu_ms,
                      "env_ms": env_ms, "reason": plan.reason, "timings": plan.timings,
+                     "stages_ms": plan.timings, "stages_cpu_ms": plan.cpu_timings, "plan_cpu_ms": cpu_ms,
                      "duration_s": None if plan.trajectory is None else float(plan.trajectory.t[-1]),
                      "path_vertices": None if plan.path is None else len(plan.path),
                      "min_clearance_m": plan.min_clearance_m})
@@ -140,6 +142,7 @@ def main() -> None:
            "load_average_1min_end": os.getloadavg()[0], "plan_ms": stats([r["plan_ms"] for r in rows]),
            "cpu_ms": stats([r["cpu_ms"] for r in rows]),
            "stage_ms_median": {k: float(np.median([r["timings"].get(k, 0.0) for r in rows])) for k in stage_names},
+           **stage_profile(rows),
            "failures": {r["problem"]: r["reason"] for r in rows if not r["success"]}, "rows": rows}
     if probe is not None:  # per problem the sum over its attempts, then the median over problems
         for which in ("first", "min"):

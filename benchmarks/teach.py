@@ -244,7 +244,7 @@ def scara(recordings: list[str]) -> dict[str, Any]:
         "angles 0.1 s earlier: estimate (the Kalman filter's angles at t - 0.1 s from the frames received, no "
         "robot), crossfade, follower (the reference the LQ gets), robot. "
         "scara_rms_delay_aligned_smoothed_rad: the 0.1 s system against the smoothed (zero-phase 6 Hz) angles "
-        "0.1 s earlier instead of the recorded ones (not the issue's reading; shows what the Kinect noise costs). "
+        "0.1 s earlier instead of the recorded ones (a second reading: what the Kinect noise costs). "
         "scara_rms_delay_aligned_offline_rad: the offline replay (the smoothed recording known in advance, no "
         "latency) vs the recorded angles at the same instant: the Kinect noise a robot following the arm's "
         "motion perfectly would still be scored for. scara_recorded_torque_*: following the recorded angles "

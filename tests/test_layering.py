@@ -1,15 +1,94 @@
-"""The package's layering and its curated public API."""
+"""The package's layering (DESIGN.md): no import cycles, data flowing one way, and the curated public API.
+
+The import graph is grimp's (``tools/docs_check.py`` builds the same one): every import statement counts,
+at module level, inside functions and under ``TYPE_CHECKING``, and ``from package import submodule`` is an
+import of the submodule. There is no list of exceptions.
+"""
 from __future__ import annotations
 
-import ast
 import importlib
+import importlib.util
 import subprocess
 import sys
 from pathlib import Path
 
+import grimp
 import pytest
 
-PACKAGES = ["robointel.io", "robointel.planning", "robointel.teach", "robointel.learning"]
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ["robointel", "robointel.io", "robointel.planning", "robointel.teach", "robointel.learning"]
+PHASES = ("teach", "learning", "planning")
+ABOVE_PHASES = ("skills", "program", "batch", "report", "commands", "cli")
+#: DESIGN.md's "data flows one way", top to bottom; a module may import only from its own layer or below
+LAYERS = [
+    ("cli", "commands", "report", "testing"),
+    ("program", "batch"),
+    ("skills", "teach", "learning", "planning"),
+    ("interface", "sim", "control", "io"),
+    ("robot", "geometry", "trajectory"),
+    ("outcome", "_validate", "_extras", "_lazy"),
+    ("errors",),
+]
+
+
+def _docs_check():
+    spec = importlib.util.spec_from_file_location("docs_check", ROOT / "tools" / "docs_check.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.fixture(scope="module")
+def graph():
+    return _docs_check().import_graph(ROOT / "src")
+
+
+def _chains(graph, importer: str, imported: str) -> list[str]:
+    chains = graph.find_shortest_chains(importer=f"robointel.{importer}", imported=f"robointel.{imported}",
+                                        as_packages=True)
+    return [" -> ".join(c) for c in sorted(chains)]
+
+
+def test_no_import_cycles(graph):
+    cycles = _docs_check().import_cycles(graph)
+    assert cycles == [], "import cycles:\n" + "\n".join("; ".join(c["imports"]) for c in cycles)
+
+
+@pytest.mark.parametrize("lower", ["io", "robot"])
+def test_io_and_robot_import_no_phase(graph, lower):
+    found = [c for upper in PHASES + ABOVE_PHASES for c in _chains(graph, lower, upper)]
+    assert found == [], f"robointel.{lower} reaches a phase or above: {found}"
+
+
+@pytest.mark.parametrize("phase", PHASES)
+def test_a_phase_never_imports_the_command(graph, phase):
+    found = [c for top in ("cli", "commands") for c in _chains(graph, phase, top)]
+    assert found == [], found
+
+
+def test_skills_sit_above_the_interface(graph):
+    assert _chains(graph, "interface", "skills") == []
+
+
+def test_data_flows_one_way(graph):
+    layers = [grimp.Layer(*(f"robointel.{m}" for m in layer), independent=False) for layer in LAYERS]
+    illegal = graph.find_illegal_dependencies_for_layers(layers=layers, containers=set())
+    found = sorted(f"{d.importer} -> {d.imported}: " + " | ".join(
+        " -> ".join([*r.heads, *r.middle, *r.tails]) for r in d.routes) for d in illegal)
+    assert found == [], "\n".join(found)
+
+
+def test_every_layer_module_exists(graph):
+    top = {m.split(".")[1] for m in graph.modules if m.count(".") >= 1}
+    listed = {m for layer in LAYERS for m in layer}
+    assert listed <= top, sorted(listed - top)
+    assert top <= listed, f"place these in LAYERS: {sorted(top - listed)}"
+
+
+def test_the_graph_counts_function_and_type_checking_imports(graph):
+    details = graph.get_import_details(importer="robointel.planning.frmp", imported="robointel.sim")
+    assert details, "frmp imports the sim inside execute() and under TYPE_CHECKING"
 
 
 @pytest.mark.parametrize("name", PACKAGES)
@@ -27,42 +106,3 @@ def test_io_imports_no_phase():
             "(['robointel', 'learning'], ['robointel', 'planning'], ['robointel', 'teach'], ['robointel', 'skills'])))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]", out.stdout
-
-
-IO = Path(__file__).resolve().parents[1] / "src" / "robointel" / "io"
-# the phases and everything above them (io reads and writes files only, under the phases)
-ABOVE_IO = {"planning", "learning", "teach", "skills", "program", "batch", "report", "commands", "cli"}
-
-
-def _robointel_imports(tree: ast.AST) -> list[tuple[str, str]]:
-    """(enclosing top-level function or '', absolute module) of every robointel import in a module's AST."""
-    found: list[tuple[str, str]] = []
-    for top in ast.iter_child_nodes(tree):
-        scope = top.name if isinstance(top, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef) else ""
-        for node in ast.walk(top):
-            if isinstance(node, ast.Import):
-                found += [(scope, a.name) for a in node.names]
-            elif isinstance(node, ast.ImportFrom):
-                if node.level:  # relative: resolve against robointel.io
-                    base = ["robointel", "io"][: 2 - (node.level - 1)]
-                    found.append((scope, ".".join([*base, *(node.module or "").split(".")]).rstrip(".")))
-                else:
-                    found.append((scope, node.module or ""))
-    return [(s, m) for s, m in found if m.split(".")[0] == "robointel"]
-
-
-def test_io_source_imports_no_phase():
-    files = sorted(IO.rglob("*.py"))
-    assert len(files) >= 5
-    offending = []
-    for f in files:
-        for scope, mod in _robointel_imports(ast.parse(f.read_text())):
-            part = mod.split(".")[1] if "." in mod else ""
-            if part in ABOVE_IO:
-                offending.append(f"{f.name}: {mod}" + (f" (inside {scope})" if scope else ""))
-    assert not offending, f"io/ imports a phase or above: {offending}"
-
-
-def test_io_ast_walk_sees_function_level_imports():
-    tree = ast.parse("def f():\n    from robointel.planning.scene import Scene\n\nimport robointel.learning as x\n")
-    assert _robointel_imports(tree) == [("f", "robointel.planning.scene"), ("", "robointel.learning")]

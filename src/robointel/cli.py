@@ -40,8 +40,8 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, cls=_Commands,
 console = Console()
 
 # modules in robointel.commands, in demo order; each may define register(app) and demo_stage
-COMMAND_MODULES = ("core", "planning", "guidance", "learning", "grasp", "skills", "teach", "dataset", "batch",
-                   "program")
+COMMAND_MODULES = ("core", "planning", "plan_motion", "guidance", "learning", "grasp", "skills", "insertion", "teach",
+                   "dataset", "batch", "program", "emulator", "view")
 
 
 def _load_commands() -> list:
@@ -116,12 +116,18 @@ def info(robot: str = typer.Argument("lrmate200id7l", help="built-in name, 'ur5'
 
 @app.command()
 def demo(out: Path = typer.Option(Path("robointel-report"), help="report folder"),
-         quick: bool = typer.Option(False, help="smaller problems (for tests)")) -> None:
+         quick: bool = typer.Option(False, help="smaller problems (for tests)"),
+         stages: str = typer.Option("", help="comma-separated stages to run, e.g. 'core,planning' (default: all)"),
+         ) -> None:
     """Run the main job on the built-in simulated workcell and write an HTML report."""
     mods = _load_commands()
-    stages = [m.demo_stage for m in mods if hasattr(m, "demo_stage")]
+    found = {m.__name__.rsplit(".", 1)[-1]: m.demo_stage for m in mods if hasattr(m, "demo_stage")}
+    chosen = [s.strip() for s in stages.split(",") if s.strip()] or list(found)
+    unknown = [s for s in chosen if s not in found]
+    if unknown:
+        fail(InvalidInput(f"unknown demo stage {unknown[0]!r}; stages: {', '.join(found)}", value=unknown[0]))
     try:
-        index = run_demo(stages, out, quick=quick, console=console)
+        index = run_demo([found[s] for s in chosen], out, quick=quick, console=console)
     except RobointelError as exc:
         fail(exc)
     console.print(f"report: [bold]{index}[/bold]")

@@ -116,3 +116,10 @@ class TargetInCollision(SafetyStop):
 
     The message names the link; ``.value`` holds link, obstacle and distance.
     """
+
+
+class MissingExtra(RobointelError, ImportError):
+    """A feature needs an optional part of robointel that is not installed; ``.value`` is the extra's name.
+
+    The message names the extra and the command that installs it (``pip install 'robointel[teleop]'``).
+    """

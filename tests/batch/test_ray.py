@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("ray", reason="the Ray engine needs the cluster extra: pip install 'robointel[cluster]'")
+pytest.importorskip("ray", reason="the Ray engine needs the batch extra: pip install 'robointel[batch]'")
 
 HERE = Path(__file__).resolve().parent
 SRC = str(HERE.parents[1] / "src")

@@ -14,6 +14,7 @@ cannot run here carries a title saying so, shown on the rendered page:
 """
 from __future__ import annotations
 
+import importlib.util
 import re
 import shlex
 from pathlib import Path
@@ -28,9 +29,18 @@ from robointel.cli import app
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = ROOT / "docs"
 README = ROOT / "README.md"
-#: the house rule on words about how the code was written (the same expression the project's checks use)
-PROCESS_WORDS = re.compile(r"\b[Ss]ession [0-9]+|\bthe lead\b|\blead's\b|\(helper\)|\bhelper (run|branch|session)"
-                           r"|merged main [0-9a-f]{6,}|[Ii]ssue #?[0-9]+")
+
+
+def _process_words() -> re.Pattern[str]:
+    spec = importlib.util.spec_from_file_location("docs_check", ROOT / "tools" / "docs_check.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.PROCESS_WORDS
+
+
+#: the house rule on words about how the code was written (tools/docs_check.py's expression, which make test runs)
+PROCESS_WORDS = _process_words()
 FENCE = re.compile(r"^(?P<indent> *)```(?P<lang>[\w-]*)(?P<info>[^\n]*)\n(?P<body>.*?)^(?P=indent)```", re.M | re.S)
 QUICKSTART = re.compile(r"<!-- quickstart: (?P<path>examples/\S+\.py) -->\n```python\n(?P<body>.*?)^```", re.M | re.S)
 LANGS = {"python", "bash", "yaml", "text"}

@@ -1,4 +1,4 @@
-"""robointel plan --mbm: MBM problems planned start to goal from the command line, then judged by the
+"""robointel plan mbm: MBM problems planned start to goal from the command line, then judged by the
 independent exact checker (benchmarks/_mbm_checker.py, coal on the URDF meshes)."""
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ def root(shared_data):
 def planned(root, tmp_path_factory):
     _load_commands()
     out = tmp_path_factory.mktemp("mbm") / "traj.npz"
-    res = CliRunner().invoke(app, ["plan", "--mbm", str(root / "problems.json"), "--robot", str(root / "ur5.urdf"),
+    res = CliRunner().invoke(app, ["plan", "mbm", str(root / "problems.json"), "--urdf", str(root / "ur5.urdf"),
                                    "--per-family", str(PER_FAMILY), "--time-budget", "20", "--out", str(out)])
     raw = json.loads((root / "problems.json").read_text())["problems"]
     return res, out, raw
@@ -63,12 +63,12 @@ def test_cli_trajectories_pass_the_independent_checker(planned, root):
 def test_cli_bad_input(root, tmp_path):
     _load_commands()
     r = CliRunner()
-    res = r.invoke(app, ["plan", "--mbm", str(root / "problems.json")])
-    assert res.exit_code == 2 and "--robot" in res.output
-    res = r.invoke(app, ["plan", "--mbm", str(root / "problems.json"), "--robot", str(root / "ur5.urdf"),
+    res = r.invoke(app, ["plan", "mbm", str(root / "problems.json")])
+    assert res.exit_code == 2 and "--urdf" in res.output
+    res = r.invoke(app, ["plan", "mbm", str(root / "problems.json"), "--urdf", str(root / "ur5.urdf"),
                          "--family", "kitchen"])
     assert res.exit_code == 2 and "unknown family 'kitchen'" in res.output
     bad = tmp_path / "p.json"
     bad.write_text(json.dumps({"robot": "ur5", "joints": ["a"], "problems": {"box": [{"index": 1}]}}))
-    res = r.invoke(app, ["plan", "--mbm", str(bad), "--robot", str(root / "ur5.urdf")])
+    res = r.invoke(app, ["plan", "mbm", str(bad), "--urdf", str(root / "ur5.urdf")])
     assert res.exit_code == 2 and "problems.box[0]" in res.output

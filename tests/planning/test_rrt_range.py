@@ -16,6 +16,7 @@ from robointel.planning import _collision_kernels as K
 from robointel.planning import _node_check as NC
 from robointel.planning import _rrt_kernels as R
 from robointel.planning.motion import _goal_set
+from robointel.planning.tree_search import batch_state
 from robointel.robot import Robot
 
 
@@ -73,7 +74,7 @@ def _grow(env, q0, goals, seed, iters=1536):
     status = 0
     for _ in range(iters // 32):
         status = R.rrt_connect(X, parent, count, env.robot.lower, env.robot.upper, 32, rng, win, W, W, nroot,
-                               np.inf, s.T, s.C, s.G, s.out, 0.001, env.lever, 0.02, link)
+                               np.inf, s.T, s.C, s.G, s.out, 0.001, env.lever, 0.02, link, batch_state(env))
         if status != 0:
             break
     return X.transpose(0, 2, 1), parent, count, rng, status

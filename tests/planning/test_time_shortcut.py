@@ -8,6 +8,7 @@ from robointel.planning import _collision_kernels as K
 from robointel.planning import _edge_kernels as E
 from robointel.planning import _rrt_kernels as R
 from robointel.planning import _time_shortcut as TS
+from robointel.planning.tree_search import batch_state
 
 
 def test_time_length_and_chain_time():
@@ -73,7 +74,7 @@ def test_shortcut_time_shortens_keeps_edges_valid_and_is_deterministic(thin70, d
         P = np.empty((256, 6))
         P[:len(path)] = path
         R.seed(seed)
-        m = TS.shortcut_time(P, len(path), 40, W, W, np.inf, s.T, s.C, s.G, s.out, thr, env.lever, res, w, ia)
+        m = TS.shortcut_time(P, len(path), 40, W, W, np.inf, batch_state(env), s.out, thr, env.lever, res, w, ia)
         return P[:m].copy()
 
     out = run(3)

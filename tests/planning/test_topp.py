@@ -1,5 +1,5 @@
 """topp_spline: limits at every sample and between them, rest to rest, the path kept, and a duration
-no longer than TOPP-RA's (toppra, dev extra; limits held between its grid points too, as ours) on the
+no longer than TOPP-RA's (toppra, the peers extra; limits held between its grid points too, as ours) on the
 same polyline and limits."""
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 The in-process engine runs the tasks one after another in this process (the default, and what CI
 and ``make demo`` use). The Ray engine (:mod:`robointel.batch.ray_engine`, ``pip install
-robointel[cluster]``) runs them as Ray tasks on a local Ray it starts or on a cluster it joins. Both
+robointel[batch]``) runs them as Ray tasks on a local Ray it starts or on a cluster it joins. Both
 call the same :func:`robointel.batch.execute.execute`, so they give the same outcome for the same
 spec and seed.
 """
@@ -17,12 +17,13 @@ from typing import Any
 
 from rich.console import Console
 
+from robointel._extras import needs_extra
 from robointel.batch.execute import Fault, execute
 from robointel.batch.progress import BatchProgress, Counts
 from robointel.batch.registry import get_kind
 from robointel.batch.spec import TaskSpec, unique
 from robointel.batch.store import ResultStore
-from robointel.errors import EngineUnavailable, InvalidInput
+from robointel.errors import EngineUnavailable, InvalidInput, MissingExtra
 
 __all__ = ["ENGINES", "BatchRun", "run_batch"]
 
@@ -150,11 +151,11 @@ def run_batch(specs: Sequence[TaskSpec], results: str | Path, *, engine: str = "
                     sink(execute(s.to_dict(), engine="inprocess", timeout_s=timeout_s))
                 sink.running(0)
             else:
-                try:  # the optional dependency (robointel[cluster]) loads only here
-                    from robointel.batch.ray_engine import run_on_ray
-                except ImportError as exc:
-                    raise EngineUnavailable(f"the Ray engine needs Ray ({exc}): pip install 'robointel[cluster]'",
-                                            value=engine) from None
+                try:  # the optional dependency (robointel[batch]) loads only here
+                    with needs_extra("batch", "the Ray engine"):
+                        from robointel.batch.ray_engine import run_on_ray
+                except MissingExtra as exc:
+                    raise EngineUnavailable(str(exc), value=engine) from None
                 run_on_ray(todo, sink, sink.running, workers=workers, address=address, cpus_per_task=cpus_per_task,
                            max_retries=max_retries, fault=fault, timeout_s=timeout_s, worker_niceness=worker_niceness)
         finally:

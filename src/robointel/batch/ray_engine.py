@@ -1,4 +1,4 @@
-"""The Ray engine: trials as Ray tasks on a local Ray or a cluster (``pip install robointel[cluster]``).
+"""The Ray engine: trials as Ray tasks on a local Ray or a cluster (``pip install 'robointel[batch]'``).
 
 Each task reserves ``cpus_per_task`` CPUs and runs :func:`robointel.batch.execute.execute` with
 one thread per numerical library (the worker environment sets ``OMP_NUM_THREADS=1`` and friends

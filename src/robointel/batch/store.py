@@ -21,13 +21,19 @@ import os
 import uuid
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import pyarrow as pa
-import pyarrow.dataset as ds
-import pyarrow.parquet as pq
-
+from robointel._extras import optional_module
 from robointel.errors import ResultStoreError
+
+if TYPE_CHECKING:
+    import pyarrow as pa
+    import pyarrow.dataset as ds
+    import pyarrow.parquet as pq
+else:
+    pa = optional_module("pyarrow", "batch", "a batch run's result store")
+    ds = optional_module("pyarrow.dataset", "batch", "a batch run's result store")
+    pq = optional_module("pyarrow.parquet", "batch", "a batch run's result store")
 
 __all__ = ["SCHEMA", "ResultStore"]
 

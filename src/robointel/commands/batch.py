@@ -3,6 +3,7 @@
 ``run SPEC.yaml`` runs a sweep in-process (default), on a local Ray (``--workers N``, N > 1) or on a
 cluster (``--address ray://HOST:PORT``), streaming rows into a resumable Parquet dataset;
 ``report RESULTS/`` prints success rates with Wilson intervals per kind and category and writes a plot.
+Each command imports :mod:`robointel.batch` when it runs (its Parquet store needs the ``batch`` extra).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from robointel.batch import kinds, load_sweep, plot_summary, run_batch, summarize
+from robointel.commands.failure import fail
 from robointel.errors import RobointelError
 
 console = Console()
@@ -39,6 +40,8 @@ def run(spec: Annotated[Path, typer.Argument(help="sweep YAML (tasks: [{kind, se
         ) -> None:
     """Run a sweep; already stored (spec hash, seed) rows are skipped, so running it again resumes."""
     try:
+        from robointel.batch import load_sweep, run_batch
+
         specs = load_sweep(spec)
         eng = engine or ("ray" if workers > 1 or address else "inprocess")
         folder = out or spec.with_name(spec.stem + "-results")
@@ -46,8 +49,7 @@ def run(spec: Annotated[Path, typer.Argument(help="sweep YAML (tasks: [{kind, se
                       max_retries=max_retries, flush_rows=flush_rows, console=console, timeout_s=timeout,
                       worker_niceness=worker_niceness)
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2) from None
+        fail(exc)
     except KeyboardInterrupt:
         console.print("[yellow]interrupted[/yellow]: finished rows are stored; run the same command to resume")
         raise typer.Exit(130) from None
@@ -63,6 +65,8 @@ def report(results: Annotated[Path, typer.Argument(help="result folder")],
            ) -> None:
     """Success rates with Wilson confidence intervals per kind and category, and a plot."""
     try:
+        from robointel.batch import plot_summary, summarize
+
         if not results.is_dir():
             raise typer.BadParameter(f"{results} is not a result folder")
         groups = summarize(results, confidence)
@@ -76,14 +80,15 @@ def report(results: Annotated[Path, typer.Argument(help="result folder")],
         console.print(t)
         path = plot_summary(groups, plot or results / "success.png")
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2) from None
+        fail(exc)
     console.print(f"plot: [bold]{path}[/bold]")
 
 
 @batch_app.command("kinds")
 def list_kinds() -> None:
     """List the trial kinds a sweep can use."""
+    from robointel.batch import kinds
+
     t = Table(title="trial kinds")
     t.add_column("kind")
     t.add_column("trial")

@@ -20,6 +20,8 @@ from rich.console import Console
 from rich.progress import Progress
 from rich.table import Table
 
+from robointel._extras import require_extra
+from robointel.commands.failure import fail
 from robointel.commands.teach import resolve_recording
 from robointel.errors import InvalidInput, RobointelError
 from robointel.io.demonstrations import DemonstrationFile
@@ -116,6 +118,8 @@ def register(app: typer.Typer) -> None:
         try:
             if fmt not in FORMATS:
                 raise InvalidInput(f"--format must be one of {FORMATS}, got {fmt!r}", value=fmt)
+            if fmt == "lerobot":
+                require_extra("datasets", "a LeRobot dataset", "pyarrow")  # before recording anything
             episodes: list[Episode] = []
             with Progress(console=console) as prog:
                 task = prog.add_task("recording episodes", total=len(sources))
@@ -128,8 +132,7 @@ def register(app: typer.Typer) -> None:
             else:
                 path = write_robomimic(out, episodes, overwrite=overwrite)
         except RobointelError as exc:
-            console.print(f"[red]error:[/red] {exc}")
-            raise typer.Exit(2) from None
+            fail(exc)
         frames = sum(len(e) for e in episodes)
         console.print(f"wrote {len(episodes)} episode(s), {frames} frames as {fmt}: [bold]{path}[/bold]")
 
@@ -157,7 +160,6 @@ def register(app: typer.Typer) -> None:
                 names = [store.append(d) for d in demos]
                 console.print(f"appended {len(names)} demonstration(s) to [bold]{demonstrations}[/bold]")
         except RobointelError as exc:
-            console.print(f"[red]error:[/red] {exc}")
-            raise typer.Exit(2) from None
+            fail(exc)
 
     app.add_typer(dataset, name="dataset")

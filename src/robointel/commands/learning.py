@@ -17,11 +17,7 @@ import numpy.typing as npt
 import typer
 from rich.console import Console
 from rich.progress import Progress
-from rich.table import Table
 
-from robointel.commands.failure import fail
-from robointel.errors import RobointelError
-from robointel.io.demonstrations import DemonstrationFile
 from robointel.learning import grinding as G
 from robointel.learning import insertion as I
 from robointel.learning.demonstration import Demonstration, save_demonstrations
@@ -212,7 +208,8 @@ def plot_grinding(plate: G.Plate, skill: G.GrindingSkill, res: G.GrindingResult,
 
 
 def run_insertion(out: Path, *, demos: int, labelled: int, trials: int, seed: int = 0,
-                  progress: ProgressFn | None = None, save: Path | None = None) -> dict[str, Any]:
+                  progress: ProgressFn | None = None, save: Path | None = None,
+                  time_limit: float | None = None) -> dict[str, Any]:
     """Demonstrate, learn and reproduce the insertion (Sec. 5.5), writing Figs. 5.10-5.12.
 
     Args:
@@ -223,6 +220,7 @@ def run_insertion(out: Path, *, demos: int, labelled: int, trials: int, seed: in
         seed: Seed of the demonstrations; ``seed + 1`` draws the start errors.
         progress: Called with the fraction done and a message.
         save: Append the demonstrations to this HDF5 file.
+        time_limit: Robot time per trial, s (default 10).
 
     Returns:
         A dict with ``task``, ``demos``, ``learned``, ``results``, ``baseline``, ``images``,
@@ -251,8 +249,9 @@ def run_insertion(out: Path, *, demos: int, labelled: int, trials: int, seed: in
     for k, (lat, tilt) in enumerate(starts):
         step(0.65 + 0.35 * k / max(1, trials), f"insertion trial {k + 1}/{trials}")
         T0 = cell.start_pose(lat, tilt)
-        res.append(cell.insert(learned.skill.predict, T0, seed=k))
-        base.append(cell.insert_position_only(T0, seed=k))
+        limit = 10.0 if time_limit is None else float(time_limit)
+        res.append(cell.insert(learned.skill.predict, T0, seed=k, time_limit=limit))
+        base.append(cell.insert_position_only(T0, seed=k, time_limit=limit))
     images = [plot_synchronised(ds, learned, out / "fig5_10_synchronised.png"),
               plot_decomposed(ds, learned.labels, out / "fig5_11_decomposed.png"),
               plot_skill(learned.skill, ds[-1], learned.labels[-1], out / "fig5_12_skill.png"),
@@ -294,56 +293,20 @@ def run_grinding(out: Path, *, demos: int = 3, seed: int = 0, progress: Progress
     return {"plate": plate, "skill": skill, "result": res, "images": [img]}
 
 
+learn_app = typer.Typer(help="Learning from demonstration (Ch. 5): HDD demonstrations in MuJoCo -> skill file -> "
+                        "LR Mate.", no_args_is_help=True)
+"""The ``learn`` group (``learn insertion`` is added by :mod:`robointel.commands.insertion`)."""
+
+
 def register(app: typer.Typer) -> None:
-    """Add the ``learn insertion`` and ``learn grinding`` commands to ``app``.
+    """Add the ``learn`` group with ``learn grinding`` to ``app``.
 
     Args:
         app: The top-level typer application.
     """
     console = Console()
-    learn = typer.Typer(help="Learning from demonstration (Ch. 5): HDD demonstrations in MuJoCo -> skill -> LR Mate.",
-                        no_args_is_help=True)
 
-    @learn.command("insertion")
-    def insertion(out: Path = typer.Option(Path("robointel-learn"), help="folder for the plots"),
-                  demos: int = typer.Option(12, min=3, help="demonstrations"),
-                  labelled: int = typer.Option(4, min=1, help="hand-labelled demonstrations (the rest decomposed)"),
-                  trials: int = typer.Option(5, min=1, help="robot insertion trials"),
-                  seed: int = typer.Option(0),
-                  save: Path = typer.Option(None, help="append the demonstrations to this HDF5 file"),
-                  skill_out: Path = typer.Option(None, "--skill-out",
-                                                 help="write the learned skill to this skill file (for programs)")
-                  ) -> None:
-        """Tight peg-in-hole: demonstrate, synchronise, decompose, learn the GMR skill, insert with the LR Mate."""
-        if labelled >= demos:
-            fail("--labelled must be smaller than --demos")
-        if save is not None and save.exists():  # a corrupt or foreign file is refused before the work
-            try:
-                DemonstrationFile(save).names()
-            except RobointelError as exc:
-                fail(exc)
-        try:
-            with Progress(console=console) as prog:
-                task_id = prog.add_task("insertion", total=1.0)
-                r = run_insertion(out, demos=demos, labelled=labelled, trials=trials, seed=seed, save=save,
-                                  progress=lambda f, m: prog.update(task_id, completed=f, description=m))
-        except RobointelError as exc:
-            fail(exc)
-        if skill_out is not None:
-            save_skill(skill_out, r["learned"].skill, meta={"task": "insertion", "demos": demos, "seed": seed})
-            console.print(f"skill file: {skill_out}")
-        t = Table(title=f"insertion, clearance {r['task'].clearance * 1e6:.0f} um")
-        for c in ("trial", "skill", "reason", "time [s]", "max force [N]", "penetration [um]", "position-only"):
-            t.add_column(c, justify="right")
-        for k, (a, b) in enumerate(zip(r["results"], r["baseline"])):
-            t.add_row(str(k), "ok" if a.success else "fail", a.reason, f"{a.time:.2f}", f"{a.max_force:.1f}",
-                      f"{a.max_penetration * 1e6:.1f}", "ok" if b.success else f"fail ({b.reason})")
-        console.print(t)
-        console.print(f"success {r['success']}/{len(r['results'])} (paper 48/50), position-only "
-                      f"{r['success_pos']}/{len(r['baseline'])}; decomposition median boundary error "
-                      f"{r['boundary_ms']:.0f} ms; plots in {out}")
-
-    @learn.command("grinding")
+    @learn_app.command("grinding")
     def grinding(out: Path = typer.Option(Path("robointel-learn"), help="folder for the plots"),
                  demos: int = typer.Option(3, min=1), seed: int = typer.Option(0),
                  skill_out: Path = typer.Option(None, "--skill-out",
@@ -361,7 +324,7 @@ def register(app: typer.Typer) -> None:
         console.print(f"force RMS error along the diagonal {100 * res.rms_rel:.1f} % of the peak "
                       f"({100 * res.rms_rel_setpoint:.1f} % against the skill's set-point); plot {r['images'][0]}")
 
-    app.add_typer(learn, name="learn")
+    app.add_typer(learn_app, name="learn")
 
 
 def demo_stage(ctx: StageContext) -> StageResult:

@@ -1,12 +1,15 @@
-"""Planning commands (Ch. 7): ``robointel plan SCENE.yaml --out traj.npz`` and the demo's planning stage.
+"""Planning commands (Ch. 7): ``robointel plan scene|mbm`` (``plan motion``: :mod:`.plan_motion`) and the demo stage.
 
-The FRMP: scene -> CFS path per segment -> temporal optimization -> trajectory file, with a plot
-of the joint profiles and a 3D picture of the tool path among the obstacles.
+``plan scene``, the FRMP: scene -> CFS path per segment (obstacles and self-collision) -> temporal
+optimization -> trajectory file, with a plot of the joint profiles and a 3D picture of the tool path among
+the obstacles, and the verdict ``--execute`` gives (:func:`robointel.commands.verdict.execute_verdict`).
+``plan mbm``: MotionBenchMaker problems start to goal with :func:`robointel.planning.plan_motion`.
 """
 from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 import matplotlib.pyplot as plt
@@ -17,12 +20,13 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from rich.console import Console
 from rich.progress import Progress
 from rich.table import Table
+from typer.core import TyperGroup
 
 from robointel.commands.failure import fail
 from robointel.commands.robot_run import run_on_robot
+from robointel.commands.verdict import execute_verdict
 from robointel.errors import InvalidInput, RobointelError
 from robointel.geometry import Box, Sphere
-from robointel.geometry.table import table_obstacles
 from robointel.io.mbm import load_mbm_problems
 from robointel.io.trajectory import save_trajectory
 from robointel.planning import Environment, MotionPlan, MotionSettings, plan_motion
@@ -33,7 +37,9 @@ from robointel.planning.scene import load_scene
 from robointel.report.demo import Figure, StageContext, StageResult
 from robointel.robot import Robot
 from robointel.sim import Workcell
-from robointel.teach.collision_guard import CollisionGuard
+
+DEFAULT_D_MIN = MotionSettings().d_min
+"""``--d-min`` of ``plan mbm`` and ``plan motion``: :class:`MotionSettings`'s own default (one value for both)."""
 
 
 def plot_joint_profiles(result: FRMPResult, path: Path) -> Path:
@@ -152,8 +158,9 @@ def plot_path_3d(result: FRMPResult, path: Path) -> Path:
 
 def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | None = None, index: int | None = None,
              per_family: int | None = None, out: Path | None = None, time_budget_s: float = 1.0,
-             d_min: float = 0.001, budget_clock: str = "wall", console: Console | None = None) -> list[MotionPlan]:
-    """``robointel plan --mbm PROBLEMS.json --robot URDF``: plan the valid MBM problems start to goal.
+             d_min: float = DEFAULT_D_MIN, budget_clock: str = "wall",
+             console: Console | None = None) -> list[MotionPlan]:
+    """``robointel plan mbm PROBLEMS.json --urdf URDF``: plan the valid MBM problems start to goal.
 
     Each selected problem is read by :func:`robointel.io.mbm.load_mbm_problems`, planned by
     :func:`robointel.planning.plan_motion` (its success means the 1 ms dense check passed) and
@@ -168,7 +175,8 @@ def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | No
         per_family: the first this many valid problems of each family.
         out: when given, each trajectory is saved as ``<out stem>_<family>_<index>.npz``.
         time_budget_s: search budget per problem, s.
-        d_min: required clearance, m (the dense check accepts clearance >= d_min - 1 mm).
+        d_min: required clearance, m (``MotionSettings.d_min`` by default; the dense check accepts
+            clearance >= d_min - 1 mm).
         budget_clock: ``"wall"`` or ``"cpu"``: the clock the budget is counted on
             (:attr:`robointel.planning.MotionSettings.budget_clock`).
         console: a rich console for the table and the progress bar.
@@ -182,7 +190,7 @@ def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | No
     console = console or Console()
     try:
         if problems is None or robot_urdf is None:
-            raise InvalidInput("give a scene, or --mbm PROBLEMS.json together with --robot URDF")
+            raise InvalidInput("give the MBM problems.json and --urdf URDF")
         pset = load_mbm_problems(problems)
         selected = pset.select(families=[family] if family else None, index=index, per_family=per_family)
         if not selected:
@@ -222,88 +230,125 @@ def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | No
     return plans
 
 
-def register(app: typer.Typer) -> None:
-    """Add the ``plan`` command to ``app``.
+class _PlanGroup(TyperGroup):
+    """``robointel plan``: ``plan SCENE`` (no subcommand named) is ``plan scene SCENE``."""
 
-    Args:
-        app: The top-level typer application.
+    def resolve_command(self, ctx: Any, args: list[str]) -> Any:
+        if args and args[0] not in self.commands and not args[0].startswith("-"):
+            args = ["scene", *args]
+        return super().resolve_command(ctx, args)
+
+
+plan_app = typer.Typer(cls=_PlanGroup, no_args_is_help=True, help=(
+    "Plan motions. scene: a scene's waypoints by CFS + temporal optimization (the FRMP, self-collision included); "
+    "motion: start to goal for any URDF (plan_motion); mbm: MotionBenchMaker problems. Each reports the verdict "
+    "--execute will give. `robointel plan SCENE` is `robointel plan scene SCENE`."))
+"""The ``plan`` group (``plan motion`` is added by :mod:`robointel.commands.plan_motion`)."""
+console = Console()
+
+
+@plan_app.command("scene")
+def plan_scene_cmd(scene: str = typer.Argument(..., help="scene YAML file, or a built-in scene name (table71)"),
+                   out: Path = typer.Option(Path("traj.npz"), help="trajectory file (.npz or .json)"),
+                   plots: bool = typer.Option(True, help="write <out>_profiles.png and <out>_path3d.png"),
+                   execute: bool = typer.Option(False, "--execute", help="run the trajectory: in the MuJoCo workcell "
+                                                "(--robot sim) or on the robot at --robot"),
+                   robot: str = typer.Option("sim", help="with --execute: the robot URL: 'sim', 'sim?process=1' or "
+                                             "'fanuc://HOST[:RMI_PORT][?sm_port=N]'"),
+                   record: Path = typer.Option(None, help="with --execute: record the run as a ROS 2 bag (.mcap)"),
+                   ) -> None:
+    """Plan a scene's waypoints with the FRMP (CFS path with self-collision + temporal optimization).
+
+    Prints the plan, its dense check and the verdict --execute will give; exit code 1 when --execute would
+    refuse the trajectory.
     """
-    console = Console()
-
-    @app.command()
-    def plan(scene: str = typer.Argument(None, help="scene YAML file, or a built-in scene name (table71)"),
-             out: Path = typer.Option(Path("traj.npz"), help="trajectory file (.npz or .json)"),
-             plots: bool = typer.Option(True, help="write <out>_profiles.png and <out>_path3d.png"),
-             execute: bool = typer.Option(False, "--execute", help="track the trajectory in the MuJoCo workcell"),
-             robot: str = typer.Option("sim", help="with --execute: 'sim', 'sim?process=1' or "
-                                       "'fanuc://HOST[:RMI_PORT][?sm_port=N]'; "
-                                       "with --mbm: the robot's URDF (SRDF beside it)"),
-             record: Path = typer.Option(None, help="with --execute: record the run as a ROS 2 bag (.mcap)"),
-             mbm: Path = typer.Option(None, "--mbm", help="MotionBenchMaker problems.json: plan its problems"),
-             family: str = typer.Option(None, "--family", help="with --mbm: only this scene family"),
-             index: int = typer.Option(None, "--index", help="with --mbm: only the problem with this index"),
-             per_family: int = typer.Option(None, "--per-family", help="with --mbm: first N valid per family"),
-             time_budget: float = typer.Option(1.0, "--time-budget", help="with --mbm: search budget, s"),
-             d_min: float = typer.Option(0.001, "--d-min", help="with --mbm: clearance, m (the dense check "
-                                         "allows d_min - 1 mm)"),
-             budget_clock: str = typer.Option("wall", "--budget-clock", help="with --mbm: count the budget in "
-                                              "wall time or in the process's CPU time ('cpu')"),
-             ) -> None:
-        """Plan a scene with the FRMP (CFS path + temporal optimization) and save the trajectory.
-
-        With --mbm, plan and check MotionBenchMaker problems start to goal instead.
-        """
-        if mbm is not None or scene is None:
-            plan_mbm(mbm, None if robot == "sim" else Path(robot), family=family, index=index,
-                     per_family=per_family, out=out if mbm else None, time_budget_s=time_budget, d_min=d_min,
-                     budget_clock=budget_clock, console=console)
-            return
-        try:
-            sc = load_scene(scene)
-            with console.status("planning"):
-                res = plan_scene(sc)
-            out.parent.mkdir(parents=True, exist_ok=True)
-            save_trajectory(res.trajectory, out)
-        except RobointelError as exc:
-            fail(exc)
-        t = Table(title=f"{sc.name}: {len(sc.steps)} segments, {sc.total_steps} steps, "
-                        f"d_min {sc.d_min * 1000:.0f} mm")
-        for c in ("segment", "blocked", "CFS [ms]", "iterations", "status", "min dist [mm]", "temporal [ms]",
-                  "time [s]"):
-            t.add_column(c, justify="right")
-        for i, (s, tr) in enumerate(zip(res.segments, res.temporal)):
-            t.add_row(f"{sc.waypoint_names[i]} -> {sc.waypoint_names[i + 1]}", "yes" if s.blocked else "",
-                      f"{res.cfs_ms[i]:.1f}", str(s.iterations), s.status, f"{s.min_distance * 1000:.1f}",
-                      f"{res.temporal_ms[i]:.1f}", f"{tr.duration:.2f}")
-        console.print(t)
-        console.print(f"operational time {res.operational_time_fixed:.2f} s (fixed dt) -> "
-                      f"[bold]{res.operational_time_frmp:.2f} s[/bold] (FRMP); min clearance "
-                      f"{res.check.min_clearance * 1000:.1f} mm, limit violations {res.check.limit_violations} "
-                      f"(1 ms resample)")
-        if plots:
-            stem = out.with_suffix("")
-            a = plot_joint_profiles(res, Path(f"{stem}_profiles.png"))
-            b = plot_path_3d(res, Path(f"{stem}_path3d.png"))
-            console.print(f"plots: {a}, {b}")
-        if execute:
-            try:  # the table, the floor, the obstacles and self-collision on a 10 ms resample, before moving
-                env = list(sc.obstacles) + ([] if getattr(sc, "table", False) else table_obstacles())
-                CollisionGuard(sc.robot, env).check_many(res.trajectory.resample(0.01).q, "planned trajectory")
-            except RobointelError as exc:
-                fail(exc)
-        if execute and (robot != "sim" or record is not None):  # the robot interface
+    try:
+        sc = load_scene(scene)
+        with console.status("planning"):
+            res = plan_scene(sc)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        save_trajectory(res.trajectory, out)
+    except RobointelError as exc:
+        fail(exc)
+    t = Table(title=f"{sc.name}: {len(sc.steps)} segments, {sc.total_steps} steps, "
+                    f"d_min {sc.d_min * 1000:.0f} mm")
+    for c in ("segment", "blocked", "CFS [ms]", "iterations", "status", "min dist [mm]", "temporal [ms]",
+              "time [s]"):
+        t.add_column(c, justify="right")
+    for i, (s, tr) in enumerate(zip(res.segments, res.temporal)):
+        t.add_row(f"{sc.waypoint_names[i]} -> {sc.waypoint_names[i + 1]}", "yes" if s.blocked else "",
+                  f"{res.cfs_ms[i]:.1f}", str(s.iterations), s.status, f"{s.min_distance * 1000:.1f}",
+                  f"{res.temporal_ms[i]:.1f}", f"{tr.duration:.2f}")
+    console.print(t)
+    chk = res.check
+    console.print(f"operational time {res.operational_time_fixed:.2f} s (fixed dt) -> "
+                  f"[bold]{res.operational_time_frmp:.2f} s[/bold] (FRMP); 1 ms resample: min clearance "
+                  f"{chk.min_clearance * 1000:.1f} mm, self-collision pairs {chk.min_self_clearance * 1000:.1f} mm "
+                  f"apart, limit violations {chk.limit_violations}")
+    if plots:
+        stem = out.with_suffix("")
+        a = plot_joint_profiles(res, Path(f"{stem}_profiles.png"))
+        b = plot_path_3d(res, Path(f"{stem}_path3d.png"))
+        console.print(f"plots: {a}, {b}")
+    why = execute_verdict(sc.robot, sc.obstacles, res.trajectory)
+    if execute:
+        if why:
+            fail(why)
+        if robot != "sim" or record is not None:  # the robot interface
             try:
                 wc = {"workcell": Workcell(sc.robot, obstacles=sc.obstacles)} if robot == "sim" else {}
                 run_on_robot(res.trajectory, robot, record, console, sim_kwargs=wc)
             except RobointelError as exc:
                 fail(exc)
-        elif execute:
+        else:
             with console.status("tracking in MuJoCo"):
                 ex = run_in_sim(res)
             console.print(f"MuJoCo: RMS tracking error {np.degrees(ex.rms_error_rad):.4f} deg, max "
                           f"{np.degrees(ex.max_error_rad):.4f} deg, TCP {ex.max_tcp_error_m * 1000:.2f} mm, "
                           f"obstacle contacts {ex.obstacle_contacts}")
-        console.print(f"trajectory: [bold]{out}[/bold]")
+            if ex.collided:
+                typer.echo(f"error: the robot touched an obstacle in MuJoCo: {ex.outcome.detail}", err=True)
+                raise typer.Exit(1)
+    console.print(f"trajectory: [bold]{out}[/bold]")
+    print_verdict(why)
+    if why and not execute:
+        raise typer.Exit(1)
+
+
+def print_verdict(why: str) -> None:
+    """Print the verdict of ``--execute`` on one line (stdout): accepted, or why it refuses."""
+    if why:
+        typer.echo(f"verdict: --execute refuses this trajectory: {why}")
+    else:
+        typer.echo("verdict: --execute accepts this trajectory (clear of the obstacles, the table and itself on a "
+                   "10 ms resample; within the joint limits on the 8 ms controller resample)")
+
+
+@plan_app.command("mbm")
+def plan_mbm_cmd(problems: Path = typer.Argument(..., help="MotionBenchMaker problems.json"),
+                 urdf: Path = typer.Option(None, "--urdf", help="the robot's URDF (SRDF beside it)"),
+                 family: str = typer.Option(None, "--family", help="only this scene family"),
+                 index: int = typer.Option(None, "--index", help="only the problem with this index"),
+                 per_family: int = typer.Option(None, "--per-family", help="first N valid problems per family"),
+                 time_budget: float = typer.Option(1.0, "--time-budget", help="search budget per problem, s"),
+                 d_min: float = typer.Option(DEFAULT_D_MIN, "--d-min", help="clearance, m (the dense check allows "
+                                             "d_min - 1 mm; the default is MotionSettings.d_min)"),
+                 out: Path = typer.Option(None, help="save each trajectory as <out stem>_<family>_<index>.npz"),
+                 budget_clock: str = typer.Option("wall", "--budget-clock", help="count the budget in wall time or "
+                                                  "in the process's CPU time ('cpu')"),
+                 ) -> None:
+    """Plan MotionBenchMaker problems start to goal with plan_motion and check each on a 1 ms resample."""
+    plan_mbm(problems, urdf, family=family, index=index, per_family=per_family, out=out, time_budget_s=time_budget,
+             d_min=d_min, budget_clock=budget_clock, console=console)
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``plan`` group (``plan scene``, ``plan mbm``) to ``app``.
+
+    Args:
+        app: The top-level typer application.
+    """
+    app.add_typer(plan_app, name="plan")
 
 
 def demo_stage(ctx: StageContext) -> StageResult:

@@ -10,10 +10,12 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+from robointel.commands.failure import fail
 from robointel.errors import RobointelError
 from robointel.interface import open_robot
 from robointel.io.mcap_log import McapRecorder
 from robointel.program import Cell, GraspCell, ProgramRejected, SimCell, check_program, load_program, run_program
+from robointel.program.format import builtin_programs
 from robointel.program.interface_cell import InterfaceCell, interface_refusal, output_refusal
 from robointel.program.teaching import program_from_teleop
 from robointel.report.demo import Figure, StageContext, StageResult
@@ -22,14 +24,20 @@ from robointel.report.program import plot_run, record_run, write_program_report
 console = Console()
 
 
-def run(program: str = typer.Argument(..., help="program YAML file, or a built-in program: example, pick_place, moves"),
+def run(program: str = typer.Argument(..., help="program YAML file (format: docs/guides/programs.md), or a built-in "
+                                     f"program: {', '.join(builtin_programs())}"),
         robot: str = typer.Option("sim", "--robot", help="'sim' (the simulated cell), 'sim?process=1' or fanuc://HOST[:PORT][?sm_port=N]"),
         start: str = typer.Option("0", "--from", help="first step to run (index or name)"),
         record: Path = typer.Option(None, "--record", help="record the run as a ROS 2 bag (.mcap)"),
         report: Path = typer.Option(Path("robointel-program-report"), help="report folder"),
         seed: int = typer.Option(0, help="seed of the simulated cell (object placements, sensor noise)"),
         check_only: bool = typer.Option(False, "--check", help="only check the program, do not run it")) -> None:
-    """Check a task program as a whole, then run it step by step and write an HTML report."""
+    """Check a task program as a whole, then run it step by step and write an HTML report.
+
+    The pre-run check plans every motion and refuses a program that cannot run (a target out of reach or in
+    collision, a part off the table or inside a fixture, a missing skill file), naming the step and the key,
+    before anything moves.
+    """
     rec = None
     try:
         prog = load_program(program)
@@ -69,11 +77,10 @@ def run(program: str = typer.Argument(..., help="program YAML file, or a built-i
             if rec is not None and arm is None:
                 record_run(rec, prog, res)
     except ProgramRejected as exc:
-        console.print(f"[red]refused before moving:[/red] {exc}")
+        typer.echo("refused before moving: " + " ".join(str(exc).split()), err=True)
         raise typer.Exit(2) from None
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2) from None
+        fail(exc)
     finally:
         if rec is not None:
             rec.close()
@@ -95,8 +102,7 @@ def from_teleop(teleop: Path = typer.Argument(..., help="the program file the te
     try:
         prog = program_from_teleop(teleop, name=name)
     except RobointelError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2) from None
+        fail(exc)
     prog.save(out)
     console.print(f"wrote {out}: {len(prog.steps)} move steps over {len(prog.waypoints)} waypoints; "
                   f"run it with `robointel run {out}`")

@@ -1,6 +1,8 @@
-"""Learned skills and grasps on a robot: ``robointel skill insert|grind`` and ``robointel grasp execute``.
+"""Learned skills and grasps on a robot: ``robointel skill grind`` and ``robointel grasp execute``.
 
-Each learns (or plans) as the Ch. 5-6 commands do, then runs on the robot interface,
+``skill insert`` is in :mod:`robointel.commands.insertion` (it runs a skill file at the learning benchmark's
+task); the helpers here (robot URL, recorder, wrench source) serve it too. Each learns (or plans) as the
+Ch. 5-6 commands do, then runs on the robot interface,
 ``--robot sim`` (the MuJoCo workcell; ``sim?process=1``: the paced workcell in a streaming process, not for
 grasps) or ``--robot fanuc://HOST`` (Stream Motion + RMI), with
 ``--record run.mcap`` writing the run as a ROS 2 bag. On a FANUC controller without force telemetry
@@ -17,7 +19,6 @@ import numpy as np
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-from rich.table import Table
 
 from robointel.commands.failure import fail
 from robointel.control.payload import PayloadCompensation
@@ -31,20 +32,18 @@ from robointel.interface.wrench_source import StateWrench, VirtualWall, WrenchSo
 from robointel.io.mcap_log import McapRecorder
 from robointel.skills.cells import (
     R_DOWN,
-    HoleTask,
     PegTool,
     PlateTask,
     ik_near,
-    peg_hole_workcell,
     plate_workcell,
     stylus,
 )
 from robointel.skills.grasp_execution import GraspMotion, execute_grasp, joint_move
 from robointel.skills.grinding import run_grinding
-from robointel.skills.insertion import run_insertion
 
 console = Console()
-skill_app = typer.Typer(no_args_is_help=True, help="Learned skills on a robot (--robot sim|fanuc://HOST).")
+skill_app = typer.Typer(no_args_is_help=True, help="Run learned skills: insert (a skill file from `learn "
+                        "insertion`; 20 um on sim by default), grind (--robot sim|sim?process=1|fanuc://HOST).")
 
 ROBOT_HELP = ROBOT_FORMS
 RECORD_HELP = "record the run as a ROS 2 bag (.mcap)"
@@ -98,78 +97,6 @@ def _source(wrench: str, robot: Any, tool: PegTool, wall: tuple[np.ndarray, floa
     if wrench == "virtual" and wall is not None:
         return VirtualWall(robot, wall[0], (0.0, 0.0, 1.0), stiffness=wall[1], damping=30.0, noise=0.05)
     raise typer.BadParameter(f"--wrench must be 'sensor' or 'virtual', got {wrench!r}")
-
-
-@skill_app.command("insert")
-def insert(robot: str = typer.Option("sim", help=ROBOT_HELP), record: Path = typer.Option(None, help=RECORD_HELP),
-           demos: int = typer.Option(4, min=1, help="HDD demonstrations to learn from"),
-           trials: int = typer.Option(3, min=1, help="insertions (sim: from random start errors)"),
-           clearance: float = typer.Option(0.5e-3, help="diametral clearance of the pocket, m (sim)"),
-           wrench: str = typer.Option("sensor", help=WRENCH_HELP), seed: int = typer.Option(0),
-           time_limit: float = typer.Option(8.0, help="s per insertion"),
-           stall_ms: float = typer.Option(80.0, help=STALL_HELP)) -> None:
-    """Learn the insertion skill from HDD demonstrations, then insert the peg on the robot.
-
-    Admittance over streamed positions: the skill's corrective twist from the felt wrench, (5.14)-(5.17),
-    (3.10)-(3.13).
-    """
-    from robointel.learning import insertion as ins
-
-    kind = _check_url(robot)
-    try:
-        peg, hole = PegTool(), HoleTask(clearance=clearance)
-        task = ins.PegHole()
-        rng = np.random.default_rng(seed)
-        with Progress(TextColumn("seated demonstrations"), BarColumn(), console=console) as bar:
-            t = bar.add_task("demos", total=demos)
-            ds = []
-            scene = ins.HDDScene(task)
-            for _ in range(demos):
-                ds += ins.seated_demonstrations(task, rng, 1, scene=scene)
-                bar.advance(t)
-        skill = ins.InsertionSkill(4, centre=peg.centre).fit(ds)
-        arm_robot = peg.robot()
-        starts = np.random.default_rng(seed + 1)
-        table = Table(title=f"insertion on {robot.split('?')[0]} ({clearance * 1e3:.2f} mm clearance)")
-        for c in ("trial", "result", "time [s]", "max force [N]", "advance [mm]"):
-            table.add_column(c)
-        wins = 0
-        rec = _recorder(record, arm_robot)
-        try:
-            for k in range(trials):
-                lat = starts.uniform(-1.5e-3, 1.5e-3, 2) if kind != "fanuc" else np.zeros(2)
-                tilt = ((starts.uniform(0, 2 * np.pi), starts.uniform(0, np.radians(3))) if kind != "fanuc"
-                        else (0.0, 0.0))
-                q0 = ik_near(arm_robot, hole.start_tcp(peg, lateral=lat, tilt=tilt))
-                if kind == "stream":  # the same cell, built in the streaming process
-                    arm: Backend = _open(robot, rec, stall_ms, q0=q0, workcell_factory=f"{_CELLS}:peg_hole_workcell",
-                                factory_args=(peg, hole))
-                elif kind == "sim":
-                    wc, _ = peg_hole_workcell(peg, hole)
-                    wc.reset(q0)
-                    wc.hold(0.2)
-                    arm = SimRobot(wc, recorder=rec)
-                else:
-                    arm = _open(robot, rec, stall_ms)
-                with arm:
-                    _go_to(arm, arm_robot, q0)
-                    bottom = arm_robot.fk(q0)[:3, 3] - [0.0, 0.0, hole.advance()]
-                    src = _source(wrench, arm_robot, peg, (bottom, 1500.0))
-                    with _progress(f"insertion {k + 1}/{trials}", int(time_limit / arm.period)) as tick:
-                        res = run_insertion(arm, arm_robot, skill.predict, hole.advance(), source=src,
-                                            time_limit=time_limit, on_cycle=tick)
-                wins += res.success
-                f = res.outcome.figures
-                table.add_row(str(k + 1), "seated" if res.success else res.outcome.detail,
-                              f"{f.get('time_s', float('nan')):.2f}", f"{f['max_force_n']:.1f}",
-                              f"{f['advance_m'] * 1e3:.1f}")
-        finally:
-            if rec is not None:
-                rec.close()
-        console.print(table)
-        console.print(f"seated {wins}/{trials}" + (f"; recorded to {record}" if record is not None else ""))
-    except RobointelError as exc:
-        fail(exc)
 
 
 @skill_app.command("grind")
@@ -299,7 +226,7 @@ def grasp_execute(category: str = typer.Option("box", help="category of the rand
 
 
 def register(app: typer.Typer) -> None:
-    """Add ``skill insert|grind`` and ``grasp execute`` to the application.
+    """Add ``skill grind`` and ``grasp execute`` to the application (``skill insert``: :mod:`.insertion`).
 
     Args:
         app: The top-level typer application (the ``grasp`` group is registered before this module).

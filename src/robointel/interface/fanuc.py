@@ -32,6 +32,7 @@ from airo_fanuc.exceptions import (
 from robointel.errors import ConnectionLost, ControllerFault, InvalidInput, UnsafeCommand
 from robointel.interface import stream_state as ss
 from robointel.interface.backend import Backend, ExecutionResult, Recorder, sleep_until
+from robointel.interface.fanuc_faults import bringup_cause, probe_rmi, read_alarms
 from robointel.interface.fanuc_registers import RegisterIO
 from robointel.interface.ft_sensor import WrenchSource, open_ft_sensor
 from robointel.interface.profile import lrmate_profile
@@ -152,17 +153,25 @@ class FanucRobot(RegisterIO, Backend):
     def _open_driver(self) -> Any:
         """Bring up a driver session (in the streaming process or here).
 
+        The RMI port is probed first (an unreachable host or a closed port is named in a few seconds); a
+        failed bring-up is reported as one sentence naming the cause (:func:`~.fanuc_faults.bringup_cause`).
+
         Raises:
-            ConnectionLost: the controller cannot be brought up.
+            ConnectionLost: the controller cannot be brought up; the message names the cause.
         """
+        where = f"could not bring up the FANUC controller at {self.host}:{self.rmi_port}"
+        why = probe_rmi(self.host, self.rmi_port)
+        if why is not None:
+            raise ConnectionLost(f"{where}: {why}", value=self.host, reason=why)
         try:
             if self.stream_process:
                 return StreamProcess(self.host, self.policy, period=self.period, lookahead_s=self.lookahead_s,
                                      stall_periods=self.stall_periods if self.stall_periods is not None else 10**9)
             return FanucDriver(self.host, self.policy)
-        except FanucError as exc:
-            raise ConnectionLost(f"could not bring up the FANUC controller at {self.host}:{self.rmi_port}: {exc}",
-                                 reason=str(exc)) from exc
+        except (FanucError, ConnectionLost, OSError, ValueError) as exc:
+            cause = bringup_cause(str(exc) if not isinstance(exc, ValueError) else f"{type(exc).__name__}: {exc}",
+                                  host=self.host, rmi_port=self.rmi_port, sm_port=self.policy.config.sm_port)
+            raise ConnectionLost(f"{where}: {cause}", value=self.host, reason=cause) from exc
 
     # ------------------------------------------------------------------ backend hooks
     def _read(self) -> RobotState:
@@ -262,6 +271,20 @@ class FanucRobot(RegisterIO, Backend):
 
     def _needs_monitor(self) -> bool:
         return True
+
+    def _latch_fault(self, mode: RobotMode, why: str, faults: tuple[str, ...]) -> None:
+        """Stop commanding (the base class), then name the controller's active alarms in the reason.
+
+        A fault always carries a reason: the fault names when the caller gave none, and for an alarm or an
+        e-stop the alarm texts the controller reports over RMI (``FRC_ReadError``), e.g. ``SRVO-002 Teach
+        pendant E-stop``; a failed read leaves the reason as it was.
+        """
+        super()._latch_fault(mode, why or f"controller fault [{', '.join(faults) or 'unknown'}]", faults)
+        if mode is RobotMode.FAULTED and {"in_error", "e_stop", "motion_not_possible"} & set(faults):
+            texts = read_alarms(self.driver, streaming=self.stream_process)
+            if texts:
+                self._why = f"{self._why}; controller alarms: {'; '.join(texts)}"
+
 
     def _send(self, q: npt.NDArray[np.float64]) -> None:
         try:

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
+from robointel._extras import needs_extra
 from robointel.errors import InvalidInput
 from robointel.interface.backend import Backend, Recorder
 
@@ -43,6 +44,7 @@ def parse_robot_url(url: str) -> RobotURL:
 
     Raises:
         InvalidInput: not a string, an unknown scheme or query key, a malformed port or flag.
+        MissingExtra: a ``fanuc://`` URL without airo-fanuc (the ``fanuc`` extra).
     """
     if not isinstance(url, str):
         raise InvalidInput(f"robot URL must be a string, got {url!r}", value=url)
@@ -63,7 +65,8 @@ def parse_robot_url(url: str) -> RobotURL:
     parts = urlsplit(url)
     if parts.scheme != "fanuc" or not parts.hostname:
         raise InvalidInput(f"unknown robot {url!r}: use {ROBOT_FORMS}", value=url)
-    from robointel.interface.fanuc import DEFAULT_RMI_PORT, DEFAULT_SM_PORT
+    with needs_extra("fanuc", f"the FANUC robot {url!r}"):
+        from robointel.interface.fanuc import DEFAULT_RMI_PORT, DEFAULT_SM_PORT
 
     try:
         rmi_port = parts.port or DEFAULT_RMI_PORT
@@ -99,6 +102,7 @@ def open_robot(url: str = "sim", *, recorder: Recorder | None = None, **kwargs: 
 
     Raises:
         InvalidInput: an unknown scheme or a malformed URL.
+        MissingExtra: a ``fanuc://`` URL without airo-fanuc (the ``fanuc`` extra).
         ConnectionLost: the FANUC controller cannot be brought up.
     """
     u = parse_robot_url(url)
@@ -113,6 +117,7 @@ def open_robot(url: str = "sim", *, recorder: Recorder | None = None, **kwargs: 
         from robointel.interface.sim import SimRobot
 
         return SimRobot(recorder=recorder, **kwargs)
-    from robointel.interface.fanuc import FanucRobot
+    with needs_extra("fanuc", f"the FANUC robot {url!r}"):
+        from robointel.interface.fanuc import FanucRobot
 
     return FanucRobot(u.host, rmi_port=u.rmi_port, sm_port=u.sm_port, recorder=recorder, **kwargs)

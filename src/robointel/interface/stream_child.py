@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import gc
+import logging
 import math
 import mmap
 import os
@@ -472,6 +473,8 @@ def _request(name: str, args: tuple, kwargs: dict, driver: Any, player: Player, 
         if driver.rmi is None:
             raise FanucConnectionError("no RMI session")
         return getattr(driver.rmi, name[4:])(*args)
+    if name == "alarms":  # the controller's active alarm texts (FRC_ReadError), for the fault's reason
+        return [] if driver.rmi is None else list(driver.rmi.read_error(int(args[0]) if args else 3).messages)
     raise ValueError(f"unknown request {name!r}")
 
 
@@ -483,9 +486,12 @@ def main(conn_fd: int, shm_fd: int, wake_fd: int = -1) -> None:
     # holding the interpreter lock they would delay this thread); the core's thread sets its own FIFO 80.
     with contextlib.suppress(OSError):  # PermissionError without CAP_SYS_NICE
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(PRIORITY))
+    # the driver logs each failed bring-up attempt; the caller reports the cause in one line instead
+    logging.getLogger("airo_fanuc").addHandler(logging.NullHandler())
+    logging.getLogger("airo_fanuc").propagate = False
     try:
         driver = FanucDriver(host, policy)
-    except FanucError as exc:
+    except Exception as exc:  # any failure (a reply that is not RMI's too) goes back as one message, no traceback
         conn.send((False, (type(exc).__name__, str(exc))))
         return
     gc.collect()

@@ -24,14 +24,20 @@ import json
 import shutil
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 
+from robointel._extras import optional_module
 from robointel.errors import DataMissing, InvalidInput
 from robointel.io.episode import STATE, Episode
+
+if TYPE_CHECKING:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+else:
+    pa = optional_module("pyarrow", "datasets", "a LeRobot dataset")
+    pq = optional_module("pyarrow.parquet", "datasets", "a LeRobot dataset")
 
 CODEBASE_VERSION = "v3.0"
 CHUNKS_SIZE = 1000  # files per chunk folder

@@ -21,14 +21,19 @@ import threading
 import time
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
-from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.typesys import Stores, get_typestore
 
+from robointel._extras import optional_module
 from robointel.errors import InvalidInput
+
+if TYPE_CHECKING:
+    from rosbags import rosbag2, typesys
+else:
+    rosbag2 = optional_module("rosbags.rosbag2", "datasets", "recording a run as a ROS 2 bag")
+    typesys = optional_module("rosbags.typesys", "datasets", "recording a run as a ROS 2 bag")
 
 JOINT_STATES = "/joint_states"
 WRENCH = "/ft_sensor/wrench"
@@ -48,6 +53,7 @@ class McapRecorder:
 
     Raises:
         InvalidInput: the path does not end in ``.mcap`` or its directory does not exist.
+        MissingExtra: rosbags is not installed (the ``datasets`` extra).
     """
 
     def __init__(self, path: str | Path, joint_names: list[str], *, frame_id: str = "ft_sensor") -> None:
@@ -59,7 +65,7 @@ class McapRecorder:
         self.frame_id = frame_id
         self._items: list[tuple[str, int, Any]] = []
         self._lock = threading.Lock()
-        self._ts = get_typestore(Stores.ROS2_HUMBLE)
+        self._ts = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
         self._closed = False
         self.counts: dict[str, int] = {}
 
@@ -127,7 +133,7 @@ class McapRecorder:
         with tempfile.TemporaryDirectory(dir=self.path.parent) as tmp:
             bag = Path(tmp) / "bag"
             counts: dict[str, int] = {}
-            with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+            with rosbag2.Writer(bag, version=9, storage_plugin=rosbag2.StoragePlugin.MCAP) as w:
                 conns = {}
                 for topic in (JOINT_STATES, WRENCH, COMMAND, TRAJECTORY):
                     if any(it[0] == topic for it in items):

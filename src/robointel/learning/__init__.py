@@ -18,8 +18,9 @@ Chapter 5 modules (import them directly; nothing heavy is imported here):
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from robointel._lazy import lazy_exports
 
 if TYPE_CHECKING:  # the names below are imported on first access (keeps `import` light)
     from robointel.learning.datasets import FTEpisodes, LasaShape, load_ft, load_lasa
@@ -54,14 +55,4 @@ __all__ = [
     "load_demonstrations", "load_ft", "load_lasa", "save_demonstrations", "warp_to",
 ]
 
-
-def __getattr__(name: str) -> Any:
-    """Import a public name from its module on first access."""
-    if name in _EXPORTS:
-        return getattr(importlib.import_module(_EXPORTS[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    """The public names."""
-    return list(__all__)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, __all__)

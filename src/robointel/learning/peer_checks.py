@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from robointel._extras import needs_extra
 from robointel.learning.dtw import dtw_distance
 
 
@@ -27,7 +28,8 @@ def dtw_speed(*, length: int = 1000, dims: int = 6, window: int = 100, reps: int
     Returns:
         ``dtw_ms`` and ``dtaidistance_ms`` (medians) and ``dtw_max_abs_diff`` (largest |distance difference|).
     """
-    from dtaidistance import dtw_ndim  # dev extra: a peer, imported only when compared
+    with needs_extra("peers", "the dtaidistance comparison"):
+        from dtaidistance import dtw_ndim  # a peer, imported only when compared
 
     rng = np.random.default_rng(seed)
     a = np.cumsum(rng.normal(size=(length, dims)), 0)
@@ -62,7 +64,8 @@ def gmr_agreement(model: Any, X: npt.NDArray[np.float64]) -> float:
     Returns:
         The largest absolute difference.
     """
-    import gmr as gmr_peer  # dev extra: a peer, imported only when compared
+    with needs_extra("peers", "the gmr comparison"):
+        import gmr as gmr_peer  # a peer, imported only when compared
 
     g = model.gmr if hasattr(model, "gmr") else model
     peer = gmr_peer.GMM(len(g.priors_), priors=g.priors_, means=g.means_, covariances=g.covariances_)

@@ -10,7 +10,7 @@
 - :func:`plan_motion` -- start-to-goal planning in cluttered cells for any arm (RRT-Connect on the
   compiled sphere checks, shortcutting, temporal optimization, dense check) in an :class:`Environment`.
 - :func:`receding_horizon` -- warm-started replanning with a moving obstacle.
-- Baselines: :func:`slsqp`, :func:`slsqp_segment` (SQP), :func:`rrtconnect` (OMPL, dev extra).
+- Baselines: :func:`slsqp`, :func:`slsqp_segment` (SQP), :func:`rrtconnect` (OMPL, the ``peers`` extra).
 """
 
 

@@ -4,13 +4,12 @@ Most samples the search checks collide (95 % of a cage goal tree's), and most of
 links at the end of the chain (the gripper in a cage's bars: 55 % of the refusals of cage 12's
 goal-side samples). :func:`config_free` therefore looks at the sphere groups from the tool back to
 the base, and it tests against ``thresh`` alone (no running minimum, no capped distance), which
-the compiler makes cheaper for free samples too. The pairs tested, and the test of each, are those
+the compiler makes cheaper for free samples too; the self-collision pairs compare squared distances
+(no root). The pairs tested, and the test of each, are those
 of :func:`~robointel.planning._collision_kernels.config_valid` with ``cap = stop = thresh`` (the
 packed world ``W`` is described there); only their order differs, so the verdict is the same.
 """
 from __future__ import annotations
-
-import math
 
 from numba import njit
 
@@ -51,15 +50,19 @@ def config_free(q: Arr, W: tuple, T: Arr, C: Arr, G: Arr, out: Arr, thresh: floa
     gpairs, smask, ssr, sgr = W[14], W[15], W[21], W[22]
     for p in range(gpairs.shape[0]):
         a, b = gpairs[p, 0], gpairs[p, 1]
+        lim = thresh + sgr[a] + sgr[b]  # squared distances: no root (a distance is never negative)
+        if lim <= 0.0:
+            continue
         dx, dy, dz = G[a, 0] - G[b, 0], G[a, 1] - G[b, 1], G[a, 2] - G[b, 2]
-        if math.sqrt(dx * dx + dy * dy + dz * dz) - sgr[a] - sgr[b] >= thresh:
+        if dx * dx + dy * dy + dz * dz >= lim * lim:
             continue
         for i in range(gs[a], gs[a + 1]):
             for j in range(gs[b], gs[b + 1]):
                 if smask[i, j] == 0:
                     continue
+                lim = thresh + ssr[i] + ssr[j]
                 dx, dy, dz = C[i, 0] - C[j, 0], C[i, 1] - C[j, 1], C[i, 2] - C[j, 2]
-                if math.sqrt(dx * dx + dy * dy + dz * dz) - ssr[i] - ssr[j] < thresh:
+                if lim > 0.0 and dx * dx + dy * dy + dz * dz < lim * lim:
                     out[0], out[1], out[2] = SELF, i, j
                     return False
     return True

@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numba import njit
 
-from robointel.planning._edge_kernels import root_edge
+from robointel.planning._batch_edges import root_edge_batch
 from robointel.planning._node_check import config_free
 
 
@@ -96,14 +96,15 @@ def _steer(a, b, dist, rng, out):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def rrt_connect(X, parent, count, lower, upper, iters, rng, win, W, Wr, nroot, rcap, T, C, G, out, thresh,
-                lever, res, link):  # pragma: no cover - compiled
+                lever, res, link, BS):  # pragma: no cover - compiled
     """Run up to ``iters`` RRT-Connect iterations.
 
     Returns 1 when the trees met (``link`` = (tree-0 node,
     tree-1 node)), 0 when not yet, -1 when a tree is full. Nodes are checked in world ``W``; edges
     leaving one of the ``nroot[t]`` roots of tree t are checked in world ``Wr`` (the roots may be
     valid only there) for their first ``rcap`` rad (max |dq|) and in ``W`` beyond
-    (:func:`~robointel.planning._edge_kernels.root_edge`), all other edges in ``W``.
+    (:func:`~robointel.planning._batch_edges.root_edge_batch`, ``BS`` the batch state), all other
+    edges in ``W``.
 
     ``X`` (2, n, cap): the nodes of each tree joint by joint, node i of tree t ``X[t, :, i]``
     (the caller writes the roots, the kernel every node it adds); ``parent`` (2, cap) int64.
@@ -135,8 +136,8 @@ def rrt_connect(X, parent, count, lower, upper, iters, rng, win, W, Wr, nroot, r
         for k in range(n):
             qa[k] = X[a, k, i]
         _steer(qa, qr, d, rng[a], qn)
-        ok = config_free(qn, W, T, C, G, out, thresh) and root_edge(
-            qa, qn, Wr, W, i < nroot[a], np.bool_(False), rcap, T, C, G, out, thresh, lever, res, 0.0)
+        ok = config_free(qn, W, T, C, G, out, thresh) and root_edge_batch(
+            qa, qn, Wr, W, i < nroot[a], np.bool_(False), rcap, BS, thresh, res, out)
         _adapt(rng, win, a, ok)
         if not ok:
             continue
@@ -154,8 +155,7 @@ def rrt_connect(X, parent, count, lower, upper, iters, rng, win, W, Wr, nroot, r
             reached = _steer(qa, qn, d, rng[b], qr)
             if not reached and not config_free(qr, W, T, C, G, out, thresh):
                 break
-            if not root_edge(qa, qr, Wr, W, j < nroot[b], np.bool_(False), rcap, T, C, G, out, thresh,
-                             lever, res, 0.0):
+            if not root_edge_batch(qa, qr, Wr, W, j < nroot[b], np.bool_(False), rcap, BS, thresh, res, out):
                 break
             if reached:
                 if a == 0:

@@ -13,19 +13,20 @@ polyline takes about its *time length* (sum over its segments of max_k |dq_k| / 
 - a candidate is checked only when it lowers the estimate; the corners left are then cut toward
   their neighbours' midpoint (where the estimate says that saves time).
 
-Every new edge is checked by the shortcut's own edge check (>= thresh - res / 2 on the edge, its end
->= thresh; :func:`~robointel.planning._shortcut_kernels.edge_fine`), edges from the first or to the
-last vertex by :func:`~robointel.planning._shortcut_kernels.root_edge_fine` (relaxed world within
-``rcap`` of that vertex), so every edge of the result keeps that guarantee.
+Every new edge is checked in batches of points (>= thresh - res / 2 on the edge, its end >= thresh;
+:func:`~robointel.planning._batch_edges.edge_batch`), edges from the first or to the last vertex by
+:func:`~robointel.planning._batch_edges.root_edge_batch` (relaxed world within ``rcap`` of that
+vertex), so every edge of the result keeps that guarantee. ``BS`` is the environment's batch state
+(:func:`~robointel.planning._batch_edges.batch_state`).
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
-from robointel.planning._collision_kernels import config_valid
-from robointel.planning._edge_kernels import edge_valid_bisect
-from robointel.planning._shortcut_kernels import PULL_FRACTIONS, root_edge_fine
+from robointel.planning._batch_edges import edge_batch, root_edge_batch
+from robointel.planning._batch_kernels import LANES, batch_free
+from robointel.planning._shortcut_kernels import PULL_FRACTIONS
 
 #: share of the random tries that are partial (one-joint) shortcuts
 PARTIAL_SHARE = 0.5
@@ -191,17 +192,17 @@ def _faster(P: np.ndarray, npts: int, s1: int, s2: int, qa: np.ndarray, qb: np.n
 
 
 @njit(cache=True)
-def greedy(P: np.ndarray, npts: int, Q: np.ndarray, W: tuple, Wr: tuple, rcap: float, T: np.ndarray, C: np.ndarray,
-           G: np.ndarray, out: np.ndarray, thresh: float, lever: np.ndarray,
+def greedy(P: np.ndarray, npts: int, Q: np.ndarray, W: tuple, Wr: tuple, rcap: float, BS: tuple, out: np.ndarray,
+           thresh: float, lever: np.ndarray,
            res: float) -> int:  # pragma: no cover - compiled
-    """Each vertex joined to the farthest later vertex it sees (root edges as ``root_edge_fine``)."""
+    """Each vertex joined to the farthest later vertex it sees (root edges as ``root_edge_batch``)."""
     Q[0] = P[0]
     m = 1
     i = 0
     while i < npts - 1:
         j = npts - 1
-        while j > i + 1 and not root_edge_fine(P[i], P[j], Wr, W, i == 0, j == npts - 1, rcap, T, C, G, out, thresh,
-                                               lever, res):
+        while j > i + 1 and not root_edge_batch(P[i], P[j], Wr, W, i == 0, j == npts - 1, rcap, BS, thresh,
+                                               res, out):
             j -= 1
         Q[m] = P[j]
         m += 1
@@ -212,8 +213,8 @@ def greedy(P: np.ndarray, npts: int, Q: np.ndarray, W: tuple, Wr: tuple, rcap: f
 
 
 @njit(cache=True)
-def tighten_time(P: np.ndarray, npts: int, W: tuple, Wr: tuple, rcap: float, T: np.ndarray, C: np.ndarray,
-                 G: np.ndarray, out: np.ndarray, thresh: float, lever: np.ndarray, res: float, w: np.ndarray,
+def tighten_time(P: np.ndarray, npts: int, W: tuple, Wr: tuple, rcap: float, BS: tuple, out: np.ndarray,
+                 thresh: float, lever: np.ndarray, res: float, w: np.ndarray,
                  ia: np.ndarray) -> int:  # pragma: no cover - compiled
     """One pass over the inner vertices of P[:npts], each corner cut toward its neighbours' midpoint.
 
@@ -239,9 +240,9 @@ def tighten_time(P: np.ndarray, npts: int, W: tuple, Wr: tuple, rcap: float, T: 
         for f in PULL_FRACTIONS:
             for k in range(n):
                 q[k] = P[i, k] + f * (0.5 * (P[i - 1, k] + P[i + 1, k]) - P[i, k])
-            if (root_edge_fine(P[i - 1], q, Wr, W, i == 1, False, rcap, T, C, G, out, thresh, lever, res)
-                    and root_edge_fine(q, P[i + 1], Wr, W, False, i + 1 == npts - 1, rcap, T, C, G, out, thresh,
-                                       lever, res)):
+            if (root_edge_batch(P[i - 1], q, Wr, W, i == 1, False, rcap, BS, thresh, res, out)
+                    and root_edge_batch(q, P[i + 1], Wr, W, False, i + 1 == npts - 1, rcap, BS, thresh,
+                                       res, out)):
                 for k in range(n):
                     P[i, k] = q[k]
                 moved += 1
@@ -250,21 +251,26 @@ def tighten_time(P: np.ndarray, npts: int, W: tuple, Wr: tuple, rcap: float, T: 
 
 
 @njit(cache=True)
-def _checked(V: np.ndarray, nv: int, W: tuple, T: np.ndarray, C: np.ndarray, G: np.ndarray, out: np.ndarray,
-             thresh: float, lever: np.ndarray, res: float) -> bool:  # pragma: no cover - compiled
-    """Whether the chain V[:nv] passes: V[1:nv] >= thresh (cheap, first), then every edge by bisection."""
-    for r in range(1, nv):
-        if not config_valid(V[r], W, T, C, G, out, thresh):
+def _checked(V: np.ndarray, nv: int, W: tuple, BS: tuple, out: np.ndarray, thresh: float, lever: np.ndarray,
+             res: float) -> bool:  # pragma: no cover - compiled
+    """Whether the chain V[:nv] passes: V[1:nv] >= thresh (cheap, first, in batches), then every edge in batches."""
+    Qt = BS[1][0]
+    for r0 in range(1, nv, LANES):
+        B = min(LANES, nv - r0)
+        for b in range(B):
+            for k in range(V.shape[1]):
+                Qt[k, b] = V[r0 + b, k]
+        if batch_free(B, W, BS[0], BS[1], thresh, out) >= 0:
             return False
     for r in range(nv - 1):
-        if not edge_valid_bisect(V[r], V[r + 1], W, T, C, G, out, thresh, lever, res):
+        if not edge_batch(V[r], V[r + 1], W, BS, thresh, res, out):
             return False
     return True
 
 
 @njit(cache=True)
-def shortcut_time(P: np.ndarray, npts: int, iters: int, W: tuple, Wr: tuple, rcap: float, T: np.ndarray,
-                  C: np.ndarray, G: np.ndarray, out: np.ndarray, thresh: float, lever: np.ndarray, res: float,
+def shortcut_time(P: np.ndarray, npts: int, iters: int, W: tuple, Wr: tuple, rcap: float, BS: tuple,
+                  out: np.ndarray, thresh: float, lever: np.ndarray, res: float,
                   w: np.ndarray, ia: np.ndarray) -> int:  # pragma: no cover - compiled
     """Shorten P[:npts] in place in estimated motion time; returns the new vertex count.
 
@@ -281,7 +287,7 @@ def shortcut_time(P: np.ndarray, npts: int, iters: int, W: tuple, Wr: tuple, rca
     Q = np.empty_like(P)
     V = np.empty_like(P)
     A = np.empty((cap + 4, n))
-    npts = greedy(P, npts, Q, W, Wr, rcap, T, C, G, out, thresh, lever, res)
+    npts = greedy(P, npts, Q, W, Wr, rcap, BS, out, thresh, lever, res)
     L = np.empty(cap)
     qa = np.empty(n)
     qb = np.empty(n)
@@ -306,11 +312,10 @@ def shortcut_time(P: np.ndarray, npts: int, iters: int, W: tuple, Wr: tuple, rca
             V[0] = qa
             V[1] = qb
             nv = 2
-        if _faster(P, npts, s1, s2, qa, qb, V, nv, A, w, ia) and _checked(V, nv, W, T, C, G, out, thresh, lever,
-                                                                           res):
+        if _faster(P, npts, s1, s2, qa, qb, V, nv, A, w, ia) and _checked(V, nv, W, BS, out, thresh, lever, res):
             npts = _splice(P, npts, Q, s1, s2, V, nv)
     if npts >= 3:
-        tighten_time(P, npts, W, Wr, rcap, T, C, G, out, thresh, lever, res, w, ia)
+        tighten_time(P, npts, W, Wr, rcap, BS, out, thresh, lever, res, w, ia)
     # drop vertices that are (almost) duplicates of their predecessor
     m = 1
     for r in range(1, npts):

@@ -17,13 +17,14 @@ from robointel.errors import InvalidInput
 from robointel.geometry.table import ENVIRONMENT_NAMES
 from robointel.outcome import Failure, TrialOutcome
 from robointel.planning.scene import Scene
+from robointel.planning.segment import self_clearances
 from robointel.planning.temporal import TemporalResult, concatenate_segments, fixed_dt_segment, temporal_optimize
 from robointel.planning.waypoints import PlannerSettings, SegmentPlan, TrajectoryPlanner, sphere_clearances
-from robointel.sim import Workcell
 from robointel.trajectory import Trajectory
 
 if TYPE_CHECKING:  # pragma: no cover
     from robointel.robot import Robot
+    from robointel.sim import Workcell
 
 
 @dataclass
@@ -37,6 +38,9 @@ class TrajectoryCheck:
         max_velocity_ratio, max_acceleration_ratio: largest |qd|/vmax and |qdd|/amax.
         samples: number of samples checked.
         worst_link, worst_obstacle: where the clearance is smallest.
+        min_self_clearance: smallest distance between the spheres of a self-collision pair (m; inf
+            without self pairs); negative: the arm hits itself.
+        self_links: the two links of that pair.
     """
 
     min_clearance: float
@@ -46,11 +50,13 @@ class TrajectoryCheck:
     samples: int
     worst_link: str = ""
     worst_obstacle: str = ""
+    min_self_clearance: float = float("inf")
+    self_links: tuple[str, str] = ("", "")
 
 
 def check_trajectory(traj: Trajectory, robot: Robot, obstacles: Any, vmax: ArrayLike, amax: ArrayLike, *,
                      dt: float = 0.001, rtol: float = 1e-6) -> TrajectoryCheck:
-    """Resample ``traj`` every ``dt`` and check clearance and joint limits."""
+    """Resample ``traj`` every ``dt`` and check clearance (obstacles and self-collision pairs) and joint limits."""
     dense = traj.resample(dt)
     q, qd, qdd = dense.q, dense.qd, dense.qdd
     vmax = np.asarray(vmax, float)
@@ -69,10 +75,18 @@ def check_trajectory(traj: Trajectory, robot: Robot, obstacles: Any, vmax: Array
         dmin = best[0]
         link = robot.spheres.links[best[1]]
         obs = obstacles[best[2]].label(best[2])
+    smin, pair = np.inf, ("", "")
+    sm = robot.spheres
+    if len(sm.self_pairs):
+        for s in range(0, len(q), 4000):
+            ds, _ = self_clearances(robot, q[s:s + 4000])
+            i, p = (int(x) for x in np.unravel_index(int(np.argmin(ds)), ds.shape))
+            if ds[i, p] < smin:
+                smin, pair = float(ds[i, p]), (sm.links[int(sm.self_pairs[p][0])], sm.links[int(sm.self_pairs[p][1])])
     return TrajectoryCheck(min_clearance=float(dmin), limit_violations=viol,
                            max_velocity_ratio=float(np.max(np.abs(qd) / vmax)),
                            max_acceleration_ratio=float(np.max(np.abs(qdd) / amax)), samples=len(q),
-                           worst_link=link, worst_obstacle=obs)
+                           worst_link=link, worst_obstacle=obs, min_self_clearance=float(smin), self_links=pair)
 
 
 @dataclass
@@ -134,7 +148,7 @@ class FRMPResult:
 
     @property
     def outcome(self) -> TrialOutcome:
-        """The plan as a trial: success when the dense check finds positive clearance and no limit violation.
+        """The plan as a trial: success when the dense check finds clearance, no self-collision, no limit violation.
 
         Failures: ``Failure.COLLISION`` (clearance <= 0), else ``Failure.LIMIT``. Figures: ``min_clearance_m``,
         ``limit_violations``, ``duration_s`` (cycle time) and ``plan_ms``.
@@ -144,6 +158,9 @@ class FRMPResult:
                    "duration_s": float(self.trajectory.t[-1] - self.trajectory.t[0]), "plan_ms": self.plan_ms}
         if c.min_clearance <= 0.0:
             return TrialOutcome(False, Failure.COLLISION, f"clearance {c.min_clearance:.4f} m", figures)
+        if c.min_self_clearance < 0.0:
+            return TrialOutcome(False, Failure.COLLISION, f"self-collision: {c.self_links[0]} and {c.self_links[1]} "
+                                f"{-c.min_self_clearance * 1e3:.1f} mm into each other", figures)
         if c.limit_violations:
             return TrialOutcome(False, Failure.LIMIT, f"{c.limit_violations} limit violations", figures)
         return TrialOutcome(True, Failure.NONE, f"clearance {1000 * c.min_clearance:.1f} mm", figures)
@@ -256,6 +273,8 @@ def execute(result: FRMPResult, *, workcell: Workcell | None = None) -> Executio
     # the workcell builds its own table and floor: pass only the scene's other obstacles
     obstacles = [o for o in scene.obstacles if not (getattr(scene, "table", False)
                                                     and getattr(o, "name", None) in ENVIRONMENT_NAMES)]
+    from robointel.sim import Workcell  # MuJoCo loads here, not with the planner
+
     wc = workcell or Workcell(scene.robot, obstacles=obstacles, ft_sensor=False)
     tr = result.trajectory
     log = wc.run_trajectory(tr, record_ft=False)

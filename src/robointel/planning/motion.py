@@ -20,9 +20,9 @@ import numpy.typing as npt
 
 from robointel.errors import IKFailure, InvalidInput
 from robointel.outcome import Failure
+from robointel.planning import _batch_edges as BE
 from robointel.planning import _collision_kernels as K
 from robointel.planning import _dense_kernels as D
-from robointel.planning import _edge_kernels as E
 from robointel.planning import _rrt_kernels as R
 from robointel.planning import _time_shortcut as TS
 from robointel.planning.budget_clock import budget_clock
@@ -43,10 +43,12 @@ from robointel.planning.motion_settings import MotionSettings
 from robointel.planning.polyline_timing import polyline_timing
 from robointel.planning.temporal import temporal_optimize
 from robointel.planning.topp import densify, topp_spline
-from robointel.planning.tree_search import path_valid, search, warm_search
+from robointel.planning.tree_search import batch_state, path_valid, search, warm_search
 from robointel.robot.model import Robot
 from robointel.trajectory import Trajectory
 
+#: the process CPU clock of the stage times (bound once: tests replace the module's ``time`` with a fake wall clock)
+_cpu_clock = time.process_time
 #: how far the fitted spheres (inside the meshes) are grown for self-collision during a plan, at most, m
 SELF_MARGIN = 0.003
 #: random seeds of the numeric IK for a pose goal (each distinct solution joins the goal set)
@@ -64,10 +66,12 @@ class MotionPlan:
         trajectory: the time-parametrised trajectory (None when no path was found).
         path: (k, n) geometric waypoints before timing, rad.
         plan_ms: wall time of the whole call, ms.
-        timings: wall time per stage, ms.
+        timings: wall time per stage, ms (summed over the attempts).
         min_clearance_m: smallest clearance of the checked trajectory, m (capped at d_min + 0.1;
             see :class:`~robointel.planning.motion_check.DenseCheck`).
         goal_index: index of the goal reached in the goal set (-1 when none).
+        cpu_timings: process CPU time per stage, ms (the keys of ``timings``; on a shared machine the
+            wall time also counts the other processes' turns).
     """
 
     success: bool
@@ -79,6 +83,20 @@ class MotionPlan:
     timings: dict[str, float] = field(default_factory=dict)
     min_clearance_m: float = float("nan")
     goal_index: int = -1
+    cpu_timings: dict[str, float] = field(default_factory=dict)
+
+
+class StageTimes(dict):
+    """Wall time per stage, ms (the dict itself), with the process CPU time per stage, ms, in ``cpu``."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.cpu: dict[str, float] = {}
+
+    def add(self, name: str, wall0: float, cpu0: float) -> None:
+        """Add the time since ``wall0`` (``time.perf_counter``) and ``cpu0`` (``_cpu_clock``) to ``name``."""
+        self[name] = self.get(name, 0.0) + (time.perf_counter() - wall0) * 1e3
+        self.cpu[name] = self.cpu.get(name, 0.0) + (_cpu_clock() - cpu0) * 1e3
 
 
 def _goal_set(robot: Robot, goal: npt.ArrayLike | Sequence[npt.ArrayLike], seed: int) -> np.ndarray:
@@ -110,9 +128,10 @@ def _goal_set(robot: Robot, goal: npt.ArrayLike | Sequence[npt.ArrayLike], seed:
                      for k, q in enumerate(g)])
 
 
-def _fail(reason: str, failure: Failure, t0: float, timings: dict[str, float], path: np.ndarray | None = None,
+def _fail(reason: str, failure: Failure, t0: float, timings: StageTimes, path: np.ndarray | None = None,
           traj: Trajectory | None = None, clearance: float = float("nan"), goal: int = -1) -> MotionPlan:
-    return MotionPlan(False, reason, failure, traj, path, (time.perf_counter() - t0) * 1e3, timings, clearance, goal)
+    return MotionPlan(False, reason, failure, traj, path, (time.perf_counter() - t0) * 1e3, dict(timings), clearance,
+                      goal, dict(timings.cpu))
 
 
 def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
@@ -140,8 +159,8 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
     if not isinstance(environment, Environment) or environment.robot is not robot:
         raise InvalidInput("environment must be an Environment built for this robot", value=environment)
     _warmup(environment)
-    t0 = time.perf_counter()
-    timings: dict[str, float] = {}
+    t0, c0 = time.perf_counter(), _cpu_clock()
+    timings = StageTimes()
     if not isinstance(settings, MotionSettings):
         raise InvalidInput("settings must be a MotionSettings", value=settings)
     st = settings
@@ -162,7 +181,7 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
     env.set_self_offset(st.d_min)
     try:
         with budget_clock(st.budget_clock):
-            return _plan(env, q0, goals, st, t0, timings)
+            return _plan(env, q0, goals, st, t0, c0, timings)
     finally:
         env.set_self_offset(0.0)
         env.use(model)
@@ -173,8 +192,8 @@ def _roots_free(env: Environment, q0: np.ndarray, goals: np.ndarray, d_min: floa
             and any(env.clearance(g, cap=d_min + 1.0) >= d_min for g in goals))
 
 
-def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, t0: float,
-          timings: dict[str, float]) -> MotionPlan:
+def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, t0: float, c0: float,
+          timings: StageTimes) -> MotionPlan:
     robot = env.robot
     exact_ids = np.arange(len(goals))  # the caller's index of each goal kept
     if env.exact_self:  # the roots judged on the exact geometry (fitted spheres lie inside it, a file's miss parts)
@@ -216,7 +235,7 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     amax = np.asarray(st.acceleration_limit if st.acceleration_limit is not None else robot.acceleration_limit, float)
     if amax.shape != (robot.nq,) or np.any(amax <= 0):
         raise InvalidInput(f"acceleration_limit must be ({robot.nq},) positive", value=amax)
-    timings["validate"] = (time.perf_counter() - t0) * 1e3
+    timings.add("validate", t0, c0)
 
     now = clock_now()
     deadline = now + st.time_budget_s
@@ -252,13 +271,13 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
         fail = Failure.COLLISION if chk.kind == "collision" else Failure.LIMIT
         return _fail(f"dense check failed: {chk.reason}", fail, t0, timings, path, traj, chk.min_clearance_m,
                      goal_index)
-    return MotionPlan(True, "", Failure.NONE, traj, path, (time.perf_counter() - t0) * 1e3, timings,
-                      chk.min_clearance_m, goal_index)
+    return MotionPlan(True, "", Failure.NONE, traj, path, (time.perf_counter() - t0) * 1e3, dict(timings),
+                      chk.min_clearance_m, goal_index, dict(timings.cpu))
 
 
 def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, deadline: float,
              search_end: float, Wc: tuple, Wr: tuple, rcap: float, vmax: np.ndarray, amax: np.ndarray,
-             timings: dict[str, float], attempt: int, thr: float,
+             timings: StageTimes, attempt: int, thr: float,
              exact: bool = False) -> tuple[np.ndarray | None, int, Trajectory | None, DenseCheck | None, str]:
     """One search, shortcut, timing and dense check: (path, goal, trajectory, check, why not).
 
@@ -269,29 +288,29 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     spheres leave in doubt is checked on the collision meshes (:func:`exact_check`).
     """
     # global stage ----------------------------------------------------------------------------
-    t1 = time.perf_counter()
+    t1, c1 = time.perf_counter(), _cpu_clock()
     path, gi, why = None, -1, ""
     res = float(st.search_resolution)
     while path is None:
         path, gi, why = search(env, q0, goals, st, res, search_end, Wc, Wr, attempt, thr, rcap)
         if path is None:
-            timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
+            timings.add("search", t1, c1)
             return None, -1, None, None, why
         if path_valid(env, path, thr, st.resolution, Wc, Wr, rcap):
             break
         if clock_now() >= deadline:
-            timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
+            timings.add("search", t1, c1)
             return None, -1, None, None, f"the time budget of {st.time_budget_s:g} s ran out re-checking a path"
         path, res = None, res / 4  # an edge failed the fine check: search again, finer
         if res < st.resolution:
             res = float(st.resolution)
-    timings["search"] = timings.get("search", 0.0) + (time.perf_counter() - t1) * 1e3
+    timings.add("search", t1, c1)
     path, traj, chk = _finish(env, path, st, deadline, Wc, Wr, rcap, vmax, amax, timings, attempt, thr, exact)
     return path, gi, traj, chk, ""
 
 
 def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: float, Wc: tuple, Wr: tuple,
-            rcap: float, vmax: np.ndarray, amax: np.ndarray, timings: dict[str, float], attempt: int, thr: float,
+            rcap: float, vmax: np.ndarray, amax: np.ndarray, timings: StageTimes, attempt: int, thr: float,
             exact: bool) -> tuple[np.ndarray, Trajectory | None, DenseCheck | None]:
     """The stages after the search: shortcut, timing and the dense (and mesh) checks of one attempt.
 
@@ -301,31 +320,31 @@ def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
     """
     robot = env.robot
     hybrid = rcap != float("inf")
-    t2 = time.perf_counter()
+    t2, c2 = time.perf_counter(), _cpu_clock()
     s = env.scratch
     P = np.empty((max(len(path) * 2 + 64, 256), robot.nq))
     P[:len(path)] = path
     R.seed(int(st.seed) + 1 + 7 * attempt)
-    m = TS.shortcut_time(P, len(path), int(st.shortcut_iters), Wc, Wr, rcap, s.T, s.C, s.G, s.out, float(thr),
+    m = TS.shortcut_time(P, len(path), int(st.shortcut_iters), Wc, Wr, rcap, batch_state(env), s.out, float(thr),
                          env.lever, float(st.resolution), 1.0 / vmax, 1.0 / amax)
     path = P[:m].copy()
     keep = np.concatenate([[True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-9])
     keep[-1] = True
     path = path[keep]
-    timings["shortcut"] = (time.perf_counter() - t2) * 1e3
+    timings.add("shortcut", t2, c2)
     traj, chk = _smooth(env, path, st, deadline, Wc, hybrid, vmax, amax, timings, exact)
     return path, traj, chk
 
 
 def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: float, Wc: tuple, hybrid: bool,
-            vmax: np.ndarray, amax: np.ndarray, timings: dict[str, float],
+            vmax: np.ndarray, amax: np.ndarray, timings: StageTimes,
             exact: bool) -> tuple[Trajectory | None, DenseCheck | None]:
     """Timing and the dense (and mesh) checks of the shortened ``path``: (trajectory, check).
 
     Args and clock as :func:`_finish`; ``hybrid``: relaxed spheres at the roots (``rcap`` finite).
     """
     robot = env.robot
-    t3 = time.perf_counter()
+    t3, c3 = time.perf_counter(), _cpu_clock()
     names = list(robot.joint_names)
     traj, chk = None, None
     # hybrid: the interior (between the inner vertices) is checked in the covering spheres Wc alone (they
@@ -348,11 +367,11 @@ def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
             chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win, tw)
             if chk.ok or chk.kind != "collision":
                 break
-        timings["smooth"] = (time.perf_counter() - t3) * 1e3
+        timings.add("smooth", t3, c3)
     if chk is not None and not chk.ok and chk.kind != "timeout" and clock_now() >= deadline:
         chk = timed_out("the smoothing", chk)  # a collision or a limit: no rest-to-rest fallback past the budget
     if chk is None or (not chk.ok and chk.kind != "timeout"):  # rest to rest along the checked polyline
-        t4 = time.perf_counter()
+        t4, c4 = time.perf_counter(), _cpu_clock()
         if st.jerk_limited:
             jmax = np.asarray(st.jerk_limit if st.jerk_limit is not None else 10 * amax, float)
             traj = jerk_limited_polyline(path, vmax, amax, jmax, dt=st.check_dt, joint_names=names)
@@ -362,7 +381,7 @@ def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
         chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt,
                           window=(*tw, Wc) if win and tw is not None else None)
         chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win, tw)
-        timings["timing"] = (time.perf_counter() - t4) * 1e3
+        timings.add("timing", t4, c4)
     return traj, chk
 
 
@@ -399,9 +418,9 @@ def _warmup(env: Environment) -> None:
     warm_search(env)
     P = np.array([q, q + 1e-3 * (env.robot.upper - q)])
     one = np.ones(env.robot.nq)
-    TS.shortcut_time(P, 2, 0, W, W, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, one, one)
-    E.root_edge(P[0], P[1], W, W, True, True, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, 0.0)
-    E.edge_valid(P[0], P[1], W, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01)
+    BS = batch_state(env)
+    TS.shortcut_time(P, 2, 0, W, W, 0.2, BS, s.out, 0.0, env.lever, 0.01, one, one)
+    BE.root_edge_batch(P[0], P[1], W, W, True, True, 0.2, BS, 0.0, 0.01, s.out)
     K.samples_clearance(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0, 0.1)
     K.samples_env_below(P, W, s.T, s.C, s.G, s.out, env.lever, 0.0)
     V = np.empty(P.shape)  # the dense check's kernels (called directly: tests count check_dense's calls)

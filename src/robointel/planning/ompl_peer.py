@@ -4,7 +4,7 @@ Same robot spheres, same obstacles and the same clearance (``d_min + safety``) a
 a configuration is valid when every movable sphere is at least that far from every obstacle
 (:func:`robointel.geometry.min_distance`, the compiled minimum over all pairs). Motions are checked by OMPL's
 discrete motion
-validator at ``resolution`` (fraction of the joint-space extent). ``ompl`` is a dev extra.
+validator at ``resolution`` (fraction of the joint-space extent). ``ompl`` comes with the ``peers`` extra.
 """
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from robointel.errors import RobointelError
+from robointel._extras import needs_extra
 from robointel.geometry import min_distance
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -41,12 +41,10 @@ def rrtconnect(robot: Robot, obstacles: Any, start: np.ndarray, goal: np.ndarray
                timeout: float = 10.0, resolution: float = 0.005, simplify: bool = True,
                seed: int | None = 0) -> OMPLResult:
     """Plan from ``start`` to ``goal`` (n,) with OMPL's RRTConnect, then simplify the path."""
-    try:
+    with needs_extra("peers", "the OMPL peer"):
         from ompl import base as ob
         from ompl import geometric as og
         from ompl import util as ou
-    except ImportError as exc:  # pragma: no cover - dev extra
-        raise RobointelError(f"the OMPL peer needs the 'ompl' package (dev extra): {exc}") from None
 
     ou.setLogLevel(ou.LogLevel.LOG_NONE)
     if seed is not None:

@@ -10,14 +10,16 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from robointel.errors import InvalidInput
+from robointel.errors import CollisionAtStart, InvalidInput
 from robointel.geometry import sphere_distances_batch
+from robointel.planning._self_kernels import pair_clearances
 
 if TYPE_CHECKING:  # pragma: no cover
     from robointel.geometry.distance import SphereDistances
     from robointel.robot import Robot
 
-__all__ = ["PlannerSettings", "SegmentPlan", "sphere_clearances", "straight_reference"]
+__all__ = ["Clearances", "PlannerSettings", "SegmentPlan", "all_clearances", "check_self_clear", "self_clearances",
+           "sphere_clearances", "straight_reference"]
 
 
 @dataclass
@@ -43,6 +45,10 @@ class PlannerSettings:
             once; farther ones are added only if the solution violates them.
         elastic: penalty (per metre) on the clearance slacks used while the reference is still in
             collision (the straight line through an obstacle); zero slack once it is clear.
+        self_collision: also keep the robot's self-collision sphere pairs (``robot.spheres.self_pairs``:
+            spheres on non-adjacent links) ``self_d_min`` apart, as constraints of the same QP.
+        self_d_min: required clearance between the spheres of a self-collision pair (m); 0 is what the
+            interface's collision guard accepts (the spheres already cover the links conservatively).
     """
 
     d_min: float = 0.05
@@ -61,9 +67,11 @@ class PlannerSettings:
     elastic: float = 1e2
     reach: float = 0.03
     merit: bool = True
+    self_collision: bool = True
+    self_d_min: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("d_min", "safety", "margin", "w1", "w2", "eps"):
+        for name in ("d_min", "safety", "margin", "w1", "w2", "eps", "self_d_min"):
             v = float(getattr(self, name))
             if not np.isfinite(v) or v < 0:
                 raise InvalidInput(f"planner setting {name} must be finite and >= 0, got {v}", value=v)
@@ -83,8 +91,9 @@ class SegmentPlan:
         iterations: CFS iterations.
         costs: cost at the initial guess and after each iteration.
         status: ``"converged"``, ``"max_iter"`` (best feasible iterate returned) or ``"qp_failed"``.
-        feasible: every sample clear of every obstacle by ``d_min``.
-        min_distance: smallest sphere/obstacle distance over the samples (m).
+        feasible: every sample clear of every obstacle by ``d_min`` (and of itself by ``self_d_min``).
+        min_distance: smallest clearance over the samples (m): a sphere/obstacle distance, or a self pair's
+            distance + ``d_min`` - ``self_d_min`` (its clearance counted against the obstacles' requirement).
         seconds: wall time of the CFS loop.
         blocked: the reference (straight) path violated the clearance.
     """
@@ -117,3 +126,92 @@ def straight_reference(start: np.ndarray, goal: np.ndarray, N: int) -> np.ndarra
     """Joint-space straight line x^r, (N+1, n), from ``start`` to ``goal``."""
     s = np.linspace(0.0, 1.0, N + 1)[:, None]
     return start[None] + s * (goal - start)[None]
+
+
+@dataclass
+class Clearances:
+    """Every clearance CFS constrains at B configurations, with its gradient.
+
+    Attributes:
+        d: (B, C) clearances (m): the movable spheres' distances to the obstacles (m' x k of them), then each
+            self-collision pair's distance shifted by ``d_min - self_d_min`` so that one requirement
+            (>= ``d_min``) holds for all.
+        grad: (B, C, n) their gradients d d / d q.
+        n_obstacle: how many of the C columns are sphere/obstacle distances (the rest are self pairs).
+    """
+
+    d: np.ndarray
+    grad: np.ndarray
+    n_obstacle: int
+
+
+def self_clearances(robot: Robot, Q: np.ndarray, pairs: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distances between the spheres of each self-collision pair, and their gradients.
+
+    d_ik = ||p_i(q) - p_k(q)|| - r_i - r_k, grad = u^T (J_i - J_k) with u the unit vector from p_k to p_i.
+
+    Args:
+        robot: The robot (its ``spheres`` and their ``self_pairs``: spheres on non-adjacent links).
+        Q: (B, n) configurations, rad.
+        pairs: (P, 2) sphere index pairs (default ``robot.spheres.self_pairs``).
+
+    Returns:
+        d (B, P) in m and grad (B, P, n) in m/rad.
+    """
+    sm = robot.spheres
+    pr = np.asarray(sm.self_pairs if pairs is None else pairs, int).reshape(-1, 2)
+    B, n = len(Q), robot.nq
+    if not len(pr) or not B:
+        return np.zeros((B, 0)), np.zeros((B, 0, n))
+    C, J = sm.kinematics_batch(np.asarray(Q, float))
+    d, g = np.empty((B, len(pr))), np.empty((B, len(pr), n))
+    pair_clearances(np.ascontiguousarray(C, dtype=float), np.ascontiguousarray(J, dtype=float),
+                    np.ascontiguousarray(pr[:, 0]), np.ascontiguousarray(pr[:, 1]),
+                    np.ascontiguousarray(sm.radii, dtype=float), d, g)
+    return d, g
+
+
+def all_clearances(robot: Robot, Q: np.ndarray, obstacles: Any, settings: PlannerSettings) -> Clearances:
+    """The obstacle and (with ``settings.self_collision``) self clearances CFS constrains, at Q (B, n).
+
+    Args:
+        robot: The robot.
+        Q: (B, n) configurations, rad.
+        obstacles: The obstacles.
+        settings: ``self_collision``, ``d_min`` and ``self_d_min``.
+
+    Returns:
+        The :class:`Clearances`.
+    """
+    B, n = len(Q), robot.nq
+    if obstacles:
+        D = sphere_clearances(robot, Q, obstacles)
+        d, g = D.d.reshape(B, -1), D.grad.reshape(B, -1, n)
+    else:
+        d, g = np.zeros((B, 0)), np.zeros((B, 0, n))
+    k = d.shape[1]
+    if settings.self_collision:
+        ds, gs = self_clearances(robot, Q)
+        d = np.concatenate([d, ds + (settings.d_min - settings.self_d_min)], axis=1)
+        g = np.concatenate([g, gs], axis=1)
+    return Clearances(d, g, k)
+
+
+def check_self_clear(robot: Robot, W: np.ndarray, self_d_min: float, names: list[str] | None = None) -> None:
+    """Raise if a configuration of W (B, n) has a self-collision pair of spheres closer than ``self_d_min`` (m).
+
+    Raises:
+        CollisionAtStart: naming the configuration (``names[i]`` or "waypoint i") and the two links.
+    """
+    sm = robot.spheres
+    if not len(sm.self_pairs):
+        return
+    ds, _ = self_clearances(robot, np.asarray(W, float))
+    for i in range(len(ds)):
+        p = int(np.argmin(ds[i]))
+        if ds[i, p] < self_d_min:
+            label = names[i] if names else f"waypoint {i}"
+            la, lb = (sm.links[int(j)] for j in sm.self_pairs[p])
+            raise CollisionAtStart(f"{label} is in self-collision: link {la!r} is {ds[i, p] * 1000:.1f} mm from link "
+                                   f"{lb!r} (required {self_d_min * 1000:.1f} mm); move the waypoint",
+                                   value={"waypoint": i, "link": la, "obstacle": lb, "distance": float(ds[i, p])})

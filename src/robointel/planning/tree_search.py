@@ -8,11 +8,24 @@ from __future__ import annotations
 
 import numpy as np
 
-from robointel.planning import _edge_kernels as E
+from robointel.planning import _batch_edges as BE
 from robointel.planning import _rrt_kernels as R
 from robointel.planning.budget_clock import now as clock_now
 from robointel.planning.environment import Environment
 from robointel.planning.motion_settings import MotionSettings
+
+
+def batch_state(env: Environment) -> tuple:
+    """The environment's batch state (:func:`~robointel.planning._batch_edges.batch_state`), built on first use.
+
+    It depends on the obstacles and the robot's spheres and self-collision pairs, which every world of
+    the environment (:meth:`Environment.use`) shares.
+    """
+    bs = getattr(env, "_batch_state", None)
+    if bs is None:
+        bs = BE.batch_state(env.world)
+        env._batch_state = bs  # type: ignore[attr-defined]
+    return bs
 
 
 def warm_search(env: Environment) -> None:
@@ -24,7 +37,7 @@ def warm_search(env: Environment) -> None:
     parent = np.full((2, 4), -1, np.int64)
     count = np.array([1, 1], np.int64)
     R.rrt_connect(X, parent, count, env.robot.lower, env.robot.upper, 0, np.ones(3), np.zeros((2, 2), np.int64),
-                  W, W, count, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, np.zeros(2, np.int64))
+                  W, W, count, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, np.zeros(2, np.int64), batch_state(env))
 
 
 def path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: float, W: tuple,
@@ -34,10 +47,10 @@ def path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: flo
     The first and last edge are checked in ``Wr`` within ``rcap`` rad (max |dq|) of the start and
     the goal and in ``W`` beyond, the others in ``W``.
     """
-    s = env.scratch
+    s, BS = env.scratch, batch_state(env)
     last = len(path) - 2
-    return all(E.root_edge(a, b, Wr, W, k == 0, k == last, float(rcap), s.T, s.C, s.G, s.out, float(d_min),
-                           env.lever, float(resolution), 0.0)
+    return all(BE.root_edge_batch(a, b, Wr, W, k == 0, k == last, float(rcap), BS, float(d_min), float(resolution),
+                                  s.out)
                for k, (a, b) in enumerate(zip(path[:-1], path[1:])))
 
 
@@ -49,10 +62,10 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
     Nodes and edges are checked in ``W``, edges leaving the start or a goal in ``Wr`` for their
     first ``rcap`` rad (max |dq|) and in ``W`` beyond.
     """
-    s = env.scratch
+    s, BS = env.scratch, batch_state(env)
     thr, lever = float(st.d_min if thr is None else thr), env.lever
     for k, g in enumerate(goals):
-        if attempt == 0 and E.root_edge(q0, g, Wr, W, True, True, rcap, s.T, s.C, s.G, s.out, thr, lever, res, 0.0):
+        if attempt == 0 and BE.root_edge_batch(q0, g, Wr, W, True, True, rcap, BS, thr, res, s.out):
             return np.array([q0, g]), k, ""
     n = len(q0)
     cap = int(st.max_nodes)
@@ -72,7 +85,7 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
             count[:] = nroot
             parent[:] = -1
         status = R.rrt_connect(X, parent, count, robot.lower, robot.upper, 32, rng, win, W, Wr, nroot, rcap,
-                               s.T, s.C, s.G, s.out, thr, lever, res, link)
+                               s.T, s.C, s.G, s.out, thr, lever, res, link, BS)
     if status != 1:
         return None, -1, f"the time budget of {st.time_budget_s:g} s ran out ({grown + int(count.sum())} nodes)"
     a, b = [], []

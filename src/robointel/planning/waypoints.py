@@ -46,7 +46,15 @@ if TYPE_CHECKING:  # pragma: no cover
     from robointel.robot import Robot
 
 
-from robointel.planning.segment import PlannerSettings, SegmentPlan, sphere_clearances, straight_reference  # noqa: F401
+from robointel.planning.segment import (  # noqa: F401
+    Clearances,
+    PlannerSettings,
+    SegmentPlan,
+    all_clearances,
+    check_self_clear,
+    sphere_clearances,
+    straight_reference,
+)
 
 
 class TrajectoryPlanner:
@@ -205,15 +213,14 @@ class TrajectoryPlanner:
         t, a = self._sample_t, self._sample_a[:, None]
         return (1 - a) * X[t] + a * X[t + 1]
 
-    def distances(self, X: np.ndarray) -> SphereDistances | None:
-        """Exact signed distances at all samples of the knots X (N+1, n).
+    def distances(self, X: np.ndarray) -> Clearances | None:
+        """Exact clearances at all samples of the knots X (N+1, n): :func:`all_clearances` (obstacles, self pairs).
 
-        D (S, m', k) and grad (S, m', k, n) for the m' movable spheres (``spheres`` holds their indices); None
-        without obstacles.
+        d (S, C) and grad (S, C, n); None when there is nothing to keep clear of.
         """
-        if not self.obstacles:
+        if not self.obstacles and not (self.settings.self_collision and len(self.robot.spheres.self_pairs)):
             return None
-        return self.config_distances(self._sample_configs(X))
+        return all_clearances(self.robot, self._sample_configs(X), self.obstacles, self.settings)
 
     def config_distances(self, Q: np.ndarray) -> SphereDistances:
         """Sphere/obstacle distances at configurations Q (B, n): see :func:`sphere_clearances`."""
@@ -230,7 +237,7 @@ class TrajectoryPlanner:
         a_off = self._D2_end @ ends
         return (np.r_[lo, -vb - v_off, -ab - a_off], np.r_[up, vb - v_off, ab - a_off])
 
-    def _collision_rows(self, X: np.ndarray, D: SphereDistances | None,
+    def _collision_rows(self, X: np.ndarray, D: Clearances | None,
                         d_req: float) -> tuple[Any, NDArray[np.float64]]:
         """Fill A's collision entries and bounds from distances D at the samples of X."""
         st = self.settings
@@ -279,10 +286,12 @@ class TrajectoryPlanner:
         for i, w in enumerate(W):
             label = names[i] if names else f"waypoint {i}"
             check_limits(w, self.robot.lower, self.robot.upper, self.robot.joint_names, what=label)
+        if self.settings.self_collision:
+            check_self_clear(self.robot, W, self.settings.self_d_min, names)
+        sm = self.robot.spheres
         if not self.obstacles:
             return
         D = self.config_distances(W)
-        sm = self.robot.spheres
         for i in range(len(W)):
             j, k = np.unravel_index(int(np.argmin(D.d[i])), D.d[i].shape)
             if D.d[i, j, k] < self.settings.d_min:
@@ -469,7 +478,7 @@ class TrajectoryPlanner:
         w[1:-1] = Xr[1:-1] * self._Qw[None]
         return -2 * self.settings.w1 * w.ravel()
 
-    def _merit(self, X: np.ndarray, Xr: np.ndarray, D: SphereDistances | None, d_req: float) -> float:
+    def _merit(self, X: np.ndarray, Xr: np.ndarray, D: Clearances | None, d_req: float) -> float:
         """Exact-penalty merit of the elastic phase.
 
         J + elastic * sum over samples of the clearance shortfall (the QP's slack objective evaluated with the true

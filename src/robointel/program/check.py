@@ -17,12 +17,14 @@ import numpy as np
 from robointel.errors import CollisionAtStart, DataMissing, IKFailure, InfeasibleProblem, InvalidInput, RobointelError
 from robointel.io.reference import data_path
 from robointel.learning.grasp import ParallelGripper
+from robointel.learning.grasp.objects import ObjectModel
 from robointel.learning.grasp.pipeline import lrmate_with_gripper
 from robointel.planning.frmp import check_trajectory, plan_scene, planner_settings
 from robointel.planning.scene import Scene
 from robointel.planning.waypoints import TrajectoryPlanner
 from robointel.program.format import SKILL_KINDS, Program, Step, Target
 from robointel.program.motion import CellPlanner, gripper_geometry
+from robointel.program.placement_check import DEFAULT_HALF, DEFAULT_HEIGHT, object_model, spot_problem
 from robointel.program.skill_file import load_skill, skill_kind
 from robointel.robot import Robot
 from robointel.teach.keypoints import blended_trajectory, joint_velocity_reference
@@ -214,6 +216,60 @@ def check_place_reachable(at: tuple[float, float]) -> None:
         raise IKFailure(f"the gripper cannot reach down to the table at {list(at)} m", value=at)
 
 
+def _resolve_move(program: Program, target: Target, q_prev: np.ndarray) -> np.ndarray:
+    """:func:`resolve_target`, an unreachable pose named with its key and its distance from the base."""
+    try:
+        return resolve_target(program, target, q_prev)
+    except IKFailure:
+        if target.pose is None:
+            raise
+        xyz = np.asarray(target.pose, float)[:3, 3]
+        far = float(np.linalg.norm(xyz))
+        raise IKFailure(f"key 'pose' xyz {np.round(xyz, 3).tolist()} m ({far:.2f} m from the robot's base) is "
+                        "outside the workspace: no IK solution within the joint limits reaches it",
+                        value=xyz.tolist()) from None
+
+
+def _extent(model: ObjectModel) -> tuple[tuple[float, float], float]:
+    """Footprint half extents (m, about the object's frame) and height (m) of an object model."""
+    b = np.asarray(model.mesh.bounds, float)
+    half = np.maximum(np.abs(b[0, :2]), np.abs(b[1, :2]))
+    return (float(half[0]), float(half[1])), float(b[1, 2])
+
+
+def _check_objects(program: Program) -> dict[str, ObjectModel]:
+    """Refuse an object placed off the table, in a fixture, unseen or out of reach; its model per category.
+
+    Returns:
+        The first object model of each category (the part a ``grasp`` of that category picks, for ``place``).
+
+    Raises:
+        ProgramRejected: naming the step that grasps the object (or the object) and the key ``at``.
+    """
+    models: dict[str, ObjectModel] = {}
+    for k, o in enumerate(program.objects):
+        if o.at is None and o.category in models:
+            continue
+        try:
+            model = object_model(o, k)
+        except RobointelError as exc:
+            raise ProgramRejected(f"object {k} ({o.category}): {exc}", value={"object": k}) from None
+        models.setdefault(o.category, model)
+        if o.at is None:  # a random placement: drawn inside the cell's pick area
+            continue
+        half, height = _extent(model)
+        why = spot_problem(o.at[0], o.at[1], yaw=o.yaw or 0.0, half=half, height=height,
+                           obstacles=program.scene.obstacles, reachable=check_place_reachable)
+        if why:
+            where = f"object {k} ({o.category}), key 'at' {list(o.at)} m: the part is {why}"
+            i = next((j for j, st in enumerate(program.steps) if st.kind == "grasp"
+                      and st.args["category"] == o.category), None)
+            if i is None:
+                raise ProgramRejected(where, value={"object": k})
+            raise _reject(program.steps[i], i, where)
+    return models
+
+
 def skill_path(program: Program, step: Step) -> Path:
     """The skill file of an ``insert`` or ``grind`` step, relative paths resolved against the program's folder."""
     p = Path(step.args["skill"])
@@ -255,6 +311,7 @@ def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
             except DataMissing as exc:
                 raise ProgramRejected(f"object {k} ({o.category}): the YCB scan {o.ycb!r} is not available: {exc}",
                                       value={"object": k, "ycb": o.ycb}) from None
+    held = _check_objects(program)
     planners = _Planners(scene)
     checker = planners.checker()
     plans: list[StepPlan] = [StepPlan(q, q) for _ in range(start)]
@@ -262,6 +319,7 @@ def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
     tool = gripper_geometry(ParallelGripper()) if program.objects else []
     cell_planner = CellPlanner(scene) if tool else None
     known = True  # the configuration at the step's start is known (no grasp/place before it)
+    holding: str | None = None  # the category of the part in the gripper
     for i in range(start, len(program.steps)):
         step = program.steps[i]
         if progress:
@@ -270,7 +328,7 @@ def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
         plan = StepPlan(q.copy(), q.copy())
         try:
             if step.kind == "move":
-                q1 = resolve_target(program, step.args["target"], q)
+                q1 = _resolve_move(program, step.args["target"], q)
                 checker.check_waypoints(np.array([q1]), [f"the target of step {i} ({step.name!r})"])
                 if cell_planner is not None and cell_planner.clearance(q1, tool, self_collision=False) < scene.d_min:
                     raise InvalidInput(f"the gripper comes within {scene.d_min * 1000:.0f} mm of an obstacle at the "
@@ -288,8 +346,17 @@ def check_program(program: Program, q_start: np.ndarray, *, start: int = 0,
                 plan.trajectory = plan_path(program, step, q)
                 plan.q_end = plan.trajectory.q[-1].copy()
             elif step.kind in ("grasp", "place", "guide"):
+                if step.kind == "grasp":
+                    holding = step.args["category"]
                 if step.kind == "place":
-                    check_place_reachable(step.args["at"])
+                    x, y = step.args["at"]
+                    model = held.get(holding) if holding is not None else None
+                    half, height = _extent(model) if model is not None else (DEFAULT_HALF, DEFAULT_HEIGHT)
+                    why = spot_problem(x, y, half=half, height=height, obstacles=scene.obstacles,
+                                       reachable=check_place_reachable)
+                    if why:
+                        raise InvalidInput(f"key 'at' {[x, y]} m: the place spot is {why}")
+                    holding = None
                 known = False
             elif step.kind in SKILL_KINDS:
                 skill = load_skill(skill_path(program, step))

@@ -12,12 +12,12 @@ import numpy as np
 from robointel.errors import RobointelError
 from robointel.interface.sim import SimRobot
 from robointel.learning.grinding import GrindingSkill
-from robointel.learning.insertion import InsertionSkill
+from robointel.learning.insertion import FeltSkill, InsertionSkill
 from robointel.outcome import Failure, TrialOutcome
 from robointel.program.check import ProgramCheck, _Planners, check_program, plan_move, scene_key, skill_path
 from robointel.program.format import SKILL_KINDS, Program, Step
 from robointel.program.guide_step import GuideResult, Operator, PushOperator, run_guide
-from robointel.program.skill_file import load_skill
+from robointel.program.skill_file import load_skill, skill_time_limit
 from robointel.program.skill_steps import run_grind, run_insert
 from robointel.sim import Workcell
 from robointel.trajectory import Trajectory
@@ -316,9 +316,10 @@ def _skill_step(program: Program, step: Step, cell: Cell, i: int) -> TrialOutcom
     station = getattr(cell, "stations", {}).get(step.kind)
     seed = int(getattr(cell, "seed", 0)) * 1000 + i
     if step.kind == "insert":
-        assert isinstance(skill, InsertionSkill)
+        assert isinstance(skill, (FeltSkill, InsertionSkill))
         a = step.args
-        res = run_insert(skill, seed=seed, time_limit=a["time_limit"], clearance=1e-3 * a["clearance_mm"],
+        limit = a["time_limit"] if a["time_limit"] is not None else skill_time_limit(skill)
+        res = run_insert(skill, seed=seed, time_limit=limit, clearance=1e-3 * a["clearance_mm"],
                          lateral_error=1e-3 * a["lateral_error_mm"], tilt_error=np.radians(a["tilt_error_deg"]),
                          station=station)
     else:

@@ -2,7 +2,8 @@
 
 ``insert`` runs the peg-in-hole skill at the insertion station (the insertion package's
 :class:`robointel.learning.insertion.RobotCell`: the LR Mate with the peg tool over the hole, torque-level
-impedance, the skill's GMR (5.17) mapping the felt wrench to the corrective twist every 10 ms) over a hole
+impedance; the felt skill feeling the face, turning square with its GMR-learned rotation and pushing in, or the
+GMR skill (5.17) mapping the felt wrench to the corrective twist, every 10 ms) over a hole
 of the step's fit, from a start pose with the step's pose error budget (drawn from the run's seed).
 ``grind`` reproduces the grinding skill's force profile along the plate
 (:func:`robointel.learning.grinding.reproduce_grinding`). A failed skill (wedged, force limit, time limit,
@@ -18,7 +19,14 @@ import numpy as np
 import numpy.typing as npt
 
 from robointel.learning.grinding import GrindingSkill, reproduce_grinding
-from robointel.learning.insertion import InsertionSkill, PegHole, RobotCell, random_start_errors
+from robointel.learning.insertion import (
+    FeltSkill,
+    InsertionSkill,
+    PegHole,
+    RobotCell,
+    random_start_errors,
+    skill_policy,
+)
 from robointel.outcome import Failure, TrialOutcome
 
 HOLD_S = 0.3  # how long the station's joint servo holds the arm after a skill stopped, s
@@ -51,7 +59,7 @@ def _hold(station: RobotCell) -> tuple[npt.NDArray[np.float64], float]:
     return q, float(np.max(np.abs(station.data.qvel[station.vadr])))
 
 
-def run_insert(skill: InsertionSkill, *, seed: int, time_limit: float = 10.0, clearance: float = 20e-6,
+def run_insert(skill: FeltSkill | InsertionSkill, *, seed: int, time_limit: float = 10.0, clearance: float = 20e-6,
                lateral_error: float = 2e-3, tilt_error: float = np.radians(5.0),
                station: RobotCell | None = None) -> SkillResult:
     """Run the learned insertion skill once at the insertion station.
@@ -79,7 +87,8 @@ def run_insert(skill: InsertionSkill, *, seed: int, time_limit: float = 10.0, cl
     """
     cell = station if station is not None else RobotCell(PegHole(clearance=clearance))
     lateral, tilt = random_start_errors(np.random.default_rng(seed), 1, lateral=lateral_error, max_tilt=tilt_error)[0]
-    trial = cell.insert(skill.predict, cell.start_pose(lateral, tilt), time_limit=time_limit, seed=seed)
+    policy = skill_policy(skill, cell.tool.tip - cell.tool.radius)
+    trial = cell.insert(policy, cell.start_pose(lateral, tilt), time_limit=time_limit, seed=seed)
     q_stop, speed = _hold(cell)
     out = trial.outcome
     figures = {**out.figures, "start_tilt_deg": float(np.degrees(tilt[1])),

@@ -13,10 +13,12 @@ from robointel.geometry.rotations import rpy_to_matrix
 
 STEP_KINDS = ("move", "path", "wait", "set_io", "grasp", "place", "insert", "grind", "guide")
 SKILL_KINDS = {"insert": "insertion", "grind": "grinding"}  # step kind -> the skill file's kind
-#: ``insert`` options and defaults: time limit (s), the station's diametral fit clearance (mm), the start pose
-#: error bounds of the part at the station (lateral per axis, mm; tilt, deg). The defaults are the learning
-#: benchmark's task (20 um, +-2 mm, 5 deg), not a calibrated cell's.
-INSERT_OPTIONS = {"time_limit": 10.0, "clearance_mm": 0.02, "lateral_error_mm": 2.0, "tilt_error_deg": 5.0}
+#: ``insert`` options and defaults: time limit (s; None: the skill file's, 15 s for the felt skill, 10 s for the
+#: GMR skill), the station's diametral fit clearance (mm), the start pose error bounds of the part at the station
+#: (lateral per axis, mm; tilt, deg). The defaults are the learning benchmark's task (20 um, +-2 mm, 5 deg), not a
+#: calibrated cell's.
+INSERT_OPTIONS: dict[str, float | None] = {"time_limit": None, "clearance_mm": 0.02, "lateral_error_mm": 2.0,
+                                           "tilt_error_deg": 5.0}
 OBJECT_CATEGORIES = ("cup", "can", "box", "ball", "long_tool")
 
 @dataclass(frozen=True)
@@ -71,7 +73,7 @@ class Step:
         elif self.kind == "place":
             body = {"at": list(self.args["at"])}
         elif self.kind in SKILL_KINDS:
-            body = {k: (str(v) if k == "skill" else v) for k, v in self.args.items()}
+            body = {k: (str(v) if k == "skill" else v) for k, v in self.args.items() if v is not None}
         elif self.kind == "guide":
             body = {"timeout": self.args["timeout"]}
         else:
@@ -230,7 +232,7 @@ def parse_step(d: Any, i: int, n: int) -> Step:
     where = f"step {i} ({name!r})"
     v = d[kind]
     if kind in SKILL_KINDS:
-        opt = {"insert": INSERT_OPTIONS, "grind": {"tolerance": 0.15, "speed": 0.03}}[kind]
+        opt: dict[str, float | None] = INSERT_OPTIONS if kind == "insert" else {"tolerance": 0.15, "speed": 0.03}
         if not isinstance(v, Mapping) or "skill" not in v or not isinstance(v["skill"], str):
             raise InvalidInput(f"{where}: {kind} needs {{skill: FILE}} (a skill file written by `robointel learn "
                                f"{SKILL_KINDS[kind]} --skill-out FILE`)", value=v)
@@ -239,7 +241,8 @@ def parse_step(d: Any, i: int, n: int) -> Step:
             raise InvalidInput(f"{where}: unknown {kind} keys {sorted(map(str, unknown))}", value=v)
         args: dict[str, Any] = {"skill": str(v["skill"])}
         for k, default in opt.items():
-            args[k] = _number(v.get(k, default), f"{where}: {kind} {k}", strict="error" not in k)
+            given = v.get(k, default)
+            args[k] = None if given is None else _number(given, f"{where}: {kind} {k}", strict="error" not in k)
         if kind == "insert" and args["clearance_mm"] >= 2.0:
             raise InvalidInput(f"{where}: insert clearance_mm must be below 2 mm, got {args['clearance_mm']!r}",
                                value=args["clearance_mm"])

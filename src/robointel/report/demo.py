@@ -12,6 +12,8 @@ from typing import Any
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+from robointel.errors import MissingExtra
+
 
 @dataclass
 class StageContext:
@@ -47,7 +49,11 @@ Stage = Callable[[StageContext], StageResult]
 
 
 def run_demo(stages: list[Stage], out: Path, *, quick: bool = False, console: Console | None = None) -> Path:
-    """Run each stage (a rich progress bar per stage) and write ``out/index.html``."""
+    """Run each stage (a rich progress bar per stage) and write ``out/index.html``.
+
+    A stage that needs an extra which is not installed (:class:`~robointel.errors.MissingExtra`) is
+    reported as skipped, with the command that installs it; the other stages run.
+    """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     console = console or Console()
@@ -64,9 +70,13 @@ def run_demo(stages: list[Stage], out: Path, *, quick: bool = False, console: Co
             sub = out / name
             sub.mkdir(exist_ok=True)
             t0 = time.perf_counter()
-            res = stage(StageContext(out=sub, quick=quick, advance=advance))
+            try:
+                res = stage(StageContext(out=sub, quick=quick, advance=advance))
+            except MissingExtra as exc:  # an optional part not installed: the other stages still run
+                res = StageResult(title=name, error=f"skipped: {exc}")
             res.seconds = time.perf_counter() - t0
-            progress.update(task, completed=1.0, status=f"{res.seconds:.1f} s")
+            progress.update(task, completed=1.0, status="skipped" if res.error and res.error.startswith("skipped")
+                            else f"{res.seconds:.1f} s")
             results.append(res)
     return write_report(results, out)
 

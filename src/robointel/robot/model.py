@@ -24,6 +24,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
+from robointel._extras import missing_extra
 from robointel._validate import as_array, check_limits
 from robointel.errors import DescriptionError, DescriptionWarning, IKFailure, InvalidInput, NotFinite, UnknownRobot
 from robointel.robot._kernels import points_jacobians, points_jacobians_batch
@@ -73,12 +74,16 @@ def example_robot_urdf(name: str) -> Path:
     """Path of a URDF shipped by ``example-robot-data``: ``"ur5"``, ``"panda"``, or a path below its ``robots`` folder.
 
     Raises:
-        UnknownRobot: example-robot-data is not installed or has no such file.
+        MissingExtra: example-robot-data is not installed (the ``robots`` extra).
+        UnknownRobot: it has no such file.
     """
     d = _example_robot_data_dir()
+    if d is None:
+        raise missing_extra("robots", f"the example-robot-data robot {name!r}", "example-robot-data")
     rel = _EXAMPLES.get(name, name)
-    if d is None or not (d / rel).is_file():
-        raise UnknownRobot(f"example-robot-data robot {name!r} not found; install example-robot-data", value=name)
+    if not (d / rel).is_file():
+        raise UnknownRobot(f"example-robot-data has no robot {name!r}: name one of {sorted(_EXAMPLES)} or a URDF path "
+                           f"below {d}", value=name)
     return d / rel
 
 

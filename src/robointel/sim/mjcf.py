@@ -14,7 +14,10 @@ the robot:
   :meth:`Workcell.set_obstacle_pose`), and objects as free bodies (:class:`SimObject`).
 
 What MuJoCo reads from the URDF: the kinematic tree, the inertias exactly as written (no inertia
-balancing, ``fusestatic="false"`` so no body is merged), joint limits, ``<dynamics damping>`` as
+balancing, ``fusestatic="false"`` so no body is merged; only when a link's principal moments break or touch
+the triangle inequality A + B >= C, which MuJoCo refuses, is MuJoCo's own ``balanceinertia`` switched on,
+with a warning naming the links: MuJoCo then balances those that break it, whose inertia differs from the
+robot core's), joint limits, ``<dynamics damping>`` as
 joint damping and ``<dynamics friction>`` as ``frictionloss`` (Coulomb friction), gravity
 (0, 0, -9.81). Collision geoms are the URDF ``<collision>`` primitives; visual geoms are dropped.
 """
@@ -248,6 +251,31 @@ def _find_mesh(fn: str, base: Path) -> Path | None:
     return p if p.exists() else None
 
 
+def unbalanced_bodies(spec: mujoco.MjSpec, *, rtol: float = 1e-9) -> list[str]:
+    """Bodies whose explicit inertia breaks or touches the triangle inequality of principal moments (A + B >= C).
+
+    MuJoCo's compiler refuses a link at the limit whose inertia is not diagonal (its eigen decomposition
+    lands a rounding error below), so a link within ``rtol`` of the limit counts too.
+
+    Args:
+        spec: The spec parsed from the URDF.
+        rtol: Relative margin on the inequality.
+
+    Returns:
+        Their names, in tree order.
+    """
+    out = []
+    for b in spec.bodies:
+        full = np.asarray(b.fullinertia, float)
+        if not b.explicitinertial or not np.all(np.isfinite(full)):
+            continue
+        I = np.array([[full[0], full[3], full[4]], [full[3], full[1], full[5]], [full[4], full[5], full[2]]])
+        a, bb, c = np.sort(np.linalg.eigvalsh(I))
+        if a + bb < c * (1.0 + rtol):
+            out.append(str(b.name))
+    return out
+
+
 # ---------------------------------------------------------------------------------------- builder
 def build_spec(robot: Robot, *, table: bool = True, obstacles: Sequence[Any] = (), objects: Sequence[SimObject] = (),
                ft_sensor: bool = True, payload: Payload | None = None, timestep: float = 0.001,
@@ -285,6 +313,12 @@ def build_spec(robot: Robot, *, table: bool = True, obstacles: Sequence[Any] = (
         raise
     except Exception as exc:  # mujoco raises ValueError with its parser message
         raise DescriptionError(f"MuJoCo could not read the URDF of {robot.name!r}: {exc}", value=robot.name) from None
+    unbalanced = unbalanced_bodies(spec)
+    if unbalanced:  # MuJoCo refuses them: it balances those that break A + B >= C rather than fail
+        spec.compiler.balanceinertia = True
+        warnings.warn(f"{len(unbalanced)} link(s) of {robot.name!r} have principal inertias at or past A + B >= C "
+                      f"({', '.join(unbalanced)}); MuJoCo balances those that break it (balanceinertia), so its "
+                      "inertia of them differs from the robot core's", stacklevel=2)
     spec.modelname = f"robointel_{robot.name}"
     spec.compiler.discardvisual = False  # URDF visuals are already dropped by the parser; keep our textures
     spec.option.gravity = np.array(GRAVITY)

@@ -6,8 +6,9 @@ imported from their modules.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from robointel._lazy import lazy_exports
 
 if TYPE_CHECKING:  # the names below are imported on first access (keeps `import` light)
     from robointel.teach.compliance import ComplianceGains, compliance_velocity, damped_pinv
@@ -60,14 +61,4 @@ __all__ = [
     "run_scenario", "scenario", "simulate_imitation",
 ]
 
-
-def __getattr__(name: str) -> Any:
-    """Import a public name from its module on first access."""
-    if name in _EXPORTS:
-        return getattr(importlib.import_module(_EXPORTS[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    """The public names."""
-    return list(__all__)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS, __all__)

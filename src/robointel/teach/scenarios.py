@@ -226,7 +226,7 @@ class ScenarioResult:
         return np.linalg.norm(self.v_cmd[:, :3] - self.v_lead[:, :3], axis=1)
 
     def metrics(self) -> dict:
-        """The figures of Table 4.2 / the issue, as plain floats."""
+        """The figures of Table 4.2, as plain floats."""
         dev = self.deviation
         cpu = self.step_cpu_us
         act = self.active > 0

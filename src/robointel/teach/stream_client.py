@@ -12,6 +12,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from robointel._extras import needs_extra
+
 
 class StreamClient:
     """One WebSocket connection to a streaming server (``websockets`` sync client).
@@ -26,7 +28,8 @@ class StreamClient:
     """
 
     def __init__(self, url: str, *, token: str | None = None, timeout: float = 5.0) -> None:
-        from websockets.sync.client import connect
+        with needs_extra("teleop", "the streaming client"):
+            from websockets.sync.client import connect
 
         self.timeout = float(timeout)
         self.ws = connect(url, compression=None, open_timeout=timeout)
@@ -124,7 +127,8 @@ def flood(url: str, mode: str, seconds: float, hold: float, *, start: Any = None
     """
     import threading
 
-    from websockets.sync.client import connect
+    with needs_extra("teleop", "the streaming client"):
+        from websockets.sync.client import connect
 
     ws = connect(url, compression=None)
     ws.recv(timeout=5)

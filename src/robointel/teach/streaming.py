@@ -89,6 +89,7 @@ from typing import Any
 
 import numpy as np
 
+from robointel._extras import needs_extra
 from robointel.errors import InvalidInput
 from robointel.teach.collision_guard import CollisionGuard
 from robointel.teach.stream_control import StreamingController, Target
@@ -420,7 +421,10 @@ class StreamingServer:
 
         Raises:
             InvalidInput: the server could not bind (port in use, bad address) or did not start.
+            MissingExtra: websockets is not installed (the ``teleop`` extra).
         """
+        with needs_extra("teleop", "the streaming server"):
+            import websockets.asyncio.server  # noqa: F401  (here, not in the server thread: a missing one is said)
         self.controller.on_applied = self._on_applied
         self._switch = sys.getswitchinterval()
         sys.setswitchinterval(min(self._switch, SWITCH_INTERVAL))

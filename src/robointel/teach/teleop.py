@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from robointel._extras import needs_extra
 from robointel._validate import as_array
 from robointel.errors import IKFailure, InvalidInput
 from robointel.robot import Robot
@@ -240,7 +241,8 @@ class TeleopApp:
                                                             position=p) for i, p in enumerate(pts)]
 
     def _build_scene(self) -> None:
-        import viser
+        with needs_extra("teleop", "browser teleoperation"):
+            import viser
 
         s = self.server
         s.scene.add_grid("/table", width=1.6, height=1.6, cell_size=0.1, section_size=0.5, position=(0.3, 0, 0))
@@ -377,7 +379,8 @@ class TeleopApp:
 
     def start(self) -> TeleopApp:
         """Serve the page (viser), start the controller's control thread and the display and stream threads."""
-        import viser
+        with needs_extra("teleop", "browser teleoperation"):
+            import viser
 
         self._syncing = False
         self.server = viser.ViserServer(host=self.host, port=self.port, verbose=False)

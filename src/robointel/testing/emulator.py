@@ -13,6 +13,7 @@ import contextlib
 import gc
 import multiprocessing as mp
 import os
+import signal
 import struct
 import sys
 import time
@@ -131,15 +132,23 @@ def _record_ticks(fake: Any) -> None:
     fake.rig_stalls = lambda: list(stalls)
 
 
-def _serve(conn: Connection, q0_deg: list[float] | None, record_arrivals: bool = False) -> None:
+def _serve(conn: Connection, q0_deg: list[float] | None, record_arrivals: bool = False,
+           ports: tuple[int, int] = (0, 0)) -> None:
     from airo_fanuc.testing import FakeCRXConfig, FakeCRXController, WallClock
 
+    # Ctrl-C in a terminal reaches the whole process group: the parent stops the emulator (``__close__``)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
     except (PermissionError, AttributeError, OSError):
         pass
-    fake = FakeCRXController(FakeCRXConfig(strict=True), host="127.0.0.1", clock=WallClock(),
-                             initial_q_deg=None if q0_deg is None else q0_deg + [0.0] * 3).start()
+    try:
+        fake = FakeCRXController(FakeCRXConfig(strict=True), host="127.0.0.1", clock=WallClock(),
+                                 rmi_bootstrap_port=int(ports[0]), sm_port=int(ports[1]),
+                                 initial_q_deg=None if q0_deg is None else q0_deg + [0.0] * 3).start()
+    except OSError as exc:  # a port in use: reported to the parent, no traceback
+        conn.send((None, f"cannot listen on 127.0.0.1: {exc.strerror or exc}"))
+        return
     if record_arrivals:
         _record_arrivals(fake)
     _record_status(fake)
@@ -150,7 +159,12 @@ def _serve(conn: Connection, q0_deg: list[float] | None, record_arrivals: bool =
     fake.start_realtime()
     conn.send((fake.rmi_port, fake.sm_port))
     while True:
-        name, args = conn.recv()
+        try:
+            name, args = conn.recv()
+        except (EOFError, OSError):  # the parent is gone (killed, or closed its end): stop quietly
+            fake.stop_realtime()
+            fake.close()
+            return
         if name == "__close__":
             fake.stop_realtime()
             fake.close()
@@ -171,18 +185,31 @@ class EmulatorProcess:
     Args:
         q0: (6,) initial joint positions of the emulated arm, rad (default zeros).
         record_arrivals: log every command's arrival for ``call("arrival_context")`` (a diagnostic).
+        rmi_port: TCP port of the RMI server (0: a free port; 16001 is a controller's).
+        sm_port: UDP port of the Stream Motion server (0: a free port; 60015 is a controller's).
 
     Attributes:
         url: the ``fanuc://`` URL for :func:`~robointel.interface.open_robot`.
+
+    Raises:
+        InvalidInput: a port out of range or already in use.
     """
 
-    def __init__(self, q0: npt.ArrayLike | None = None, *, record_arrivals: bool = False) -> None:
+    def __init__(self, q0: npt.ArrayLike | None = None, *, record_arrivals: bool = False, rmi_port: int = 0,
+                 sm_port: int = 0) -> None:
+        for name, port in (("rmi_port", rmi_port), ("sm_port", sm_port)):
+            if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+                raise InvalidInput(f"{name} must be an integer in [0, 65535], got {port!r}", value=port)
         ctx = mp.get_context("spawn")
         self._conn, child = ctx.Pipe()
         q0_deg = None if q0 is None else np.degrees(np.asarray(q0, dtype=float)).tolist()
-        self._proc = ctx.Process(target=_serve, args=(child, q0_deg, bool(record_arrivals)), daemon=True)
+        self._proc = ctx.Process(target=_serve, args=(child, q0_deg, bool(record_arrivals), (rmi_port, sm_port)),
+                                 daemon=True)
         self._proc.start()
         self.rmi_port, self.sm_port = self._conn.recv()
+        if self.rmi_port is None:
+            self._proc.join(5)
+            raise InvalidInput(f"the emulator {self.sm_port} (ports {rmi_port}, {sm_port})", value=(rmi_port, sm_port))
         self.url = f"fanuc://127.0.0.1:{self.rmi_port}?sm_port={self.sm_port}"
         self.violations: list[str] | None = None
         self.stalls: list[float] = []

@@ -17,12 +17,12 @@ from robointel.learning.grasp.cpd import (
     register,
 )
 
-try:  # the peer (dev extra): only the comparisons with it skip without it
+try:  # the peer (peers extra): only the comparisons with it skip without it
     import pycpd
-except ImportError:  # pragma: no cover - dev extra missing
+except ImportError:  # pragma: no cover - peers extra missing
     pycpd = None
 
-needs_pycpd = pytest.mark.skipif(pycpd is None, reason="pycpd (dev extra) is not installed")
+needs_pycpd = pytest.mark.skipif(pycpd is None, reason="pycpd (peers extra) is not installed")
 
 
 def _pair(shared_data, name):
