@@ -73,3 +73,27 @@ def test_solid_levers_bound_every_vertex_displacement(ur5_self):
             if bound > 0:
                 worst = max(worst, moved / bound)
     assert 0.3 < worst <= 1.0  # a bound, and not a vacuous one
+
+
+def test_self_check_agrees_with_every_sample_measured(ur5_self, shared_data):
+    """The travel-bounded schedule finds a contact exactly where measuring every sample does."""
+    from robointel.planning import Environment
+    from robointel.planning.hybrid_check import self_check
+    from robointel.planning.motion_check import DenseCheck
+    from robointel.planning.polyline_timing import polyline_timing
+
+    sg = ur5_self
+    robot = sg.robot
+    env = Environment(robot, [], srdf=shared_data("mbm", "ur5") / "ur5.srdf")
+    rng = np.random.default_rng(6)
+    verdicts = []
+    for _ in range(6):
+        path = robot.random_configuration(rng, 2)
+        tr = polyline_timing(path, 4 * robot.velocity_limit, 8 * robot.velocity_limit, dt=2e-3)
+        got = self_check(env, tr, DenseCheck(True, "", "", 1.0, len(tr.t)), dt=2e-3)
+        hit = next((k for k, q in enumerate(tr.q) if sg.clearance(q, cap=0.05, thresh=0.0)[0] < 0.0), None)
+        assert got.ok == (hit is None), (got.reason, hit)
+        if hit is not None:
+            assert f"t = {tr.t[hit]:.3f} s" in got.reason  # the first sample in contact
+        verdicts.append(got.ok)
+    assert 0 < sum(verdicts) < len(verdicts)

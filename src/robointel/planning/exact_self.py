@@ -18,6 +18,7 @@ from typing import Any
 import coal
 import numpy as np
 import pinocchio as pin
+from numba import njit
 
 from robointel.planning.exact_geometry import GJK_TOL, bounded_distance, coal_geometry
 from robointel.robot.model import Robot
@@ -216,6 +217,35 @@ class SelfGeometry:
 def _transform(M: pin.SE3) -> Any:
     """A Pinocchio placement as a coal transform."""
     return coal.Transform3s(M.rotation, M.translation)
+
+
+@njit(cache=True)
+def next_due(Cq: np.ndarray, lever: np.ndarray, which: np.ndarray, k: int, margin: np.ndarray,
+             due: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Set ``due[p]`` for each pair p of ``which``: the first sample after ``k`` its margin may not hold at.
+
+    Pair p measured ``margin[i]`` (m) above its threshold at sample k stays above it while its
+    travel ``lever[p] . (Cq[j] - Cq[k])`` (``Cq`` (K, n): the joints' cumulated travel) is below the
+    margin: ``due[p]`` is the first j > k where it may not be (K: none).
+    """
+    K, n = Cq.shape
+    for i in range(which.shape[0]):
+        p = which[i]
+        t0 = 0.0
+        for c in range(n):
+            t0 += lever[p, c] * Cq[k, c]
+        target = t0 + margin[i]
+        lo, hi = k + 1, K  # the first j in [lo, hi) whose travel reaches target; hi if none
+        while lo < hi:
+            mid = (lo + hi) // 2
+            t = 0.0
+            for c in range(n):
+                t += lever[p, c] * Cq[mid, c]
+            if t >= target:
+                hi = mid
+            else:
+                lo = mid + 1
+        due[p] = lo
 
 
 _CACHE: weakref.WeakKeyDictionary[Robot, dict[frozenset, SelfGeometry]] = weakref.WeakKeyDictionary()

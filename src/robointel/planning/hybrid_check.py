@@ -6,8 +6,6 @@ exact check looks at the clock so that a plan's time budget holds inside an atte
 """
 from __future__ import annotations
 
-import heapq
-
 import numpy as np
 from numba import njit
 
@@ -16,7 +14,7 @@ from robointel.planning import _dense_kernels as D
 from robointel.planning.budget_clock import now as clock_now
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
-from robointel.planning.exact_self import self_geometry
+from robointel.planning.exact_self import next_due, self_geometry
 from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, window_clearance
 from robointel.trajectory import Trajectory
 
@@ -159,34 +157,31 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
     thr = max(env.self_padding - CLEARANCE_TOL, 0.0)
     dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
     Q = np.ascontiguousarray(dense.q)
-    K, P = len(Q), len(sg.pairs)
-    # M[p, k]: bound of the change of pair p's distance from sample 0 to sample k
-    M = np.ascontiguousarray(np.hstack([np.zeros((P, 1)), np.cumsum(sg.pair_lever @ np.abs(np.diff(Q, axis=0)).T,
-                                                                     axis=1)]))
-    heap = [(0, p) for p in range(P)]  # (the next sample at which pair p must be measured, p)
+    K = len(Q)
+    # Cq[k]: each joint's travel from sample 0 to sample k; pair p's distance changes by at most
+    # pair_lever[p] . (Cq[j] - Cq[k]) from sample k to sample j
+    Cq = np.zeros(Q.shape)
+    np.cumsum(np.abs(np.diff(Q, axis=0)), axis=0, out=Cq[1:])
+    due = np.zeros(len(sg.pairs), np.int64)  # the next sample at which each pair must be measured
     n = 0
-    while heap:
-        k = heap[0][0]
+    while True:
+        k = int(due.min())
         if k >= K:
             return chk
-        which = []
-        while heap and heap[0][0] == k:
-            which.append(heapq.heappop(heap)[1])
+        which = np.flatnonzero(due == k)
         if n % MESH_CHUNK == 0 and clock_now() >= deadline:
             return timed_out("the self-collision check", chk)
-        n += len(which)
-        d = sg.pair_distances(Q[k], np.asarray(which), thresh=thr)
-        for p, dp in zip(which, d):
-            if dp < thr:
-                la, lb = sg.solids[sg.pairs[p, 0]].link, sg.solids[sg.pairs[p, 1]].link
-                return DenseCheck(False, f"self-collision check: link {la!r} is {dp * 1e3:.2f} mm from link {lb!r} "
-                                  f"at t = {dense.t[k]:.3f} s", "collision", min(float(dp), chk.min_clearance_m),
-                                  chk.samples)
-            # proven until the relative travel since eats the margin
-            nxt = max(k + 1, int(np.searchsorted(M[p], M[p, k] + (dp - thr), side="left")))
-            if nxt < K:
-                heapq.heappush(heap, (nxt, p))
-    return chk
+        n += 1
+        d = sg.pair_distances(Q[k], which, thresh=thr)
+        if d.min() < thr:
+            m = int(np.argmin(d))
+            p = int(which[m])
+            la, lb = sg.solids[sg.pairs[p, 0]].link, sg.solids[sg.pairs[p, 1]].link
+            return DenseCheck(False, f"self-collision check: link {la!r} is {d[m] * 1e3:.2f} mm from link {lb!r} "
+                              f"at t = {dense.t[k]:.3f} s", "collision", min(float(d[m]), chk.min_clearance_m),
+                              chk.samples)
+        # proven until the relative travel since eats the margin
+        next_due(Cq, sg.pair_lever, which, k, d - thr, due)
 
 
 def exact_roots(env: Environment, q0: np.ndarray, goals: np.ndarray, floor: float) -> np.ndarray:
