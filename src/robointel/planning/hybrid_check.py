@@ -135,7 +135,7 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
             if d < thr:
                 return DenseCheck(False, f"collision-mesh check: link {link!r} is {d * 1e3:.2f} mm from {obs!r} at "
                                   f"t = {dense.t[s0 + lo + k]:.3f} s", "collision", min(d, chk.min_clearance_m),
-                                  chk.samples)
+                                  chk.samples, (link,))
     return chk
 
 
@@ -183,7 +183,7 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
             la, lb = sg.solids[sg.pairs[p, 0]].link, sg.solids[sg.pairs[p, 1]].link
             return DenseCheck(False, f"self-collision check: link {la!r} is {d[m] * 1e3:.2f} mm from link {lb!r} "
                               f"at t = {dense.t[k]:.3f} s", "collision", min(float(d[m]), chk.min_clearance_m),
-                              chk.samples)
+                              chk.samples, (la, lb))
         # proven until the relative travel since eats the margin
         next_due(Cq, sg.pair_lever, which, k, d - thr, due)
 

@@ -184,12 +184,48 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
             return _plan(env, q0, goals, st, t0, c0, timings)
     finally:
         env.set_self_offset(0.0)
+        env.set_self_blend(0.0)
         env.use(model)
 
 
 def _roots_free(env: Environment, q0: np.ndarray, goals: np.ndarray, d_min: float) -> bool:
     return (env.clearance(q0, cap=d_min + 1.0) >= d_min
             and any(env.clearance(g, cap=d_min + 1.0) >= d_min for g in goals))
+
+
+def _grow(env: Environment, chk: DenseCheck, q0: np.ndarray, goals: np.ndarray, thr: float, exact: bool) -> bool:
+    """Move the spheres of the links the collision meshes caught toward the covering ones, for the next attempt.
+
+    A self-collision pair (``chk.links``: two links) grows their self-collision radii; in the
+    fitted-sphere fallback (``exact``), a link the obstacle mesh check caught grows its obstacle
+    radii. Each goes all the way, else half, a quarter... (5 tries) as far as the start and every
+    goal keep clearance ``thr``. Returns whether a radius grew.
+    """
+    if len(chk.links) == 2:
+        cur = np.broadcast_to(np.asarray(env.self_blend, float), (len(env.sphere_links),)).copy()
+
+        def put(b: np.ndarray) -> None:
+            env.set_self_blend(b)
+    elif len(chk.links) == 1 and exact:
+        cur = env.blend.copy()
+
+        def put(b: np.ndarray) -> None:
+            env.use("fitted", blend=b)
+    else:
+        return False
+    mask = env.link_spheres(chk.links)
+    if not np.any(cur[mask] < 1.0):
+        return False
+    step = 1.0
+    for _ in range(5):
+        b = cur.copy()
+        b[mask] = np.minimum(1.0, cur[mask] + step)
+        put(b)
+        if all(env.clearance(q, cap=thr + 1.0) >= thr for q in [q0, *goals]):
+            return True
+        step *= 0.5
+    put(cur)
+    return False
 
 
 def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, t0: float, c0: float,
@@ -262,6 +298,9 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
         if chk.ok or not (hybrid or exact or env.exact_self) or chk.kind != "collision" or \
                 clock_now() >= deadline:
             break
+        if _grow(env, chk, q0, goals, thr, exact):  # the links the meshes caught kept farther next time
+            Wc = env.world if exact else env.world_cover
+            Wr = env.world if (exact or hybrid) else Wc
         attempt += 1
     goal_index = int(goal_ids[gi])
     assert traj is not None and chk is not None
