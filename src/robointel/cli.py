@@ -16,23 +16,41 @@ from rich.table import Table
 from typer.core import TyperGroup
 
 from robointel.commands.failure import fail
+from robointel.commands.option_checks import install as install_option_checks
 from robointel.errors import InvalidInput, RobointelError
 from robointel.report.demo import run_demo
 from robointel.robot import Robot
+
+_USAGE_ERROR: type[Exception] = typer.BadParameter.__mro__[1]  # click's UsageError (typer vendors click)
 
 
 class _Commands(TyperGroup):
     """The top-level group: errors escaping a command become one ``error: ...`` line and exit code 2.
 
-    Caught: every :class:`RobointelError` and ``OSError`` (an unreadable or unwritable file), never
-    shown as a traceback.
+    Caught: every :class:`RobointelError`, ``OSError`` (an unreadable or unwritable file) and every
+    usage error (a bad option value, a missing argument), never shown as a traceback. Numeric options
+    are checked against :mod:`robointel.commands.option_checks` before a command starts.
     """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        install_option_checks(self)
 
     def invoke(self, ctx: Any) -> Any:
         try:
             return super().invoke(ctx)
         except (RobointelError, OSError) as exc:
             fail(exc)
+        except _USAGE_ERROR as exc:
+            if type(exc).__name__ == "NoArgsIsHelpError":  # a group called without a command: its help
+                raise
+            names: list[str] = []
+            c = getattr(exc, "ctx", None)
+            while c is not None and c.parent is not None:  # the command's path below the root
+                names.insert(0, c.info_name)
+                c = c.parent
+            text = getattr(exc, "format_message", exc.__str__)()
+            fail(text + (f" (see robointel {' '.join(names)} --help)" if names else ""))
 
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, cls=_Commands,

@@ -45,6 +45,8 @@ FENCE = re.compile(r"^(?P<indent> *)```(?P<lang>[\w-]*)(?P<info>[^\n]*)\n(?P<bod
 QUICKSTART = re.compile(r"<!-- quickstart: (?P<path>examples/\S+\.py) -->\n```python\n(?P<body>.*?)^```", re.M | re.S)
 LANGS = {"python", "bash", "yaml", "text"}
 MARKS = ("needs hardware", "long run")
+#: commands that serve until Ctrl-C, and the option that ends them (a runnable block must give it)
+SERVERS = {"emulator": "--for", "teleop": "--duration", "view": "--for"}
 
 
 def _blocks(page: Path) -> list[dict[str, str]]:
@@ -131,6 +133,11 @@ def test_every_code_block_runs_or_says_why_not():
                 others = [c for c in _commands(b["body"]) if not c.startswith("robointel ")]
                 if others:
                     bad.append(f"{where}: a runnable bash block holds robointel commands only, not {others}")
+                for c in _commands(b["body"]):
+                    words = shlex.split(c)
+                    stop = SERVERS.get(words[1] if len(words) > 1 else "")
+                    if stop and not any(w.split("=")[0] == stop for w in words):
+                        bad.append(f"{where}: {c!r} serves until Ctrl-C: give it {stop} or mark the block 'long run'")
             elif b["lang"] == "yaml":
                 yaml.safe_load(b["body"])
             elif b["lang"] == "python" and _mark(b):

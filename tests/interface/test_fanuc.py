@@ -146,7 +146,7 @@ def test_gate_refuses_before_the_controller(fanuc, fake_controller):
     st = fanuc.state()
     n = len(fanuc.sent_times)
     for bad in (np.full(6, np.nan), st.q + np.array([0, 0, 0, 0, 0, 10.0]), st.q + np.r_[0.5, np.zeros(5)],
-                np.zeros(5)):
+                np.zeros(5), [10 ** 400, 0, 0, 0, 0, 0], [st.q.tolist()], [str(v) for v in st.q], [True] * 6):
         with pytest.raises(UnsafeCommand):
             fanuc.stream(bad)
     assert len(fanuc.sent_times) == n

@@ -119,7 +119,8 @@ def test_one_commanding_client_and_acks_to_the_sender(server):
             got_a, got_b = _drain(a), _drain(b)
             assert [m["seq"] for m in got_a if m["type"] == "applied"] == [5]
             assert not [m for m in got_b if m["type"] == "applied"]
-            assert {m["code"] for m in got_b if m["type"] == "error"} == {"not_in_control"}
+            codes_b = {m["code"] for m in got_b if m["type"] == "error"}  # B is over a viewer's rate at times
+            assert "not_in_control" in codes_b and codes_b <= {"not_in_control", "rate_limited"}
             assert server.controller.accepted >= 100 and wc.q[0] > 1.0  # A's target was followed
             moving = np.sign([v for v in qd if abs(v) > 0.05])   # direction of J1 while it moves
             assert len(moving) > 10 and int(np.sum(moving[1:] != moving[:-1])) == 0  # no velocity reversal

@@ -192,10 +192,16 @@ def load_sweep(path: str | Path) -> list[TaskSpec]:
     if not p.is_file():
         raise SweepFileError(f"sweep file {p} does not exist", value=str(p))
     try:
-        d = yaml.safe_load(p.read_text())
-    except yaml.YAMLError as exc:
-        raise SweepFileError(f"sweep file {p} is not valid YAML: {exc}", value=str(p)) from None
-    return sweep_from_dict(d)
+        d = yaml.safe_load(p.read_text(encoding="utf-8"))
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise SweepFileError(f"sweep file {p} is not valid YAML: {' '.join(str(exc).split())}",
+                             value=str(p)) from None
+    except OSError as exc:
+        raise SweepFileError(f"cannot read sweep file {p}: {exc}", value=str(p)) from None
+    try:
+        return sweep_from_dict(d)
+    except SweepFileError as exc:
+        raise SweepFileError(f"{p}: {exc}", value=exc.value) from None
 
 
 def unique(specs: Iterable[TaskSpec]) -> list[TaskSpec]:

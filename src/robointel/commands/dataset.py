@@ -141,7 +141,11 @@ def register(app: typer.Typer) -> None:
                 demonstrations: Annotated[Path | None, typer.Option(
                     help="append the device demonstrations to this robointel demonstration file (.h5)")] = None
                 ) -> None:
-        """Read a LeRobot v3 dataset or a robomimic file: list its episodes, optionally save demonstrations."""
+        """Read a LeRobot v3 dataset or a robomimic file: list its episodes, optionally save demonstrations.
+
+        The whole dataset is checked before anything is written: a malformed file is refused naming the
+        file and the field, and ``--demonstrations`` appends all of the device demonstrations or none.
+        """
         try:
             episodes = read_dataset(path)
             table = Table(title=f"{path}: {len(episodes)} episode(s)")
@@ -153,11 +157,13 @@ def register(app: typer.Typer) -> None:
                               str(e.action.shape[1]))
             console.print(table)
             if demonstrations is not None:
-                demos = [episode_to_demonstration(e) for e in episodes if e.kind == "device"]
+                try:
+                    demos = [episode_to_demonstration(e) for e in episodes if e.kind == "device"]
+                except InvalidInput as exc:
+                    raise InvalidInput(f"{path}: {exc}; nothing was appended", value=str(path)) from None
                 if not demos:
                     raise InvalidInput(f"{path} holds no device demonstrations", value=str(path))
-                store = DemonstrationFile(demonstrations)
-                names = [store.append(d) for d in demos]
+                names = DemonstrationFile(demonstrations).extend(demos)  # all or none
                 console.print(f"appended {len(names)} demonstration(s) to [bold]{demonstrations}[/bold]")
         except RobointelError as exc:
             fail(exc)

@@ -15,7 +15,7 @@ from rich.console import Console
 from rich.table import Table
 
 from robointel.commands.failure import fail
-from robointel.errors import RobointelError
+from robointel.errors import InvalidInput, RobointelError
 from robointel.report.demo import Figure, StageContext, StageResult
 
 if TYPE_CHECKING:
@@ -270,6 +270,9 @@ def trial(category: str = typer.Option("all", help="a category or 'all'"),
     _check_db(db)
     try:
         objs = _objects(source)
+        if category != "all" and category not in objs:
+            raise InvalidInput(f"--category must be 'all' or one of {', '.join(objs)}, got {category!r}",
+                               value=category)
         planner = GraspPlanner(_templates(objs, db, sampled=source == 'ycb'))
         rng = np.random.default_rng(seed)
         cats = list(objs) if category == "all" else [category]

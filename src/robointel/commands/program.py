@@ -11,15 +11,16 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from robointel.commands.failure import fail
-from robointel.errors import RobointelError
+from robointel.errors import InvalidInput, RobointelError
 from robointel.interface import open_robot
+from robointel.interface.open import parse_robot_url
 from robointel.io.mcap_log import McapRecorder
 from robointel.program import Cell, GraspCell, ProgramRejected, SimCell, check_program, load_program, run_program
 from robointel.program.format import builtin_programs
 from robointel.program.interface_cell import InterfaceCell, interface_refusal, output_refusal
 from robointel.program.teaching import program_from_teleop
 from robointel.report.demo import Figure, StageContext, StageResult
-from robointel.report.program import plot_run, record_run, write_program_report
+from robointel.report.program import StepRecorder, plot_run, write_program_report
 
 console = Console()
 
@@ -36,14 +37,20 @@ def run(program: str = typer.Argument(..., help="program YAML file (format: docs
 
     The pre-run check plans every motion and refuses a program that cannot run (a target out of reach or in
     collision, a part off the table or inside a fixture, a missing skill file), naming the step and the key,
-    before anything moves.
+    before anything moves. Every argument is checked before the robot is connected or a file is created.
+    ``--record`` writes the run as it goes; Ctrl-C stops the robot where it is, closes the recording with
+    everything so far and writes the report of the steps run (exit code 130).
     """
     rec = None
     try:
         prog = load_program(program)
         i0 = prog.index(start)
+        if robot != "sim":
+            parse_robot_url(robot)
+        if report.exists() and not report.is_dir():
+            raise InvalidInput(f"--report {report} exists and is not a folder", value=str(report))
         if record is not None:
-            rec = McapRecorder(record, list(prog.robot.joint_names))
+            rec = McapRecorder(record, list(prog.robot.joint_names))  # checks the path; the file comes later
         with contextlib.ExitStack() as stack:
             if robot == "sim":
                 cell_q = prog.initial_configuration(i0)
@@ -71,11 +78,15 @@ def run(program: str = typer.Argument(..., help="program YAML file (format: docs
                     cell = GraspCell(prog, cell_q, seed=seed)
                 else:
                     cell = SimCell(prog, cell_q, seed=seed)
-                res = run_program(prog, cell, start=i0, check=chk,
+                if rec is not None:
+                    rec.start()  # the file exists from the first step on
+                live = StepRecorder(rec, chk) if rec is not None and arm is None else None  # sim: step by step
+                res = run_program(prog, cell, start=i0, check=chk, on_step=live,
                                   progress=lambda i, s: bar.update(task2, completed=i - i0, status=s))
                 bar.update(task2, completed=len(res.steps), status="done" if res.success else "failed")
-            if rec is not None and arm is None:
-                record_run(rec, prog, res)
+    except KeyboardInterrupt:  # before any step ran (loading, connecting, the check): nothing moved
+        console.print("[red]interrupted before the run started[/red]: nothing moved")
+        raise typer.Exit(130) from None
     except ProgramRejected as exc:
         typer.echo("refused before moving: " + " ".join(str(exc).split()), err=True)
         raise typer.Exit(2) from None
@@ -89,6 +100,10 @@ def run(program: str = typer.Argument(..., help="program YAML file (format: docs
         mark = "ok" if r.outcome.success else f"[red]{r.outcome.reason.value}[/red] {r.outcome.detail}"
         console.print(f"{r.index:>3} {r.name:<24} {r.kind:<7} {r.seconds * 1e3:8.1f} ms  {mark}")
     console.print(f"report: [bold]{index}[/bold]" + (f"; recorded: [bold]{record}[/bold]" if record else ""))
+    if res.interrupted:
+        console.print(f"[red]interrupted at step {res.failed_step} ({res.steps[-1].name!r})[/red]: the robot holds "
+                      "where it stopped")
+        raise typer.Exit(130)
     if not res.success:
         console.print(f"[red]step {res.failed_step} ({res.steps[-1].name!r}) failed:[/red] {res.outcome.detail}; "
                       "the robot holds where it stopped")

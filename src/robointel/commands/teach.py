@@ -1,12 +1,17 @@
-"""Teaching interfaces (Ch. 3.2, 3.4): ``robointel imitate``, ``robointel teleop`` and the imitation demo stage.
+"""Teaching interfaces (Ch. 3.2, 3.4): ``robointel imitate``, ``teleop``, ``jog`` and the imitation demo stage.
 
 The demo stage drives the LR Mate by kinematic imitation in MuJoCo and the SCARA by LQ tracking
 from a synthetic skeleton.
 """
 from __future__ import annotations
 
+import contextlib
+import json
+import secrets
 import time
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import typer
@@ -15,14 +20,15 @@ from rich.table import Table
 
 from robointel.commands.failure import fail
 from robointel.commands.robot_run import run_on_robot
-from robointel.errors import RobointelError
+from robointel.errors import InvalidInput, RobointelError
 from robointel.interface import Backend, open_robot
-from robointel.interface.open import is_sim
+from robointel.interface.open import is_sim, parse_robot_url
 from robointel.io.mcap_log import McapRecorder
 from robointel.io.reference import data_path
 from robointel.report.demo import Figure, StageContext, StageResult
 from robointel.robot import Robot
 from robointel.teach.imitation import kinematic_imitation, plot_imitation, simulate_imitation
+from robointel.teach.jog import AXES, Jogger
 from robointel.teach.scara import (
     PAPER_RMS,
     PAPER_RMS_COMPENSATED,
@@ -35,7 +41,7 @@ from robointel.teach.scara import (
     training_predictor,
 )
 from robointel.teach.skeleton import Skeleton, clean, load_skeleton, synthetic_wave
-from robointel.teach.streaming import StreamingController, StreamingServer
+from robointel.teach.streaming import StreamingController, StreamingServer, check_bind
 from robointel.teach.teleop import TeleopApp
 
 console = Console()
@@ -64,7 +70,7 @@ def resolve_recording(name: str) -> Skeleton:
 
 
 def register(app: typer.Typer) -> None:
-    """Add the ``imitate`` and ``teleop`` commands to ``app``.
+    """Add the ``imitate``, ``teleop`` and ``jog`` commands to ``app``.
 
     Args:
         app: The top-level typer application.
@@ -90,6 +96,9 @@ def register(app: typer.Typer) -> None:
         if not (np.isfinite(latency) and 0.0 <= latency <= 2.0):
             fail(f"--latency must be in [0, 2] s (the Kinect's delay), got {latency}")
         try:
+            parse_robot_url(robot_url)  # the robot and the recording path are checked before any work
+            if record is not None:
+                McapRecorder(record, [f"joint_{i + 1}" for i in range(6)])
             skel = resolve_recording(recording)
             out.mkdir(parents=True, exist_ok=True)
             robot = Robot.load("lrmate200id7l")
@@ -150,7 +159,9 @@ def register(app: typer.Typer) -> None:
     def teleop(host: str = typer.Option("127.0.0.1", help="bind address (others need --token)"),
                port: int = typer.Option(8080, help="port of the browser page"),
                stream_port: int = typer.Option(8765, help="port of the WebSocket streaming interface"),
-               token: str = typer.Option(None, help="shared secret, required for non-loopback binds"),
+               token: str = typer.Option(None, help="shared secret (>= 16 characters), required for non-loopback "
+                                                    "binds; each browser session and each WebSocket client must "
+                                                    "give it before it sees or commands the robot"),
                program: Path = typer.Option(Path("teleop_program.yaml"), help="where 'Save program' writes"),
                duration: float = typer.Option(0.0, help="stop after this many seconds (0: until Ctrl-C)"),
                robot: str = typer.Option("sim", help="'sim', 'sim?process=1' or 'fanuc://HOST[:RMI_PORT][?sm_port=N]': "
@@ -161,25 +172,30 @@ def register(app: typer.Typer) -> None:
 
         Both drive the LR Mate: the 1 kHz simulated cell by default, or with ``--robot`` (or
         ``--record``) the robot interface at its controller period (``sim`` or a FANUC controller).
-        Programs saved from the page load with `robointel plan`.
+        Every option is checked before the robot is connected or a file is created. Programs saved
+        from the page load with `robointel plan`.
         """
-        for opt, p in (("--port", port), ("--stream-port", stream_port)):
-            if not 1 <= p <= 65535:
-                fail(f"{opt} must be a TCP port in 1..65535, got {p}")
         if port == stream_port:
             fail(f"--port and --stream-port must differ, both are {port}")
-        if not np.isfinite(duration) or duration < 0:
-            fail(f"--duration must be >= 0 s (0: until Ctrl-C), got {duration}")
-        iface, rec = None, None
+        try:  # everything that can be refused, before anything is brought up
+            check_bind(host, token)
+            parse_robot_url(robot)
+            if program.exists() and program.is_dir():
+                raise InvalidInput(f"--program {program} is a folder; give a .yaml file", value=str(program))
+            if not program.parent.is_dir():
+                raise InvalidInput(f"--program {program}: its folder does not exist", value=str(program))
+            lr = Robot.load("lrmate200id7l")
+            rec = McapRecorder(record, list(lr.joint_names)) if record is not None else None  # no file yet
+        except RobointelError as exc:
+            fail(exc)
+        iface = None
         try:
             if robot != "sim" or record is not None:
-                lr = Robot.load("lrmate200id7l")
-                rec = McapRecorder(record, list(lr.joint_names)) if record is not None else None
                 kw = {"q0": TELEOP_START} if is_sim(robot) else {}
                 iface = open_robot(robot, recorder=rec, **kw)
                 ctrl = StreamingController(lr, interface=iface)
             else:
-                ctrl = StreamingController()
+                ctrl = StreamingController(lr)
             srv = StreamingServer(ctrl, host=host, port=stream_port, token=token)
             page = TeleopApp(ctrl, host=host, port=port, program_path=program, token=token)
             srv.start()
@@ -187,7 +203,8 @@ def register(app: typer.Typer) -> None:
         except RobointelError as exc:
             _close_robot(iface, rec)
             fail(exc)
-        console.print(f"teleoperation page: [bold]{page.url}[/bold]   streaming interface: [bold]{srv.url}[/bold]")
+        console.print(f"teleoperation page: [bold]{page.url}[/bold]   streaming interface: [bold]{srv.url}[/bold]"
+                      + ("   (sessions must give the token)" if token else ""))
         try:
             t0 = time.monotonic()
             while duration <= 0 or time.monotonic() - t0 < duration:
@@ -203,6 +220,127 @@ def register(app: typer.Typer) -> None:
                           + (f"; recorded to {record}" if record is not None else ""))
         if fault:  # the arm stopped following the operator: not a successful run
             fail(f"the robot stopped during teleoperation: {fault}")
+
+    @app.command()
+    def jog(joint: int = typer.Option(None, "--joint", help="jog this joint (1..6); --by in deg"),
+            axis: str = typer.Option(None, "--axis", help="jog the TCP along x, y, z (--by in mm) or about rx, ry, rz "
+                                                          "(--by in deg)"),
+            frame: str = typer.Option("world", "--frame", help="the frame of --axis: world (the robot's base) or tool"),
+            by: float = typer.Option(None, "--by", help="the increment: deg (joints, rotations) or mm (translations); "
+                                                        "with --hold its sign gives the direction"),
+            hold: float = typer.Option(None, "--hold", help="jog continuously for this many seconds (Ctrl-C releases "
+                                                            "earlier) instead of by an increment"),
+            speed: float = typer.Option(None, "--speed", help="deg/s or mm/s (default 10 deg/s, 20 mm/s)"),
+            rate: int = typer.Option(50, "--rate", help="targets per second"),
+            server: str = typer.Option(None, "--server", help="jog through a running streaming interface "
+                                                              "(ws://HOST:PORT of `robointel teleop`)"),
+            token: str = typer.Option(None, "--token", help="the --server's token"),
+            robot: str = typer.Option("sim", "--robot", help="without --server: 'sim', 'sim?process=1' or "
+                                                             "'fanuc://HOST[:RMI_PORT][?sm_port=N]'"),
+            as_json: bool = typer.Option(False, "--json", help="print the result as one JSON line")) -> None:
+        """Jog the arm: one joint, or the TCP along / about a world or tool axis, by an increment or while held.
+
+        The jog streams small absolute targets with the deadman (one in flight at a time): a busy
+        host slows the jog down, it says so, and a target the server refused as stale is sent again.
+        Without ``--server`` the robot (``--robot``) is brought up behind a streaming interface on
+        127.0.0.1 for the jog and released after it.
+        """
+        from robointel.teach.jog import axis_index
+
+        try:  # everything that can be refused, before anything is brought up
+            if (joint is None) == (axis is None):
+                raise InvalidInput("give --joint N or --axis x|y|z|rx|ry|rz", value=(joint, axis))
+            if by is None and hold is None:
+                raise InvalidInput("give --by (an increment) or --hold SECONDS (continuously)", value=(by, hold))
+            if by is not None and by == 0:
+                raise InvalidInput("--by must not be 0", value=by)
+            fr = "joint" if joint is not None else frame
+            ax = axis_index(fr, joint if joint is not None else axis, 6)
+            angular = fr == "joint" or ax >= 3
+            unit = np.radians(1.0) if angular else 1e-3
+            v = (speed if speed is not None else (10.0 if angular else 20.0)) * unit
+            if server is None:
+                parse_robot_url(robot)
+            elif not server.startswith(("ws://", "wss://")):
+                raise InvalidInput(f"--server must be a ws://HOST:PORT URL, got {server!r}", value=server)
+        except RobointelError as exc:
+            fail(exc)
+        with contextlib.ExitStack() as stack:
+            try:
+                url, tok = server, token
+                if server is None:
+                    url, tok = stack.enter_context(_local_stream(robot))
+                client = stack.enter_context(_connect(url, tok))
+                jogger = Jogger(client)
+                what = f"J{ax + 1}" if fr == "joint" else f"{AXES[ax]} ({fr})"
+                with console.status(f"jogging {what}"):
+                    if hold is not None:
+                        res = jogger.hold(fr, AXES[ax] if fr != "joint" else ax + 1, by if by is not None else 1.0,
+                                          speed=v, seconds=hold, rate=rate)
+                    else:
+                        res = jogger.jog(fr, AXES[ax] if fr != "joint" else ax + 1, by * unit, speed=v, rate=rate)
+                tcp = [jogger.robot.fk(q)[:3, 3] for q in (res.start, res.reached)]
+            except RobointelError as exc:
+                fail(exc)
+        _print_jog(res, tcp, what, as_json)
+        if res.refused:
+            fail(f"the jog stopped early: {res.refused}")
+
+
+def _print_jog(res: Any, tcp: list[np.ndarray], what: str, as_json: bool) -> None:
+    """The jog's result: a table, or one JSON line."""
+    if as_json:
+        print(json.dumps({"start": res.start.tolist(), "goal": res.goal.tolist(), "reached": res.reached.tolist(),
+                          "tcp_start": tcp[0].tolist(), "tcp_reached": tcp[1].tolist(), "targets": res.targets,
+                          "sent": res.sent, "dropped": res.dropped, "stale": res.stale, "expired": res.expired,
+                          "seconds": res.seconds, "planned_seconds": res.planned_seconds, "refused": res.refused}))
+        return
+    t = Table(title=f"jog of {what}")
+    for c in ("", *[f"J{i + 1} [deg]" for i in range(len(res.start))], "TCP x, y, z [mm]"):
+        t.add_column(c, justify="right")
+    for label, q, p in (("start", res.start, tcp[0]), ("reached", res.reached, tcp[1])):
+        t.add_row(label, *[f"{v:.3f}" for v in np.degrees(q)], ", ".join(f"{1e3 * v:.2f}" for v in p))
+    console.print(t)
+    note = (f"; the host was busy: {res.slowed:.1f}x the planned time" if res.slowed > 1.5 else "")
+    console.print(f"{res.targets} targets in {res.seconds:.2f} s (planned {res.planned_seconds:.2f} s){note}; "
+                  f"dropped by the server and sent again: {res.dropped}")
+
+
+@contextlib.contextmanager
+def _local_stream(url: str) -> Iterator[tuple[str, str]]:
+    """The robot at ``url`` behind a streaming interface on 127.0.0.1 (a random port and token)."""
+    lr = Robot.load("lrmate200id7l")
+    kw: dict[str, Any] = {"q0": TELEOP_START} if is_sim(url) else {}
+    iface = open_robot(url, **kw)
+    try:
+        ctrl = StreamingController(lr, interface=iface)
+        tok = secrets.token_urlsafe(24)
+        srv = StreamingServer(ctrl, port=0, token=tok).start()
+        try:
+            yield srv.url, tok
+        finally:
+            srv.stop()
+    finally:
+        iface.close()
+
+
+@contextlib.contextmanager
+def _connect(url: str, token: str | None) -> Iterator[Any]:
+    """A stream client of ``url`` (a refused or failed connection is an InvalidInput naming it)."""
+    from robointel.teach.stream_client import StreamClient
+
+    try:
+        client = StreamClient(url, token=token)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise InvalidInput(f"cannot connect to the streaming interface {url}: {exc}", value=url) from None
+    if client.welcome.get("type") == "error" or ("robot" not in client.welcome):
+        client.close()
+        raise InvalidInput(f"the streaming interface {url} refused the session: "
+                           f"{client.welcome.get('message', 'give its --token')}", value=url)
+    try:
+        yield client
+    finally:
+        client.close()
 
 
 TELEOP_START = np.array([0.0, 0.0, 0.0, 0.0, -np.pi / 2, 0.0])

@@ -67,13 +67,7 @@ class SafetyGate:
         ok = self._accepts(q_target, q_previous)
         if ok is not None:
             return np.array(ok)
-        try:
-            q = np.array(q_target, dtype=float).reshape(-1)
-        except (TypeError, ValueError):
-            raise UnsafeCommand(f"joint target must be {self.n} numbers, got {q_target!r}", value=q_target) from None
-        if q.shape != (self.n,):
-            raise UnsafeCommand(f"joint target must have {self.n} values, got shape {np.shape(q_target)}",
-                                value=q_target)
+        q = self._as_vector(q_target)
         if not np.all(np.isfinite(q)):
             raise UnsafeCommand(f"joint target contains NaN or inf: {q.tolist()}; refused", value=q)
         out = (q < self.lower) | (q > self.upper)
@@ -91,6 +85,32 @@ class SafetyGate:
                     f"period; at most {self.max_step[i]:.4g} rad (the maximum speed) is allowed; refused", value=q)
         return q
 
+    def _as_vector(self, q_target: object) -> npt.NDArray[np.float64]:
+        """``q_target`` as an (n,) float array: a flat sequence of n real numbers, nothing else.
+
+        Raises:
+            UnsafeCommand: not a flat sequence of n numbers (strings, booleans, nested lists such as a
+                1 x n list, other shapes), or a number too large for a float (``10**400``).
+        """
+        try:
+            shape = np.shape(q_target) if isinstance(q_target, np.ndarray | list | tuple) else None
+        except ValueError:  # a ragged nesting
+            shape = None
+        if shape != (self.n,):
+            raise UnsafeCommand(f"joint target must be a flat sequence of {self.n} numbers, got "
+                                f"{type(q_target).__name__} of shape {shape}", value=q_target)
+        assert isinstance(q_target, np.ndarray | list | tuple)
+        items = q_target.tolist() if isinstance(q_target, np.ndarray) else list(q_target)
+        if not all(isinstance(x, int | float | np.integer | np.floating) and not isinstance(x, bool | np.bool_)
+                   for x in items):
+            raise UnsafeCommand(f"joint target must hold {self.n} numbers, got {[type(x).__name__ for x in items]}",
+                                value=q_target)
+        try:
+            return np.array([float(x) for x in items], dtype=float)
+        except OverflowError:
+            raise UnsafeCommand("joint target holds a number too large for a float; refused",
+                                value=q_target) from None
+
     def _accepts(self, q_target: npt.ArrayLike, q_previous: npt.NDArray[np.float64] | None) -> list[float] | None:
         """The target as n floats when it passes every check of :meth:`check`, else None (undecided).
 
@@ -106,8 +126,11 @@ class SafetyGate:
                 or (isinstance(q_target, np.ndarray) and q_target.ndim != 1) or len(q_target) != self.n):
             return None
         try:  # an array's tolist() gives Python numbers at once: no numpy scalar per element
-            q = [float(x) for x in (q_target.tolist() if isinstance(q_target, np.ndarray) else q_target)]
-        except (TypeError, ValueError):
+            q = [float(x) for x in (q_target.tolist() if isinstance(q_target, np.ndarray) else q_target)
+                 if isinstance(x, int | float) and not isinstance(x, bool)]
+        except (TypeError, ValueError, OverflowError):
+            return None
+        if len(q) != self.n:  # something other than a number
             return None
         if q_previous is None:
             for x, (lo, hi, _) in zip(q, bounds, strict=True):
@@ -127,7 +150,10 @@ class SafetyGate:
         Raises:
             UnsafeCommand: the first sample that :meth:`check` would refuse (message names its index).
         """
-        q = np.asarray(q, dtype=float)
+        try:
+            q = np.asarray(q, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            raise UnsafeCommand(f"path must be a (K, {self.n}) array of numbers", value=q) from None
         if q.ndim != 2 or q.shape[1] != self.n:
             raise UnsafeCommand(f"path must have shape (K, {self.n}), got {q.shape}", value=q)
         bad = ~np.all(np.isfinite(q), axis=1) | np.any((q < self.lower) | (q > self.upper), axis=1)

@@ -14,8 +14,9 @@ Schema (version 1)::
       wrench  (N, 6)    float64  [fx, fy, fz, tx, ty, tz] in the sensor frame, N and N m
       labels  (N,)      int64    optional action index per sample (-1 unlabelled)
 
-Appending opens the file in ``"a"`` mode and creates one new group: the other groups are never
-rewritten (their datasets keep their storage).
+Appending opens the file in ``"a"`` mode and creates one new group per demonstration: the other
+groups are never rewritten (their datasets keep their storage). Several demonstrations are appended
+all or none (:meth:`DemonstrationFile.extend`).
 """
 from __future__ import annotations
 
@@ -127,31 +128,64 @@ class DemonstrationFile:
             InvalidInput: a demonstration with that name is already stored, the name contains '/'
                 (or is empty, '.', '..', unprintable), or the file is not a readable HDF5 file.
         """
+        return self.extend([demo], names=[name])[0]
+
+    def extend(self, demos: Iterable[DemonstrationLike], *, names: Iterable[str | None] | None = None) -> list[str]:
+        """Append several demonstrations, all or none; returns their names.
+
+        Every name is checked (allowed, not stored yet, not repeated) before anything is written; a
+        write that fails part way removes the groups it made.
+
+        Args:
+            demos: the demonstrations.
+            names: their names (None entries, or no list: each demonstration's own name, else
+                ``demo_NNNN``).
+
+        Returns:
+            The stored names, in order.
+
+        Raises:
+            InvalidInput: a name is taken, repeated or not allowed, or the file is not a readable
+                HDF5 demonstration file (nothing is written then).
+        """
+        demos = list(demos)
+        given = list(names) if names is not None else [None] * len(demos)
+        if len(given) != len(demos):
+            raise InvalidInput(f"{len(given)} names for {len(demos)} demonstrations", value=len(given))
         with self._open("a") as f:
             if "schema" not in f.attrs:
                 f.attrs["schema"] = SCHEMA
                 f.attrs["version"] = VERSION
             self._check(f)
             root = f.require_group("demonstrations")
-            name = _check_name(name or demo.name or f"demo_{len(root):04d}")
-            if name in root:
-                raise InvalidInput(f"demonstration {name!r} already in {self.path}; choose another name", value=name)
-            g = root.create_group(name)
-            g.create_dataset("t", data=demo.t)
-            g.create_dataset("pose", data=demo.pose)
-            g.create_dataset("wrench", data=demo.wrench)
-            if demo.labels is not None:
-                g.create_dataset("labels", data=demo.labels.astype(np.int64))
-            g.attrs["device"] = demo.device
-            g.attrs["action_names"] = json.dumps(list(demo.action_names))
-            g.attrs["units"] = json.dumps(UNITS)
-            g.attrs["meta"] = json.dumps(demo.meta, default=float)
-            g.attrs["order"] = len(root) - 1
-        return name
-
-    def extend(self, demos: Iterable[DemonstrationLike]) -> list[str]:
-        """Append several demonstrations; returns their names."""
-        return [self.append(d) for d in demos]
+            out: list[str] = []
+            for k, (d, nm) in enumerate(zip(demos, given)):
+                name = _check_name(nm or d.name or f"demo_{len(root) + k:04d}")
+                if name in root or name in out:
+                    raise InvalidInput(f"demonstration {name!r} already in {self.path}"
+                                       + (" (twice in this import)" if name in out else "")
+                                       + "; choose another name; nothing was appended", value=name)
+                out.append(name)
+            made: list[str] = []
+            try:
+                for d, name in zip(demos, out):
+                    g = root.create_group(name)
+                    made.append(name)
+                    g.create_dataset("t", data=d.t)
+                    g.create_dataset("pose", data=d.pose)
+                    g.create_dataset("wrench", data=d.wrench)
+                    if d.labels is not None:
+                        g.create_dataset("labels", data=d.labels.astype(np.int64))
+                    g.attrs["device"] = d.device
+                    g.attrs["action_names"] = json.dumps(list(d.action_names))
+                    g.attrs["units"] = json.dumps(UNITS)
+                    g.attrs["meta"] = json.dumps(d.meta, default=float)
+                    g.attrs["order"] = len(root) - 1
+            except BaseException:
+                for name in made:
+                    del root[name]
+                raise
+        return out
 
     def names(self) -> list[str]:
         """Stored demonstration names in insertion order."""

@@ -133,8 +133,8 @@ def write_lerobot(root: str | Path, episodes: Sequence[Episode], *, robot_type: 
             raise InvalidInput(f"the episodes are sampled at different rates {rates} Hz; export them separately "
                                "or resample them", value=rates)
         fps = rates[0]
-    if int(fps) < 1:
-        raise InvalidInput(f"fps must be a positive integer, got {fps}", value=fps)
+    if isinstance(fps, bool) or not isinstance(fps, int | np.integer) or int(fps) < 1:
+        raise InvalidInput(f"fps must be a positive integer, got {fps!r}", value=fps)
     if root.exists():
         if not overwrite:
             raise InvalidInput(f"{root} exists; pass overwrite=True to replace it", value=str(root))
@@ -221,8 +221,100 @@ def _as_matrix(column: pa.ChunkedArray, rows: slice) -> np.ndarray:
     return part.to_numpy(zero_copy_only=False).reshape(-1, 1)
 
 
+def _bad(where: Path | str, field: str, why: str, value: Any = None) -> InvalidInput:
+    return InvalidInput(f"{where}: {field}: {why}", value=value if value is not None else field)
+
+
+def _read_info(root: Path) -> dict[str, Any]:
+    """``meta/info.json``, checked: a v3 dataset with a positive fps and an ``observation.state`` feature."""
+    info_path = root / "meta" / "info.json"
+    if not info_path.is_file():
+        raise DataMissing(f"{info_path} not found: not a LeRobot dataset folder", value=str(root))
+    try:
+        info = json.loads(info_path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise _bad(info_path, "the file", f"not valid JSON ({str(exc)[:120]})") from None
+    if not isinstance(info, dict):
+        raise _bad(info_path, "the file", f"must hold a JSON object, got {type(info).__name__}")
+    version = str(info.get("codebase_version", ""))
+    if not version.startswith("v3"):
+        raise InvalidInput(f"{root} is a LeRobot {version or 'unknown-version'} dataset; only v3 is read "
+                           f"({info_path}: codebase_version)", value=version)
+    fps = info.get("fps")
+    if isinstance(fps, bool) or not isinstance(fps, int | float) or not (np.isfinite(fps) and fps > 0):
+        raise _bad(info_path, "fps", f"must be a positive number of frames per second, got {fps!r}", fps)
+    features = info.get("features")
+    if not isinstance(features, dict) or not all(isinstance(f, dict) for f in features.values()):
+        raise _bad(info_path, "features", "must be an object of feature name -> {dtype, shape, names}")
+    if _key(STATE) not in features:
+        raise _bad(info_path, "features", f"no {_key(STATE)!r} feature", sorted(features))
+    return info
+
+
+def _read_parquet(files: list[Path], what: str) -> pa.Table:
+    """The tables of ``files`` one after the other (one schema)."""
+    tables = []
+    for f in files:
+        try:
+            tables.append(pq.read_table(f))
+        except (OSError, pa.ArrowException, ValueError) as exc:
+            raise _bad(f, "the file", f"not a readable {what} parquet file ({str(exc).splitlines()[0][:120]})",
+                       str(f)) from None
+    try:
+        return pa.concat_tables(tables)
+    except (pa.ArrowException, ValueError) as exc:
+        raise _bad(files[0].parent, f"{what} files", f"differ in their columns ({str(exc)[:120]})") from None
+
+
+def _episode_rows(meta: pa.Table, where: Path, index: np.ndarray) -> list[dict[str, Any]]:
+    """The episode rows, checked: integer indices, one row per episode, disjoint frame ranges in the data."""
+    need = ("episode_index", "dataset_from_index", "dataset_to_index")
+    missing = [c for c in need if c not in meta.column_names]
+    if missing:
+        raise _bad(where, "columns", f"missing {missing}", missing)
+    rows = meta.to_pylist()
+    for r in rows:
+        for c in need:
+            if isinstance(r[c], bool) or not isinstance(r[c], int):
+                raise _bad(where, c, f"must be an integer, got {r[c]!r} (episode row {r.get('episode_index')!r})",
+                           r[c])
+        a, b = r["dataset_from_index"], r["dataset_to_index"]
+        lo, hi = int(np.searchsorted(index, a)), int(np.searchsorted(index, b))
+        if not (a < b and lo < len(index) and index[lo] == a and hi - lo == b - a):
+            raise _bad(where, "dataset_from_index/dataset_to_index",
+                       f"episode {r['episode_index']} spans frames [{a}, {b}), which are not all in the data",
+                       r["episode_index"])
+    rows.sort(key=lambda r: r["episode_index"])
+    seen = [r["episode_index"] for r in rows]
+    dup = sorted({i for i in seen if seen.count(i) > 1})
+    if dup:
+        raise _bad(where, "episode_index", f"episodes {dup} appear more than once (duplicated episode rows)", dup)
+    spans = sorted((r["dataset_from_index"], r["dataset_to_index"], r["episode_index"]) for r in rows)
+    for (_, a1, ea), (b0, _, eb) in zip(spans, spans[1:]):
+        if b0 < a1:
+            raise _bad(where, "dataset_from_index/dataset_to_index",
+                       f"episodes {ea} and {eb} share frames (a duplicated episode)", (ea, eb))
+    return rows
+
+
+def _json_field(r: dict[str, Any], key: str, where: Path) -> Any:
+    raw = r.get(key)
+    if raw is None:
+        return {}
+    try:
+        out = json.loads(raw)
+    except (TypeError, ValueError, RecursionError):
+        raise _bad(where, key, f"not JSON in episode {r['episode_index']}: {str(raw)[:60]!r}") from None
+    if not isinstance(out, dict):
+        raise _bad(where, key, f"must be a JSON object in episode {r['episode_index']}")
+    return out
+
+
 def read_lerobot(root: str | Path) -> list[Episode]:
     """Read the episodes of a LeRobot v3 dataset folder (its parquet data; videos are not read).
+
+    Every part is checked before an episode is returned: a malformed dataset gives one error
+    naming the file and the field, never a partial result.
 
     Args:
         root: the dataset folder (with ``meta/info.json``).
@@ -232,44 +324,61 @@ def read_lerobot(root: str | Path) -> list[Episode]:
         others get ``time`` from ``timestamp`` and empty ``kind``.
 
     Raises:
-        DataMissing: no ``meta/info.json`` or data files.
-        InvalidInput: not a v3 dataset, or no ``observation.state``.
+        DataMissing: no ``meta/info.json``, data files or episode files.
+        InvalidInput: not a v3 dataset, ``fps`` not positive, no ``observation.state``, an unreadable
+            or malformed file, a missing or ill-typed column, duplicated episodes (rows repeated or
+            sharing frames), an episode whose values are not finite or whose times do not increase.
     """
     root = Path(root)
-    info_path = root / "meta" / "info.json"
-    if not info_path.exists():
-        raise DataMissing(f"{info_path} not found: not a LeRobot dataset folder", value=str(root))
-    info = json.loads(info_path.read_text())
-    version = str(info.get("codebase_version", ""))
-    if not version.startswith("v3"):
-        raise InvalidInput(f"{root} is a LeRobot {version or 'unknown-version'} dataset; only v3 is read",
-                           value=version)
-    features: dict[str, dict[str, Any]] = info.get("features", {})
-    if _key(STATE) not in features:
-        raise InvalidInput(f"{root} has no {_key(STATE)!r} feature", value=sorted(features))
+    info = _read_info(root)
+    features: dict[str, dict[str, Any]] = info["features"]
     files = sorted((root / "data").glob("chunk-*/file-*.parquet"))
     if not files:
         raise DataMissing(f"no data files under {root / 'data'}", value=str(root))
-    data = pa.concat_tables([pq.read_table(f) for f in files])
-    meta = pa.concat_tables([pq.read_table(f) for f in sorted((root / "meta" / "episodes").glob("chunk-*/*.parquet"))])
-    rows = sorted(meta.to_pylist(), key=lambda r: r["episode_index"])
-    index = data.column("index").to_numpy()
+    ep_files = sorted((root / "meta" / "episodes").glob("chunk-*/*.parquet"))
+    if not ep_files:
+        raise DataMissing(f"no episode files under {root / 'meta' / 'episodes'}", value=str(root))
+    data = _read_parquet(files, "data")
+    meta = _read_parquet(ep_files, "episodes")
     obs_keys = [k for k, f in features.items() if k.startswith(_PREFIX) and f.get("dtype") not in ("video", "image")]
+    for c in ("index", "action", *obs_keys):
+        if c not in data.column_names:
+            raise _bad(files[0], "columns", f"no {c!r} column", c)
+    if "time" not in data.column_names and "timestamp" not in data.column_names:
+        raise _bad(files[0], "columns", "neither 'time' nor 'timestamp'", "time")
+    try:
+        index = np.asarray(data.column("index").to_numpy(zero_copy_only=False), dtype=np.int64)
+    except (pa.ArrowException, TypeError, ValueError):
+        raise _bad(files[0], "index", "must be integers") from None
+    if np.any(np.diff(index) <= 0):
+        raise _bad(files[0], "index", "must increase strictly from frame to frame (a frame repeated or out of order)")
+    rows = _episode_rows(meta, ep_files[0], index)
     out = []
     for r in rows:
+        e = r["episode_index"]
         lo, hi = (int(np.searchsorted(index, r["dataset_from_index"])),
                   int(np.searchsorted(index, r["dataset_to_index"])))
         sl = slice(lo, hi)
-        t = (_as_matrix(data.column("time"), sl) if "time" in data.column_names
-             else _as_matrix(data.column("timestamp"), sl).astype(np.float64))[:, 0]
-        obs = {k[len(_PREFIX):]: _as_matrix(data.column(k), sl) for k in obs_keys}
-        names = {k[len(_PREFIX):]: tuple(features[k]["names"]) for k in obs_keys
+        try:
+            t = (_as_matrix(data.column("time"), sl) if "time" in data.column_names
+                 else _as_matrix(data.column("timestamp"), sl).astype(np.float64))[:, 0]
+            obs = {k[len(_PREFIX):]: _as_matrix(data.column(k), sl) for k in obs_keys}
+            action = _as_matrix(data.column("action"), sl)
+        except (pa.ArrowException, TypeError, ValueError) as exc:
+            raise _bad(files[0], "columns", f"episode {e}: a column is not numbers of one width "
+                                            f"({str(exc)[:120]})", e) from None
+        names = {k[len(_PREFIX):]: tuple(map(str, features[k]["names"])) for k in obs_keys
                  if isinstance(features[k].get("names"), list)}
         if isinstance(features.get("action", {}).get("names"), list):
-            names["action"] = tuple(features["action"]["names"])
+            names["action"] = tuple(map(str, features["action"]["names"]))
         tasks = r.get("tasks") or [""]
-        out.append(Episode.create(t, obs, _as_matrix(data.column("action"), sl), names=names, task=tasks[0],
-                                  kind=r.get("robointel/kind") or "",
-                                  name=r.get("robointel/name") or f"episode_{r['episode_index']:06d}",
-                                  meta=json.loads(r.get("robointel/meta") or "{}")))
+        if not isinstance(tasks, list):
+            raise _bad(ep_files[0], "tasks", f"must be a list of strings in episode {e}", e)
+        meta_e = _json_field(r, "robointel/meta", ep_files[0])
+        try:
+            out.append(Episode.create(t, obs, action, names=names, task=str(tasks[0]),
+                                      kind=str(r.get("robointel/kind") or ""),
+                                      name=str(r.get("robointel/name") or f"episode_{e:06d}"), meta=meta_e))
+        except InvalidInput as exc:
+            raise _bad(root, f"episode {e}", str(exc), e) from None
     return out

@@ -263,8 +263,8 @@ def load_mbm_problems(path: str | Path) -> MBMProblemSet:
     """
     p = Path(path)
     try:
-        text = p.read_text()
-    except OSError as exc:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
         raise InvalidInput(f"{p}: cannot read the MBM problem file: {exc}", value=str(p)) from None
     try:
         data = json.loads(text)

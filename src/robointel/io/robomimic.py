@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -76,8 +77,42 @@ def write_robomimic(path: str | Path, episodes: Sequence[Episode], *, env_name: 
     return path
 
 
+def _bad(path: Path, field: str, why: str, value: object = None) -> InvalidInput:
+    return InvalidInput(f"{path}: {field}: {why}", value=value if value is not None else field)
+
+
+def _json_attr(node: h5py.HLObject, key: str, path: Path, default: str, kind: type = dict) -> Any:
+    """A JSON attribute of ``node`` of type ``kind``."""
+    raw = node.attrs.get(key, default)
+    if isinstance(raw, bytes):
+        raw = raw.decode("utf-8", "replace")
+    try:
+        out = json.loads(raw)
+    except (TypeError, ValueError, RecursionError):
+        raise _bad(path, f"{node.name} attribute {key!r}", f"not JSON: {str(raw)[:60]!r}") from None
+    if not isinstance(out, kind):
+        raise _bad(path, f"{node.name} attribute {key!r}", f"must be a JSON {kind.__name__}")
+    return out
+
+
+def _array(node: h5py.HLObject, key: str, path: Path) -> np.ndarray:
+    """A numeric dataset of ``node`` (read whole)."""
+    d = node.get(key)
+    if not isinstance(d, h5py.Dataset):
+        raise _bad(path, f"{node.name}/{key}", "missing or not a dataset", key)
+    if d.dtype.kind not in "biuf":
+        raise _bad(path, f"{node.name}/{key}", f"must hold numbers, holds {d.dtype}", key)
+    try:
+        return np.asarray(d[()])
+    except (OSError, ValueError, TypeError) as exc:
+        raise _bad(path, f"{node.name}/{key}", f"unreadable (corrupt or truncated: {str(exc)[:100]})") from None
+
+
 def read_robomimic(path: str | Path) -> list[Episode]:
     """Read the demonstrations of a robomimic-style HDF5 file.
+
+    Every part is checked: a malformed file gives one error naming the file and the field, never a
+    partial result.
 
     Args:
         path: the ``.hdf5`` file.
@@ -89,32 +124,61 @@ def read_robomimic(path: str | Path) -> list[Episode]:
 
     Raises:
         DataMissing: no such file.
-        InvalidInput: no ``data`` group or a demo without ``actions``/``obs``.
+        InvalidInput: not a readable HDF5 file, no ``data`` group, a demo without ``actions``/``obs``
+            (or of other lengths), a non-numeric or unreadable dataset, an attribute that is not
+            JSON, an ``fps`` that is not positive, values not finite or times not increasing.
     """
     path = Path(path)
-    if not path.exists():
+    if not path.is_file():
         raise DataMissing(f"robomimic file {path} does not exist", value=str(path))
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise InvalidInput(f"{path} is not a readable HDF5 file (corrupt, truncated or another format: "
+                           f"{str(exc).splitlines()[0][:100]})", value=str(path)) from None
     out = []
-    with h5py.File(path, "r") as f:
-        if "data" not in f:
+    with f:
+        data = f.get("data")
+        if not isinstance(data, h5py.Group):
             raise InvalidInput(f"{path} has no 'data' group: not a robomimic file", value=str(path))
-        data = f["data"]
-        env_kwargs = json.loads(data.attrs.get("env_args", "{}")).get("env_kwargs", {})
-        order = sorted(data, key=lambda s: int(s.split("_")[-1]) if s.split("_")[-1].isdigit() else 0)
-        for demo in order:
+        env_args = _json_attr(data, "env_args", path, "{}")
+        env_kwargs = env_args.get("env_kwargs", {})
+        if not isinstance(env_kwargs, dict):
+            raise _bad(path, "data attribute 'env_args'", "env_kwargs must be a JSON object")
+        fps = env_kwargs.get("fps", 1.0)
+        if isinstance(fps, bool) or not isinstance(fps, int | float) or not (np.isfinite(fps) and fps > 0):
+            raise _bad(path, "data attribute 'env_args'", f"env_kwargs.fps must be a positive number, got {fps!r}",
+                       fps)
+
+        def order(s: str) -> tuple[int, str]:
+            tail = s.rsplit("_", 1)[-1]
+            return (int(tail) if tail.isdigit() else -1, s)
+
+        for demo in sorted(data, key=order):
             g = data[demo]
-            if "actions" not in g or "obs" not in g:
-                raise InvalidInput(f"{path}: {demo} needs 'actions' and 'obs'", value=demo)
-            action = g["actions"][()]
-            obs = {k: g["obs"][k][()] for k in g["obs"]}
+            if not isinstance(g, h5py.Group):
+                raise _bad(path, f"data/{demo}", "must be a group (one per demonstration)", demo)
+            if "actions" not in g or not isinstance(g.get("obs"), h5py.Group):
+                raise _bad(path, f"data/{demo}", "needs 'actions' and an 'obs' group", demo)
+            action = _array(g, "actions", path)
+            obs = {str(k): _array(g["obs"], k, path) for k in g["obs"]}
+            if not obs:
+                raise _bad(path, f"data/{demo}/obs", "holds no observation", demo)
             if "state" not in obs:
                 first = sorted(obs)[0]
                 obs["state"] = obs.pop(first)
             n = len(action)
-            t = g["timestamps"][()] if "timestamps" in g else np.arange(n) / float(env_kwargs.get("fps", 1.0))
-            names = {k: tuple(v) for k, v in json.loads(g.attrs.get("robointel_names", "{}")).items()}
-            out.append(Episode.create(t, obs, action, names=names, task=str(g.attrs.get("robointel_task", "")),
-                                      kind=str(g.attrs.get("robointel_kind", "")),
-                                      name=str(g.attrs.get("robointel_name", demo)),
-                                      meta=json.loads(g.attrs.get("robointel_meta", "{}"))))
+            t = _array(g, "timestamps", path) if "timestamps" in g else np.arange(n) / float(fps)
+            names_raw = _json_attr(g, "robointel_names", path, "{}")
+            try:
+                names = {str(k): tuple(str(x) for x in v) for k, v in names_raw.items()}
+            except TypeError:
+                raise _bad(path, f"data/{demo} attribute 'robointel_names'", "must map names to lists") from None
+            meta = _json_attr(g, "robointel_meta", path, "{}")
+            try:
+                out.append(Episode.create(t, obs, action, names=names, task=str(g.attrs.get("robointel_task", "")),
+                                          kind=str(g.attrs.get("robointel_kind", "")),
+                                          name=str(g.attrs.get("robointel_name", demo)), meta=meta))
+            except InvalidInput as exc:
+                raise _bad(path, f"data/{demo}", str(exc), demo) from None
     return out

@@ -55,7 +55,7 @@ def episode_to_demonstration(episode: Episode) -> Demonstration:
         The demonstration (equal to the original).
 
     Raises:
-        InvalidInput: the episode is not a device demonstration.
+        InvalidInput: the episode is not a device demonstration, or its orientation is not a rotation.
     """
     state, wrench = episode.observations.get("state"), episode.observations.get("wrench")
     if episode.kind != KIND or state is None or wrench is None or state.shape[1] != 12 or wrench.shape[1] != 6:
@@ -64,6 +64,12 @@ def episode_to_demonstration(episode: Episode) -> Demonstration:
     pose = np.zeros((len(episode), 4, 4))
     pose[:, :3, 3] = state[:, :3]
     pose[:, :3, :3] = state[:, 3:].reshape(-1, 3, 3)
+    R = pose[:, :3, :3]
+    err = np.abs(np.einsum("kji,kjl->kil", R, R) - np.eye(3)).max(axis=(1, 2))
+    bad = np.flatnonzero((err > 1e-6) | (np.linalg.det(R) < 0))
+    if bad.size:
+        raise InvalidInput(f"episode {episode.name!r}: state[{int(bad[0])}, 3:12] is not a rotation matrix (the "
+                           "tool orientation of a device demonstration)", value=int(bad[0]))
     pose[:, 3, 3] = 1.0
     labels = episode.observations["label"][:, 0] if "label" in episode.observations else None
     meta = episode.meta

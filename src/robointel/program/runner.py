@@ -170,11 +170,13 @@ class ProgramRun:
         steps: One :class:`StepResult` per step run, in order (stops after the first failure).
         check: The pre-run check.
         failed_step: Index of the step that failed, or None.
+        interrupted: The run was stopped by the operator (Ctrl-C) at ``failed_step``.
     """
 
     steps: list[StepResult]
     check: ProgramCheck
     failed_step: int | None = None
+    interrupted: bool = False
 
     @property
     def success(self) -> bool:
@@ -193,7 +195,8 @@ class ProgramRun:
 
 
 def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: ProgramCheck | None = None,
-                progress: Callable[[int, str], None] | None = None) -> ProgramRun:
+                progress: Callable[[int, str], None] | None = None,
+                on_step: Callable[[StepResult], None] | None = None) -> ProgramRun:
     """Check the program, then run it step by step on ``cell``.
 
     Nothing moves before the whole program (from ``start``) has passed :func:`check_program`. A motion
@@ -206,9 +209,12 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
         start: First step to run, by index or name (``--from``).
         check: A check made earlier (else it is made now from the cell's configuration).
         progress: Optional callback (step index, status) before each step.
+        on_step: Optional callback with each step's :class:`StepResult` as soon as the step ends (a
+            recording of the run is written as it goes).
 
     Returns:
-        The :class:`ProgramRun`.
+        The :class:`ProgramRun`. A ``KeyboardInterrupt`` (Ctrl-C) stops the robot where it is and ends
+        the run with the interrupted step failed (``interrupted`` set, its motion so far in ``executed``).
 
     Raises:
         ProgramRejected: The pre-run check refused the program (nothing moved); a cell with a ``refuse``
@@ -234,77 +240,96 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
         if progress:
             progress(i, step.name)
         t0 = time.perf_counter()
-        plan = chk.plans[i]
-        executed = np.zeros((0, program.robot.nq))
-        replanned = False
-        if step.kind in ("move", "path"):
-            traj = plan.trajectory
-            try:
-                if step.kind == "move" and (plan.deferred or scene_key(program.scene) != chk.scene_key):
-                    traj = plan_fn(cell.q, plan.q_end)
-                    replanned = not plan.deferred
-            except RobointelError as exc:
-                traj = None
-                outcome = TrialOutcome(False, Failure.INFEASIBLE, f"replanning failed: {exc}")
-                cell.stop("no motion")
-                results.append(StepResult(i, step.name, step.kind, outcome, time.perf_counter() - t0))
-                return ProgramRun(results, chk, failed_step=i)
-            if traj is None:
-                outcome = TrialOutcome(True)
-            else:
-                if float(np.max(np.abs(cell.q - traj.q[0]))) > TRACKING_LIMIT_RAD:
-                    outcome = TrialOutcome(False, Failure.TRACKING, "the robot is not where the step starts")
-                    cell.stop("not at the step's start")
-                else:
-                    outcome, executed = cell.execute(traj)
-                    if hasattr(cell, "pop_trace"):
-                        executed = cell.pop_trace()  # on the 1 ms grid
-        elif step.kind == "wait":
-            cell.hold(step.args["seconds"])
-            outcome = TrialOutcome(True)
-        elif step.kind in ("grasp", "place"):
-            act = getattr(cell, step.kind, None)
-            if act is None:
-                outcome = TrialOutcome(False, Failure.ERROR, f"the cell {type(cell).__name__} has no gripper and "
-                                       "objects (use GraspCell)")
-            else:
-                arg = step.args["category"] if step.kind == "grasp" else step.args["at"]
-                try:
-                    outcome = act(arg, plan_fn)
-                except RobointelError as exc:
-                    outcome = TrialOutcome(False, Failure.INFEASIBLE, str(exc))
-                if hasattr(cell, "pop_trace"):
-                    executed = cell.pop_trace()
-                if not outcome.success:
-                    cell.stop(step.kind)
-        elif step.kind == "guide":
-            act = getattr(cell, "guide", None)
-            if act is None:
-                outcome = TrialOutcome(False, Failure.ERROR, f"the cell {type(cell).__name__} has no F/T sensor for "
-                                       "lead-through (use SimCell)")
-            else:
-                g = act(step.args["timeout"])
-                outcome, executed = g.outcome, g.lead.q
-            if not outcome.success:
-                cell.stop("guide")
-        elif step.kind in SKILL_KINDS:
-            outcome = _skill_step(program, step, cell, i)
-            if not outcome.success:
-                cell.stop(step.kind)
-        elif step.kind == "set_io":
-            outcome = TrialOutcome(True)
-            try:
-                for k, v in step.args["outputs"].items():
-                    cell.set_io(k, v)
-            except RobointelError as exc:
-                outcome = TrialOutcome(False, Failure.FAULT, f"setting the outputs failed: {exc}")
-                cell.stop("set_io")
-        else:  # pragma: no cover - the format refuses other kinds
-            outcome = TrialOutcome(False, Failure.ERROR, f"unknown step kind {step.kind!r}")
-        results.append(StepResult(i, step.name, step.kind, outcome, time.perf_counter() - t0, executed, replanned))
-        if not outcome.success:
+        try:
+            result = _run_step(program, cell, chk, i, step, plan_fn, t0)
+        except KeyboardInterrupt:
+            cell.stop("interrupted")
+            trace = cell.pop_trace() if hasattr(cell, "pop_trace") else np.zeros((0, program.robot.nq))
+            result = StepResult(i, step.name, step.kind, TrialOutcome(False, Failure.ERROR, "interrupted (Ctrl-C): "
+                                                                      "the robot holds where it stopped"),
+                                time.perf_counter() - t0, trace)
+            results.append(result)
+            if on_step is not None:
+                on_step(result)
+            return ProgramRun(results, chk, failed_step=i, interrupted=True)
+        results.append(result)
+        if on_step is not None:
+            on_step(result)
+        if not result.outcome.success:
             return ProgramRun(results, chk, failed_step=i)
     return ProgramRun(results, chk)
+
+
+def _run_step(program: Program, cell: Cell, chk: ProgramCheck, i: int, step: Step,
+              plan_fn: Callable[[np.ndarray, np.ndarray], Trajectory | None], t0: float) -> StepResult:
+    """Run step ``i``; its :class:`StepResult` (a failed step has stopped the robot)."""
+    plan = chk.plans[i]
+    executed = np.zeros((0, program.robot.nq))
+    replanned = False
+    if step.kind in ("move", "path"):
+        traj = plan.trajectory
+        try:
+            if step.kind == "move" and (plan.deferred or scene_key(program.scene) != chk.scene_key):
+                traj = plan_fn(cell.q, plan.q_end)
+                replanned = not plan.deferred
+        except RobointelError as exc:
+            traj = None
+            outcome = TrialOutcome(False, Failure.INFEASIBLE, f"replanning failed: {exc}")
+            cell.stop("no motion")
+            return StepResult(i, step.name, step.kind, outcome, time.perf_counter() - t0)
+        if traj is None:
+            outcome = TrialOutcome(True)
+        else:
+            if float(np.max(np.abs(cell.q - traj.q[0]))) > TRACKING_LIMIT_RAD:
+                outcome = TrialOutcome(False, Failure.TRACKING, "the robot is not where the step starts")
+                cell.stop("not at the step's start")
+            else:
+                outcome, executed = cell.execute(traj)
+                if hasattr(cell, "pop_trace"):
+                    executed = cell.pop_trace()  # on the 1 ms grid
+    elif step.kind == "wait":
+        cell.hold(step.args["seconds"])
+        outcome = TrialOutcome(True)
+    elif step.kind in ("grasp", "place"):
+        act = getattr(cell, step.kind, None)
+        if act is None:
+            outcome = TrialOutcome(False, Failure.ERROR, f"the cell {type(cell).__name__} has no gripper and "
+                                   "objects (use GraspCell)")
+        else:
+            arg = step.args["category"] if step.kind == "grasp" else step.args["at"]
+            try:
+                outcome = act(arg, plan_fn)
+            except RobointelError as exc:
+                outcome = TrialOutcome(False, Failure.INFEASIBLE, str(exc))
+            if hasattr(cell, "pop_trace"):
+                executed = cell.pop_trace()
+            if not outcome.success:
+                cell.stop(step.kind)
+    elif step.kind == "guide":
+        act = getattr(cell, "guide", None)
+        if act is None:
+            outcome = TrialOutcome(False, Failure.ERROR, f"the cell {type(cell).__name__} has no F/T sensor for "
+                                   "lead-through (use SimCell)")
+        else:
+            g = act(step.args["timeout"])
+            outcome, executed = g.outcome, g.lead.q
+        if not outcome.success:
+            cell.stop("guide")
+    elif step.kind in SKILL_KINDS:
+        outcome = _skill_step(program, step, cell, i)
+        if not outcome.success:
+            cell.stop(step.kind)
+    elif step.kind == "set_io":
+        outcome = TrialOutcome(True)
+        try:
+            for k, v in step.args["outputs"].items():
+                cell.set_io(k, v)
+        except RobointelError as exc:
+            outcome = TrialOutcome(False, Failure.FAULT, f"setting the outputs failed: {exc}")
+            cell.stop("set_io")
+    else:  # pragma: no cover - the format refuses other kinds
+        outcome = TrialOutcome(False, Failure.ERROR, f"unknown step kind {step.kind!r}")
+    return StepResult(i, step.name, step.kind, outcome, time.perf_counter() - t0, executed, replanned)
 
 
 def _skill_step(program: Program, step: Step, cell: Cell, i: int) -> TrialOutcome:

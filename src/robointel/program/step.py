@@ -20,6 +20,8 @@ SKILL_KINDS = {"insert": "insertion", "grind": "grinding"}  # step kind -> the s
 INSERT_OPTIONS: dict[str, float | None] = {"time_limit": None, "clearance_mm": 0.02, "lateral_error_mm": 2.0,
                                            "tilt_error_deg": 5.0}
 OBJECT_CATEGORIES = ("cup", "can", "box", "ball", "long_tool")
+#: ``set_io`` outputs that take 0 or 1 only, and what the values mean.
+DIGITAL_OUTPUTS = {"gripper": "1 closes the fingers, 0 opens them"}
 
 @dataclass(frozen=True)
 class Target:
@@ -290,5 +292,8 @@ def parse_step(d: Any, i: int, n: int) -> Step:
         for k, x in v.items():
             outs[str(k)] = _number(float(x) if isinstance(x, bool) else x, f"{where}: output {k!r}",
                                    minimum=-np.inf)
+            if str(k) in DIGITAL_OUTPUTS and outs[str(k)] not in (0.0, 1.0):
+                raise InvalidInput(f"{where}: output {k!r} is digital ({DIGITAL_OUTPUTS[str(k)]}): give 0 or 1, "
+                                   f"got {x!r}", value=x)
         return Step("set_io", name, {"outputs": outs})
     raise InvalidInput(f"{where}: unknown step kind {kind!r}; use one of {', '.join(STEP_KINDS)}", value=kind)

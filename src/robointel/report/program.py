@@ -15,6 +15,8 @@ import numpy as np  # noqa: E402
 
 from robointel.io.mcap_log import McapRecorder  # noqa: E402
 from robointel.program import Program, ProgramRun  # noqa: E402
+from robointel.program.check import ProgramCheck  # noqa: E402
+from robointel.program.runner import StepResult  # noqa: E402
 
 
 def plot_run(program: Program, run: ProgramRun, path: Path) -> Path:
@@ -101,11 +103,45 @@ class _Sample:
     wrench: None = None
 
 
-def record_run(recorder: McapRecorder, program: Program, run: ProgramRun, *, period: float = 0.008) -> int:
-    """Record a simulated run: each step's planned trajectory and its measured joints (every ``period`` s).
+class StepRecorder:
+    """Record a simulated run step by step as it runs (``run_program(..., on_step=StepRecorder(...))``).
 
-    The measured joints of the steps (1 ms grid) go to ``/joint_states`` one after the other on one clock,
-    the checked trajectories of ``move`` and ``path`` steps to the trajectory topic at their start time.
+    Each step's checked trajectory (``move`` and ``path`` steps) goes to the trajectory topic at its
+    start time and its measured joints (1 ms grid) to ``/joint_states`` every ``period`` s, the steps
+    one after the other on one clock. The recorder writes them to its file as it goes.
+
+    Args:
+        recorder: The open recorder (closed by the caller).
+        check: The pre-run check whose plans the steps follow.
+        period: Spacing of the recorded joint states, s.
+
+    Attributes:
+        count: Joint states recorded so far.
+    """
+
+    def __init__(self, recorder: McapRecorder, check: ProgramCheck, *, period: float = 0.008) -> None:
+        self.recorder, self.check = recorder, check
+        self.every = max(1, int(round(period / 1e-3)))
+        self.t0 = 0.0
+        self.count = 0
+
+    def __call__(self, r: StepResult) -> None:
+        """Record one finished step."""
+        plan = self.check.plans[r.index]
+        if plan.trajectory is not None and not r.replanned:
+            self.recorder.trajectory(self.t0, plan.trajectory)
+        Q = r.executed
+        if len(Q) == 0:
+            return
+        qd = np.gradient(Q, 1e-3, axis=0) if len(Q) > 1 else np.zeros_like(Q)
+        for k in range(0, len(Q), self.every):
+            self.recorder.joint_state(_Sample(self.t0 + k * 1e-3, Q[k], qd[k]))
+            self.count += 1
+        self.t0 += len(Q) * 1e-3
+
+
+def record_run(recorder: McapRecorder, program: Program, run: ProgramRun, *, period: float = 0.008) -> int:
+    """Record a finished simulated run (as :class:`StepRecorder` does while it runs).
 
     Args:
         recorder: The open recorder (closed by the caller).
@@ -116,18 +152,7 @@ def record_run(recorder: McapRecorder, program: Program, run: ProgramRun, *, per
     Returns:
         The number of joint states recorded.
     """
-    t0, count = 0.0, 0
-    every = max(1, int(round(period / 1e-3)))
+    rec = StepRecorder(recorder, run.check, period=period)
     for r in run.steps:
-        plan = run.check.plans[r.index]
-        if plan.trajectory is not None and not r.replanned:
-            recorder.trajectory(t0, plan.trajectory)
-        Q = r.executed
-        if len(Q) == 0:
-            continue
-        qd = np.gradient(Q, 1e-3, axis=0) if len(Q) > 1 else np.zeros_like(Q)
-        for k in range(0, len(Q), every):
-            recorder.joint_state(_Sample(t0 + k * 1e-3, Q[k], qd[k]))
-            count += 1
-        t0 += len(Q) * 1e-3
-    return count
+        rec(r)
+    return rec.count

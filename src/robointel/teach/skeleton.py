@@ -478,10 +478,15 @@ def clean(skel: Skeleton, *, cutoff_hz: float = 6.0, rate: float | None = None, 
 
 
 def load_skeleton(path: str | Path) -> Skeleton:
-    """Read a recording by extension: ``.csv`` (Kinect v2) or ``.bvh``."""
+    """Read a recording by extension: ``.csv`` (Kinect v2) or ``.bvh``.
+
+    Raises:
+        InvalidInput: another extension, or a file that is not text (naming the file).
+    """
     p = Path(path)
-    if p.suffix.lower() == ".bvh":
-        return read_bvh(p)
-    if p.suffix.lower() == ".csv":
-        return read_kinect_csv(p)
-    raise InvalidInput(f"unknown skeleton format {p.suffix!r}; use a Kinect .csv or a .bvh file", value=str(p))
+    if p.suffix.lower() not in (".bvh", ".csv"):
+        raise InvalidInput(f"unknown skeleton format {p.suffix!r}; use a Kinect .csv or a .bvh file", value=str(p))
+    try:
+        return read_bvh(p) if p.suffix.lower() == ".bvh" else read_kinect_csv(p)
+    except UnicodeDecodeError as exc:
+        raise InvalidInput(f"{p} is not a text recording ({exc.reason} at byte {exc.start})", value=str(p)) from None

@@ -108,7 +108,8 @@ JUNK = ('{"type": "joint_target", "q": [0, 0, 0, 0, -1.5, 0], "t": %r}',
         '{"type": "get_state"}', '{not json', '{"type": "heartbeat", "t": %r}')
 
 
-def flood(url: str, mode: str, seconds: float, hold: float, *, start: Any = None) -> dict[str, float]:
+def flood(url: str, mode: str, seconds: float, hold: float, *, start: Any = None, token: str | None = None,
+          clock: float = 1.0, send_buffer: int | None = None) -> dict[str, float]:
     """A misbehaving client for load tests: send as fast as the link takes for ``seconds``.
 
     Modes: ``command`` (takes control, streams a joint target at J1's far end), ``command_poses``
@@ -121,17 +122,32 @@ def flood(url: str, mode: str, seconds: float, hold: float, *, start: Any = None
         seconds: flood duration, s.
         hold: stay connected and silent this long afterwards, s.
         start: called (no arguments) once connected, before flooding (e.g. to wait for a go signal).
+        token: the server's token (sent in ``hello`` first).
+        clock: the rate of the send times ``t`` it stamps: 1 is seconds, 1000 a clock 1000x fast
+            (milliseconds where seconds are expected), 0.001 one 1000x slow.
+        send_buffer: the kernel send buffer of its socket, bytes (None: the system's, up to 4 MB on
+            Linux loopback): what an attacker elsewhere can have in flight towards the server.
 
     Returns:
         ``{"last_send": perf_counter time of the last send, s, "sent": messages}``.
     """
+    import socket
     import threading
+    from urllib.parse import urlparse
 
     with needs_extra("teleop", "the streaming client"):
         from websockets.sync.client import connect
 
-    ws = connect(url, compression=None)
+    u = urlparse(url)
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    if send_buffer is not None:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, int(send_buffer))
+    sock.connect((u.hostname, u.port))
+    ws = connect(url, compression=None, sock=sock, close_timeout=0.2)
     ws.recv(timeout=5)
+    if token is not None:
+        ws.send(json.dumps({"type": "hello", "token": token}))
+        ws.recv(timeout=5)
 
     def drain() -> None:
         try:
@@ -150,27 +166,34 @@ def flood(url: str, mode: str, seconds: float, hold: float, *, start: Any = None
     last = t0
     while time.perf_counter() - t0 < seconds:
         last = time.perf_counter()
+        t = last * clock
         if mode == "command":
-            ws.send(json.dumps({"type": "joint_target", "q": right, "t": last, "seq": k}))
+            ws.send(json.dumps({"type": "joint_target", "q": right, "t": t, "seq": k}))
         elif mode == "command_poses":
             ws.send(json.dumps({"type": "pose_target", "position": [3.0, 0.1 * (k % 7), 0.3],
-                                "quaternion": [1, 0, 0, 0], "t": last, "seq": k}))
+                                "quaternion": [1, 0, 0, 0], "t": t, "seq": k}))
         else:
             m = JUNK[k % len(JUNK)]
-            ws.send(m % last if "%r" in m else m)
+            ws.send(m % t if "%r" in m else m)
         k += 1
-    out = {"last_send": last, "sent": float(k)}
+    import os
+
+    cpu = os.times()
+    out = {"last_send": last, "sent": float(k), "cpu_s": cpu.user + cpu.system}
     print(json.dumps(out), flush=True)
     time.sleep(hold)
     ws.close()
     return out
 
 
-if __name__ == "__main__":  # python -m robointel.teach.stream_client URL MODE SECONDS HOLD
+if __name__ == "__main__":  # python -m robointel.teach.stream_client URL MODE SECONDS HOLD [CLOCK [SEND_BUFFER]]
+    import os
     import sys
 
     def _wait_for_go() -> None:
         print("ready", flush=True)
         sys.stdin.readline()
 
-    flood(sys.argv[1], sys.argv[2], float(sys.argv[3]), float(sys.argv[4]), start=_wait_for_go)
+    flood(sys.argv[1], sys.argv[2], float(sys.argv[3]), float(sys.argv[4]), start=_wait_for_go,
+          token=os.environ.get("ROBOINTEL_STREAM_TOKEN"), clock=float(sys.argv[5]) if len(sys.argv) > 5 else 1.0,
+          send_buffer=int(sys.argv[6]) if len(sys.argv) > 6 and sys.argv[6] != "-" else None)

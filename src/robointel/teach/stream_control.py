@@ -188,6 +188,13 @@ class StreamingController:
                 self._pending = None
                 self._drop_target = True
 
+    def drop(self, client: str) -> None:
+        """Forget the target of ``client`` when it holds control (its stream can no longer be trusted)."""
+        with self._lock:
+            if self.owner == client:
+                self._pending = None
+                self._drop_target = True
+
     def emergency_stop(self) -> None:
         """Decelerate to a stop now and latch.
 

@@ -136,29 +136,77 @@ def pose(msg: dict) -> npt.NDArray[np.float64]:
 
 @dataclass
 class SendClock:
-    """Maps a client's send times to the server clock.
+    """Maps a client's send times to the server clock and checks that the client's clock keeps time.
 
     The offset is the smallest (arrival - send) seen on the connection, so it absorbs the clock
     offset and the smallest network delay; a backlog (messages arriving late) does not move it, so
-    a late message is recognised as old. The estimate drifts up by ``leak`` s/s to follow a slow
-    client clock.
+    a late message is recognised as old. The estimate drifts up by ``leak`` s/s to follow a slightly
+    slow client clock. A mapped send time is never later than the arrival.
+
+    A client clock that runs fast would make every message look fresh (its offset keeps falling), so
+    the fall of the offset since an anchor (the connection's first timed message) is bounded: at
+    most ``slack`` plus ``tolerance`` times the server time since the anchor. A message beyond that
+    is refused (``clock_rate``) and the anchor moves to it (an honest client whose first message was
+    late gets one refusal at most); after ``strikes`` refusals every timed message of the connection
+    is refused. A clock that runs slow makes every message look old (``stale``); such refusals name
+    the rate when the client's clock advanced less than half the server's over at least a second.
 
     Attributes:
         leak: allowed clock drift, s per s (1e-4 = 100 ppm).
+        tolerance: allowed rate error of the client's clock beyond ``slack`` (0.01 = 1 %).
+        slack: allowed fall of the offset beyond ``tolerance`` (the first message's extra delay), s.
+        strikes: fast-clock refusals after which the connection's clock is refused for good.
     """
 
     leak: float = 1e-4
+    tolerance: float = 0.01
+    slack: float = 0.25
+    strikes: int = 3
     _offset: float | None = None
     _last: float = 0.0
+    _anchor: tuple[float, float, float] | None = None  # (arrival, client time, arrival - client time)
+    fast: int = 0
 
     def to_server(self, t_client: float, now: float) -> float:
-        """The server time (same clock as ``now``, s) at which a message stamped ``t_client`` was sent."""
+        """The server time (same clock as ``now``, s) at which a message stamped ``t_client`` was sent.
+
+        Raises:
+            Rejected: ``clock_rate`` when the client's clock runs fast (beyond the tolerance).
+        """
+        if self.fast >= self.strikes:
+            raise Rejected("clock_rate", "this connection's send times ran faster than the server's clock: send "
+                                         "'t' in seconds of a steady clock; reconnect to try again")
+        cand = now - t_client
+        if self._anchor is None:
+            self._anchor = (now, t_client, cand)
+        a_now, _, a_off = self._anchor
+        allowed = self.slack + self.tolerance * (now - a_now)
+        if cand < a_off - allowed:
+            self.fast += 1
+            rate = (t_client - self._anchor[1]) / max(now - a_now, 1e-9)
+            self._anchor = (now, t_client, cand)
+            self._offset, self._last = cand, now
+            raise Rejected("clock_rate", f"'t' advanced {a_off - cand:.3g} s more than the server's clock "
+                                         f"(rate {rate:.4g} s per s): send 't' in seconds of a steady clock")
         if self._offset is None:
-            self._offset = now - t_client
+            self._offset = cand
         else:
-            self._offset = min(self._offset + self.leak * (now - self._last), now - t_client)
+            self._offset = min(self._offset + self.leak * (now - self._last), cand)
         self._last = now
         return t_client + self._offset
+
+    def rate_note(self, t_client: float, now: float) -> str:
+        """A hint for a stale message: names the client's clock rate when it runs slow (else '')."""
+        if self._anchor is None:
+            return ""
+        a_now, a_t, _ = self._anchor
+        if now - a_now < 1.0:
+            return ""
+        rate = (t_client - a_t) / (now - a_now)
+        if rate >= 0.5:
+            return ""
+        return (f"; the send times advanced {rate:.3g} s per s of the server's clock: send 't' in seconds "
+                "of a steady clock")
 
 
 @dataclass
@@ -177,6 +225,17 @@ class RateLimit:
     burst: float = 200.0
     _tokens: float | None = None
     _last: float = 0.0
+
+    def take(self, now: float) -> bool:
+        """Take one token at time ``now`` (s) if there is one; False (nothing taken) when the bucket is empty."""
+        if self._tokens is None:
+            self._tokens, self._last = self.burst, now
+        self._tokens = min(self.burst, self._tokens + (now - self._last) * self.rate)
+        self._last = now
+        if self._tokens < 1.0:
+            return False
+        self._tokens -= 1.0
+        return True
 
     def delay(self, now: float) -> float:
         """Take one token at time ``now`` (s); the seconds to wait before handling the message."""

@@ -10,30 +10,38 @@ Safety rules
 * **stop latches**: ``stop`` (from any authenticated client: an emergency stop) decelerates the
   robot and forgets its target; no heartbeat, old target or other client moves it again until the
   client in control sends ``resume`` and then a new target.
-* **deadman from the sender's clock**: targets and heartbeats carry ``t``, the client's send time
+* **deadman by the server's clock**: targets and heartbeats carry ``t``, the client's send time
   (s, any steady clock). The server maps it to its own clock (:class:`SendClock`: the smallest
-  arrival-minus-send offset seen on the connection) and lets a target move the robot only until
-  ``t + deadman``; a target older than ``deadman`` on arrival is dropped (``stale``), never
-  replayed. A stall therefore stops the robot ``deadman`` after the client's last send, however
-  long the server's backlog.
-* **bounded work per client**: a client over the rate limit (1000 messages/s, bursts of 200) is
-  not read from until it is back under it (TCP backpressure slows it; one ``rate_limited`` error
-  per second tells it), so its late messages arrive stale and are dropped; at most 100 error
-  replies per second go back to one client (the rest are counted); a 64 kB kernel
-  receive buffer bounds each client's backlog; each client has a one-target mailbox (a newer
-  target replaces an unprocessed one); IK and collision checks run in a worker thread, one target
-  at a time, never on the event loop (except the one-sample check, ~0.1 ms, of a joint target
-  within 0.05 rad of the reference: the usual small streaming step); the loop yields after every
-  message; while the server runs the interpreter's thread switch interval is 1 ms (the control
-  thread and the loop wait for the GIL at most that long).
+  arrival-minus-send offset seen on the connection, so a mapped send time is never later than the
+  arrival) and lets a target move the robot only until that time plus ``deadman``; a target older
+  than ``deadman`` on arrival is dropped (``stale``), never replayed. The client's clock must keep
+  the server's time: one that runs fast (it would make a backlog look fresh) is refused
+  (``clock_rate``; the robot stops), one that runs slow makes every target stale and is named in the
+  refusal. A stall therefore stops the robot ``deadman`` after the client's last send, however long
+  the server's backlog and whatever the client's clock does.
+* **bounded work per client**: a client over its rate limit (the client in control 1000
+  messages/s, bursts of 200; the others 200/s, bursts of 50) is not read from until it is back
+  under it (TCP backpressure slows it; one ``rate_limited`` error per second tells it), so its
+  late messages arrive stale and are dropped; at most 100 error replies per second go back to one
+  client (the rest are counted); a 64 kB kernel receive buffer bounds each client's backlog; each
+  client has a one-target mailbox (a newer target replaces an unprocessed one); IK and collision
+  checks run in a worker thread, one target at a time, never on the event loop (except the
+  one-sample check, ~0.1 ms, of a joint target within 0.05 rad of the reference: the usual small
+  streaming step); the loop yields after every message; while the server runs the interpreter's
+  thread switch interval is 1 ms (the control thread and the loop wait for the GIL at most that
+  long).
 * **checks**: JSON, type, shapes, finiteness (also ``10**400``), booleans (``"ack": "false"`` is an
   error), joint limits, IK reachability, and the straight joint-space move to the target clear of
   the table, the floor and the robot itself (``collision``, naming the link). A bad message gets
   an ``error`` reply and changes nothing; acks go to the client that asked.
 * **binding and authentication**: 127.0.0.1 by default; any other address needs a token of >= 16
-  characters, checked before binding. With a token, the server says only its protocol version
-  until ``hello`` carries the token; a wrong token closes the connection after 0.5 s, and after 5
-  failures in 60 s from one address its connections are refused (``rate_limited``).
+  characters, checked before binding. With a token, a connection is told only the protocol version
+  until ``hello`` carries the token, and nothing it sends before is acted on; a wrong token closes
+  the connection after 0.5 s, and after 5 failures in 60 s from one address its connections are
+  refused (``rate_limited``). An unauthenticated connection does not take one of the
+  ``max_clients`` session slots, is closed when it has not authenticated within 2 s, and beyond 128
+  of them the oldest is closed (:mod:`robointel.teach.stream_session`): ``stop`` from any
+  authenticated session always gets through. The token is never echoed.
 
 Messages (JSON text frames < 64 kB; angles rad, positions m, times s), protocol version 2
 ------------------------------------------------------------------------------------------
@@ -68,23 +76,20 @@ when the controller first acts on it;
 "accepted": int, "rejected": int, "fault": "why the robot interface stopped" | null}``;
 ``{"type": "error", "code": "malformed" | "unknown_type" | "bad_shape" | "not_finite" |
 "out_of_limits" | "unreachable" | "collision" | "stale" | "superseded" | "stopped" | "fault" |
-"not_in_control" | "control_held" | "rate_limited" | "unauthorized" | "internal", "message": "...",
+"not_in_control" | "control_held" | "rate_limited" | "unauthorized" | "clock_rate" | "internal",
+"message": "...",
 "seq": int | null}``.
 """
 from __future__ import annotations
 
 import asyncio
-import collections
 import concurrent.futures
-import hmac
-import ipaddress
 import itertools
 import json
 import socket
 import sys
 import threading
 import time
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -98,68 +103,28 @@ from robointel.teach.stream_protocol import (
     MESSAGE_TYPES,
     PROTOCOL_VERSION,
     TIMED_TYPES,
-    RateLimit,
     Rejected,
-    SendClock,
     flag,
     number,
     numbers,
     pose,
     sequence,
 )
+from robointel.teach.stream_session import (
+    AUTH_DELAY,
+    AUTH_TIMEOUT,
+    Gatekeeper,
+    Session,
+    check_bind,
+    is_loopback,
+)
 
 __all__ = ["StreamingController", "StreamingServer", "check_bind", "is_loopback", "PROTOCOL_VERSION",
            "MAX_MESSAGE_BYTES", "Rejected"]
 
-AUTH_FAILURES = 5        # failed hellos per address ...
-AUTH_WINDOW = 60.0       # ... within this many seconds lock the address out
-AUTH_DELAY = 0.5         # s before a wrong token is answered
-ERROR_REPLIES = 100.0    # error replies per second and client (more are counted, not sent)
 SWITCH_INTERVAL = 0.001  # s: the control thread and the event loop get the GIL within 1 ms while serving
-RECEIVE_BUFFER = 64 * 1024  # bytes of kernel receive buffer per connection: a bounded backlog per client
-
-
-def is_loopback(host: str) -> bool:
-    """True for 127.0.0.0/8, ::1 and 'localhost'."""
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
-
-
-def check_bind(host: str, token: str | None) -> None:
-    """Refuse a non-loopback bind without a token (checked before any socket is opened).
-
-    Raises:
-        InvalidInput: ``host`` is not a loopback address and no (>= 16 character) token is given.
-    """
-    if not is_loopback(host):
-        if not token or len(token) < 16:
-            raise InvalidInput(
-                f"refusing to bind {host!r} without a token: the streaming interface moves a robot. "
-                "Bind 127.0.0.1 (default) or pass a token of at least 16 characters", value=host)
-
-
-def _same_token(given: str, token: str) -> bool:
-    """Constant-time comparison of two tokens of any characters."""
-    return hmac.compare_digest(given.encode("utf-8", "surrogatepass"), token.encode("utf-8", "surrogatepass"))
-
-
-@dataclass
-class _Client:
-    id: str
-    ws: Any
-    authed: bool
-    clock: SendClock = field(default_factory=SendClock)
-    limit: RateLimit = field(default_factory=RateLimit)
-    slot: tuple | None = None  # the newest unprocessed target: (kind, payload, seq, ack, sent)
-    wake: asyncio.Event = field(default_factory=asyncio.Event)
-    limited_reply: float = -1e9
-    throttled: int = 0
-    error_budget: RateLimit = field(default_factory=lambda: RateLimit(rate=ERROR_REPLIES, burst=ERROR_REPLIES))
-    suppressed: int = 0
+RECEIVE_BUFFER = 8 * 1024  # bytes of kernel receive buffer per connection: a bounded backlog per client
+_BAD = object()  # a frame that did not parse
 
 
 class StreamingServer:
@@ -169,29 +134,32 @@ class StreamingServer:
         controller: the controller (default: a new one on the LR Mate).
         host: bind address (default 127.0.0.1); anything else needs ``token``.
         port: TCP port (0: pick a free one; see :attr:`port` after :meth:`start`).
-        token: shared secret clients send in ``hello``.
-        max_clients: connections served at once (more are closed with ``rate_limited``).
+        token: shared secret clients send in ``hello`` (>= 16 printable characters).
+        max_clients: authenticated sessions served at once (more are closed with ``rate_limited``);
+            unauthenticated connections do not count (see :mod:`robointel.teach.stream_session`).
 
     Raises:
-        InvalidInput: a non-loopback ``host`` without a token (before binding), or a port outside
-            0..65535.
+        InvalidInput: a non-loopback ``host`` without a token, a malformed token, a port outside
+            0..65535 or ``max_clients`` < 1 (all before binding).
     """
 
     def __init__(self, controller: StreamingController | None = None, *, host: str = "127.0.0.1", port: int = 0,
                  token: str | None = None, max_clients: int = 32) -> None:
         check_bind(host, token)
-        if not (0 <= int(port) <= 65535):
-            raise InvalidInput(f"port must be in 0..65535, got {port}", value=port)
+        if isinstance(port, bool) or not isinstance(port, int | np.integer) or not (0 <= int(port) <= 65535):
+            raise InvalidInput(f"port must be an integer in 0..65535, got {port!r}", value=port)
+        if isinstance(max_clients, bool) or not isinstance(max_clients, int | np.integer) or max_clients < 1:
+            raise InvalidInput(f"max_clients must be an integer >= 1, got {max_clients!r}", value=max_clients)
         self.host, self.port, self.token = host, int(port), token
         self.max_clients = int(max_clients)
         self.controller = controller or StreamingController()
+        self.gate = Gatekeeper(token)
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
         self._ready = threading.Event()
         self._stop: asyncio.Event | None = None
-        self._clients: dict[str, _Client] = {}
+        self._clients: dict[str, Session] = {}
         self._ids = itertools.count(1)
-        self._auth_failures: dict[str, collections.deque] = collections.defaultdict(collections.deque)
         self._pool = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="robointel-ik")
         # the event loop's own collision guard (own kinematic data) for small steps checked inline
         self._guard = CollisionGuard(self.controller.robot, self.controller.guard.obstacles,
@@ -213,7 +181,9 @@ class StreamingServer:
 
     # ------------------------------------------------------------------ per connection
     async def _handler(self, ws: Any) -> None:
-        c = _Client(f"c{next(self._ids)}", ws, authed=self.token is None)
+        c = Session(f"c{next(self._ids)}", ws, authed=self.token is None)
+        if not c.authed and not await self._authenticate(c):
+            return
         if len(self._clients) >= self.max_clients:
             await self._send(ws, {"type": "error", "code": "rate_limited", "message": "too many clients", "seq": None})
             await ws.close(code=1013, reason="too many clients")
@@ -221,44 +191,37 @@ class StreamingServer:
         self._clients[c.id] = c
         worker = asyncio.ensure_future(self._worker(c))
         try:
-            await self._send(ws, {"type": "welcome", **self._robot_info(c.id)} if c.authed else
-                             {"type": "welcome", "protocol": PROTOCOL_VERSION, "auth": True})
+            await self._send(ws, {"type": "welcome" if self.token is None else "hello", **self._robot_info(c.id)})
             async for raw in ws:
                 await asyncio.sleep(0)  # one message per turn: a flooding client cannot starve the others
                 now = time.perf_counter()
+                msg = self._parse(raw)
+                c.use_rate(self.controller.owner == c.id)
                 wait = c.limit.delay(now)
-                if wait > 0:  # over the rate: stop reading this client (TCP backpressure slows it down)
-                    c.throttled += 1
+                if wait > 0 and not (isinstance(msg, dict) and msg.get("type") == "stop"):  # a stop is never held
+                    c.throttled += 1  # over the rate: stop reading this client (TCP backpressure slows it down)
                     if now - c.limited_reply > 1.0:
                         c.limited_reply = now
-                        await self._error_to(c, "rate_limited", "over 1000 messages/s: reading paused", None)
+                        await self._error_to(c, "rate_limited", f"over {c.limit.rate:.0f} messages/s: reading "
+                                                                "paused", None)
                     await asyncio.sleep(wait)
                     now = time.perf_counter()
-                if isinstance(raw, bytes) or len(raw) > MAX_MESSAGE_BYTES:
-                    msg = None
-                    await self._error_to(c, "malformed", "send JSON text frames under 64 kB", None)
-                else:
-                    try:
-                        msg = json.loads(raw, parse_constant=lambda _c: float("nan"))
-                    except (ValueError, RecursionError):
-                        msg = None
-                        await self._error_to(c, "malformed", "not valid JSON", None)
-                if msg is None:
-                    if not c.authed:  # before authentication only a valid hello keeps the connection
-                        await ws.close(code=1008, reason="unauthorized")
-                        return
-                    continue
-                if not c.authed:
-                    if not await self._authenticate(c, msg):
-                        await ws.close(code=1008, reason="unauthorized")
-                        return
+                if msg is _BAD:
+                    await self._error_to(c, "malformed", "send JSON text frames under 64 kB holding one object",
+                                         None)
                     continue
                 try:
                     reply = self._dispatch(c, msg, now)
                 except Rejected as exc:
                     self.controller.rejected += 1
                     seq = msg.get("seq") if isinstance(msg, dict) and type(msg.get("seq")) is int else None
-                    reply = {"type": "error", "code": exc.code, "message": str(exc), "seq": seq}
+                    code, text = exc.code, str(exc)
+                    if code == "clock_rate":  # a client clock that runs fast: its target no longer moves the arm
+                        self.controller.drop(c.id)
+                    elif code == "stale" and isinstance(msg, dict) and isinstance(msg.get("t"), int | float):
+                        note = c.clock.rate_note(float(msg["t"]), now)
+                        code, text = ("clock_rate", text + note) if note else (code, text)
+                    reply = {"type": "error", "code": code, "message": text, "seq": seq}
                 except Exception as exc:  # never drop the connection on a bug: say so
                     self.controller.rejected += 1
                     reply = {"type": "error", "code": "internal", "message": f"{type(exc).__name__}: {exc}",
@@ -272,28 +235,64 @@ class StreamingServer:
             self._clients.pop(c.id, None)
             self.controller.release(c.id)
 
-    async def _authenticate(self, c: _Client, msg: Any) -> bool:
+    @staticmethod
+    def _parse(raw: Any) -> Any:
+        """The decoded JSON of a text frame, or ``_BAD`` (binary, too large, not JSON)."""
+        if isinstance(raw, bytes) or len(raw) > MAX_MESSAGE_BYTES:
+            return _BAD
+        try:
+            return json.loads(raw, parse_constant=lambda _c: float("nan"))
+        except (ValueError, RecursionError):
+            return _BAD
+
+    async def _authenticate(self, c: Session) -> bool:
+        """The pending phase of a connection: a ``hello`` with the token within AUTH_TIMEOUT, or closed.
+
+        Only the protocol version is sent before; a pending connection holds no session slot, and the
+        oldest pending one is closed when there are too many.
+        """
+        evict = self.gate.admit_pending(c)
+        if evict is not None:
+            asyncio.ensure_future(evict.ws.close(code=1013, reason="too many unauthenticated connections"))
+        try:
+            await self._send(c.ws, {"type": "welcome", "protocol": PROTOCOL_VERSION, "auth": True})
+            try:
+                ok = await asyncio.wait_for(self._hello(c), AUTH_TIMEOUT)
+            except TimeoutError:
+                self.gate.timeouts += 1
+                ok = False
+                await self._send(c.ws, {"type": "error", "code": "unauthorized", "seq": None,
+                                        "message": f"authenticate within {AUTH_TIMEOUT:g} s: send "
+                                                   "{'type': 'hello', 'token': ...}"})
+        except Exception:  # the connection went away
+            ok = False
+        finally:
+            self.gate.pending.pop(c.id, None)
+        if not ok:
+            try:
+                await c.ws.close(code=1008, reason="unauthorized")
+            except Exception:
+                pass
+        return ok
+
+    async def _hello(self, c: Session) -> bool:
+        raw = await c.ws.recv()
         peer = str((c.ws.remote_address or ("?",))[0])
-        fails = self._auth_failures[peer]
         now = time.monotonic()
-        while fails and now - fails[0] > AUTH_WINDOW:
-            fails.popleft()
-        if len(fails) >= AUTH_FAILURES:
+        wait = self.gate.locked_out(peer, now)
+        if wait is not None:
             await self._error_to(c, "rate_limited", f"too many failed authentications from {peer}; retry in "
-                                                    f"{AUTH_WINDOW - (now - fails[0]):.0f} s", None)
+                                                    f"{wait:.0f} s", None)
             return False
-        tok = msg.get("token") if isinstance(msg, dict) and msg.get("type") == "hello" else None
-        assert self.token is not None
-        if isinstance(tok, str) and _same_token(tok, self.token):
+        if self.gate.accepts(self._parse(raw)):
             c.authed = True
-            await self._send(c.ws, {"type": "hello", **self._robot_info(c.id)})
             return True
-        fails.append(now)
+        self.gate.fail(peer, now)
         await asyncio.sleep(AUTH_DELAY)
         await self._error_to(c, "unauthorized", "send {'type': 'hello', 'token': ...} first", None)
         return False
 
-    def _dispatch(self, c: _Client, msg: Any, now: float) -> dict[str, Any] | None:
+    def _dispatch(self, c: Session, msg: Any, now: float) -> dict[str, Any] | None:
         """Cheap handling on the event loop; targets go to the client's mailbox. Raises Rejected."""
         ctrl = self.controller
         if not isinstance(msg, dict):
@@ -351,7 +350,7 @@ class StreamingServer:
             payload = ctrl.solve_pose(payload)
         ctrl.command(np.asarray(payload, float), client=client, sent=sent, seq=seq, ack=ack)
 
-    async def _worker(self, c: _Client) -> None:
+    async def _worker(self, c: Session) -> None:
         loop = asyncio.get_running_loop()
         while True:
             await c.wake.wait()
@@ -371,22 +370,22 @@ class StreamingServer:
         if c is not None:
             self._post(c, {"type": "applied", "seq": target.seq, "t": t})
 
-    def _post(self, c: _Client, obj: dict[str, Any]) -> None:
+    def _post(self, c: Session, obj: dict[str, Any]) -> None:
         if self._loop is not None and not self._loop.is_closed():
             try:
                 self._loop.call_soon_threadsafe(asyncio.ensure_future, self._send(c.ws, obj))
             except RuntimeError:
                 pass
 
-    async def _error_to(self, c: _Client, code: str, message: str, seq: int | None) -> None:
+    async def _error_to(self, c: Session, code: str, message: str, seq: int | None) -> None:
         if code != "rate_limited":
             self.controller.rejected += 1
         await self._reply(c, {"type": "error", "code": code, "message": message, "seq": seq})
 
-    async def _reply(self, c: _Client, obj: dict[str, Any]) -> None:
+    async def _reply(self, c: Session, obj: dict[str, Any]) -> None:
         """Send a reply; error replies beyond ERROR_REPLIES per second are counted, not sent."""
         if obj.get("type") == "error" and obj.get("code") not in ("unauthorized", "rate_limited") \
-                and c.error_budget.delay(time.perf_counter()) > 0:
+                and not c.error_budget.take(time.perf_counter()):
             c.suppressed += 1
             return
         await self._send(c.ws, obj)
@@ -405,7 +404,7 @@ class StreamingServer:
         self._stop = asyncio.Event()
         try:
             async with serve(self._handler, self.host, self.port, max_size=MAX_MESSAGE_BYTES * 2, max_queue=32,
-                             compression=None) as server:
+                             compression=None, open_timeout=AUTH_TIMEOUT) as server:
                 self.port = server.sockets[0].getsockname()[1] if self.port == 0 else self.port
                 for s in server.sockets:  # accepted connections inherit these
                     s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)

@@ -117,8 +117,8 @@ def load_program(path: str | Path) -> dict[str, Any]:
 
     path = Path(path)
     try:
-        doc = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise InvalidInput(f"cannot read program {path}: {exc}", value=str(path)) from None
     if not isinstance(doc, dict) or "waypoints" not in doc:
         raise InvalidInput(f"{path} has no 'waypoints'", value=str(path))
