@@ -158,7 +158,8 @@ def plot_path_3d(result: FRMPResult, path: Path) -> Path:
 
 def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | None = None, index: int | None = None,
              per_family: int | None = None, out: Path | None = None, time_budget_s: float = 1.0,
-             d_min: float = DEFAULT_D_MIN, console: Console | None = None) -> list[MotionPlan]:
+             d_min: float = DEFAULT_D_MIN, budget_clock: str = "wall",
+             console: Console | None = None) -> list[MotionPlan]:
     """``robointel plan mbm PROBLEMS.json --urdf URDF``: plan the valid MBM problems start to goal.
 
     Each selected problem is read by :func:`robointel.io.mbm.load_mbm_problems`, planned by
@@ -176,6 +177,8 @@ def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | No
         time_budget_s: search budget per problem, s.
         d_min: required clearance, m (``MotionSettings.d_min`` by default; the dense check accepts
             clearance >= d_min - 1 mm).
+        budget_clock: ``"wall"`` or ``"cpu"``: the clock the budget is counted on
+            (:attr:`robointel.planning.MotionSettings.budget_clock`).
         console: a rich console for the table and the progress bar.
 
     Returns:
@@ -204,7 +207,8 @@ def plan_mbm(problems: Path | None, robot_urdf: Path | None, *, family: str | No
                 env = Environment(robot, p.obstacles, srdf=srdf if srdf.exists() else None,
                                   spheres=spheres if spheres.exists() else None)
                 plans.append(plan_motion(robot, env, p.start, p.goals,
-                                         settings=MotionSettings(d_min=d_min, time_budget_s=time_budget_s)))
+                                         settings=MotionSettings(d_min=d_min, time_budget_s=time_budget_s,
+                                                                 budget_clock=budget_clock)))
                 bar.advance(task)
     except RobointelError as exc:
         fail(exc)
@@ -330,10 +334,12 @@ def plan_mbm_cmd(problems: Path = typer.Argument(..., help="MotionBenchMaker pro
                  d_min: float = typer.Option(DEFAULT_D_MIN, "--d-min", help="clearance, m (the dense check allows "
                                              "d_min - 1 mm; the default is MotionSettings.d_min)"),
                  out: Path = typer.Option(None, help="save each trajectory as <out stem>_<family>_<index>.npz"),
+                 budget_clock: str = typer.Option("wall", "--budget-clock", help="count the budget in wall time or "
+                                                  "in the process's CPU time ('cpu')"),
                  ) -> None:
     """Plan MotionBenchMaker problems start to goal with plan_motion and check each on a 1 ms resample."""
     plan_mbm(problems, urdf, family=family, index=index, per_family=per_family, out=out, time_budget_s=time_budget,
-             d_min=d_min, console=console)
+             d_min=d_min, budget_clock=budget_clock, console=console)
 
 
 def register(app: typer.Typer) -> None:

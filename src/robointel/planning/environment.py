@@ -23,6 +23,7 @@ from robointel.errors import CollisionAtStart, DescriptionError, InvalidInput
 from robointel.geometry import _kernels as GK
 from robointel.geometry.obstacles import Box, Capsule, Cylinder, Obstacle, PointCloud, Sphere
 from robointel.planning import _collision_kernels as K
+from robointel.planning._sphere_pack import _chain_arrays, _levers, _sphere_levers, _variable_pairs
 from robointel.robot.collision import SphereModel, primitive_spheres
 from robointel.robot.model import Robot
 from robointel.robot.sphere_cover import cover_meshes
@@ -129,9 +130,11 @@ class Environment:
         floor: height (m) of a floor plane (a large box below it), or None.
         attached: objects carried by the tool, each given in the frame of ``attach_link``.
         attach_link: link the attached objects move with (default: the robot's flange frame's link).
-        exact_self: decide self-collision on the exact collision geometry wherever the covering
-            spheres of two links overlap (default: True with the robot's own fitted spheres,
-            :attr:`Robot.spheres`, which lie inside the meshes; False with given spheres).
+        exact_self: decide self-collision on the exact collision geometry (the URDF's meshes and
+            primitives) at the start, the goals and along every trajectory. Default: True with the
+            robot's own fitted spheres (:attr:`Robot.spheres`, which lie inside the meshes) and with a
+            spherized URDF (such files leave parts of the meshes outside every sphere: VAMP's UR5 and
+            Fetch files 3-57 mm); False with a :class:`SphereModel` given as such, which is trusted.
         self_padding: clearance required between the robot's own links, m, separate from the
             obstacle clearance ``d_min`` of a plan (the planner offsets the self-collision radii by
             (d_min - self_padding) / 2 each, so that both hold with one threshold).
@@ -164,12 +167,17 @@ class Environment:
             srdf = robot.srdf_path
         #: self-collision decided on the exact geometry wherever the covering spheres of two links overlap
         #: (default: with the robot's own fitted spheres, which lie inside the meshes)
-        self.exact_self = bool(spheres is None and robot.fitted_spheres) if exact_self is None else bool(exact_self)
+        from_file = spheres is not None and not isinstance(spheres, SphereModel)
+        self.exact_self = bool((spheres is None and robot.fitted_spheres) or from_file) if exact_self is None \
+            else bool(exact_self)
         if not (np.isfinite(self_padding) and self_padding >= 0):
             raise InvalidInput(f"self_padding must be >= 0 m, got {self_padding}", value=self_padding)
         self.self_padding = float(self_padding)
         #: subtracted from every self-collision radius, twice (set by the planner for its d_min: d_min - self_padding)
         self.self_offset = 0.0
+        #: how far the self-collision radii are moved from the spheres as given toward the covering ones
+        #: (0-1, one or one per sphere in the packed order)
+        self.self_blend: float | np.ndarray = 0.0
         if spheres is None or isinstance(spheres, SphereModel):
             sm = robot.spheres if spheres is None else spheres
             links, centres, radii = list(sm.links), np.asarray(sm.centers, float), np.asarray(sm.radii, float)
@@ -211,6 +219,8 @@ class Environment:
             _robot_cache(robot)[key] = pack
         self.__dict__.update(pack)
         self._spheres, self.model = self._cover, "cover"
+        #: how far each obstacle sphere (packed order) is from the given radius toward the covering one
+        self.blend: np.ndarray = np.ones(len(self._fitted[2]))
         packed = [o._packed for o in self.obstacles]  # type: ignore[attr-defined]
         self._prims = (np.array([o._code for o in self.obstacles], np.int64),
                        np.array(packed, dtype=np.float64).reshape(-1, GK.NPARAM))
@@ -266,30 +276,30 @@ class Environment:
         self._spheres = self._cover
         self.model = "cover"
 
-    def use(self, model: str, *, blend: float = 0.0) -> None:
+    def use(self, model: str, *, blend: float | np.ndarray = 0.0) -> None:
         """Select the spheres checked against obstacles.
 
         Args:
             model: ``"cover"``: grown to cover the collision meshes (conservative); ``"fitted"``:
                 the spheres as given (may leave parts of the meshes uncovered), or with ``blend``
-                in (0, 1) radii that far from the given ones toward the covering ones.
-            blend: see ``model``.
+                in (0, 1] radii that far from the given ones toward the covering ones.
+            blend: see ``model``: one, or one per sphere in the packed order of :attr:`sphere_links`.
 
         Raises:
-            InvalidInput: another name, or blend outside [0, 1].
+            InvalidInput: another name, or a blend outside [0, 1] or of the wrong length.
         """
-        if model not in ("cover", "fitted") or not 0.0 <= blend <= 1.0:
-            raise InvalidInput(f"sphere model must be 'cover' or 'fitted' with blend in [0, 1], got {model!r}, "
-                               f"{blend}", value=model)
+        if model not in ("cover", "fitted"):
+            raise InvalidInput(f"sphere model must be 'cover' or 'fitted', got {model!r}", value=model)
+        b, bg = self._blends(blend)
         if model == "cover":
             self._spheres = self._cover
-        elif blend == 0.0:
+        elif not np.any(b):
             self._spheres = self._fitted
         else:
             f, c = self._fitted, self._cover
-            self._spheres = f[:2] + ((1 - blend) * f[2] + blend * c[2],) + f[3:5] + \
-                ((1 - blend) * f[5] + blend * c[5],) + f[6:]
-        self.model = model if model == "cover" or blend == 0.0 else f"fitted+{blend:.2f}"
+            self._spheres = f[:2] + ((1 - b) * f[2] + b * c[2],) + f[3:5] + ((1 - bg) * f[5] + bg * c[5],) + f[6:]
+        self.model = model if model == "cover" or not np.any(b) else f"fitted+{float(np.mean(b)):.2f}"
+        self.blend = b if model == "fitted" else np.ones_like(b)
         self._rebuild()
 
     @property
@@ -317,11 +327,61 @@ class Environment:
 
 
     def _rel_offset(self) -> tuple:
-        """The self-collision entries of the world with every radius less ``self_offset / 2``."""
-        if self.self_offset == 0.0:
+        """The self-collision entries of the world: radii blended by ``self_blend``, less ``self_offset / 2``."""
+        b = self.self_blend
+        if self.self_offset == 0.0 and not np.any(b):
             return self._rel
-        h = 0.5 * self.self_offset
-        return (self._rel[0], self._rel[1] - h, self._rel[2] - h, self._rel[3])
+        h, c = 0.5 * self.self_offset, self._cover
+        sr, gr = self._rel[1], self._rel[2]
+        if np.any(b):
+            bs, bg = self._blends(b)
+            sr, gr = (1.0 - bs) * sr + bs * c[2], (1.0 - bg) * gr + bg * c[5]
+        return (self._rel[0], sr - h, gr - h, self._rel[3])
+
+    def _blends(self, blend: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(sphere blends (m,), group blends (g,)) of a scalar or per-sphere blend; a group takes its largest.
+
+        A group's radius blended by its spheres' largest blend still bounds each of its spheres
+        blended by its own (every radius grows with its blend).
+
+        Raises:
+            InvalidInput: a blend outside [0, 1] or of the wrong length.
+        """
+        m = len(self._fitted[2])
+        b = np.broadcast_to(np.asarray(blend, float), (m,)) if np.ndim(blend) == 0 else np.asarray(blend, float)
+        if b.shape != (m,) or not (np.all(b >= 0.0) and np.all(b <= 1.0)):
+            raise InvalidInput(f"a blend must be in [0, 1], one or one per sphere ({m}), got {blend}", value=blend)
+        gs = self._fitted[6]
+        bg = np.maximum.reduceat(b, gs[:-1]) if m else np.zeros(0)
+        return b, bg
+
+    def link_spheres(self, links: Iterable[str]) -> np.ndarray:
+        """Boolean mask (m,) of the spheres on ``links``, in the packed order of :attr:`sphere_links`."""
+        names = set(links)
+        return np.array([lk in names for lk in self.sphere_links], bool)
+
+    def set_self_blend(self, blend: float | np.ndarray) -> None:
+        """Self-collision radii ``blend`` (0-1, one or one per sphere) of the way to the covering ones.
+
+        The planner moves the spheres of links the exact self-collision check found in contact
+        toward the covering spheres, as far as its start and goals allow; 0 restores the spheres
+        as given.
+
+        Raises:
+            InvalidInput: a blend outside [0, 1] or of the wrong length.
+        """
+        b, _ = self._blends(blend)
+        if not np.array_equal(b, np.broadcast_to(self.self_blend, b.shape)):
+            self.self_blend = b.copy() if np.any(b) else 0.0
+            self._rebuild()
+
+    def self_offset_clearance(self, q: npt.ArrayLike, *, cap: float = 1.0) -> float:
+        """Smallest self-collision distance (m) at q as the planner checks it (offset and blend), capped."""
+        qq = self.robot.check_q(np.asarray(q, float))
+        empty = (np.zeros(0, np.int64), np.zeros((0, GK.NPARAM)))
+        W = self._chain + self._spheres + empty + self._self + _empty_cloud() + self._rel_offset()
+        s = self.scratch
+        return float(K.config_clearance(qq, W, s.T, s.C, s.G, s.out, cap))
 
     def set_self_offset(self, d_min: float, margin: float = 0.0) -> None:
         """Make one threshold ``d_min`` check obstacles at ``d_min`` and self-collision at :attr:`self_padding`.
@@ -434,65 +494,3 @@ def _world_tail() -> tuple:
     """
     return ((np.zeros(0, np.int64), np.zeros((0, GK.NPARAM)), np.zeros((0, 2), np.int64), np.zeros((0, 0), np.uint8))
             + _empty_cloud() + (np.zeros((0, 0)), np.zeros(0), np.zeros(0), np.zeros((0, 0, 0))))
-
-
-def _variable_pairs(W: tuple, robot: Robot, smask: np.ndarray, samples: int = 500) -> np.ndarray:
-    """Mask of the self-collision pairs whose distance changes with the configuration.
-
-    Pairs whose
-    distance stays within 0.1 mm over random configurations (a kinematic invariant, such as a
-    sphere on a joint axis facing a sphere on the base) can never collide and are not checked.
-    """
-    m = len(W[5])
-    T = np.zeros((W[0].shape[0], 4, 4))
-    T[0] = np.eye(4)
-    C, G = np.empty((m, 3)), np.empty((W[8].shape[0], 3))
-    i, k = np.nonzero(np.triu(smask))
-    lo, hi = np.full(len(i), np.inf), np.full(len(i), -np.inf)
-    for q in robot.random_configuration(np.random.default_rng(0), samples):
-        K.sphere_centres(q, W, T, C, G)
-        d = np.linalg.norm(C[i] - C[k], axis=1)
-        lo, hi = np.minimum(lo, d), np.maximum(hi, d)
-    keep = np.zeros_like(smask)
-    var = (hi - lo) > 1e-4
-    keep[i[var], k[var]] = keep[k[var], i[var]] = 1
-    return keep
-
-
-def _chain_arrays(robot: Robot) -> tuple:
-    """Joint tree of the robot's Pinocchio model for :func:`chain_fk` (see :mod:`robointel.robot.chain`)."""
-    return tuple(robot.chain)
-
-
-def _sphere_levers(robot: Robot, chain: tuple, sj: np.ndarray, sp: np.ndarray) -> np.ndarray:
-    """(m, nj, n) bound of sphere i's speed relative to joint J's body per unit speed of joint k, m/rad.
-
-    Non-zero only for the joints k that move sphere i but not joint J (so the relative distance of
-    sphere i to any sphere fixed to J's body changes at most by sum_k L[i, J, k] |dq_k|).
-    """
-    parent, place, _, kind, qidx = chain
-    anc = robot._ancestor
-    m, nj = len(sj), len(parent)
-    lev = np.zeros((m, robot.nq))
-    for i in range(m):
-        j, reach = int(sj[i]), float(np.linalg.norm(sp[i]))
-        while j > 0:
-            lev[i, qidx[j]] = 1.0 if kind[j] == 1 else reach
-            reach += float(np.linalg.norm(place[j][:3, 3]))
-            j = int(parent[j])
-    out = lev[:, None, :] * (anc[sj][:, None, :] & ~anc[None, :, :])
-    return np.ascontiguousarray(out, dtype=float).reshape(m, nj, robot.nq)
-
-
-def _levers(robot: Robot, chain: tuple, sj: np.ndarray, sp: np.ndarray) -> np.ndarray:
-    """Upper bound (m per rad, or 1 for prismatic) of the speed of any sphere centre per unit joint speed."""
-    parent, place, _, kind, qidx = chain
-    lever = np.zeros(robot.nq)
-    for i in range(len(sj)):
-        j, reach = int(sj[i]), float(np.linalg.norm(sp[i]))
-        while j > 0:
-            k = qidx[j]
-            lever[k] = max(lever[k], 1.0 if kind[j] == 1 else reach)
-            reach += float(np.linalg.norm(place[j][:3, 3]))
-            j = int(parent[j])
-    return lever

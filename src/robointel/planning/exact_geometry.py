@@ -41,6 +41,52 @@ def contact_distance(ga: Any, Ta: Any, gb: Any, Tb: Any, req: Any) -> float:
     return d
 
 
+#: GJK's tolerance: a hull distance is taken this much lower before it bounds the mesh distance, m (GJK returns
+#: up to ~2e-7 m more than the exact distance)
+GJK_TOL = 1e-6
+#: security margins (m, above the threshold) at which :func:`bounded_distance` asks coal for a collision
+#: before it measures a distance: a pair clear at a margin is proven at least that far apart
+MARGINS = (0.004, 0.001)
+
+
+def bounded_distance(hull_a: Any, ga: Any, Ta: Any, hull_b: Any, gb: Any, Tb: Any, thresh: float,
+                     req: Any) -> float:
+    """A lower bound of the distance of two placed geometries, exact where it is below ``thresh``.
+
+    The convex hulls' distance first (GJK, a lower bound); where it is at or below ``thresh``, collision
+    queries with security margins ``thresh`` + :data:`MARGINS` (a clear query proves the distance is
+    at least that margin) and finally at ``thresh`` itself; only a pair closer than ``thresh`` gets
+    coal's exact mesh distance (:func:`contact_distance`, negative in contact). A mesh distance costs
+    0.4-0.9 ms on the UR5's forearm and wrist against 10-70 us for a collision query.
+
+    Args:
+        hull_a: convex hull of the first geometry (or the primitive itself).
+        ga: the first geometry (BVH mesh or primitive).
+        Ta: its placement (``coal.Transform3s``).
+        hull_b: as ``hull_a``, of the second.
+        gb: the second geometry.
+        Tb: its placement.
+        thresh: the threshold, m (below 0: as 0, contact decided by a collision query).
+        req: a ``coal.DistanceRequest``.
+
+    Returns:
+        The distance, m: exact when below ``thresh``, else a lower bound >= ``thresh``.
+    """
+    d = float(coal.distance(hull_a, Ta, hull_b, Tb, req, coal.DistanceResult())) - GJK_TOL
+    if d > thresh:
+        return d
+    t0 = max(thresh, 0.0)  # (coal takes no negative margin for meshes: a contact is a contact)
+    creq = coal.CollisionRequest()
+    for m in MARGINS:
+        creq.security_margin = t0 + m
+        if not coal.collide(ga, Ta, gb, Tb, creq, coal.CollisionResult()):
+            return t0 + m
+    creq.security_margin = t0
+    if not coal.collide(ga, Ta, gb, Tb, creq, coal.CollisionResult()):
+        return t0
+    return min(contact_distance(ga, Ta, gb, Tb, req), t0 - 1e-12)  # closer than t0: the query said so
+
+
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The cross product a x b of two 3-vectors (``np.cross`` without its broadcasting overhead)."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
@@ -89,8 +135,10 @@ class MeshGeometry:
     def clearance(self, q: np.ndarray, *, cap: float = 1.0, thresh: float = 0.0) -> tuple[float, str, str]:
         """Smallest distance (capped at ``cap``) between a moving link mesh and an obstacle.
 
-        Hull distances >= ``thresh`` are taken as they are (lower bounds of the mesh distance);
-        below it the exact mesh distance replaces them. The (part, obstacle) pairs are measured in
+        Each pair is bounded by :func:`bounded_distance` (hull, then collision queries with
+        margins) and measured on the mesh only below ``thresh`` (and below the smallest distance
+        found so far): the result is exact below ``thresh`` and a lower bound above it. The (part,
+        obstacle) pairs are measured in
         the order of a lower bound (the part's bounding sphere to the obstacle's box) and not at
         all once that bound reaches the smallest distance found: the result is the minimum over
         every pair.
@@ -132,10 +180,7 @@ class MeshGeometry:
                 T = Tf[p] @ part.placement
                 Tp = placed[p] = coal.Transform3s(T[:3, :3], T[:3, 3])
             label, g, To = self.obstacles[o][:3]
-            d = coal.distance(part.hull, Tp, g, To, req, coal.DistanceResult())
-            if d <= thresh and d < best:  # (a hull at or beyond the best cannot hold a closer mesh; <=: a hull
-                # touching at thresh 0 still needs the mesh's sign)
-                d = contact_distance(part.mesh, Tp, g, To, req)
+            d = bounded_distance(part.hull, part.mesh, Tp, g, g, To, min(thresh, best), req)
             if d < best:
                 best, bl, bo = float(d), part.link, label
         return best, bl, bo

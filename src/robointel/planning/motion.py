@@ -25,6 +25,8 @@ from robointel.planning import _collision_kernels as K
 from robointel.planning import _dense_kernels as D
 from robointel.planning import _rrt_kernels as R
 from robointel.planning import _time_shortcut as TS
+from robointel.planning.budget_clock import budget_clock
+from robointel.planning.budget_clock import now as clock_now
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
 from robointel.planning.hybrid_check import (
@@ -164,10 +166,11 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
     st = settings
     if not (st.d_min >= 0 and st.time_budget_s > 0 and st.resolution > 0 and st.rrt_range > 0
             and 0 < st.velocity_scale <= 1 and st.knot_step > 0 and st.spline_step > 0 and st.check_dt > 0
-            and st.root_relaxed_rad > 0 and st.timing in ("topp", "temporal") and 0 < st.fitted_fallback <= 1):
+            and st.root_relaxed_rad > 0 and st.timing in ("topp", "temporal") and 0 < st.fitted_fallback <= 1
+            and st.budget_clock in ("wall", "cpu")):
         raise InvalidInput("settings need d_min >= 0, time_budget_s, resolution, rrt_range, knot_step, spline_step, "
-                           "check_dt, root_relaxed_rad > 0, 0 < velocity_scale, fitted_fallback <= 1 and timing "
-                           "'topp' or 'temporal'",
+                           "check_dt, root_relaxed_rad > 0, 0 < velocity_scale, fitted_fallback <= 1, timing "
+                           "'topp' or 'temporal' and budget_clock 'wall' or 'cpu'",
                            value=st)
     q0 = robot.check_q(robot.snap_to_limits(robot.check_q(start, "start")), "start", limits=True)  # a writable copy
     goals = _goal_set(robot, goal, st.seed)
@@ -177,9 +180,11 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
     model = env.model
     env.set_self_offset(st.d_min)
     try:
-        return _plan(env, q0, goals, st, t0, c0, timings)
+        with budget_clock(st.budget_clock):
+            return _plan(env, q0, goals, st, t0, c0, timings)
     finally:
         env.set_self_offset(0.0)
+        env.set_self_blend(0.0)
         env.use(model)
 
 
@@ -188,14 +193,53 @@ def _roots_free(env: Environment, q0: np.ndarray, goals: np.ndarray, d_min: floa
             and any(env.clearance(g, cap=d_min + 1.0) >= d_min for g in goals))
 
 
+def _grow(env: Environment, chk: DenseCheck, q0: np.ndarray, goals: np.ndarray, thr: float, exact: bool) -> bool:
+    """Move the spheres of the links the collision meshes caught toward the covering ones, for the next attempt.
+
+    A self-collision pair (``chk.links``: two links) grows their self-collision radii; in the
+    fitted-sphere fallback (``exact``), a link the obstacle mesh check caught grows its obstacle
+    radii. Each goes all the way, else half, a quarter... (5 tries) as far as the start and every
+    goal keep clearance ``thr``. Returns whether a radius grew.
+    """
+    if len(chk.links) == 2:
+        cur = np.broadcast_to(np.asarray(env.self_blend, float), (len(env.sphere_links),)).copy()
+
+        def put(b: np.ndarray) -> None:
+            env.set_self_blend(b)
+    elif len(chk.links) == 1 and exact:
+        cur = env.blend.copy()
+
+        def put(b: np.ndarray) -> None:
+            env.use("fitted", blend=b)
+    else:
+        return False
+    mask = env.link_spheres(chk.links)
+    if not np.any(cur[mask] < 1.0):
+        return False
+    step = 1.0
+    for _ in range(5):
+        b = cur.copy()
+        b[mask] = np.minimum(1.0, cur[mask] + step)
+        put(b)
+        if all(env.clearance(q, cap=thr + 1.0) >= thr for q in [q0, *goals]):
+            return True
+        step *= 0.5
+    put(cur)
+    return False
+
+
 def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, t0: float, c0: float,
           timings: StageTimes) -> MotionPlan:
     robot = env.robot
-    if env.exact_self:  # the roots judged on the exact geometry (the fitted spheres lie inside it)
-        goals = exact_roots(env, q0, goals, max(st.d_min - CLEARANCE_TOL, 0.0))
+    exact_ids = np.arange(len(goals))  # the caller's index of each goal kept
+    if env.exact_self:  # the roots judged on the exact geometry (fitted spheres lie inside it, a file's miss parts)
+        exact_ids = exact_roots(env, q0, goals, max(st.d_min - CLEARANCE_TOL, 0.0))
+        goals = goals[exact_ids]
         # the fitted spheres grown toward the meshes for self-collision, as far as the roots allow
         gap = min(env.self_clearance(q, cap=1.0) for q in [q0, *goals])
-        margin = float(np.clip(0.5 * (gap - env.self_padding + CLEARANCE_TOL) - 1e-4, 0.0, SELF_MARGIN))
+        # (the roots must keep the dense check's floor max(d_min - 1 mm, 0): d_min - floor below d_min)
+        slack = st.d_min - max(st.d_min - CLEARANCE_TOL, 0.0)
+        margin = float(np.clip(0.5 * (gap - env.self_padding + slack) - 1e-4, 0.0, SELF_MARGIN))
         env.set_self_offset(st.d_min, margin)
     # the mesh-covering spheres where start and a goal allow them, else the spheres as given
     env.use("cover")
@@ -220,8 +264,8 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     ok = cg >= floor
     if not any(ok):
         env.check_free(goals[0], d_min=floor, what="goal configuration" if len(goals) == 1 else "every goal; goal 0")
-    goal_ids = np.flatnonzero(ok)
-    goals = goals[goal_ids]
+    goal_ids = exact_ids[np.flatnonzero(ok)]
+    goals = goals[np.flatnonzero(ok)]
     thr = min(st.d_min, env.clearance(q0, cap=st.d_min + 1.0), float(cg[ok].min()))
     vmax = robot.velocity_limit * st.velocity_scale
     amax = np.asarray(st.acceleration_limit if st.acceleration_limit is not None else robot.acceleration_limit, float)
@@ -229,7 +273,7 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
         raise InvalidInput(f"acceleration_limit must be ({robot.nq},) positive", value=amax)
     timings.add("validate", t0, c0)
 
-    now = time.perf_counter()
+    now = clock_now()
     deadline = now + st.time_budget_s
     fallback = hybrid and len(env._cloud[0]) == 0 and st.fitted_fallback < 1
     search_end = now + st.fitted_fallback * st.time_budget_s if fallback else deadline
@@ -237,12 +281,12 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     while True:
         path, gi, traj, chk, why = _attempt(env, q0, goals, st, deadline, search_end, Wc, Wr, rcap, vmax, amax,
                                             timings, attempt, thr, exact)
-        if path is None and not exact and fallback and time.perf_counter() < deadline:
+        if path is None and not exact and fallback and clock_now() < deadline:
             # the covering spheres leave no way found in time: the spheres as given, checked on the meshes
             env.use("fitted")
             Wc = Wr = env.world
             rcap, exact, search_end, attempt = float("inf"), True, deadline, attempt + 1
-            timings["fitted_after"] = (time.perf_counter() - now) * 1e3
+            timings["fitted_after"] = (clock_now() - now) * 1e3
             continue
         if path is None:
             return _fail(f"no collision-free path found: {why}", Failure.TIMEOUT, t0, timings)
@@ -252,8 +296,11 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
                          chk.min_clearance_m, int(goal_ids[gi]))
         # a start/goal edge that touches the real meshes: another tree may approach differently
         if chk.ok or not (hybrid or exact or env.exact_self) or chk.kind != "collision" or \
-                time.perf_counter() >= deadline:
+                clock_now() >= deadline:
             break
+        if _grow(env, chk, q0, goals, thr, exact):  # the links the meshes caught kept farther next time
+            Wc = env.world if exact else env.world_cover
+            Wr = env.world if (exact or hybrid) else Wc
         attempt += 1
     goal_index = int(goal_ids[gi])
     assert traj is not None and chk is not None
@@ -290,7 +337,7 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
             return None, -1, None, None, why
         if path_valid(env, path, thr, st.resolution, Wc, Wr, rcap):
             break
-        if time.perf_counter() >= deadline:
+        if clock_now() >= deadline:
             timings.add("search", t1, c1)
             return None, -1, None, None, f"the time budget of {st.time_budget_s:g} s ran out re-checking a path"
         path, res = None, res / 4  # an edge failed the fine check: search again, finer
@@ -345,7 +392,7 @@ def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
     if st.smooth and not st.jerk_limited and len(path) > 2:
         steps = (st.knot_step,) if st.timing == "temporal" else (st.spline_step, st.spline_step / 4)
         for step in steps:  # a spline that leaves the checked polyline too far: knots closer together
-            if chk is not None and time.perf_counter() >= deadline:
+            if chk is not None and clock_now() >= deadline:
                 chk = timed_out("the smoothing", chk)
                 break
             if st.timing == "temporal":
@@ -360,7 +407,7 @@ def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
             if chk.ok or chk.kind != "collision":
                 break
         timings.add("smooth", t3, c3)
-    if chk is not None and not chk.ok and chk.kind != "timeout" and time.perf_counter() >= deadline:
+    if chk is not None and not chk.ok and chk.kind != "timeout" and clock_now() >= deadline:
         chk = timed_out("the smoothing", chk)  # a collision or a limit: no rest-to-rest fallback past the budget
     if chk is None or (not chk.ok and chk.kind != "timeout"):  # rest to rest along the checked polyline
         t4, c4 = time.perf_counter(), _cpu_clock()

@@ -36,6 +36,8 @@ class DenseCheck:
             samples skipped by the travel bound are proven >= ``d_min - CLEARANCE_TOL`` and the true
             minimum lies between that and this value.
         samples: number of samples checked.
+        links: the robot links of the failed pair on the exact geometry (the link, or both links
+            of a self-collision), when the collision meshes failed the check; else empty.
     """
 
     ok: bool
@@ -43,6 +45,7 @@ class DenseCheck:
     kind: str
     min_clearance_m: float
     samples: int
+    links: tuple[str, ...] = ()
 
     @property
     def failure(self) -> Failure:

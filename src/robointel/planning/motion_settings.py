@@ -10,7 +10,7 @@ class MotionSettings:
 
     Attributes:
         d_min: required clearance to the environment and between links, m.
-        time_budget_s: wall-time budget of the call after the input checks, s: the search, and the
+        time_budget_s: budget of the call (on ``budget_clock``) after the input checks, s: the search, and the
             shortcut, timing and checks of each attempt (a path whose checks cannot finish within it
             is a failure, ``Failure.TIMEOUT``; the overshoot is one stage step, e.g. one chunk of
             the collision-mesh check).
@@ -45,6 +45,10 @@ class MotionSettings:
             the spheres as given (they may leave parts of the meshes uncovered, so every sample of
             that trajectory the covering spheres leave in doubt is checked on the collision
             meshes); 1: never. Not with a point cloud (the mesh check measures primitives only).
+        budget_clock: the clock ``time_budget_s`` is counted on: ``"wall"`` (what the caller
+            waits for) or ``"cpu"``, the process's CPU time (on a machine shared with other busy
+            processes the same budget then buys the same work as on an idle one;
+            :mod:`robointel.planning.budget_clock`). ``plan_ms`` is wall time either way.
     """
 
     d_min: float = 0.0
@@ -66,3 +70,4 @@ class MotionSettings:
     check_dt: float = 1e-3
     root_relaxed_rad: float = 0.2
     fitted_fallback: float = 0.3
+    budget_clock: str = "wall"

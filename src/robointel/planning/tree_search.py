@@ -6,12 +6,11 @@ at the fine resolution.
 """
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from robointel.planning import _batch_edges as BE
 from robointel.planning import _rrt_kernels as R
+from robointel.planning.budget_clock import now as clock_now
 from robointel.planning.environment import Environment
 from robointel.planning.motion_settings import MotionSettings
 
@@ -80,7 +79,7 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
     R.seed(int(st.seed) + 7 * attempt)
     robot = env.robot
     status, grown = 0, 0
-    while status != 1 and time.perf_counter() < deadline:
+    while status != 1 and clock_now() < deadline:
         if status < 0:  # the trees are full: start over from the roots (the random stream goes on)
             grown += int(count.sum())
             count[:] = nroot

@@ -1,0 +1,72 @@
+"""Robot-side arrays of the planning environment: levers of the spheres and the self-collision pairs worth checking.
+
+Packed once per robot and sphere set by :class:`~robointel.planning.environment.Environment`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from robointel.planning import _collision_kernels as K
+from robointel.robot.model import Robot
+
+
+def _variable_pairs(W: tuple, robot: Robot, smask: np.ndarray, samples: int = 500) -> np.ndarray:
+    """Mask of the self-collision pairs whose distance changes with the configuration.
+
+    Pairs whose
+    distance stays within 0.1 mm over random configurations (a kinematic invariant, such as a
+    sphere on a joint axis facing a sphere on the base) can never collide and are not checked.
+    """
+    m = len(W[5])
+    T = np.zeros((W[0].shape[0], 4, 4))
+    T[0] = np.eye(4)
+    C, G = np.empty((m, 3)), np.empty((W[8].shape[0], 3))
+    i, k = np.nonzero(np.triu(smask))
+    lo, hi = np.full(len(i), np.inf), np.full(len(i), -np.inf)
+    for q in robot.random_configuration(np.random.default_rng(0), samples):
+        K.sphere_centres(q, W, T, C, G)
+        d = np.linalg.norm(C[i] - C[k], axis=1)
+        lo, hi = np.minimum(lo, d), np.maximum(hi, d)
+    keep = np.zeros_like(smask)
+    var = (hi - lo) > 1e-4
+    keep[i[var], k[var]] = keep[k[var], i[var]] = 1
+    return keep
+
+
+def _chain_arrays(robot: Robot) -> tuple:
+    """Joint tree of the robot's Pinocchio model for :func:`chain_fk` (see :mod:`robointel.robot.chain`)."""
+    return tuple(robot.chain)
+
+
+def _sphere_levers(robot: Robot, chain: tuple, sj: np.ndarray, sp: np.ndarray) -> np.ndarray:
+    """(m, nj, n) bound of sphere i's speed relative to joint J's body per unit speed of joint k, m/rad.
+
+    Non-zero only for the joints k that move sphere i but not joint J (so the relative distance of
+    sphere i to any sphere fixed to J's body changes at most by sum_k L[i, J, k] |dq_k|).
+    """
+    parent, place, _, kind, qidx = chain
+    anc = robot._ancestor
+    m, nj = len(sj), len(parent)
+    lev = np.zeros((m, robot.nq))
+    for i in range(m):
+        j, reach = int(sj[i]), float(np.linalg.norm(sp[i]))
+        while j > 0:
+            lev[i, qidx[j]] = 1.0 if kind[j] == 1 else reach
+            reach += float(np.linalg.norm(place[j][:3, 3]))
+            j = int(parent[j])
+    out = lev[:, None, :] * (anc[sj][:, None, :] & ~anc[None, :, :])
+    return np.ascontiguousarray(out, dtype=float).reshape(m, nj, robot.nq)
+
+
+def _levers(robot: Robot, chain: tuple, sj: np.ndarray, sp: np.ndarray) -> np.ndarray:
+    """Upper bound (m per rad, or 1 for prismatic) of the speed of any sphere centre per unit joint speed."""
+    parent, place, _, kind, qidx = chain
+    lever = np.zeros(robot.nq)
+    for i in range(len(sj)):
+        j, reach = int(sj[i]), float(np.linalg.norm(sp[i]))
+        while j > 0:
+            k = qidx[j]
+            lever[k] = max(lever[k], 1.0 if kind[j] == 1 else reach)
+            reach += float(np.linalg.norm(place[j][:3, 3]))
+            j = int(parent[j])
+    return lever
