@@ -439,6 +439,8 @@ def sigint(program: str = "example") -> dict[str, Any]:
         out["sigint_exit_code"] = p.returncode
         out["sigint_while_running"] = running
         out["sigint_traceback"] = "Traceback" in text
+        if not out["report_written_after_sigint"]:
+            out["sigint_output_tail"] = text.strip().splitlines()[-4:]
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     return out

@@ -233,6 +233,8 @@ def skill_insert(skill: Path = typer.Option(None, "--skill", help="skill file fr
                  stall_ms: float = typer.Option(80.0, help="streamed: stop the robot when the skill gives no target "
                                                 "for this long, ms")) -> None:
     """Insert the peg with a learned skill (--skill FILE) or a strategy by name; at 20 um on 'sim' by default."""
+    if wrench not in ("sensor", "virtual"):  # checked for every robot, before any work
+        raise typer.BadParameter(f"must be 'sensor' or 'virtual', got {wrench!r}", param_hint="'--wrench'")
     kind = _check_url(robot)
     if skill is not None and strategy is not None:
         fail("give --skill FILE or --strategy NAME, not both")

@@ -235,28 +235,34 @@ def run_program(program: Program, cell: Cell, *, start: int | str = 0, check: Pr
             return cell_plan(a, b)  # type: ignore[no-any-return]
         return plan_move(program.scene, planners, a, b)
 
-    for i in range(i0, len(program.steps)):
-        step = program.steps[i]
-        if progress:
-            progress(i, step.name)
-        t0 = time.perf_counter()
-        try:
+    i, t0 = i0, time.perf_counter()
+    try:
+        for i in range(i0, len(program.steps)):
+            step = program.steps[i]
+            if progress:
+                progress(i, step.name)
+            t0 = time.perf_counter()
             result = _run_step(program, cell, chk, i, step, plan_fn, t0)
-        except KeyboardInterrupt:
-            cell.stop("interrupted")
-            trace = cell.pop_trace() if hasattr(cell, "pop_trace") else np.zeros((0, program.robot.nq))
-            result = StepResult(i, step.name, step.kind, TrialOutcome(False, Failure.ERROR, "interrupted (Ctrl-C): "
-                                                                      "the robot holds where it stopped"),
-                                time.perf_counter() - t0, trace)
             results.append(result)
             if on_step is not None:
                 on_step(result)
-            return ProgramRun(results, chk, failed_step=i, interrupted=True)
+            if not result.outcome.success:
+                return ProgramRun(results, chk, failed_step=i)
+    except KeyboardInterrupt:  # in a step, or between two (a callback): the robot stops where it is
+        cell.stop("interrupted")
+        if results and results[-1].index == i:  # step i had ended: the next one is the one interrupted
+            i += 1
+            if i == len(program.steps):
+                return ProgramRun(results, chk)
+        trace = cell.pop_trace() if hasattr(cell, "pop_trace") else np.zeros((0, program.robot.nq))
+        step = program.steps[i]
+        result = StepResult(i, step.name, step.kind, TrialOutcome(False, Failure.ERROR, "interrupted (Ctrl-C): "
+                                                                  "the robot holds where it stopped"),
+                            time.perf_counter() - t0, trace)
         results.append(result)
         if on_step is not None:
             on_step(result)
-        if not result.outcome.success:
-            return ProgramRun(results, chk, failed_step=i)
+        return ProgramRun(results, chk, failed_step=i, interrupted=True)
     return ProgramRun(results, chk)
 
 
