@@ -297,7 +297,7 @@ def test_sessions_with_a_token_and_the_operator_controls(lrmate, tmp_path):
                     _wait(lambda: len(app.waypoints) == n + 1, what="recorded")
                     A.get_by_role("button", name="- step").click()
                     _wait(lambda: not app._ramp, what="jog step")
-                assert field(A, "Waypoints").first.input_value() == "3"
+                _wait(lambda: field(A, "Waypoints").first.input_value() == "3", what="the page's waypoint count")
                 edited = np.degrees(app.waypoints[1]).round(3)
                 edited[2] += 5.0
                 edit = field(A, "Waypoint joints [deg]")
@@ -314,7 +314,7 @@ def test_sessions_with_a_token_and_the_operator_controls(lrmate, tmp_path):
                 _wait(lambda: len(app.waypoints) == 2, what="waypoint deleted")
                 np.testing.assert_allclose(app.waypoints[0], keep[0])
                 assert not np.allclose(app.waypoints[1], keep[1])
-                assert field(A, "Waypoints").first.input_value() == "2"
+                _wait(lambda: field(A, "Waypoints").first.input_value() == "2", what="the page's waypoint count")
 
                 # Stop from the page latches
                 A.get_by_role("button", name="Stop").click()
