@@ -41,7 +41,7 @@ PACKAGE = "robointel"
 
 #: how the work was organised, not what the product does
 PROCESS_WORDS = re.compile(
-    r"\b[Ss]ession[- ][0-9]+"                                   # session 27, session-27
+    r"\b[Ss]ession[- ][0-9]+"                                   # the word and a number
     r"|\b[Ss]essions [0-9]+"                                    # sessions 20-22
     r"|\b(?:[Tt]his|[Ll]ast|[Pp]revious|[Nn]ext|[Ee]arlier|[Ll]ater|[Oo]ther|[Ee]very|[Aa]ll) sessions?\b"
     r"|\bper-session\b"
