@@ -32,7 +32,7 @@ PRODUCT_LINES = [
     "Close the Stream Motion session and bring a new one up.",
     "ConnectionLost: the RMI session is down.",
     "lead-through teaching with the F/T sensor",
-    "V_lead is the lead twist of the reading",
+    "V_lead is the leading twist of the reading",
     "closed-form IK (all branches)",
     "the branch continuous with the last",
     '@pytest.fixture(scope="session")',

@@ -6,7 +6,7 @@ Figures and targets:
 - ``process_words`` (0): words about how the work was organised (sessions, leads, helpers, branches, issue
   numbers, merge hashes, ...) anywhere in the files git tracks; :data:`PROCESS_WORDS` is the expression, and
   ``process_word_hits`` lists ``path:line: match``. Product words (a Stream Motion or RMI session,
-  lead-through, the lead twist, IK branches, pytest's ``scope="session"``) do not match.
+  lead-through, a lead twist, IK branches, pytest's ``scope="session"``) do not match.
 - ``import_cycles`` (0): strongly connected groups of modules inside ``src/robointel`` in the import graph
   that grimp builds (every import statement counts: module level, inside functions and under
   ``TYPE_CHECKING``; ``from package import submodule`` is an import of the submodule); ``cycles`` lists

@@ -22,7 +22,7 @@ Methods (``GuidanceConfig.method``):
   the closest point, v_rep(d) = v_max / (1 + e^(alpha (2 d / d0 - 1))).
 * ``"nullspace"`` ((4.2)-(4.3)): task-priority avoidance, dq = J_t^# v + (J_n P)^# (v_rep - J_n J_t^# v)
   with P = I - J_t^# J_t and J_n = u^T J_rep of the closest obstacle. A 6-DoF arm has no null space
-  for a 6-D task, so the lead task here is the translation only (3-D), as that method needs.
+  for a 6-D task, so the primary task here is the translation only (3-D), as that method needs.
 
 For ``"qp"`` and ``"equality"`` the avoiding command is blended with the free one by the sigmoid
 (4.12)-(4.13), dq = lambda dq_avoid + (1 - lambda) dq_free, with the corrected weight

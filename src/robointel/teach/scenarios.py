@@ -220,7 +220,7 @@ class ScenarioResult:
     def deviation(self) -> np.ndarray:
         """||V_cmd - V_lead|| (translation), m/s, (T,).
 
-        While the controller holds after an F/T fault, V_cmd = 0 and V_lead is the lead twist of the reading (the
+        While the controller holds after an F/T fault, V_cmd = 0 and V_lead is the leading twist of the reading (the
         operator's intent; NaN for a NaN reading).
         """
         return np.linalg.norm(self.v_cmd[:, :3] - self.v_lead[:, :3], axis=1)
@@ -369,7 +369,7 @@ def run_scenario(number: int, method: str = "qp", *, duration: float | None = No
             qd_prev = s.qd
         log["q"][i], log["tcp"][i] = q, T[:3, 3]
         log["v_cmd"][i] = s.v_cmd
-        if s.held:  # the operator still pushes: their intent is the lead twist of the reading
+        if s.held:  # the operator still pushes: their intent is the leading twist of the reading
             log["v_lead"][i] = ctl.lead_twist(w_world) if np.isfinite(w_world).all() else np.nan
         else:
             log["v_lead"][i] = s.v_lead
