@@ -41,9 +41,14 @@ def contact_distance(ga: Any, Ta: Any, gb: Any, Tb: Any, req: Any) -> float:
     return d
 
 
-#: GJK's tolerance: a hull distance is taken this much lower before it bounds the mesh distance, m (GJK returns
-#: up to ~2e-7 m more than the exact distance)
+#: GJK's tolerance: a hull distance d is taken GJK_TOL (1 + d / 1 m) lower before it bounds the mesh distance
+#: (GJK returns up to ~2e-7 m more than the exact distance near contact, and about 1e-6 of d far from it)
 GJK_TOL = 1e-6
+
+
+def hull_bound(d: float) -> float:
+    """A GJK hull distance ``d`` (m) lowered by its tolerance: a lower bound of the exact distance."""
+    return d - GJK_TOL * (1.0 + abs(d))
 #: security margins (m, above the threshold) at which :func:`bounded_distance` asks coal for a collision
 #: before it measures a distance: a pair clear at a margin is proven at least that far apart
 MARGINS = (0.004, 0.001)
@@ -72,7 +77,7 @@ def bounded_distance(hull_a: Any, ga: Any, Ta: Any, hull_b: Any, gb: Any, Tb: An
     Returns:
         The distance, m: exact when below ``thresh``, else a lower bound >= ``thresh``.
     """
-    d = float(coal.distance(hull_a, Ta, hull_b, Tb, req, coal.DistanceResult())) - GJK_TOL
+    d = hull_bound(float(coal.distance(hull_a, Ta, hull_b, Tb, req, coal.DistanceResult())))
     if d > thresh:
         return d
     t0 = max(thresh, 0.0)  # (coal takes no negative margin for meshes: a contact is a contact)

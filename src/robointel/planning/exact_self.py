@@ -20,7 +20,7 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
-from robointel.planning.exact_geometry import GJK_TOL, bounded_distance, coal_geometry
+from robointel.planning.exact_geometry import bounded_distance, coal_geometry, hull_bound
 from robointel.robot.model import Robot
 
 
@@ -52,6 +52,57 @@ def _solid(robot: Robot, link: str, p: dict) -> _Solid | None:
     return _Solid(link, robot.frame_id(link), M, g, hull, M[:3, :3] @ c + M[:3, 3], r)
 
 
+#: a mesh solid whose bounding sphere is larger than this is split into slabs (m)
+SPLIT_RADIUS = 0.1
+#: the slabs' length along the solid's longest axis, at most, m
+SLAB_LENGTH = 0.12
+
+
+def _slabs(s: _Solid) -> list[_Solid]:
+    """``s`` as slabs along its longest (principal) axis, each with its own triangles, hull and bound.
+
+    Each triangle goes to the slab of its centroid, so the slabs' triangles are the mesh's: the
+    smallest slab distance is the mesh distance. A slab near the joint gets a lever of its own,
+    far smaller than the whole link's (:meth:`SelfGeometry._levers`), so a pair of links close
+    only near a joint is measured far less often. A primitive, a small mesh, or a slab coal
+    cannot hull: ``[s]``.
+    """
+    g = s.geom
+    if s.radius <= SPLIT_RADIUS or not hasattr(g, "tri_indices"):
+        return [s]
+    V = np.asarray(g.vertices(), float)
+    tris = [g.tri_indices(i) for i in range(g.num_tris)]
+    T = np.array([[t[0], t[1], t[2]] for t in tris], np.int64).reshape(-1, 3)
+    c = V.mean(axis=0)
+    axis = np.linalg.svd(V - c, full_matrices=False)[2][0]
+    x = (V[T].mean(axis=1) - c) @ axis
+    m = int(np.ceil((x.max() - x.min()) / SLAB_LENGTH)) if len(x) else 0
+    if m < 2:
+        return [s]
+    lab = np.clip(((x - x.min()) / (x.max() - x.min()) * m).astype(np.int64), 0, m - 1)
+    M = s.placement
+    out = []
+    for k in range(m):
+        tk = T[lab == k]
+        if len(tk) == 0:
+            continue
+        used, inv = np.unique(tk, return_inverse=True)
+        Vk = V[used]
+        sub = coal.BVHModelOBBRSS()
+        sub.beginModel(len(tk), len(used))
+        sub.addVertices(np.ascontiguousarray(Vk))
+        sub.addTriangles(np.ascontiguousarray(inv.reshape(-1, 3), dtype=np.int64))
+        sub.endModel()
+        try:
+            sub.buildConvexHull(True, "Qt")
+        except Exception:  # noqa: BLE001 - a flat slab qhull refuses: keep the solid whole
+            return [s]
+        ck = 0.5 * (Vk.min(axis=0) + Vk.max(axis=0))
+        rk = float(np.max(np.linalg.norm(Vk - ck, axis=1)))
+        out.append(_Solid(s.link, s.frame, M, sub, sub.convex, M[:3, :3] @ ck + M[:3, 3], rk))
+    return out
+
+
 def _adjacent(robot: Robot) -> set[frozenset[str]]:
     """Link pairs joined by one URDF joint."""
     out = set()
@@ -80,7 +131,7 @@ class SelfGeometry:
             for p in prims:
                 s = _solid(robot, link, p)
                 if s is not None:
-                    self.solids.append(s)
+                    self.solids += _slabs(s)
         adj = _adjacent(robot)
         joint = {s.link: robot.link_joint(s.link) for s in self.solids}
         pairs = []
@@ -117,7 +168,11 @@ class SelfGeometry:
         moves = robot._ancestor[[robot.link_joint(s.link) for s in self.solids]].reshape(-1, robot.nq)
         pa, pb = self.pairs[:, 0], self.pairs[:, 1]
         rel = moves[pa] ^ moves[pb]
-        self.pair_lever = ((solid_lever[pa] + solid_lever[pb]) * rel).reshape(-1, robot.nq)
+        # a joint below one solid and moving the other changes the distance as much as it would by turning
+        # the first the other way round its axis: the smaller of the two solids' levers bounds it
+        down = self._down_levers()
+        lever = np.where(moves[pa], np.minimum(solid_lever[pa], down[pb]), np.minimum(solid_lever[pb], down[pa]))
+        self.pair_lever = (lever * rel).reshape(-1, robot.nq)
 
     def _levers(self) -> np.ndarray:
         """(S, n) bound of the speed of any point of each solid per unit joint speed, m/rad (1: prismatic).
@@ -147,6 +202,50 @@ class SelfGeometry:
                 j = k
         return lev
 
+    def _down_levers(self) -> np.ndarray:
+        """(S, n) bound of the distance of any point of each solid from the axis of each joint below it, m.
+
+        Turning joint k by dq moves what hangs below it relative to a solid above it exactly as turning
+        that solid by -dq round k's axis would: each of its points moves at most |dq| times its distance
+        from the axis. For the first joint below the solid's own the axis is fixed in the solid's frame
+        (that distance is exact over the solid's vertices); further down, the distance from the first
+        joint's origin plus the joint offsets (and prismatic strokes) down the chain bounds it. Entries
+        for joints not below the solid, and prismatic ones, are inf.
+        """
+        parent, place, axis, kind, qidx = self.robot.chain
+        lo, hi = np.asarray(self.robot.lower, float), np.asarray(self.robot.upper, float)
+        nj = len(parent)
+        out = np.full((len(self.solids), self.robot.nq), np.inf)
+        for i, s in enumerate(self.solids):
+            M = self._in_joint[i]
+            V = s.points() @ M[:3, :3].T + M[:3, 3]  # in the solid's joint frame
+            ja = int(self._solid_joint[i])
+            if len(V) == 0:
+                continue
+            for k in range(1, nj):
+                if kind[k] == 1:
+                    continue
+                path = [k]  # the joints from just below ja down to k
+                while path[-1] > 0 and int(parent[path[-1]]) != ja:
+                    path.append(int(parent[path[-1]]))
+                if path[-1] <= 0:
+                    continue  # k is not below the solid's joint
+                path.reverse()
+                c1 = path[0]
+                o1 = place[c1][:3, 3]
+                if len(path) == 1:
+                    u = place[c1][:3, :3] @ axis[c1]
+                    out[i, qidx[k]] = float(np.max(np.linalg.norm(np.cross(V - o1, u), axis=1)))
+                    continue
+                reach = float(np.max(np.linalg.norm(V - o1, axis=1)))
+                for c in path[1:]:
+                    reach += float(np.linalg.norm(place[c][:3, 3]))
+                for c in path[:-1]:
+                    if kind[c] == 1:
+                        reach += max(abs(lo[qidx[c]]), abs(hi[qidx[c]]))
+                out[i, qidx[k]] = reach
+        return out
+
     def pair_distances(self, q: np.ndarray, which: np.ndarray, *, thresh: float) -> np.ndarray:
         """Distances (len(which),) of the pairs ``which`` at q: exact below ``thresh``, else lower bounds above it.
 
@@ -158,7 +257,7 @@ class SelfGeometry:
         pin.updateGeometryPlacements(self.robot.model, self._data, gm, gd, q)
         out = np.empty(len(which))
         for n, p in enumerate(which):
-            d = pin.computeDistance(gm, gd, int(p)).min_distance - GJK_TOL
+            d = hull_bound(pin.computeDistance(gm, gd, int(p)).min_distance)
             if d <= thresh:
                 i, j = int(self.pairs[p, 0]), int(self.pairs[p, 1])
                 si, sj = self.solids[i], self.solids[j]
