@@ -126,16 +126,29 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
         if not doubt.any():
             continue
         idx = np.flatnonzero(doubt)
-        for c0 in range(0, len(idx), MESH_CHUNK):
-            if clock_now() >= deadline:
+        # each (part, obstacle) pair measured at the first doubtful sample, then again only at the first
+        # doubtful sample where its travel since (pair_lever) may have eaten its margin (as in self_check)
+        Cq = np.zeros(Q.shape)
+        np.cumsum(np.abs(np.diff(Q, axis=0)), axis=0, out=Cq[1:])
+        due = np.zeros(len(mg.pair_lever), np.int64)
+        n = 0
+        while True:
+            j = int(np.searchsorted(idx, int(due.min())))
+            if j >= len(idx):
+                break
+            k = int(idx[j])
+            if n % MESH_CHUNK == 0 and clock_now() >= deadline:
                 return timed_out("the collision-mesh check", chk)
-            lo, hi = int(idx[c0]), int(idx[min(c0 + MESH_CHUNK, len(idx)) - 1]) + 1
-            d, k, link, obs = mg.samples_clearance(Q[lo:hi], env.lever, thresh=thr, cap=d_min + 0.1,
-                                                   mask=doubt[lo:hi])
-            if d < thr:
-                return DenseCheck(False, f"collision-mesh check: link {link!r} is {d * 1e3:.2f} mm from {obs!r} at "
-                                  f"t = {dense.t[s0 + lo + k]:.3f} s", "collision", min(d, chk.min_clearance_m),
+            n += 1
+            which = np.flatnonzero(due <= k + SELF_EARLY)
+            d = mg.pair_distances(Q[k], which, thresh=thr)
+            m = int(np.argmin(d))
+            if d[m] < thr:
+                link, obs = mg.pair_names(int(which[m]))
+                return DenseCheck(False, f"collision-mesh check: link {link!r} is {d[m] * 1e3:.2f} mm from {obs!r} "
+                                  f"at t = {dense.t[s0 + k]:.3f} s", "collision", min(float(d[m]), chk.min_clearance_m),
                                   chk.samples, (link,))
+            next_due(Cq, mg.pair_lever, which, k, d - thr, due)
     return chk
 
 
