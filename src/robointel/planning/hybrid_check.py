@@ -179,7 +179,7 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
     # pair_lever[p] . (Cq[j] - Cq[k]) from sample k to sample j
     Cq = np.zeros(Q.shape)
     np.cumsum(np.abs(np.diff(Q, axis=0)), axis=0, out=Cq[1:])
-    due = np.zeros(len(sg.pairs), np.int64)  # the next sample at which each pair must be measured
+    due = np.zeros(len(sg.gpairs), np.int64)  # the next sample at which each group pair must be measured
     n = 0
     while True:
         k = int(due.min())
@@ -189,16 +189,16 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
         if n % MESH_CHUNK == 0 and clock_now() >= deadline:
             return timed_out("the self-collision check", chk)
         n += 1
-        d = sg.pair_distances(Q[k], which, thresh=thr)
+        d, member = sg.group_distances(Q[k], which, thresh=thr)
         if d.min() < thr:
             m = int(np.argmin(d))
-            p = int(which[m])
+            p = int(member[m])
             la, lb = sg.solids[sg.pairs[p, 0]].link, sg.solids[sg.pairs[p, 1]].link
             return DenseCheck(False, f"self-collision check: link {la!r} is {d[m] * 1e3:.2f} mm from link {lb!r} "
                               f"at t = {dense.t[k]:.3f} s", "collision", min(float(d[m]), chk.min_clearance_m),
                               chk.samples, (la, lb))
         # proven until the relative travel since eats the margin
-        next_due(Cq, sg.pair_lever, which, k, d - thr, due)
+        next_due(Cq, sg.gpair_lever, which, k, d - thr, due)
 
 
 def exact_roots(env: Environment, q0: np.ndarray, goals: np.ndarray, floor: float) -> np.ndarray:
