@@ -115,3 +115,27 @@ def test_self_check_agrees_with_every_sample_measured(ur5_self, shared_data):
             assert f"t = {tr.t[hit]:.3f} s" in got.reason  # the first sample in contact
         verdicts.append(got.ok)
     assert 0 < sum(verdicts) < len(verdicts)
+
+
+def test_tree_node_pairs_bound_every_solid_pair_below(ur5_self):
+    """A node pair's hull distance is at most each checked solid pair's below it; its lever at least theirs."""
+    sg = ur5_self
+    tree = sg.tree
+    below: dict[int, set[int]] = {}
+
+    def leaves(k: int) -> set[int]:
+        if k not in below:
+            below[k] = {int(tree.leaf[k])} if tree.leaf[k] >= 0 else set().union(*(leaves(int(c))
+                                                                                   for c in tree.children[k]))
+        return below[k]
+
+    rng = np.random.default_rng(8)
+    inner = np.flatnonzero(tree.leaf < 0)
+    assert len(tree.roots) > 0 and len(inner) > 0
+    for q in sg.robot.random_configuration(rng, 5):
+        d = tree.distances(q, inner, thresh=0.0)
+        for k, dk in zip(inner, d):
+            ps = sorted(leaves(int(k)))
+            assert np.all(tree.lever[k] >= sg.pair_lever[ps].max(axis=0) - 1e-12)
+            assert dk <= min(_mesh_distance(sg, q, p) for p in ps) + 1e-7
+    assert set().union(*(leaves(int(r)) for r in tree.roots)) == set(range(len(sg.pairs)))

@@ -21,6 +21,7 @@ import pinocchio as pin
 from numba import njit
 
 from robointel.planning.exact_geometry import bounded_distance, coal_geometry, hull_bound
+from robointel.planning.self_tree import SelfTree
 from robointel.robot.model import Robot
 
 
@@ -104,24 +105,6 @@ def _slabs(s: _Solid) -> list[_Solid]:
     return out
 
 
-#: a rigid group's members are measured when its compound hull is within this of the threshold, m
-EXPAND = 0.01
-
-
-def _hull(points: np.ndarray) -> Any:
-    """The convex hull of ``points`` (k, 3) as a coal geometry."""
-    from scipy.spatial import ConvexHull
-
-    tri = ConvexHull(points).simplices
-    m = coal.BVHModelOBBRSS()
-    m.beginModel(len(tri), len(points))
-    m.addVertices(np.ascontiguousarray(points, dtype=float))
-    m.addTriangles(np.ascontiguousarray(tri, dtype=np.int64))
-    m.endModel()
-    m.buildConvexHull(True, "Qt")
-    return m.convex
-
-
 def _adjacent(robot: Robot) -> set[frozenset[str]]:
     """Link pairs joined by one URDF joint."""
     out = set()
@@ -179,6 +162,7 @@ class SelfGeometry:
         for a, b in pairs:
             self._gm.addCollisionPair(pin.CollisionPair(int(a), int(b)))
         self._data = robot.model.createData()
+        self._gd = pin.GeometryData(self._gm)  # (rebuilt by the tree once its compound hulls are in the model)
         self._req = coal.DistanceRequest()
         solid_lever = self._levers()
         #: (P, n): the distance of pair p changes at most sum_k pair_lever[p, k] |dq_k| (m)
@@ -191,78 +175,8 @@ class SelfGeometry:
         down = self._down_levers()
         lever = np.where(moves[pa], np.minimum(solid_lever[pa], down[pb]), np.minimum(solid_lever[pb], down[pa]))
         self.pair_lever = (lever * rel).reshape(-1, robot.nq)
-        self._groups()
-
-    def _groups(self) -> None:
-        """Rigid groups: the solids on one joint (slabs apart) measured first as one compound hull.
-
-        An end effector of many links on the last joint is then one GJK call against each other
-        solid while it is clear; its members are measured only when the compound comes within
-        :data:`EXPAND` of the threshold. Sets ``gpairs`` (G, 2) group pairs, ``gmembers`` (their
-        solid pairs), ``gpair_lever`` (G, n), the largest of the members' levers, and the compound
-        hulls' collision pairs in the geometry model after the solid pairs.
-        """
-        robot = self.robot
-        groups: list[list[int]] = []
-        on_joint: dict[int, int] = {}
-        for i, sl in enumerate(self.solids):
-            j = int(self._solid_joint[i])
-            if sl.slab or j not in on_joint:
-                if not sl.slab:
-                    on_joint[j] = len(groups)
-                groups.append([i])
-            else:
-                groups[on_joint[j]].append(i)
-        of = np.empty(len(self.solids), np.int64)
-        for g, mem in enumerate(groups):
-            of[mem] = g
-        obj = []  # the geometry object of each group: its solid's hull, or a compound hull
-        for g, mem in enumerate(groups):
-            if len(mem) == 1:
-                obj.append(mem[0])
-                continue
-            pts = np.vstack([self.solids[i].points() @ self._in_joint[i][:3, :3].T + self._in_joint[i][:3, 3]
-                             for i in mem])
-            obj.append(self._gm.ngeoms)
-            joint = int(self._solid_joint[mem[0]])
-            self._gm.addGeometryObject(pin.GeometryObject(f"group#{g}", joint, pin.SE3.Identity(), _hull(pts)))
-        by: dict[tuple[int, int], list[int]] = {}
-        for p, (a, b) in enumerate(self.pairs):
-            ga, gb = int(of[a]), int(of[b])
-            by.setdefault((min(ga, gb), max(ga, gb)), []).append(p)
-        self.gpairs = np.array(list(by), np.int64).reshape(-1, 2)
-        self.gmembers = [np.array(v, np.int64) for v in by.values()]
-        self.gpair_lever = np.array([self.pair_lever[v].max(axis=0) for v in self.gmembers]).reshape(-1, robot.nq)
-        self._gcoll = np.empty(len(self.gpairs), np.int64)  # each group pair's collision pair in the model
-        for k, (ga, gb) in enumerate(self.gpairs):
-            if len(self.gmembers[k]) == 1 and len(groups[ga]) == 1 and len(groups[gb]) == 1:
-                self._gcoll[k] = self.gmembers[k][0]
-            else:
-                self._gcoll[k] = len(self._gm.collisionPairs)
-                self._gm.addCollisionPair(pin.CollisionPair(int(obj[ga]), int(obj[gb])))
-        self._gd = pin.GeometryData(self._gm)
-
-    def group_distances(self, q: np.ndarray, which: np.ndarray, *,
-                        thresh: float) -> tuple[np.ndarray, np.ndarray]:
-        """Distances (len(which),) of the group pairs ``which`` at q, and the closest member pair of each.
-
-        The compound hulls' distance first (a lower bound of every member pair's); within
-        :data:`EXPAND` of ``thresh`` the members are measured (:meth:`pair_distances`) and the
-        smallest taken: exact below ``thresh``, else a lower bound above it. Member -1: not measured.
-        """
-        gm, gd = self._gm, self._gd
-        pin.updateGeometryPlacements(self.robot.model, self._data, gm, gd, q)
-        out = np.empty(len(which))
-        member = np.full(len(which), -1, np.int64)
-        for n, g in enumerate(which):
-            d = hull_bound(pin.computeDistance(gm, gd, int(self._gcoll[g])).min_distance)
-            mem = self.gmembers[g]
-            if d <= thresh + (EXPAND if len(mem) > 1 else 0.0):
-                dm = self._measured(mem, thresh)
-                k = int(np.argmin(dm))
-                d, member[n] = float(dm[k]), mem[k]
-            out[n] = d
-        return out, member
+        #: the bounding-volume tree a trajectory's check walks (:class:`~robointel.planning.self_tree.SelfTree`)
+        self.tree = SelfTree(self)
 
     def _levers(self) -> np.ndarray:
         """(S, n) bound of the speed of any point of each solid per unit joint speed, m/rad (1: prismatic).

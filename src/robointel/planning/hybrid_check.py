@@ -16,6 +16,7 @@ from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
 from robointel.planning.exact_self import next_due, self_geometry
 from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, window_clearance
+from robointel.planning.self_tree import EXPAND
 from robointel.trajectory import Trajectory
 
 
@@ -31,7 +32,7 @@ def mesh_geometry(env: Environment) -> MeshGeometry:
 #: samples of the collision-mesh check between two looks at the clock
 MESH_CHUNK = 64
 #: samples ahead of its due one a pair is measured at when others are measured there (fewer placements)
-SELF_EARLY = 64
+SELF_EARLY = 128
 
 
 def timed_out(what: str, chk: DenseCheck) -> DenseCheck:
@@ -158,13 +159,16 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
 
     Fitted spheres lie inside the meshes and a sphere file's leave parts of them uncovered, so
     the spheres' self-collision verdict may miss a contact: every self-collision pair of
-    :class:`~robointel.planning.exact_self.SelfGeometry` is measured on the collision meshes
-    and primitives at the first sample and again only at the first sample
-    where its last distance minus the relative travel of its two links since (``pair_lever``) may
-    have fallen below ``max(env.self_padding - 1 mm, 0)``: the samples in between are proven. A
-    pair due within ``SELF_EARLY`` samples of one being measured is measured with it (one
-    placement update serves both; 3.8-15 ms against 4.5-18 ms of CPU per MBM UR5 trajectory). A
-    pair closer than that fails the check (kind ``"collision"``). Clock as :func:`interior_check`.
+    :class:`~robointel.planning.exact_self.SelfGeometry` is proven on the collision meshes and
+    primitives by walking its :class:`~robointel.planning.self_tree.SelfTree`: the pairs of the
+    joints' root nodes are measured (GJK on their hulls) at the first sample; a node pair within
+    ``EXPAND`` of ``max(env.self_padding - 1 mm, 0)`` is replaced by its children's pairs, down to
+    the solid pairs, measured exactly below it; every node pair is measured again only at the
+    first sample where its last distance minus the relative travel since (its ``lever``) may have
+    fallen below the threshold: the samples in between are proven. A node pair due within
+    ``SELF_EARLY`` samples of one being measured is measured with it (one placement update serves
+    both). A solid pair closer than the threshold fails the check (kind ``"collision"``). Clock as
+    :func:`interior_check`.
     """
     if not chk.ok or not env.exact_self:
         return chk
@@ -179,26 +183,49 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
     # pair_lever[p] . (Cq[j] - Cq[k]) from sample k to sample j
     Cq = np.zeros(Q.shape)
     np.cumsum(np.abs(np.diff(Q, axis=0)), axis=0, out=Cq[1:])
-    due = np.zeros(len(sg.gpairs), np.int64)  # the next sample at which each group pair must be measured
+    tree = sg.tree
+    # the front of node pairs: item i is node pair item[i], due at sample due[i] (K: proven to the end;
+    # RETIRED: replaced by its children, out of reach of the early window)
+    RETIRED = K + SELF_EARLY + 1
+    cap = max(2 * len(tree.roots), 64)
+    item, due, lever = np.empty(cap, np.int64), np.full(cap, RETIRED, np.int64), np.empty((cap, Q.shape[1]))
+    m = len(tree.roots)
+    item[:m], due[:m], lever[:m] = tree.roots, 0, tree.lever[tree.roots]
     n = 0
     while True:
-        k = int(due.min())
+        k = int(due[:m].min())
         if k >= K:
             return chk
-        which = np.flatnonzero(due <= k + SELF_EARLY)
+        which = np.flatnonzero(due[:m] <= k + SELF_EARLY)
         if n % MESH_CHUNK == 0 and clock_now() >= deadline:
             return timed_out("the self-collision check", chk)
         n += 1
-        d, member = sg.group_distances(Q[k], which, thresh=thr)
-        if d.min() < thr:
-            m = int(np.argmin(d))
-            p = int(member[m])
+        its = item[which]
+        d = tree.distances(Q[k], its, thresh=thr)
+        inner = tree.leaf[its] < 0
+        hit = ~inner & (d < thr)
+        if hit.any():
+            w = int(np.flatnonzero(hit)[np.argmin(d[hit])])
+            p = int(tree.leaf[its[w]])
             la, lb = sg.solids[sg.pairs[p, 0]].link, sg.solids[sg.pairs[p, 1]].link
-            return DenseCheck(False, f"self-collision check: link {la!r} is {d[m] * 1e3:.2f} mm from link {lb!r} "
-                              f"at t = {dense.t[k]:.3f} s", "collision", min(float(d[m]), chk.min_clearance_m),
+            return DenseCheck(False, f"self-collision check: link {la!r} is {d[w] * 1e3:.2f} mm from link {lb!r} "
+                              f"at t = {dense.t[k]:.3f} s", "collision", min(float(d[w]), chk.min_clearance_m),
                               chk.samples, (la, lb))
+        near = inner & (d <= thr + EXPAND)
+        for x in np.flatnonzero(near):  # replaced by its children's pairs, measured at this sample
+            w = int(x)
+            due[which[w]] = RETIRED
+            kids = tree.children[its[w]]
+            if m + len(kids) > cap:
+                cap = 2 * (m + len(kids))
+                grown = np.full(cap, RETIRED, np.int64)
+                grown[:len(due)] = due
+                item, due, lever = np.resize(item, cap), grown, np.resize(lever, (cap, Q.shape[1]))
+            item[m:m + len(kids)], due[m:m + len(kids)], lever[m:m + len(kids)] = kids, k, tree.lever[kids]
+            m += len(kids)
         # proven until the relative travel since eats the margin
-        next_due(Cq, sg.gpair_lever, which, k, d - thr, due)
+        keep = ~near
+        next_due(Cq, lever, which[keep], k, d[keep] - thr, due)
 
 
 def exact_roots(env: Environment, q0: np.ndarray, goals: np.ndarray, floor: float) -> np.ndarray:
@@ -218,10 +245,11 @@ def exact_roots(env: Environment, q0: np.ndarray, goals: np.ndarray, floor: floa
     sthr = max(env.self_padding - CLEARANCE_TOL, 0.0)
 
     def why(q: np.ndarray) -> str:
-        d, link, obs = mg.clearance(q, cap=floor + 0.1, thresh=floor)
+        # (capped just above the floor: only a pair closer than it is looked into)
+        d, link, obs = mg.clearance(q, cap=floor + 1e-4, thresh=floor)
         if d < floor:
             return f"robot link {link!r} is {d * 1e3:.1f} mm from obstacle {obs!r}"
-        d, la, lb = sg.clearance(q, cap=sthr + 0.1, thresh=sthr)
+        d, la, lb = sg.clearance(q, cap=sthr + 1e-4, thresh=sthr)
         if d < sthr:
             return f"robot link {la!r} is {d * 1e3:.1f} mm from link {lb!r}"
         return ""
