@@ -75,6 +75,24 @@ def test_solid_levers_bound_every_vertex_displacement(ur5_self):
     assert 0.3 < worst <= 1.0  # a bound, and not a vacuous one
 
 
+def test_pair_levers_bound_every_distance_change(ur5_self):
+    """sum_k pair_lever[p, k] |dq_k| bounds how far each pair's mesh distance moves (slabs, turned-back bound)."""
+    sg = ur5_self
+    robot = sg.robot
+    rng = np.random.default_rng(7)
+    worst = 0.0
+    for _ in range(12):
+        q0 = robot.random_configuration(rng)
+        dq = rng.normal(0.0, 0.05, robot.nq)
+        for p in range(len(sg.pairs)):
+            bound = float(sg.pair_lever[p] @ np.abs(dq))
+            change = abs(_mesh_distance(sg, q0 + dq, p) - _mesh_distance(sg, q0, p))
+            assert change <= bound + 1e-9, (p, change, bound)
+            if bound > 1e-3:
+                worst = max(worst, change / bound)
+    assert worst > 0.3  # not a vacuous bound
+
+
 def test_self_check_agrees_with_every_sample_measured(ur5_self, shared_data):
     """The travel-bounded schedule finds a contact exactly where measuring every sample does."""
     from robointel.planning import Environment

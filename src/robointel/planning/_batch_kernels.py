@@ -85,6 +85,26 @@ def batch_world(W: tuple) -> tuple:
     ``i[sstart[t]:sstart[t+1]]``, ``j[...]`` (those with ``W[15][i, j] == 1``); each obstacle's
     axis-aligned bounding box (min xyz, max xyz, m).
     """
+    rv = _robot_view(W)
+    return (*rv[:3], obstacle_boxes(W[12], W[13]), *rv[3:])
+
+
+#: the robot side of :func:`batch_world`, per sphere layout (a few kept: a plan's worlds share one)
+_ROBOT_VIEWS: dict[bytes, tuple] = {}
+
+
+def _robot_view(W: tuple) -> tuple:
+    """:func:`batch_world` without the obstacle boxes: (start, i, j) and the cluster arrays, cached per layout."""
+    key = b"|".join(np.ascontiguousarray(W[k]).tobytes() for k in (5, 6, 8, 11, 14, 15))
+    got = _ROBOT_VIEWS.get(key)
+    if got is None:
+        if len(_ROBOT_VIEWS) >= 8:
+            _ROBOT_VIEWS.pop(next(iter(_ROBOT_VIEWS)))
+        got = _ROBOT_VIEWS[key] = _build_robot_view(W)
+    return got
+
+
+def _build_robot_view(W: tuple) -> tuple:
     gs, sp, gj, gpairs, smask = W[11], W[6], W[8], W[14], W[15]
     cl_of = np.empty(len(sp), np.int64)
     members: list[np.ndarray] = []
@@ -122,9 +142,10 @@ def batch_world(W: tuple) -> tuple:
             sstart.append(len(pi))
         start.append(len(ca))
     i64 = np.int64
-    return (np.array(start, i64), np.array(pi, i64), np.array(pj, i64), obstacle_boxes(W[12], W[13]),
-            np.array(ca, i64), np.array(cb, i64), np.array(sstart, i64), cj, np.ascontiguousarray(cc), cdist, mstart,
-            midx)
+    out = (np.array(start, i64), np.array(pi, i64), np.array(pj, i64),
+           np.array(ca, i64), np.array(cb, i64), np.array(sstart, i64), cj, np.ascontiguousarray(cc), cdist, mstart,
+           midx)
+    return out  # (shared by every world of this layout: the kernels only read it)
 
 
 @njit(cache=True)

@@ -41,9 +41,14 @@ def contact_distance(ga: Any, Ta: Any, gb: Any, Tb: Any, req: Any) -> float:
     return d
 
 
-#: GJK's tolerance: a hull distance is taken this much lower before it bounds the mesh distance, m (GJK returns
-#: up to ~2e-7 m more than the exact distance)
+#: GJK's tolerance: a hull distance d is taken GJK_TOL (1 + d / 1 m) lower before it bounds the mesh distance
+#: (GJK returns up to ~2e-7 m more than the exact distance near contact, and about 1e-6 of d far from it)
 GJK_TOL = 1e-6
+
+
+def hull_bound(d: float) -> float:
+    """A GJK hull distance ``d`` (m) lowered by its tolerance: a lower bound of the exact distance."""
+    return d - GJK_TOL * (1.0 + abs(d))
 #: security margins (m, above the threshold) at which :func:`bounded_distance` asks coal for a collision
 #: before it measures a distance: a pair clear at a margin is proven at least that far apart
 MARGINS = (0.004, 0.001)
@@ -72,7 +77,7 @@ def bounded_distance(hull_a: Any, ga: Any, Ta: Any, hull_b: Any, gb: Any, Tb: An
     Returns:
         The distance, m: exact when below ``thresh``, else a lower bound >= ``thresh``.
     """
-    d = float(coal.distance(hull_a, Ta, hull_b, Tb, req, coal.DistanceResult())) - GJK_TOL
+    d = hull_bound(float(coal.distance(hull_a, Ta, hull_b, Tb, req, coal.DistanceResult())))
     if d > thresh:
         return d
     t0 = max(thresh, 0.0)  # (coal takes no negative margin for meshes: a contact is a contact)
@@ -123,7 +128,11 @@ class MeshGeometry:
                 self.obstacles.append((o.label(k), g[0], g[1], np.asarray(lo), np.asarray(hi)))
         self._lo = np.array([o[3] for o in self.obstacles], float).reshape(-1, 3)
         self._hi = np.array([o[4] for o in self.obstacles], float).reshape(-1, 3)
-        self.reach, self.lever = side.reach, side.lever
+        self.reach, self.lever, self.part_lever = side.reach, side.lever, side.part_lever
+        #: (P * O, n): the distance of (part p, obstacle o), pair p * O + o, changes at most
+        #: sum_k pair_lever[., k] |dq_k| (m)
+        self.pair_lever = np.repeat(side.part_lever, len(self.obstacles), axis=0)
+        self._req = coal.DistanceRequest()
         self._frames, self._part_frame = side.frames, side.part_frame
         self._centres, self._radii = side.centres, side.radii
 
@@ -185,100 +194,75 @@ class MeshGeometry:
                 best, bl, bo = float(d), part.link, label
         return best, bl, bo
 
-    def samples_clearance(self, Q: np.ndarray, lever: np.ndarray, *, thresh: float, cap: float = 0.1,
-                          mask: np.ndarray | None = None) -> tuple[float, int, str, str]:
-        """Smallest clearance over nearby samples Q (K, n).
+    def pair_distances(self, q: np.ndarray, which: np.ndarray, *, thresh: float,
+                       near: float = 0.05) -> np.ndarray:
+        """Distances (len(which),) of the (part, obstacle) pairs ``which`` (p * O + o) at q.
 
-        Samples that a measured sample's clearance minus the travel between them (sum_k L_k |dq_k|, L
-        the larger of ``lever`` and the meshes' own :attr:`lever`) keeps >= min(the smallest so far,
-        thresh) are skipped, the bound taken from the measured samples on both sides (so the result
-        is exact below ``thresh``), and so are the samples ``mask`` (K,) leaves False (already known
-        to be clear, e.g. by conservative spheres).
-
-        Returns:
-            (distance m, worst sample index or -1, link, obstacle).
+        Exact below ``thresh``, else lower bounds above it: the part's bounding sphere to the obstacle's
+        box where that is more than ``near`` (m) above ``thresh``, else the convex hull's distance
+        (:func:`bounded_distance`, refined on the mesh below ``thresh``).
         """
-        best, worst, bl, bo = cap, -1, "", ""
-        K = len(Q)
-        if K == 0:
-            return best, worst, bl, bo
-        lev = np.maximum(np.asarray(lever, float), self.lever)
-        moved = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(Q, axis=0)) @ lev)])  # travel bound from Q[0]
-        todo = np.flatnonzero(mask) if mask is not None else np.arange(K)
-        if len(todo) == 0:
-            return best, worst, bl, bo
-        eps = 1e-12  # rounding of the summed travel
+        robot = self.robot
+        pin.framesForwardKinematics(robot.model, robot.data, q)
+        pp, oo = np.divmod(np.asarray(which, np.int64), len(self.obstacles))
+        parts = np.unique(pp)
+        Tl = np.array([robot.data.oMf[self.parts[p].frame].homogeneous for p in parts])  # (U, 4, 4)
+        slot = np.searchsorted(parts, pp)
+        c = np.einsum("pij,pj->pi", Tl[:, :3, :3], self._centres[parts]) + Tl[:, :3, 3]
+        gap = np.maximum(0.0, np.maximum(self._lo[oo] - c[slot], c[slot] - self._hi[oo]))
+        out = np.sqrt(np.einsum("pi,pi->p", gap, gap)) - self._radii[pp]  # the broad phase, (len(which),)
+        placed: dict[int, Any] = {}  # each part's coal placement
+        for n in np.flatnonzero(out <= thresh + near):
+            p, o = int(pp[n]), int(oo[n])
+            part = self.parts[p]
+            T = placed.get(p)
+            if T is None:
+                Mp = Tl[slot[n]] @ part.placement
+                T = placed[p] = coal.Transform3s(Mp[:3, :3], Mp[:3, 3])
+            g, To = self.obstacles[o][1:3]
+            out[n] = bounded_distance(part.hull, part.mesh, T, g, g, To, thresh, self._req)
+        return out
 
-        def measure(i: int) -> float:
-            nonlocal best, worst, bl, bo
-            k = int(todo[i])
-            c, link, obs = self.clearance(Q[k], cap=cap, thresh=thresh)
-            if c < best:
-                best, worst, bl, bo = c, k, link, obs
-            return c
-
-        # todo[i] measured at c: todo entries within travel c - tau of it keep >= tau (tau = min(best, thresh));
-        # between two measured entries a, b each entry is proven by the nearer bound (two-sided)
-        last = len(todo) - 1
-        i, ci = 0, measure(0)
-        while i < last:
-            tau = min(best, thresh) + eps
-            if moved[todo[last]] - moved[todo[i]] <= ci - tau:
-                break  # the rest proven from todo[i] alone
-            x = moved[todo[i]] + 2.0 * (ci - tau)  # an equal clearance there proves the whole interval
-            j = int(np.searchsorted(todo, np.searchsorted(moved, x, side="right"))) - 1
-            j = min(max(j, i + 1), last)
-            cj = measure(j)
-            stack = [(i, ci, j, cj)]
-            while stack:
-                a, ca, b, cb = stack.pop()
-                if b - a <= 1:
-                    continue
-                tau = min(best, thresh) + eps
-                ta, tb = moved[todo[a]], moved[todo[b]]
-                f = int(np.searchsorted(todo, np.searchsorted(moved, ta + ca - tau, side="right"))) - 1
-                g = int(np.searchsorted(todo, np.searchsorted(moved, tb - cb + tau, side="left")))
-                lo_u, hi_u = max(f + 1, a + 1), min(g - 1, b - 1)
-                if lo_u > hi_u:
-                    continue
-                m = (lo_u + hi_u) // 2
-                cm = measure(m)
-                stack += [(m, cm, b, cb), (a, ca, m, cm)]
-            i, ci = j, cj
-        return best, worst, bl, bo
+    def pair_names(self, i: int) -> tuple[str, str]:
+        """(link, obstacle label) of pair ``i`` (p * O + o)."""
+        p, o = divmod(int(i), len(self.obstacles))
+        return self.parts[p].link, self.obstacles[o][0]
 
 
 class _RobotMeshes:
     """What :class:`MeshGeometry` needs of the robot alone (shared read-only by every instance).
 
-    ``reach``: the largest part extent from its link origin, m; ``lever``: :func:`_mesh_levers`;
-    per part its link frame (an index into the distinct ``frames``), bounding-sphere centre and radius.
+    ``reach``: the largest part extent from its link origin, m; ``part_lever``: :func:`_part_levers`;
+    ``lever``: its largest entry per joint; per part its link frame (an index into the distinct
+    ``frames``), bounding-sphere centre and radius.
     """
 
     def __init__(self, robot: Robot, parts: list[_Part]) -> None:
         self.parts = parts
         self.reach = max((p.radius + float(np.linalg.norm(p.centre)) for p in parts), default=0.0)
-        self.lever = _mesh_levers(robot, parts)
+        self.part_lever = _part_levers(robot, parts)
+        self.lever = self.part_lever.max(axis=0) if len(parts) else np.zeros(robot.nq)
         self.frames = sorted({p.frame for p in parts})
         self.part_frame = np.array([self.frames.index(p.frame) for p in parts], int)
         self.centres = np.array([p.centre for p in parts], float).reshape(-1, 3)
         self.radii = np.array([p.radius for p in parts], float)
-        for a in (self.lever, self.part_frame, self.centres, self.radii):
+        for a in (self.lever, self.part_lever, self.part_frame, self.centres, self.radii):
             a.flags.writeable = False
 
 
 _PARTS: dict[tuple[int, str], _RobotMeshes] = {}
 
 
-def _mesh_levers(robot: Robot, parts: list[_Part]) -> np.ndarray:
-    """(n,) bound of the speed of any mesh point per unit speed of each joint, m/rad (1 for a prismatic joint).
+def _part_levers(robot: Robot, parts: list[_Part]) -> np.ndarray:
+    """(P, n) bound of the speed of any point of each part per unit speed of each joint, m/rad (1: prismatic).
 
     A point moved by revolute joint k moves at most |dq_k| times its distance from the joint's origin,
     bounded by the part's bounding sphere (centre distance + radius) plus the joint offsets down the chain.
     """
     m = robot.model
-    lev = np.zeros(robot.nq)
-    for p in parts:
+    out = np.zeros((len(parts), robot.nq))
+    for i, p in enumerate(parts):
+        lev = out[i]
         f = m.frames[p.frame]
         j = int(f.parentJoint)
         reach = float(np.linalg.norm(f.placement.act(p.centre))) + p.radius
@@ -288,7 +272,7 @@ def _mesh_levers(robot: Robot, parts: list[_Part]) -> np.ndarray:
             lev[k] = max(lev[k], 1.0 if prismatic else reach)
             reach += float(np.linalg.norm(m.jointPlacements[j].translation))
             j = int(m.parents[j])
-    return lev
+    return out
 
 
 def coal_geometry(link: str, p: dict) -> tuple[Any, Any, np.ndarray, float] | None:

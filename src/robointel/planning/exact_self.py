@@ -20,7 +20,7 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
-from robointel.planning.exact_geometry import GJK_TOL, bounded_distance, coal_geometry
+from robointel.planning.exact_geometry import bounded_distance, coal_geometry, hull_bound
 from robointel.robot.model import Robot
 
 
@@ -33,6 +33,7 @@ class _Solid:
     hull: Any  # coal Convex of a mesh, or the primitive itself
     centre: np.ndarray  # bounding-sphere centre in the link frame
     radius: float
+    slab: bool = False  # one slab of a split mesh (:func:`_slabs`)
 
     def points(self) -> np.ndarray:
         """(k, 3) points whose convex hull contains the solid, in its own frame (a primitive: its bounding box)."""
@@ -50,6 +51,75 @@ def _solid(robot: Robot, link: str, p: dict) -> _Solid | None:
     g, hull, c, r = got
     M = np.asarray(p["origin"], float)
     return _Solid(link, robot.frame_id(link), M, g, hull, M[:3, :3] @ c + M[:3, 3], r)
+
+
+#: a mesh solid whose bounding sphere is larger than this is split into slabs (m)
+SPLIT_RADIUS = 0.1
+#: the slabs' length along the solid's longest axis, at most, m
+SLAB_LENGTH = 0.12
+
+
+def _slabs(s: _Solid) -> list[_Solid]:
+    """``s`` as slabs along its longest (principal) axis, each with its own triangles, hull and bound.
+
+    Each triangle goes to the slab of its centroid, so the slabs' triangles are the mesh's: the
+    smallest slab distance is the mesh distance. A slab near the joint gets a lever of its own,
+    far smaller than the whole link's (:meth:`SelfGeometry._levers`), so a pair of links close
+    only near a joint is measured far less often. A primitive, a small mesh, or a slab coal
+    cannot hull: ``[s]``.
+    """
+    g = s.geom
+    if s.radius <= SPLIT_RADIUS or not hasattr(g, "tri_indices"):
+        return [s]
+    V = np.asarray(g.vertices(), float)
+    tris = [g.tri_indices(i) for i in range(g.num_tris)]
+    T = np.array([[t[0], t[1], t[2]] for t in tris], np.int64).reshape(-1, 3)
+    c = V.mean(axis=0)
+    axis = np.linalg.svd(V - c, full_matrices=False)[2][0]
+    x = (V[T].mean(axis=1) - c) @ axis
+    m = int(np.ceil((x.max() - x.min()) / SLAB_LENGTH)) if len(x) else 0
+    if m < 2:
+        return [s]
+    lab = np.clip(((x - x.min()) / (x.max() - x.min()) * m).astype(np.int64), 0, m - 1)
+    M = s.placement
+    out = []
+    for k in range(m):
+        tk = T[lab == k]
+        if len(tk) == 0:
+            continue
+        used, inv = np.unique(tk, return_inverse=True)
+        Vk = V[used]
+        sub = coal.BVHModelOBBRSS()
+        sub.beginModel(len(tk), len(used))
+        sub.addVertices(np.ascontiguousarray(Vk))
+        sub.addTriangles(np.ascontiguousarray(inv.reshape(-1, 3), dtype=np.int64))
+        sub.endModel()
+        try:
+            sub.buildConvexHull(True, "Qt")
+        except Exception:  # noqa: BLE001 - a flat slab qhull refuses: keep the solid whole
+            return [s]
+        ck = 0.5 * (Vk.min(axis=0) + Vk.max(axis=0))
+        rk = float(np.max(np.linalg.norm(Vk - ck, axis=1)))
+        out.append(_Solid(s.link, s.frame, M, sub, sub.convex, M[:3, :3] @ ck + M[:3, 3], rk, True))
+    return out
+
+
+#: a rigid group's members are measured when its compound hull is within this of the threshold, m
+EXPAND = 0.01
+
+
+def _hull(points: np.ndarray) -> Any:
+    """The convex hull of ``points`` (k, 3) as a coal geometry."""
+    from scipy.spatial import ConvexHull
+
+    tri = ConvexHull(points).simplices
+    m = coal.BVHModelOBBRSS()
+    m.beginModel(len(tri), len(points))
+    m.addVertices(np.ascontiguousarray(points, dtype=float))
+    m.addTriangles(np.ascontiguousarray(tri, dtype=np.int64))
+    m.endModel()
+    m.buildConvexHull(True, "Qt")
+    return m.convex
 
 
 def _adjacent(robot: Robot) -> set[frozenset[str]]:
@@ -80,7 +150,7 @@ class SelfGeometry:
             for p in prims:
                 s = _solid(robot, link, p)
                 if s is not None:
-                    self.solids.append(s)
+                    self.solids += _slabs(s)
         adj = _adjacent(robot)
         joint = {s.link: robot.link_joint(s.link) for s in self.solids}
         pairs = []
@@ -108,7 +178,6 @@ class SelfGeometry:
                                                           pin.SE3(self._in_joint[k]), sl.hull))
         for a, b in pairs:
             self._gm.addCollisionPair(pin.CollisionPair(int(a), int(b)))
-        self._gd = pin.GeometryData(self._gm)
         self._data = robot.model.createData()
         self._req = coal.DistanceRequest()
         solid_lever = self._levers()
@@ -117,7 +186,83 @@ class SelfGeometry:
         moves = robot._ancestor[[robot.link_joint(s.link) for s in self.solids]].reshape(-1, robot.nq)
         pa, pb = self.pairs[:, 0], self.pairs[:, 1]
         rel = moves[pa] ^ moves[pb]
-        self.pair_lever = ((solid_lever[pa] + solid_lever[pb]) * rel).reshape(-1, robot.nq)
+        # a joint below one solid and moving the other changes the distance as much as it would by turning
+        # the first the other way round its axis: the smaller of the two solids' levers bounds it
+        down = self._down_levers()
+        lever = np.where(moves[pa], np.minimum(solid_lever[pa], down[pb]), np.minimum(solid_lever[pb], down[pa]))
+        self.pair_lever = (lever * rel).reshape(-1, robot.nq)
+        self._groups()
+
+    def _groups(self) -> None:
+        """Rigid groups: the solids on one joint (slabs apart) measured first as one compound hull.
+
+        An end effector of many links on the last joint is then one GJK call against each other
+        solid while it is clear; its members are measured only when the compound comes within
+        :data:`EXPAND` of the threshold. Sets ``gpairs`` (G, 2) group pairs, ``gmembers`` (their
+        solid pairs), ``gpair_lever`` (G, n), the largest of the members' levers, and the compound
+        hulls' collision pairs in the geometry model after the solid pairs.
+        """
+        robot = self.robot
+        groups: list[list[int]] = []
+        on_joint: dict[int, int] = {}
+        for i, sl in enumerate(self.solids):
+            j = int(self._solid_joint[i])
+            if sl.slab or j not in on_joint:
+                if not sl.slab:
+                    on_joint[j] = len(groups)
+                groups.append([i])
+            else:
+                groups[on_joint[j]].append(i)
+        of = np.empty(len(self.solids), np.int64)
+        for g, mem in enumerate(groups):
+            of[mem] = g
+        obj = []  # the geometry object of each group: its solid's hull, or a compound hull
+        for g, mem in enumerate(groups):
+            if len(mem) == 1:
+                obj.append(mem[0])
+                continue
+            pts = np.vstack([self.solids[i].points() @ self._in_joint[i][:3, :3].T + self._in_joint[i][:3, 3]
+                             for i in mem])
+            obj.append(self._gm.ngeoms)
+            joint = int(self._solid_joint[mem[0]])
+            self._gm.addGeometryObject(pin.GeometryObject(f"group#{g}", joint, pin.SE3.Identity(), _hull(pts)))
+        by: dict[tuple[int, int], list[int]] = {}
+        for p, (a, b) in enumerate(self.pairs):
+            ga, gb = int(of[a]), int(of[b])
+            by.setdefault((min(ga, gb), max(ga, gb)), []).append(p)
+        self.gpairs = np.array(list(by), np.int64).reshape(-1, 2)
+        self.gmembers = [np.array(v, np.int64) for v in by.values()]
+        self.gpair_lever = np.array([self.pair_lever[v].max(axis=0) for v in self.gmembers]).reshape(-1, robot.nq)
+        self._gcoll = np.empty(len(self.gpairs), np.int64)  # each group pair's collision pair in the model
+        for k, (ga, gb) in enumerate(self.gpairs):
+            if len(self.gmembers[k]) == 1 and len(groups[ga]) == 1 and len(groups[gb]) == 1:
+                self._gcoll[k] = self.gmembers[k][0]
+            else:
+                self._gcoll[k] = len(self._gm.collisionPairs)
+                self._gm.addCollisionPair(pin.CollisionPair(int(obj[ga]), int(obj[gb])))
+        self._gd = pin.GeometryData(self._gm)
+
+    def group_distances(self, q: np.ndarray, which: np.ndarray, *,
+                        thresh: float) -> tuple[np.ndarray, np.ndarray]:
+        """Distances (len(which),) of the group pairs ``which`` at q, and the closest member pair of each.
+
+        The compound hulls' distance first (a lower bound of every member pair's); within
+        :data:`EXPAND` of ``thresh`` the members are measured (:meth:`pair_distances`) and the
+        smallest taken: exact below ``thresh``, else a lower bound above it. Member -1: not measured.
+        """
+        gm, gd = self._gm, self._gd
+        pin.updateGeometryPlacements(self.robot.model, self._data, gm, gd, q)
+        out = np.empty(len(which))
+        member = np.full(len(which), -1, np.int64)
+        for n, g in enumerate(which):
+            d = hull_bound(pin.computeDistance(gm, gd, int(self._gcoll[g])).min_distance)
+            mem = self.gmembers[g]
+            if d <= thresh + (EXPAND if len(mem) > 1 else 0.0):
+                dm = self._measured(mem, thresh)
+                k = int(np.argmin(dm))
+                d, member[n] = float(dm[k]), mem[k]
+            out[n] = d
+        return out, member
 
     def _levers(self) -> np.ndarray:
         """(S, n) bound of the speed of any point of each solid per unit joint speed, m/rad (1: prismatic).
@@ -147,6 +292,50 @@ class SelfGeometry:
                 j = k
         return lev
 
+    def _down_levers(self) -> np.ndarray:
+        """(S, n) bound of the distance of any point of each solid from the axis of each joint below it, m.
+
+        Turning joint k by dq moves what hangs below it relative to a solid above it exactly as turning
+        that solid by -dq round k's axis would: each of its points moves at most |dq| times its distance
+        from the axis. For the first joint below the solid's own the axis is fixed in the solid's frame
+        (that distance is exact over the solid's vertices); further down, the distance from the first
+        joint's origin plus the joint offsets (and prismatic strokes) down the chain bounds it. Entries
+        for joints not below the solid, and prismatic ones, are inf.
+        """
+        parent, place, axis, kind, qidx = self.robot.chain
+        lo, hi = np.asarray(self.robot.lower, float), np.asarray(self.robot.upper, float)
+        nj = len(parent)
+        out = np.full((len(self.solids), self.robot.nq), np.inf)
+        for i, s in enumerate(self.solids):
+            M = self._in_joint[i]
+            V = s.points() @ M[:3, :3].T + M[:3, 3]  # in the solid's joint frame
+            ja = int(self._solid_joint[i])
+            if len(V) == 0:
+                continue
+            for k in range(1, nj):
+                if kind[k] == 1:
+                    continue
+                path = [k]  # the joints from just below ja down to k
+                while path[-1] > 0 and int(parent[path[-1]]) != ja:
+                    path.append(int(parent[path[-1]]))
+                if path[-1] <= 0:
+                    continue  # k is not below the solid's joint
+                path.reverse()
+                c1 = path[0]
+                o1 = place[c1][:3, 3]
+                if len(path) == 1:
+                    u = place[c1][:3, :3] @ axis[c1]
+                    out[i, qidx[k]] = float(np.max(np.linalg.norm(np.cross(V - o1, u), axis=1)))
+                    continue
+                reach = float(np.max(np.linalg.norm(V - o1, axis=1)))
+                for c in path[1:]:
+                    reach += float(np.linalg.norm(place[c][:3, 3]))
+                for c in path[:-1]:
+                    if kind[c] == 1:
+                        reach += max(abs(lo[qidx[c]]), abs(hi[qidx[c]]))
+                out[i, qidx[k]] = reach
+        return out
+
     def pair_distances(self, q: np.ndarray, which: np.ndarray, *, thresh: float) -> np.ndarray:
         """Distances (len(which),) of the pairs ``which`` at q: exact below ``thresh``, else lower bounds above it.
 
@@ -154,11 +343,15 @@ class SelfGeometry:
         (Pinocchio's geometry model); only a pair whose hulls are within ``thresh`` goes on to
         :func:`~robointel.planning.exact_geometry.bounded_distance` on the meshes.
         """
+        pin.updateGeometryPlacements(self.robot.model, self._data, self._gm, self._gd, q)
+        return self._measured(which, thresh)
+
+    def _measured(self, which: np.ndarray, thresh: float) -> np.ndarray:
+        """:meth:`pair_distances` at the placements in the geometry data."""
         gm, gd = self._gm, self._gd
-        pin.updateGeometryPlacements(self.robot.model, self._data, gm, gd, q)
         out = np.empty(len(which))
         for n, p in enumerate(which):
-            d = pin.computeDistance(gm, gd, int(p)).min_distance - GJK_TOL
+            d = hull_bound(pin.computeDistance(gm, gd, int(p)).min_distance)
             if d <= thresh:
                 i, j = int(self.pairs[p, 0]), int(self.pairs[p, 1])
                 si, sj = self.solids[i], self.solids[j]

@@ -126,16 +126,29 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
         if not doubt.any():
             continue
         idx = np.flatnonzero(doubt)
-        for c0 in range(0, len(idx), MESH_CHUNK):
-            if clock_now() >= deadline:
+        # each (part, obstacle) pair measured at the first doubtful sample, then again only at the first
+        # doubtful sample where its travel since (pair_lever) may have eaten its margin (as in self_check)
+        Cq = np.zeros(Q.shape)
+        np.cumsum(np.abs(np.diff(Q, axis=0)), axis=0, out=Cq[1:])
+        due = np.zeros(len(mg.pair_lever), np.int64)
+        n = 0
+        while True:
+            j = int(np.searchsorted(idx, int(due.min())))
+            if j >= len(idx):
+                break
+            k = int(idx[j])
+            if n % MESH_CHUNK == 0 and clock_now() >= deadline:
                 return timed_out("the collision-mesh check", chk)
-            lo, hi = int(idx[c0]), int(idx[min(c0 + MESH_CHUNK, len(idx)) - 1]) + 1
-            d, k, link, obs = mg.samples_clearance(Q[lo:hi], env.lever, thresh=thr, cap=d_min + 0.1,
-                                                   mask=doubt[lo:hi])
-            if d < thr:
-                return DenseCheck(False, f"collision-mesh check: link {link!r} is {d * 1e3:.2f} mm from {obs!r} at "
-                                  f"t = {dense.t[s0 + lo + k]:.3f} s", "collision", min(d, chk.min_clearance_m),
+            n += 1
+            which = np.flatnonzero(due <= k + SELF_EARLY)
+            d = mg.pair_distances(Q[k], which, thresh=thr)
+            m = int(np.argmin(d))
+            if d[m] < thr:
+                link, obs = mg.pair_names(int(which[m]))
+                return DenseCheck(False, f"collision-mesh check: link {link!r} is {d[m] * 1e3:.2f} mm from {obs!r} "
+                                  f"at t = {dense.t[s0 + k]:.3f} s", "collision", min(float(d[m]), chk.min_clearance_m),
                                   chk.samples, (link,))
+            next_due(Cq, mg.pair_lever, which, k, d - thr, due)
     return chk
 
 
@@ -166,7 +179,7 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
     # pair_lever[p] . (Cq[j] - Cq[k]) from sample k to sample j
     Cq = np.zeros(Q.shape)
     np.cumsum(np.abs(np.diff(Q, axis=0)), axis=0, out=Cq[1:])
-    due = np.zeros(len(sg.pairs), np.int64)  # the next sample at which each pair must be measured
+    due = np.zeros(len(sg.gpairs), np.int64)  # the next sample at which each group pair must be measured
     n = 0
     while True:
         k = int(due.min())
@@ -176,16 +189,16 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
         if n % MESH_CHUNK == 0 and clock_now() >= deadline:
             return timed_out("the self-collision check", chk)
         n += 1
-        d = sg.pair_distances(Q[k], which, thresh=thr)
+        d, member = sg.group_distances(Q[k], which, thresh=thr)
         if d.min() < thr:
             m = int(np.argmin(d))
-            p = int(which[m])
+            p = int(member[m])
             la, lb = sg.solids[sg.pairs[p, 0]].link, sg.solids[sg.pairs[p, 1]].link
             return DenseCheck(False, f"self-collision check: link {la!r} is {d[m] * 1e3:.2f} mm from link {lb!r} "
                               f"at t = {dense.t[k]:.3f} s", "collision", min(float(d[m]), chk.min_clearance_m),
                               chk.samples, (la, lb))
         # proven until the relative travel since eats the margin
-        next_due(Cq, sg.pair_lever, which, k, d - thr, due)
+        next_due(Cq, sg.gpair_lever, which, k, d - thr, due)
 
 
 def exact_roots(env: Environment, q0: np.ndarray, goals: np.ndarray, floor: float) -> np.ndarray:
