@@ -43,7 +43,7 @@ def ik_robots():
     """(name, robot, base link, URDF path) of the arms the numeric IK is measured on."""
     from robointel.errors import DescriptionWarning
     from robointel.robot import Robot
-    from robointel.robot.model import example_robot_urdf
+    from robointel.robot.catalogue import example_robot_urdf
 
     d = _mbm_dir("fetch")
     with warnings.catch_warnings():

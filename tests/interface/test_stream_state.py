@@ -3,7 +3,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from robointel.interface import stream_child as sc
+from robointel.interface import stream_layout as layout
 from robointel.interface import stream_state as ss
 from robointel.interface.fanuc import FanucRobot
 
@@ -46,7 +46,7 @@ def _block(rng):
         v[ss.R[k]] = float(rng.random() < 0.1)
     v[ss.R["motion_possible"]] = float(rng.random() < 0.9)
     v[ss.R["fault"]] = float(rng.choice([0, 0, 0, 0, 1, 2, 3, 7, 9]))
-    v[ss.QM:ss.QM + sc.NDOF] = rng.normal(size=sc.NDOF).tolist()
+    v[ss.QM:ss.QM + layout.NDOF] = rng.normal(size=layout.NDOF).tolist()
     return v, BASE_NS + int(now_s * 1e9)
 
 
@@ -78,7 +78,7 @@ def test_a_quiet_block_of_a_dead_streaming_process_is_a_lost_connection():
 
 def test_the_snapshot_from_the_head_reads_as_the_full_blocks():
     rng = np.random.default_rng(2)
-    full = rng.uniform(0, 3, size=sc.RING_OFF - sc.S_OFF).round().tolist()  # every field of the block
+    full = rng.uniform(0, 3, size=layout.RING_OFF - layout.S_OFF).round().tolist()  # every field of the block
     a = ss.snapshot(full, BASE_NS, BASE_NS + 10**9)
     b = ss.snapshot(tuple(full[:ss.HEAD]), BASE_NS, BASE_NS + 10**9)
-    assert a == b and a["q_meas"] == full[ss.QM:ss.QM + sc.NDOF]
+    assert a == b and a["q_meas"] == full[ss.QM:ss.QM + layout.NDOF]

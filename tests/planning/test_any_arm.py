@@ -21,7 +21,7 @@ from robointel.planning.budget_clock import now as budget_now
 from robointel.planning.exact_self import self_geometry
 from robointel.planning.hybrid_check import mesh_geometry
 from robointel.robot import Robot
-from robointel.robot.model import example_robot_urdf
+from robointel.robot.catalogue import example_robot_urdf
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from _mbm_checker import MBMChecker  # noqa: E402

@@ -10,7 +10,7 @@ import pytest
 
 from robointel.errors import DescriptionError, DescriptionWarning, IKFailure, InvalidInput
 from robointel.robot import Robot
-from robointel.robot.model import example_robot_urdf
+from robointel.robot.catalogue import example_robot_urdf
 from robointel.robot.srdf import read_srdf
 
 

@@ -5,7 +5,7 @@ starts it and talks to it) with an interpreter lock of its own, so a planner thr
 process cannot delay a simulated controller window (docs/design/streaming.md). It
 builds the :class:`~robointel.sim.Workcell` from picklable arguments and runs the FANUC streaming
 process's loop (:func:`~robointel.interface.stream_child.serve_forever` with its
-:class:`~robointel.interface.stream_child.Player`: the look-ahead ring, the window accounting, the
+:class:`~robointel.interface.stream_player.Player`: the look-ahead ring, the window accounting, the
 stall stop, the requests) over :class:`SimSide`, a simulated controller with the surface of the
 ``airo-fanuc`` driver that loop drives.
 
@@ -33,6 +33,7 @@ import numpy.typing as npt
 
 from robointel.errors import InvalidInput, RobointelError, SafetyStop
 from robointel.interface import stream_child as sc
+from robointel.interface import stream_layout as layout
 from robointel.interface.sim import step_window, substeps_of
 from robointel.sim.workcell import Workcell
 
@@ -221,7 +222,7 @@ def lock_all_memory() -> bool:
 
 def main(conn_fd: int, shm_fd: int, wake_fd: int = -1) -> None:
     """Entry point of the child: build the workcell, report, serve until closed."""
-    conn, buf = Connection(conn_fd), np.frombuffer(mmap.mmap(shm_fd, sc.SHM_BYTES), dtype=np.float64)
+    conn, buf = Connection(conn_fd), np.frombuffer(mmap.mmap(shm_fd, layout.SHM_BYTES), dtype=np.float64)
     workcell_kwargs, q0, factory, factory_args, lock_memory, base_ns, period, stall_periods = conn.recv()
     with contextlib.suppress(OSError):  # PermissionError without CAP_SYS_NICE
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(sc.PRIORITY))

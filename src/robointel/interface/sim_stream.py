@@ -27,7 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robointel.errors import ConnectionLost, ControllerFault, InvalidInput, RobointelError
-from robointel.interface import stream_child as sc
+from robointel.interface import stream_layout as layout
 from robointel.interface import stream_state as ss
 from robointel.interface.backend import Backend, ExecutionResult, Recorder
 from robointel.interface.protocol import CycleCallback
@@ -50,7 +50,7 @@ _ROOT = str(Path(__file__).resolve().parents[2])  # the directory holding this r
 _SETUP_ERRORS = ("InvalidInput", "ShapeError", "NotFinite", "LimitViolation", "UnknownRobot", "DataMissing",
                  "DescriptionError", "TypeError", "ValueError")
 _TICK, _FAULT, _STALLED, _REFUSED = ss.R["cmd_tick"], ss.R["fault"], ss.R["stalled"], ss.R["refused"]
-_PUBLISHED = sc.STATE_INDEX["published_s"].start
+_PUBLISHED = layout.STATE_INDEX["published_s"].start
 
 
 class SimStreamProcess(RingProcess):
@@ -121,7 +121,7 @@ class SimStreamProcess(RingProcess):
 
     def held(self) -> bool:
         """True once the child has played every target up to the last :meth:`hold` and holds."""
-        return int(self.read_state()["holds"]) >= int(self._buf[sc.H_HOLD_GEN])
+        return int(self.read_state()["holds"]) >= int(self._buf[layout.H_HOLD_GEN])
 
 
 class SimStreamRobot(Backend):
@@ -165,8 +165,8 @@ class SimStreamRobot(Backend):
             raise InvalidInput("workcell_kwargs['robot'] must be a robot name (the workcell is built in the child)",
                                value=name)
         robot = Robot.load(name or "lrmate200id7l")
-        if robot.nq != sc.NDOF:
-            raise InvalidInput(f"the streaming process carries {sc.NDOF} joints, the robot has {robot.nq}",
+        if robot.nq != layout.NDOF:
+            raise InvalidInput(f"the streaming process carries {layout.NDOF} joints, the robot has {robot.nq}",
                                value=robot.nq)
         super().__init__(robot.joint_names, robot.lower, robot.upper, robot.velocity_limit, period, paced=True,
                          stall_periods=stall_periods, recorder=recorder)

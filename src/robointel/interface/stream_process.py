@@ -13,6 +13,7 @@ checks (gate, faults, stall, recording) stay where they are.
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
@@ -28,6 +29,7 @@ from airo_fanuc.exceptions import (
 )
 
 from robointel.interface import stream_child as sc
+from robointel.interface import stream_layout as layout
 from robointel.interface import stream_state
 from robointel.interface.stream_ring import (
     ALIVE_FRESH_S,
@@ -37,6 +39,9 @@ from robointel.interface.stream_ring import (
     RingProcess,
     check_lookahead,
 )
+
+_ROOT = str(Path(__file__).resolve().parents[2])
+"""The directory holding this robointel package (the child's script imports its streaming modules)."""
 
 __all__ = ["StreamProcess", "check_lookahead", "ALIVE_FRESH_S", "FIRST_STATUS_TIMEOUT_S", "REPLY_TIMEOUT_S",
            "START_TIMEOUT_S"]
@@ -71,7 +76,7 @@ class _CoreView:
         return stream_state.snapshot(o.values(), o.base_ns, time.monotonic_ns())
 
 
-_RUNNING = sc.STATE_INDEX["running"].start
+_RUNNING = layout.STATE_INDEX["running"].start
 
 
 class _RmiView:
@@ -131,7 +136,7 @@ class StreamProcess(RingProcess):
         self.core = _CoreView(self)
         self.rmi = _RmiView(self)
         super().__init__(sc.__file__, (host, policy), period=period, lookahead_s=lookahead_s,
-                         stall_periods=stall_periods)
+                         stall_periods=stall_periods, path=_ROOT)
 
     def remote_error(self, kind: str, message: str) -> Exception:
         """The ``airo_fanuc`` exception the child reported (``FanucError`` for any other kind)."""

@@ -1,17 +1,17 @@
 """The caller's end of a streaming process: the look-ahead ring, the seqlock state block, requests.
 
-A Python thread that streams one target per period shares its interpreter lock with every other
-thread of its process; a planner thread holding the lock while the kernel preempts it delays the
-stream by a scheduling latency (docs/design/streaming.md). A streaming process moves the per-window work
-out of the caller's interpreter: a child process (:mod:`robointel.interface.stream_child`'s
-:class:`~robointel.interface.stream_child.Player` and ``serve_forever``) owns the robot's real-time
-side, and each target the caller streams is stamped with the time it is to be played,
-``lookahead_s`` after it arrived (then one period after the previous one), and written into a ring
-in shared memory. At each controller tick the child interpolates the targets at the tick's time and
-submits the result, so a stall of the caller shorter than the look-ahead costs no window; the price
-is ``lookahead_s`` of added latency. With a look-ahead of 0 (:meth:`RingProcess.set_lookahead`, what
-a force loop asks for) each target is submitted as soon as the child wakes for it (an eventfd the
-caller writes): no queue, no interpolation, one wake-up of latency.
+A Python thread that streams one target per period shares its interpreter lock with every other thread of its
+process; a planner thread holding the lock while the kernel preempts it delays the stream by a scheduling
+latency (docs/design/streaming.md). A streaming process moves the per-window work out of the caller's
+interpreter: a child process (:func:`~robointel.interface.stream_child.serve_forever` with a
+:class:`~robointel.interface.stream_player.Player`) owns the robot's real-time side, and each target the
+caller streams is stamped with the time it is to be played, ``lookahead_s`` after it arrived (then one period
+after the previous one), and written into a ring in shared memory (:mod:`robointel.interface.stream_layout`).
+At each controller tick the child interpolates the targets at the tick's time and submits the result, so a
+stall of the caller shorter than the look-ahead costs no window; the price is ``lookahead_s`` of added
+latency. With a look-ahead of 0 (:meth:`RingProcess.set_lookahead`, what a force loop asks for) each target is
+submitted as soon as the child wakes for it (an eventfd the caller writes): no queue, no interpolation, one
+wake-up of latency.
 
 :class:`RingProcess` is what every backend's streaming process shares (the FANUC driver's,
 :class:`~robointel.interface.stream_process.StreamProcess`; the simulated cell's,
@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robointel.errors import ConnectionLost, InvalidInput
-from robointel.interface import stream_child as sc
+from robointel.interface import stream_layout as layout
 from robointel.interface import stream_state
 
 START_TIMEOUT_S = 60.0
@@ -53,9 +53,9 @@ serves); an older state is checked with ``waitpid``, s."""
 _CHILD = ("import runpy, sys; sys.path.pop(0); sys.argv = sys.argv[1:]; "
           "runpy.run_path(sys.argv[0], run_name='__main__')")
 _R, _RX = stream_state.R, stream_state.RX
-_PUBLISHED = sc.STATE_INDEX["published_s"].start
+_PUBLISHED = layout.STATE_INDEX["published_s"].start
 _HEAD = struct.Struct(f"={stream_state.HEAD}d")
-_SLOT = struct.Struct(f"={sc.SLOT_WIDTH}d")
+_SLOT = struct.Struct(f"={layout.SLOT_WIDTH}d")
 """One ring slot as written by :meth:`RingProcess.servo_j`: play time, arrival, the target."""
 
 
@@ -98,8 +98,8 @@ class RingProcess:
         fd = os.memfd_create("robointel-stream")
         self._wake = os.eventfd(0, os.EFD_NONBLOCK | os.EFD_CLOEXEC)  # a direct target is waiting
         try:
-            os.ftruncate(fd, sc.SHM_BYTES)
-            self._mm = mmap.mmap(fd, sc.SHM_BYTES)
+            os.ftruncate(fd, layout.SHM_BYTES)
+            self._mm = mmap.mmap(fd, layout.SHM_BYTES)
             self._buf: npt.NDArray[np.float64] = np.frombuffer(self._mm, dtype=np.float64)
             self._mv = memoryview(self._mm).cast("d")  # the per-target path: no numpy call (docs/design/streaming.md)
             ours, theirs = socket.socketpair()
@@ -187,9 +187,9 @@ class RingProcess:
         """A consistent copy of the child's state block as floats (seqlock read; fields at ``stream_state.R``)."""
         mv = self._mv
         for _ in range(1000):
-            v0 = mv[sc.H_VERSION]
-            block: list[float] = mv[sc.S_OFF:sc.RING_OFF].tolist()  # type: ignore[assignment]  # "d" format
-            if v0 % 2 == 0 and mv[sc.H_VERSION] == v0:
+            v0 = mv[layout.H_VERSION]
+            block: list[float] = mv[layout.S_OFF:layout.RING_OFF].tolist()  # type: ignore[assignment]  # "d" format
+            if v0 % 2 == 0 and mv[layout.H_VERSION] == v0:
                 break
         return block
 
@@ -201,9 +201,9 @@ class RingProcess:
         """
         mv, mm = self._mv, self._mm
         for _ in range(1000):
-            v0 = mv[sc.H_VERSION]
-            block = _HEAD.unpack_from(mm, sc.S_OFF * 8)
-            if v0 % 2 == 0 and mv[sc.H_VERSION] == v0:
+            v0 = mv[layout.H_VERSION]
+            block = _HEAD.unpack_from(mm, layout.S_OFF * 8)
+            if v0 % 2 == 0 and mv[layout.H_VERSION] == v0:
                 break
         return block
 
@@ -215,7 +215,7 @@ class RingProcess:
         """The child's state block by field name (a float, or an array for vectors)."""
         block = self.read_block()
         return {name: block[_R[name]:_R[name] + sl.stop - sl.start] if sl.stop - sl.start > 1
-                else float(block[_R[name]]) for name, sl in sc.STATE_INDEX.items()}
+                else float(block[_R[name]]) for name, sl in layout.STATE_INDEX.items()}
 
     def _reply(self, timeout: float, what: str) -> Any:
         if not self._conn.poll(timeout):
@@ -284,12 +284,12 @@ class RingProcess:
             slot = last + self.period
             if slot > now + 2 * look + self.period:
                 slot = last
-        w = int(mv[sc.H_WRITE])
-        if w - int(mv[sc.H_READ]) >= sc.RING - 1:
-            raise self.LOST(f"the streaming process took no target for {sc.RING} targets")
-        o = sc.RING_OFF + (w % sc.RING) * sc.SLOT_WIDTH
+        w = int(mv[layout.H_WRITE])
+        if w - int(mv[layout.H_READ]) >= layout.RING - 1:
+            raise self.LOST(f"the streaming process took no target for {layout.RING} targets")
+        o = layout.RING_OFF + (w % layout.RING) * layout.SLOT_WIDTH
         _SLOT.pack_into(self._mm, o * 8, slot, now, *(q.tolist() if isinstance(q, np.ndarray) else q))
-        mv[sc.H_WRITE] = w + 1  # published last: the child reads the count, then the slot
+        mv[layout.H_WRITE] = w + 1  # published last: the child reads the count, then the slot
         self._last_slot = self._prev_slot = slot
         if look == 0.0:
             os.eventfd_write(self._wake, 1)
@@ -297,13 +297,13 @@ class RingProcess:
     def hold(self) -> None:
         """Hold after the targets already queued have been played."""
         b = self._buf
-        b[sc.H_HOLD] = b[sc.H_WRITE]
-        b[sc.H_HOLD_GEN] += 1
+        b[layout.H_HOLD] = b[layout.H_WRITE]
+        b[layout.H_HOLD_GEN] += 1
         self._last_slot = None
 
     def stop_j(self) -> None:
         """Drop the queued targets and brake at once (never raises)."""
-        self._buf[sc.H_CUT] = self._buf[sc.H_WRITE]
+        self._buf[layout.H_CUT] = self._buf[layout.H_WRITE]
         self._last_slot = None
         try:
             self.call("stop_j")
@@ -320,7 +320,7 @@ class RingProcess:
                     pass
 
     def window_stats(self) -> dict[str, Any]:
-        """The child's window counters (see ``stream_child``: a window is fresh, starved, late or core-late).
+        """The child's window counters (see ``stream_player``: a window is fresh, starved, late or core-late).
 
         ``stream_windows``: controller windows while a stream played; ``stream_fresh``: windows that got
         a freshly interpolated target in time; ``stream_starved``: windows the caller left without a

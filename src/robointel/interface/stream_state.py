@@ -13,9 +13,9 @@ import operator
 from collections.abc import Sequence
 from typing import Any
 
-from robointel.interface import stream_child as sc
+from robointel.interface import stream_layout as layout
 
-R = {name: sl.start - sc.S_OFF for name, sl in sc.STATE_INDEX.items()}
+R = {name: sl.start - layout.S_OFF for name, sl in layout.STATE_INDEX.items()}
 """Offset of each state field in the list :meth:`StreamProcess.values` returns."""
 FLAG_KEYS = ("e_stopped", "in_error", "tp_enabled", "motion_possible", "wrench_valid", "stalled", "refused")
 INT_KEYS = ("mode", "fault", "cmd_tick", "active_motion_id", "active_motion_status")
@@ -27,7 +27,7 @@ QM, QD, QC, WR = R["q_meas"], R["qd_est"], R["q_cmd"], R["wrench"]
 WRENCH_VALID = R["wrench_valid"]
 _E_STOPPED, _IN_ERROR, _TP, _MOTION = R["e_stopped"], R["in_error"], R["tp_enabled"], R["motion_possible"]
 _FAULT, _STALLED, _REFUSED = R["fault"], R["stalled"], R["refused"]
-HEAD = max(R[k] + (sc.NDOF if k in ("q_meas", "qd_est", "q_cmd", "wrench") else 1)
+HEAD = max(R[k] + (layout.NDOF if k in ("q_meas", "qd_est", "q_cmd", "wrench") else 1)
            for k in (*FLAG_KEYS, *INT_KEYS, "rx_s", "tick_s", "stall_gap_s", "published_s", "running",
                      "q_meas", "qd_est", "q_cmd", "wrench"))
 """The leading fields of the block that :func:`snapshot` and :func:`quiet` read (``StreamProcess.head``)."""
@@ -51,9 +51,9 @@ def snapshot(v: Sequence[float], base_ns: int, now_ns: int) -> dict[str, Any]:
     snap["rx_mono_ns"] = rx_ns
     snap["tick_mono_ns"] = base_ns + int(v[TICK] * 1e9)
     snap["rx_age_ms"] = (now_ns - rx_ns) * 1e-6
-    snap["q_meas"], snap["qd_est"], snap["q_cmd"] = (list(v[QM:QM + sc.NDOF]), list(v[QD:QD + sc.NDOF]),
-                                                       list(v[QC:QC + sc.NDOF]))
-    snap.update(zip(WRENCH_KEYS, v[WR:WR + sc.NDOF], strict=True))
+    snap["q_meas"], snap["qd_est"], snap["q_cmd"] = (list(v[QM:QM + layout.NDOF]), list(v[QD:QD + layout.NDOF]),
+                                                       list(v[QC:QC + layout.NDOF]))
+    snap.update(zip(WRENCH_KEYS, v[WR:WR + layout.NDOF], strict=True))
     snap["stall_gap_s"] = v[STALL_GAP]
     return snap
 

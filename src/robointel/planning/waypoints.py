@@ -19,10 +19,11 @@ Speed: the cost is banded (double integrator) and constant; the constraint matri
 sparsity pattern (``slots`` rows per sample, filled with the closest sphere/obstacle pairs within
 ``margin``, empty rows relaxed to -inf) whose entries are overwritten in place each iteration; all
 samples' distances and gradients come from one compiled call
-(:func:`robointel.geometry.sphere_distances_batch`). Each QP is solved either by DAQP (default:
-dual active set on a working set of rows -- clearance rows near activity, limit rows near their
-bounds, the rest added only if violated -- warm-started with the previous duals) or by OSQP
-(``solver="osqp"``: one workspace set up once, then ``update(q=, l=, u=, Ax=)`` and warm start).
+(:func:`robointel.geometry.sphere_distances_batch`). Each QP is solved by
+:class:`~robointel.planning.segment_qp.SegmentQPSolver`: DAQP (default: dual active set on a working
+set of rows -- clearance rows near activity, limit rows near their bounds, the rest added only if
+violated -- warm-started with the previous duals) or OSQP (``solver="osqp"``: one workspace set up
+once, then ``update(q=, l=, u=, Ax=)`` and warm start).
 
 While the reference is still in collision (the straight line through an obstacle), the clearance
 rows get elastic slacks penalised by ``elastic`` and steps are halved when the exact-penalty merit
@@ -39,7 +40,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from robointel._validate import as_array, check_limits
 from robointel.errors import CollisionAtStart, InfeasibleProblem, InvalidInput, LimitViolation
-from robointel.planning.qp import INF, DenseQP, QPSolution, SparseQP
+from robointel.planning.qp import INF
+from robointel.planning.segment_qp import SegmentQPSolver
 
 if TYPE_CHECKING:  # pragma: no cover
     from robointel.geometry.distance import SphereDistances
@@ -89,15 +91,9 @@ class TrajectoryPlanner:
         self.set_obstacles(obstacles)
         self._build()
         self.solver = solver
-        if solver not in ("daqp", "osqp"):
-            raise InvalidInput(f"solver must be 'daqp' or 'osqp', got {solver!r}", value=solver)
-        self.qp = SparseQP(eps_abs=1e-5, eps_rel=1e-5, polishing=False, max_iter=20000)
-        self._dense = DenseQP()
-        self._Pz_dense: np.ndarray | None = None
-        self._Ad: np.ndarray | None = None
-        self._y_full: np.ndarray | None = None
-        self._qp_ready = False
-        self.qp_stats = {"osqp": 0, "daqp": 0}
+        self._qp = SegmentQPSolver(self.P_z, self.A, nv=self.nv, always=self._always, slack_rows=self._slack_rows,
+                                   reach=self._reach, solver=solver)
+        self.qp_stats = self._qp.stats
 
     # ------------------------------------------------------------------ set-up
     def set_obstacles(self, obstacles: Any) -> None:
@@ -202,10 +198,7 @@ class TrajectoryPlanner:
 
     def reset_warm_start(self) -> None:
         """Forget the QP solvers' previous solutions (for cold-start timings)."""
-        self._dense = DenseQP()
-        self._y_full = None
-        self.qp = SparseQP(**{k: v for k, v in self.qp.settings.items()})
-        self._qp_ready = False
+        self._qp.reset()
 
     # ------------------------------------------------------------------ pieces
     def _sample_configs(self, X: np.ndarray) -> np.ndarray:
@@ -355,7 +348,7 @@ class TrajectoryPlanner:
             l = np.r_[lo_lin, np.zeros(nS), lo_c]
             u = np.r_[up_lin, np.full(nS, smax), up_coll]
             z0 = np.r_[X[1:N].ravel(), np.zeros(nS)]
-            sol = self._solve_qp(qz, l, u, data, z0)
+            sol = self._qp.solve(qz, l, u, data, z0)
             if not sol.solved:
                 status = "qp_failed"
                 break
@@ -396,81 +389,6 @@ class TrajectoryPlanner:
         return SegmentPlan(path=X, iterations=it, costs=costs, status=status, feasible=bool(feas),
                            min_distance=float(dmin), seconds=time.perf_counter() - t0, blocked=bool(blocked),
                            iterates=iterates)
-
-    def _solve_qp(self, qz: np.ndarray, l: np.ndarray, u: np.ndarray, data: np.ndarray,
-                  z0: np.ndarray) -> QPSolution:
-        """Solve one CFS QP.
-
-        ``solver="daqp"`` (default): DAQP (dual active set, dense, exact) on a working set of rows
-        -- every clearance row and slack bound, plus the limit rows within reach of the reference
-        -- with violated limit rows added and the QP re-solved until none is violated (lazy
-        constraint generation; usually one round, since the joint limits are rarely active).
-        ``solver="osqp"``: the whole QP on OSQP, pattern fixed, updated in place, warm-started.
-        """
-        if self.solver == "osqp":
-            if not self._qp_ready:
-                self.A.data = data
-                osqp_sol = self.qp.solve(self.P_z, qz, self.A, l, u, x0=z0)
-                self._qp_ready = True
-            else:
-                osqp_sol = self.qp.update(q=qz, l=l, u=u, Ax=data, x0=z0)
-            self.qp_stats["osqp"] += 1
-            return osqp_sol
-        Ad = self._dense_A(data)
-        if self._Pz_dense is None:
-            P = self.P_z.toarray()
-            self._Pz_dense = np.ascontiguousarray(np.triu(P) + np.triu(P, 1).T)
-        Pz = self._Pz_dense
-        finite = (l > -INF / 2) | (u < INF / 2)
-        Az = Ad @ z0
-        span = np.where(np.isfinite(u - l), u - l, np.inf)
-        near = ((Az - l < 0.5 * span + 1e-9) & (Az - l < self._reach)) | (u - Az < self._reach)
-        work = finite & (self._always | near)
-        # the elastic slacks are fixed at zero once the reference is clear: drop them from the QP
-        elastic = bool(np.any(u[self._slack_rows] > 0))
-        nvar = self.nz if elastic else self.nv
-        if not elastic:
-            work[self._slack_rows] = False
-        P = Pz if elastic else Pz[: self.nv, : self.nv]
-        sol: QPSolution | None = None
-        for _ in range(8):
-            y0 = self._y_full[work] if self._y_full is not None else None
-            sol = self._dense.solve(P, qz[:nvar], np.ascontiguousarray(Ad[work, :nvar]), l[work], u[work],
-                                    x0=z0[:nvar], full_P=True, y0=y0)
-            self.qp_stats["daqp"] += 1
-            self.qp_stats["daqp_iterations"] = self.qp_stats.get("daqp_iterations", 0) + sol.iterations
-            if not sol.solved:
-                return sol
-            y_full = np.zeros(len(l))
-            y_full[work] = sol.y
-            self._y_full = y_full
-            x = sol.x if elastic else np.r_[sol.x, np.zeros(self.nz - self.nv)]
-            Ax = Ad @ x
-            viol = finite & ~work & ((Ax < l - 1e-7) | (Ax > u + 1e-7))
-            if not elastic:
-                viol[self._slack_rows] = False
-            if not np.any(viol):
-                sol.x = x
-                return sol
-            work |= viol
-        assert sol is not None  # the loop ran at least once
-        if not elastic:
-            sol.x = np.r_[sol.x, np.zeros(self.nz - self.nv)]
-        return sol
-
-    def _dense_A(self, data: np.ndarray) -> np.ndarray:
-        """The constraint matrix as a dense array, filled in place from CSC ``data``."""
-        if self._Ad is None:
-            A = self.A.copy()
-            self._Ad = A.toarray()
-            coo = self.A.tocoo()
-            # position of each CSC data entry: row/col of data index p
-            cols = np.repeat(np.arange(self.A.shape[1]), np.diff(self.A.indptr))
-            self._data_rc = (self.A.indices.copy(), cols)
-            del coo
-        Ad = self._Ad
-        Ad[self._data_rc] = data
-        return Ad
 
     def _q_full(self, Xr: np.ndarray) -> np.ndarray:
         """Linear term over all knots: -2 w1 Q x^r on interior knots, 0 at the fixed ends."""

@@ -24,10 +24,10 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
-from robointel._extras import missing_extra
-from robointel._validate import as_array, check_limits
-from robointel.errors import DescriptionError, DescriptionWarning, IKFailure, InvalidInput, NotFinite, UnknownRobot
+from robointel._validate import as_array
+from robointel.errors import DescriptionError, DescriptionWarning, IKFailure, InvalidInput
 from robointel.robot._kernels import points_jacobians, points_jacobians_batch
+from robointel.robot.catalogue import find_urdf
 from robointel.robot.chain import chain_arrays
 from robointel.robot.collision import SphereModel
 from robointel.robot.description import load_description
@@ -35,59 +35,18 @@ from robointel.robot.dynamics import RigidBodyDynamics
 from robointel.robot.geometry_urdf import read_collision_geometry
 from robointel.robot.ik import LRMateIK
 from robointel.robot.ik_numeric import numeric_ik
+from robointel.robot.joint_space import JointSpace
 from robointel.robot.sphere_fit import fit_spheres
 from robointel.robot.srdf import SRDF, read_srdf
 
-DESCRIPTIONS = Path(__file__).resolve().parent / "descriptions"
-BUILTIN = {
-    "lrmate200id7l": DESCRIPTIONS / "lrmate200id7l.urdf",
-    "scara2": DESCRIPTIONS / "scara2.urdf",
-}
 #: velocity limit given to a planned joint whose URDF gives none (rad/s or m/s), with a warning
 DEFAULT_VELOCITY = 1.0
-#: a configuration this close outside a limit (rad or m) is put on it at the planner's boundary
-LIMIT_SNAP = 1e-5
 #: frame types in the order a name shared by several frames resolves to
 _FRAME_ORDER = (pin.FrameType.BODY, pin.FrameType.OP_FRAME, pin.FrameType.FIXED_JOINT, pin.FrameType.JOINT,
                 pin.FrameType.SENSOR)
 
 
-def builtin_names() -> list[str]:
-    """Names accepted by :meth:`Robot.load` besides URDF paths."""
-    return sorted(BUILTIN)
-
-
-def _example_robot_data_dir() -> Path | None:
-    import sys
-
-    for base in [Path(sys.prefix)] + [Path(p) for p in sys.path]:
-        d = base / "cmeel.prefix" / "share" / "example-robot-data" / "robots"
-        if d.is_dir():
-            return d
-    return None
-
-
-_EXAMPLES = {"ur5": "ur_description/urdf/ur5_robot.urdf", "panda": "panda_description/urdf/panda.urdf"}
-
-
-def example_robot_urdf(name: str) -> Path:
-    """Path of a URDF shipped by ``example-robot-data``: ``"ur5"``, ``"panda"``, or a path below its ``robots`` folder.
-
-    Raises:
-        MissingExtra: example-robot-data is not installed (the ``robots`` extra).
-        UnknownRobot: it has no such file.
-    """
-    d = _example_robot_data_dir()
-    if d is None:
-        raise missing_extra("robots", f"the example-robot-data robot {name!r}", "example-robot-data")
-    rel = _EXAMPLES.get(name, name)
-    if not (d / rel).is_file():
-        raise UnknownRobot(f"example-robot-data has no robot {name!r}: name one of {sorted(_EXAMPLES)} or a URDF path "
-                           f"below {d}", value=name)
-    return d / rel
-
-
-class Robot(RigidBodyDynamics):
+class Robot(JointSpace, RigidBodyDynamics):
     """A fixed-base robot on Pinocchio: one planning group of a URDF, the other joints held.
 
     Args:
@@ -248,20 +207,9 @@ class Robot(RigidBodyDynamics):
             DescriptionError: the file is not a readable URDF, or a mesh cannot be found.
             InvalidInput: a bad SRDF, group or held value.
         """
-        key = str(name_or_path)
-        if key in BUILTIN:
-            path, name = BUILTIN[key], key
-        elif key in _EXAMPLES:
-            path, name = example_robot_urdf(key), key
-            if flange_frame is None and tip_link is None:
-                flange_frame = {"ur5": "tool0", "panda": "panda_hand"}[key]
-        else:
-            path = Path(key).expanduser()
-            if not path.exists():
-                raise UnknownRobot(
-                    f"unknown robot {key!r}: not a built-in name ({', '.join(builtin_names() + list(_EXAMPLES))}) "
-                    "and no URDF file at that path", value=key)
-            name = path.stem
+        path, name, maker_flange = find_urdf(name_or_path)
+        if flange_frame is None and tip_link is None:
+            flange_frame = maker_flange
         try:
             text = path.read_text()
             ET.fromstring(text)
@@ -285,47 +233,6 @@ class Robot(RigidBodyDynamics):
             InvalidInput: no frame of that name.
         """
         return self._frame_id(frame)
-
-    def check_q(self, q: ArrayLike, name: str = "q", *, limits: bool = False) -> np.ndarray:
-        """Validate a configuration: shape (nq,), finite, and (``limits=True``) within limits."""
-        if type(q) is np.ndarray and q.dtype == np.float64 and q.shape == (self.nq,):
-            if not np.isfinite(q @ q):  # any NaN/inf (or absurd magnitude) makes this non-finite
-                raise NotFinite(f"{name} contains NaN or inf: {q}; pass finite values", value=q)
-        else:
-            q = as_array(q, name, (self.nq,))
-        if limits:
-            check_limits(q, self.lower, self.upper, self.joint_names, name)
-        return q
-
-    def snap_to_limits(self, q: ArrayLike, tol: float = LIMIT_SNAP) -> np.ndarray:
-        """``q`` (nq,) with values at most ``tol`` (rad or m) outside a limit put on it (rounding in stored files).
-
-        Values farther out are left as they are (so that :meth:`check_q` names them).
-        """
-        q = np.array(self.check_q(q), dtype=float)
-        near = ((q < self.lower) & (q >= self.lower - tol)) | ((q > self.upper) & (q <= self.upper + tol))
-        q[near] = np.clip(q[near], self.lower[near], self.upper[near])
-        return q
-
-    def wrap_goal(self, goal: ArrayLike, ref: ArrayLike) -> np.ndarray:
-        """``goal`` with each continuous joint turned by whole turns to the value nearest ``ref`` within limits.
-
-        Args:
-            goal: (nq,) configuration, rad.
-            ref: (nq,) the configuration the motion starts from, rad.
-
-        Returns:
-            (nq,) the same pose of the robot, reached by the shorter turn of each continuous joint.
-        """
-        g = np.array(self.check_q(goal, "goal"), dtype=float)
-        r = self.check_q(ref, "ref")
-        for j in np.flatnonzero(self.continuous):
-            k = np.round((r[j] - g[j]) / (2 * np.pi))
-            for cand in (g[j] + 2 * np.pi * k, g[j] + 2 * np.pi * (k - 1), g[j] + 2 * np.pi * (k + 1)):
-                if self.lower[j] <= cand <= self.upper[j] and abs(cand - r[j]) <= np.pi + 1e-12:
-                    g[j] = cand
-                    break
-        return g
 
     @property
     def link_names(self) -> list[str]:
@@ -351,12 +258,6 @@ class Robot(RigidBodyDynamics):
             raise InvalidInput("tool must be a rigid transform (proper rotation in its upper-left 3x3)", value=T)
         self._tool = T.copy()
         self._tool_is_identity = bool(np.array_equal(T, np.eye(4)))
-
-    def random_configuration(self, rng: np.random.Generator | int | None = None, n: int | None = None) -> np.ndarray:
-        """Uniform random configuration(s) within the joint limits: (nq,) or (n, nq)."""
-        rng = np.random.default_rng(rng)
-        size = (self.nq,) if n is None else (n, self.nq)
-        return rng.uniform(self.lower, self.upper, size=size)
 
     # ------------------------------------------------------------------ kinematics
     def frame_pose(self, q: ArrayLike, frame: str | None = None) -> np.ndarray:

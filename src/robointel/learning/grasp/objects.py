@@ -191,9 +191,9 @@ def toy_arm(q: npt.ArrayLike | None = None, *, robot: str = "ur5", height: float
     """
     import pinocchio as pin
 
-    from robointel.robot.model import _example_robot_data_dir
+    from robointel.robot.catalogue import example_robot_data_dir
 
-    root = _example_robot_data_dir()
+    root = example_robot_data_dir()
     if root is None or robot not in _ARMS:
         raise DataMissing(f"example-robot-data arm {robot!r} not available", value=robot)
     urdf = root / _ARMS[robot]
