@@ -25,16 +25,14 @@ import numpy as np
 from numba import njit
 
 from robointel.planning._batch_kernels import (
-    LANES,
     TOL,
-    BatchScratch,
     _dist,
     batch_groups,
-    batch_world,
     box_gap,
     ensure_spheres,
     place_clusters,
 )
+from robointel.planning._batch_view import LANES, BatchScratch, batch_world
 from robointel.planning._collision_kernels import CLOUD, ENV, FM, SELF, _aabb_dist, _cloud_min
 from robointel.planning._edge_kernels import _rates, root_split
 
@@ -47,7 +45,7 @@ NEED_SLACK = 1.0001
 def batch_state(W: tuple) -> tuple:
     """The batch state of world ``W`` (and of every world with its joints, spheres and self pairs).
 
-    (the :func:`~robointel.planning._batch_kernels.batch_world` view, the :class:`BatchScratch`
+    (the :func:`~robointel.planning._batch_view.batch_world` view, the :class:`BatchScratch`
     arrays, rate (m, nj), irate (m,), ipair (s,), adv (lanes,), f (lanes,), lo, hi (the stretch
     queue), pair levers (p,)).
     """

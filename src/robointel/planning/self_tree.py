@@ -11,16 +11,13 @@ pairs below it, so a measured node pair proves all of them for as long as its ma
 from __future__ import annotations
 
 from collections import defaultdict
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import coal
 import numpy as np
 import pinocchio as pin
 
 from robointel.planning.exact_geometry import hull_bound
-
-if TYPE_CHECKING:
-    from robointel.planning.exact_self import SelfGeometry
 
 #: a node pair closer than this above the threshold is replaced by its children's pairs, m
 EXPAND = 0.01
@@ -48,9 +45,13 @@ class SelfTree:
     pair ``lever`` (M, n) (m/rad, the largest of its solid pairs'), ``coll`` (M,) its collision pair
     in the model, ``leaf`` (M,) its solid pair (an index into ``sg.pairs``, -1 for an inner pair),
     ``children`` (a list of (c,) arrays of node pairs).
+
+    Args:
+        sg: the :class:`~robointel.planning.exact_self.SelfGeometry` (its solids, solid pairs and
+            their levers, geometry model and data; typed loosely: that module builds the tree).
     """
 
-    def __init__(self, sg: SelfGeometry) -> None:
+    def __init__(self, sg: Any) -> None:
         self.sg = sg
         S, n = len(sg.solids), sg.robot.nq
         self._pid = np.full((S, S), -1, np.int64)
@@ -116,7 +117,7 @@ class SelfTree:
         self.children = children
         sg._gd = pin.GeometryData(sg._gm)
 
-    def _node(self, sg: SelfGeometry, members: np.ndarray) -> int:
+    def _node(self, sg: Any, members: np.ndarray) -> int:
         """A node over ``members`` (solids on one joint) and its subtree; returns its index."""
         k = len(self.members)
         pts = np.vstack([self._pts[i] for i in members])
