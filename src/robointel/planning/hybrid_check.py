@@ -201,19 +201,18 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
             return timed_out("the self-collision check", chk)
         n += 1
         its = item[which]
-        d = tree.distances(Q[k], its, thresh=thr)
-        inner = tree.leaf[its] < 0
-        hit = ~inner & (d < thr)
-        if hit.any():
-            w = int(np.flatnonzero(hit)[np.argmin(d[hit])])
+        d, hits, near = tree.measure(Q[k], its, thresh=thr, expand=thr + EXPAND)
+        if hits:
+            w = min(hits, key=lambda h: d[h])
             p = int(tree.leaf[its[w]])
             la, lb = sg.solids[sg.pairs[p, 0]].link, sg.solids[sg.pairs[p, 1]].link
             return DenseCheck(False, f"self-collision check: link {la!r} is {d[w] * 1e3:.2f} mm from link {lb!r} "
                               f"at t = {dense.t[k]:.3f} s", "collision", min(float(d[w]), chk.min_clearance_m),
                               chk.samples, (la, lb))
-        near = inner & (d <= thr + EXPAND)
-        for x in np.flatnonzero(near):  # replaced by its children's pairs, measured at this sample
-            w = int(x)
+        if not near:  # proven until the relative travel since eats the margin
+            next_due(Cq, lever, which, k, d - thr, due)
+            continue
+        for w in near:  # replaced by its children's pairs, measured at this sample
             due[which[w]] = RETIRED
             kids = tree.children[its[w]]
             if m + len(kids) > cap:
@@ -223,8 +222,8 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
                 item, due, lever = np.resize(item, cap), grown, np.resize(lever, (cap, Q.shape[1]))
             item[m:m + len(kids)], due[m:m + len(kids)], lever[m:m + len(kids)] = kids, k, tree.lever[kids]
             m += len(kids)
-        # proven until the relative travel since eats the margin
-        keep = ~near
+        keep = np.ones(len(which), bool)
+        keep[near] = False
         next_due(Cq, lever, which[keep], k, d[keep] - thr, due)
 
 

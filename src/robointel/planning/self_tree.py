@@ -17,7 +17,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from robointel.planning.exact_geometry import hull_bound
+from robointel.planning.exact_geometry import GJK_TOL
 
 #: a node pair closer than this above the threshold is replaced by its children's pairs, m
 EXPAND = 0.01
@@ -115,6 +115,7 @@ class SelfTree:
         self.coll = np.array(coll, np.int64)
         self.leaf = np.array(leaf, np.int64)
         self.children = children
+        self._leaf, self._coll = self.leaf.tolist(), self.coll.tolist()  # (plain lists: the check's inner loop)
         sg._gd = pin.GeometryData(sg._gm)
 
     def _node(self, sg: Any, members: np.ndarray) -> int:
@@ -144,17 +145,36 @@ class SelfTree:
         Inner pairs: the hulls' GJK distance, a lower bound of every solid pair below. Solid pairs:
         exact below ``thresh``, else a lower bound above it.
         """
+        return self.measure(q, which, thresh=thresh, expand=-np.inf)[0]
+
+    def measure(self, q: np.ndarray, which: np.ndarray, *, thresh: float,
+                expand: float) -> tuple[np.ndarray, list[int], list[int]]:
+        """:meth:`distances` with two lists of positions in ``which``.
+
+        Returns:
+            (distances (len(which),) m, the solid pairs below ``thresh`` (hits), the inner pairs at or
+            below ``expand`` m (to be replaced by their children)).
+        """
         sg = self.sg
         gm, gd = sg._gm, sg._gd
         pin.updateGeometryPlacements(sg.robot.model, sg._data, gm, gd, q)
         out = np.empty(len(which))
-        for n, it in enumerate(which):
-            p = int(self.leaf[it])
+        hits: list[int] = []
+        near: list[int] = []
+        leaf, coll, dist = self._leaf, self._coll, pin.computeDistance
+        for n, it in enumerate(which.tolist()):
+            p = leaf[it]
+            d = dist(gm, gd, coll[it]).min_distance
+            d -= GJK_TOL * (1.0 + abs(d))  # (hull_bound, inlined)
             if p >= 0:
-                out[n] = sg._measured(np.array([p]), thresh)[0]
-            else:
-                out[n] = hull_bound(pin.computeDistance(gm, gd, int(self.coll[it])).min_distance)
-        return out
+                if d <= thresh:
+                    d = float(sg._measured(np.array([p]), thresh)[0])
+                    if d < thresh:
+                        hits.append(n)
+            elif d <= expand:
+                near.append(n)
+            out[n] = d
+        return out, hits, near
 
 
 def _hull_points(s: Any) -> np.ndarray:
