@@ -87,11 +87,43 @@ def refused_free(row: dict, start_mm: float, goals_mm: list[float]) -> bool:
     return max(goals_mm, default=-1.0) >= 1.0
 
 
-def one_core() -> None:
-    """Pin the process to one CPU and its thread pools to one thread."""
+def _busy(cpus: set[int], wait_s: float = 0.3) -> dict[int, float]:
+    """Each CPU's busy share (0..1) over ``wait_s`` seconds, from /proc/stat (empty where unreadable)."""
+    def sample() -> dict[int, tuple[int, int]]:
+        out = {}
+        with open("/proc/stat") as f:
+            for line in f:
+                name, *v = line.split()
+                if name.startswith("cpu") and name[3:].isdigit() and int(name[3:]) in cpus:
+                    n = [int(x) for x in v]
+                    out[int(name[3:])] = (n[3] + n[4], sum(n[:8]))  # idle + iowait, total
+        return out
+
     try:
-        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
-    except (AttributeError, OSError):
+        a = sample()
+        time.sleep(wait_s)
+        b = sample()
+    except OSError:
+        return {}
+    return {c: 1.0 - (b[c][0] - a[c][0]) / max(b[c][1] - a[c][1], 1) for c in b if c in a}
+
+
+def one_core() -> None:
+    """Pin the process to one CPU (the least busy one it may run on) and its thread pools to one thread.
+
+    ``ROBOINTEL_BENCH_CPU`` names the CPU instead. The least busy one, so that two benchmarks started
+    on a shared machine do not take turns on the same core while another idles.
+    """
+    try:
+        allowed = os.sched_getaffinity(0)
+        want = os.environ.get("ROBOINTEL_BENCH_CPU")
+        if want is not None and int(want) in allowed:
+            cpu = int(want)
+        else:
+            busy = _busy(set(allowed))
+            cpu = min(allowed, key=lambda c: (busy.get(c, 0.0), c))
+        os.sched_setaffinity(0, {cpu})
+    except (AttributeError, OSError, ValueError):
         pass
     threadpool_limits(1)
     try:
@@ -439,7 +471,8 @@ def main() -> None:
                  "ours_settings": {"d_min_m": args.d_min, "time_budget_s": args.time_budget,
                                    "budget_clock": args.budget_clock,
                                    "seeds": f"{SEED0} + problem index"},
-                 "problems": len(problems), "families": families, "one_core": True, "load_average_1min": load,
+                 "problems": len(problems), "families": families, "one_core": True,
+                 "cpu": sorted(os.sched_getaffinity(0)), "load_average_1min": load,
                  "load_average_1min_end": os.getloadavg()[0],
                  "warmup": "once per process, untimed: the first problem is solved once before the run (numba "
                            "kernels loaded from the disk cache or compiled, the collision meshes and their hulls "
