@@ -139,3 +139,19 @@ def test_tree_node_pairs_bound_every_solid_pair_below(ur5_self):
             assert np.all(tree.lever[k] >= sg.pair_lever[ps].max(axis=0) - 1e-12)
             assert dk <= min(_mesh_distance(sg, q, p) for p in ps) + 1e-7
     assert set().union(*(leaves(int(r)) for r in tree.roots)) == set(range(len(sg.pairs)))
+
+
+def test_tree_closest_below_agrees_with_every_pair(ur5_self):
+    """The tree walk finds a pair below the threshold exactly when the pair-by-pair clearance does."""
+    sg = ur5_self
+    rng = np.random.default_rng(9)
+    found = 0
+    for q in sg.robot.random_configuration(rng, 30):
+        for thr in (0.0, 0.02):
+            ref, _, _ = sg.clearance(q, cap=thr + 0.05, thresh=thr)
+            got = sg.tree.closest_below(q, thr)
+            assert (got is not None) == (ref < thr)
+            if got is not None:
+                assert abs(got[0] - ref) <= 1e-9
+                found += 1
+    assert found >= 3

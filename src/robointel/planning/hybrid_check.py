@@ -248,9 +248,10 @@ def exact_roots(env: Environment, q0: np.ndarray, goals: np.ndarray, floor: floa
         d, link, obs = mg.clearance(q, cap=floor + 1e-4, thresh=floor)
         if d < floor:
             return f"robot link {link!r} is {d * 1e3:.1f} mm from obstacle {obs!r}"
-        d, la, lb = sg.clearance(q, cap=sthr + 1e-4, thresh=sthr)
-        if d < sthr:
-            return f"robot link {la!r} is {d * 1e3:.1f} mm from link {lb!r}"
+        hit = sg.tree.closest_below(q, sthr)
+        if hit is not None:
+            la, lb = (sg.solids[i].link for i in sg.pairs[hit[1]])
+            return f"robot link {la!r} is {hit[0] * 1e3:.1f} mm from link {lb!r}"
         return ""
 
     w = why(q0)

@@ -177,6 +177,22 @@ class SelfTree:
         return out, hits, near
 
 
+    def closest_below(self, q: np.ndarray, thresh: float) -> tuple[float, int] | None:
+        """The closest solid pair closer than ``thresh`` (m) at q: (distance m, pair index), or None.
+
+        Walks the tree from the root pairs, expanding only the node pairs at or below ``thresh``.
+        """
+        best: tuple[float, int] | None = None
+        front = self.roots
+        while len(front):
+            d, hits, near = self.measure(q, front, thresh=thresh, expand=thresh)
+            for h in hits:
+                if best is None or d[h] < best[0]:
+                    best = (float(d[h]), int(self.leaf[front[h]]))
+            front = np.array([c for w in near for c in self.children[front[w]]], np.int64)
+        return best
+
+
 def _hull_points(s: Any) -> np.ndarray:
     """(k, 3) the vertices of a solid's convex hull (a primitive: its bounding box's corners), in its own frame."""
     from scipy.spatial import ConvexHull
