@@ -259,7 +259,9 @@ def env_below(Q: np.ndarray, V: np.ndarray, W: tuple, T: np.ndarray, C: np.ndarr
 
     The same mask as :func:`~robointel.planning._collision_kernels.samples_env_below` (True exactly
     where the clearance is below ``thresh``), with samples proven >= ``thresh`` from both sides
-    (``V`` the joints' total variation of :func:`limits_travel`).
+    (``V`` the joints' total variation of :func:`limits_travel`), and the samples after one below
+    ``thresh`` proven below it for as long as its deficit outlasts the travel (the clearance rises
+    no faster than it falls).
     """
     Kn = Q.shape[0]
     mask = np.zeros(Kn, np.bool_)
@@ -278,6 +280,17 @@ def env_below(Q: np.ndarray, V: np.ndarray, W: tuple, T: np.ndarray, C: np.ndarr
     mask[0] = ek < thresh
     k = 0
     while k < Kn - 1:
+        if ek < thresh:  # the clearance rises at most as fast as it falls: a deficit holds for its travel
+            jd = _reach(V, k, k + 1, Kn - 1, -ek, none, lever, rel, 1.0, TRAVEL_EPS - thresh, True)
+            if jd > k:
+                mask[k + 1:jd + 1] = True
+                if jd >= Kn - 1:
+                    break
+                k = jd + 1
+                K.sphere_centres(Q[k], W, T, C, G)
+                ek = K.env_clearance(C, G, W, cap, -np.inf, out)
+                mask[k] = ek < thresh
+                continue
         if _bound(V, k, Kn - 1, ek, none, lever, rel, 1.0) >= tau:
             break
         j = _reach(V, k, k + 1, Kn - 1, ek, none, lever, rel, 0.5, tau, True)
