@@ -402,7 +402,7 @@ def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
                 traj = topp_spline(path, vmax, amax, step=float(step), dt=st.check_dt, joint_names=names)
             tw = interior_window(traj, path) if hybrid and not exact else None
             chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt,
-                              window=(*tw, Wc) if win and tw is not None else None)
+                              window=(*tw, Wc) if win and tw is not None else None, self_collision=not env.exact_self)
             chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win, tw)
             if chk.ok or chk.kind != "collision":
                 break
@@ -418,7 +418,7 @@ def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
             traj = polyline_timing(path, vmax, amax, dt=st.check_dt, joint_names=names)
         tw = interior_window(traj, path) if hybrid and not exact else None
         chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt,
-                          window=(*tw, Wc) if win and tw is not None else None)
+                          window=(*tw, Wc) if win and tw is not None else None, self_collision=not env.exact_self)
         chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win, tw)
         timings.add("timing", t4, c4)
     return traj, chk

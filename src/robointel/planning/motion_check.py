@@ -54,7 +54,8 @@ class DenseCheck:
 
 
 def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.ArrayLike,
-                amax: npt.ArrayLike, dt: float = 1e-3, window: tuple[float, float, tuple] | None = None) -> DenseCheck:
+                amax: npt.ArrayLike, dt: float = 1e-3, window: tuple[float, float, tuple] | None = None,
+                self_collision: bool = True) -> DenseCheck:
     """Resample ``traj`` every ``dt`` seconds and check limits and clearance.
 
     Args:
@@ -69,6 +70,9 @@ def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.A
             :attr:`Environment.world_cover` while relaxed spheres are in use): its clearance is then
             never above ``env.world``'s, so passing in it implies passing in ``env.world`` (the
             reported clearance of those samples is ``W``'s).
+        self_collision: also check the spheres' self-collision pairs. False when the caller decides
+            self-collision on the exact geometry afterwards
+            (:func:`~robointel.planning.hybrid_check.self_check`): the sphere pairs would only repeat it.
 
     Returns:
         The :class:`DenseCheck`.
@@ -86,14 +90,17 @@ def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.A
     s = env.scratch
     floor = d_min - CLEARANCE_TOL
     spans: tuple[tuple[int, int, tuple], ...]
+    Wd = env.world if self_collision else obstacles_only(env.world)
     if window is None:
-        spans = ((0, len(Q), env.world),)
+        spans = ((0, len(Q), Wd),)
         Ww: tuple | None = None
     else:  # before, inside, after the window: each stretch with its world
         t0, t1, Ww = window
+        if not self_collision:
+            Ww = obstacles_only(Ww)
         a = int(np.searchsorted(dense.t, t0, side="left"))
         b = max(a, int(np.searchsorted(dense.t, t1, side="right")))
-        spans = ((0, a, env.world), (a, b, Ww), (b, len(Q), env.world))
+        spans = ((0, a, Wd), (a, b, Ww), (b, len(Q), Wd))
     dmin, worst, inside = cap, 0, False
     for lo, hi, W in spans:
         if hi > lo:
@@ -119,6 +126,12 @@ def check_dense(env: Environment, traj: Trajectory, *, d_min: float, vmax: npt.A
         return DenseCheck(False, f"{c.message(f'trajectory sample at t = {dense.t[worst]:.3f} s')} "
                           f"(required {d_min * 1e3:.1f} mm - {CLEARANCE_TOL * 1e3:.0f} mm)", "collision", dmin, n)
     return DenseCheck(True, "", "", float(dmin), n)
+
+
+def obstacles_only(W: tuple) -> tuple:
+    """The packed world ``W`` without its self-collision pairs (``W[14]`` and ``W[20]`` emptied)."""
+    n = W[20].shape[1]
+    return W[:14] + (np.zeros((0, 2), W[14].dtype),) + W[15:20] + (np.zeros((0, n)),) + W[21:]
 
 
 def window_clearance(env: Environment, traj: Trajectory, W: tuple, t0: float, t1: float, *, d_min: float,
