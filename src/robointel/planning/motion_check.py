@@ -34,7 +34,8 @@ class DenseCheck:
         min_clearance_m: smallest clearance over the evaluated samples, m (capped at ``d_min + 0.1``
             m). Exact when it is below ``d_min - CLEARANCE_TOL`` (the check fails); otherwise the
             samples skipped by the travel bound are proven >= ``d_min - CLEARANCE_TOL`` and the true
-            minimum lies between that and this value.
+            minimum lies between that and this value. The spheres' clearance to the obstacles and
+            between the robot's links (to the obstacles only with ``self_collision=False``).
         samples: number of samples checked.
         links: the robot links of the failed pair on the exact geometry (the link, or both links
             of a self-collision), when the collision meshes failed the check; else empty.
