@@ -67,6 +67,5 @@ def test_mesh_levers_bound_every_vertex_displacement(shared_data):
         dq = rng.normal(0.0, 0.05, robot.nq)
         for i, v, a, b in zip(ids, verts, placements(q0), placements(q0 + dq)):
             moved = np.linalg.norm(v @ (a[:3, :3] - b[:3, :3]).T + (a[:3, 3] - b[:3, 3]), axis=1).max()
-            assert moved <= float(mg.lever @ np.abs(dq)) + 1e-12
             worst = max(worst, moved / float(mg.part_lever[i] @ np.abs(dq)))
     assert 0.3 < worst <= 1.0  # each part's own bound, and not a vacuous one

@@ -128,7 +128,7 @@ class MeshGeometry:
                 self.obstacles.append((o.label(k), g[0], g[1], np.asarray(lo), np.asarray(hi)))
         self._lo = np.array([o[3] for o in self.obstacles], float).reshape(-1, 3)
         self._hi = np.array([o[4] for o in self.obstacles], float).reshape(-1, 3)
-        self.reach, self.lever, self.part_lever = side.reach, side.lever, side.part_lever
+        self.part_lever = side.part_lever
         #: (P * O, n): the distance of (part p, obstacle o), pair p * O + o, changes at most
         #: sum_k pair_lever[., k] |dq_k| (m)
         self.pair_lever = np.repeat(side.part_lever, len(self.obstacles), axis=0)
@@ -232,21 +232,18 @@ class MeshGeometry:
 class _RobotMeshes:
     """What :class:`MeshGeometry` needs of the robot alone (shared read-only by every instance).
 
-    ``reach``: the largest part extent from its link origin, m; ``part_lever``: :func:`_part_levers`;
-    ``lever``: its largest entry per joint; per part its link frame (an index into the distinct
+    ``part_lever``: :func:`_part_levers`; per part its link frame (an index into the distinct
     ``frames``), bounding-sphere centre and radius.
     """
 
     def __init__(self, robot: Robot, parts: list[_Part]) -> None:
         self.parts = parts
-        self.reach = max((p.radius + float(np.linalg.norm(p.centre)) for p in parts), default=0.0)
         self.part_lever = _part_levers(robot, parts)
-        self.lever = self.part_lever.max(axis=0) if len(parts) else np.zeros(robot.nq)
         self.frames = sorted({p.frame for p in parts})
         self.part_frame = np.array([self.frames.index(p.frame) for p in parts], int)
         self.centres = np.array([p.centre for p in parts], float).reshape(-1, 3)
         self.radii = np.array([p.radius for p in parts], float)
-        for a in (self.lever, self.part_lever, self.part_frame, self.centres, self.radii):
+        for a in (self.part_lever, self.part_frame, self.centres, self.radii):
             a.flags.writeable = False
 
 

@@ -266,13 +266,16 @@ class SelfGeometry:
         out = np.empty(len(which))
         for n, p in enumerate(which):
             d = hull_bound(pin.computeDistance(gm, gd, int(p)).min_distance)
-            if d <= thresh:
-                i, j = int(self.pairs[p, 0]), int(self.pairs[p, 1])
-                si, sj = self.solids[i], self.solids[j]
-                d = bounded_distance(si.hull, si.geom, _transform(gd.oMg[i]), sj.hull, sj.geom, _transform(gd.oMg[j]),
-                                     thresh, self._req)
-            out[n] = d
+            out[n] = self._refined(int(p), thresh) if d <= thresh else d
         return out
+
+    def _refined(self, p: int, thresh: float) -> float:
+        """Solid pair ``p``'s distance at the placements in the geometry data (:func:`bounded_distance`)."""
+        i, j = int(self.pairs[p, 0]), int(self.pairs[p, 1])
+        si, sj = self.solids[i], self.solids[j]
+        gd = self._gd
+        return bounded_distance(si.hull, si.geom, _transform(gd.oMg[i]), sj.hull, sj.geom, _transform(gd.oMg[j]),
+                                thresh, self._req)
 
     @property
     def empty(self) -> bool:

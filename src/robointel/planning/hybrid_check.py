@@ -35,6 +35,13 @@ MESH_CHUNK = 64
 SELF_EARLY = 128
 
 
+def _travel(Q: np.ndarray) -> np.ndarray:
+    """(K, n): each joint's travel from sample 0 to each sample of Q (K, n) (the schedules' clock), rad."""
+    Cq = np.zeros(Q.shape)
+    np.cumsum(np.abs(np.diff(Q, axis=0)), axis=0, out=Cq[1:])
+    return Cq
+
+
 def timed_out(what: str, chk: DenseCheck) -> DenseCheck:
     """``chk`` turned into a failed check of kind ``"timeout"`` (the budget ran out during ``what``)."""
     return DenseCheck(False, f"the time budget ran out during {what}", "timeout", chk.min_clearance_m, chk.samples)
@@ -129,8 +136,7 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
         idx = np.flatnonzero(doubt)
         # each (part, obstacle) pair measured at the first doubtful sample, then again only at the first
         # doubtful sample where its travel since (pair_lever) may have eaten its margin (as in self_check)
-        Cq = np.zeros(Q.shape)
-        np.cumsum(np.abs(np.diff(Q, axis=0)), axis=0, out=Cq[1:])
+        Cq = _travel(Q)
         due = np.zeros(len(mg.pair_lever), np.int64)
         n = 0
         while True:
@@ -181,8 +187,7 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
     K = len(Q)
     # Cq[k]: each joint's travel from sample 0 to sample k; pair p's distance changes by at most
     # pair_lever[p] . (Cq[j] - Cq[k]) from sample k to sample j
-    Cq = np.zeros(Q.shape)
-    np.cumsum(np.abs(np.diff(Q, axis=0)), axis=0, out=Cq[1:])
+    Cq = _travel(Q)
     tree = sg.tree
     # the front of node pairs: item i is node pair item[i], due at sample due[i] (K: proven to the end;
     # RETIRED: replaced by its children, out of reach of the early window)

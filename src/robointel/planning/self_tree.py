@@ -17,7 +17,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from robointel.planning.exact_geometry import GJK_TOL
+from robointel.planning.exact_geometry import hull_bound
 
 #: a node pair closer than this above the threshold is replaced by its children's pairs, m
 EXPAND = 0.01
@@ -164,18 +164,16 @@ class SelfTree:
         leaf, coll, dist = self._leaf, self._coll, pin.computeDistance
         for n, it in enumerate(which.tolist()):
             p = leaf[it]
-            d = dist(gm, gd, coll[it]).min_distance
-            d -= GJK_TOL * (1.0 + abs(d))  # (hull_bound, inlined)
+            d = hull_bound(dist(gm, gd, coll[it]).min_distance)
             if p >= 0:
                 if d <= thresh:
-                    d = float(sg._measured(np.array([p]), thresh)[0])
+                    d = sg._refined(p, thresh)
                     if d < thresh:
                         hits.append(n)
             elif d <= expand:
                 near.append(n)
             out[n] = d
         return out, hits, near
-
 
     def closest_below(self, q: np.ndarray, thresh: float) -> tuple[float, int] | None:
         """The closest solid pair closer than ``thresh`` (m) at q: (distance m, pair index), or None.
