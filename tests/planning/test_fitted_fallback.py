@@ -45,7 +45,8 @@ def test_a_goal_the_covering_spheres_close_is_planned_in_the_given_spheres(ur5, 
     st = MotionSettings(d_min=0.001, seed=7919 + 78, time_budget_s=60.0, fitted_fallback=1e-4)
     plan = plan_motion(robot, env, p.start, p.goals, settings=st)
     assert plan.success, plan.reason
-    assert plan.trajectory.meta["collision_model"] == "fitted" and "fitted_after" in plan.timings
+    # the spheres as given, grown toward the covering ones as far as the start and goals allow ("fitted+0.xx")
+    assert plan.trajectory.meta["collision_model"].startswith("fitted") and "fitted_after" in plan.timings
     assert env.model != "fitted"  # the environment's own choice is restored
     tr = plan.trajectory
     # the independent coal checker every 5 ms (the planner's own mesh check took every 1 ms sample in doubt)

@@ -11,12 +11,13 @@ import numpy as np
 import pytest
 
 from robointel.io.mbm import load_mbm_problems
-from robointel.planning import Environment
+from robointel.planning import Environment, MotionSettings
 from robointel.planning import _collision_kernels as K
 from robointel.planning import _node_check as NC
 from robointel.planning import _rrt_kernels as R
-from robointel.planning.motion import _goal_set
-from robointel.planning.tree_search import batch_state
+from robointel.planning.budget_clock import now as clock_now
+from robointel.planning.motion import FALLBACK_STALL, _goal_set
+from robointel.planning.tree_search import batch_state, search
 from robointel.robot import Robot
 
 
@@ -113,3 +114,20 @@ def test_node_check_gives_config_valids_verdict(cage):
             assert NC.config_free(q, W, s.T, s.C, s.G, s.out, thr) == v
             seen.add((v, kind))
     assert {(True, -1), (False, K.ENV), (False, K.SELF)} <= seen  # free, an obstacle and a self-collision met
+
+
+def test_a_search_with_no_way_out_stalls_and_says_so(cage):
+    """With ``stall``, a search whose trees gain no node gives up after that many iterations (the planner then
+    tries its other sphere model); without it, only the deadline ends the search."""
+    env, q0, goals = cage
+    st = MotionSettings(d_min=0.001, seed=3)
+    far = clock_now() + 600.0  # never reached: the stall ends the search
+    # a threshold no configuration keeps: every sample and every edge leaving a root is refused
+    path, gi, why = search(env, q0, goals, st, 0.02, far, env.world_cover, env.world_cover, thr=10.0, stall=2048)
+    assert path is None and gi == -1 and why.startswith("stalled") and "2048 iterations" in why
+    path, gi, why = search(env, q0, goals, st, 0.02, clock_now() + 0.05, env.world_cover, env.world_cover, thr=10.0)
+    assert path is None and "time budget" in why
+    # a search that finds its way is not stopped by the planner's stall rule
+    path, gi, why = search(env, q0, goals, st, 0.02, clock_now() + 60.0, env.world_cover, env.world_cover,
+                           stall=FALLBACK_STALL)
+    assert path is not None and why == ""

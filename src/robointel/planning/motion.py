@@ -51,6 +51,12 @@ from robointel.trajectory import Trajectory
 _cpu_clock = time.process_time
 #: how far the fitted spheres (inside the meshes) are grown for self-collision during a plan, at most, m
 SELF_MARGIN = 0.003
+#: a search with a fallback pending gives way to it when neither tree has gained a node in this many
+#: iterations: a root walled in by the covering spheres (the goal tree of the Fetch's bookshelf_thin 3
+#: added none in 200,000; this many take about 50 ms). Searches that do find their way can pause long
+#: too: on 235 hard Fetch problems the longest pause of those that succeeded had a median of 7,000
+#: iterations and a p90 of 27,000 (4,096 stopped 91 of 116 of them, this 11)
+FALLBACK_STALL = 32768
 #: random seeds of the numeric IK for a pose goal (each distinct solution joins the goal set)
 IK_SEEDS = 32
 
@@ -244,9 +250,10 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     # the mesh-covering spheres where start and a goal allow them, else the spheres as given
     env.use("cover")
     hybrid = env.cover_meshes and not _roots_free(env, q0, goals, st.d_min)
+    lo = 0.0  # how far the fitted spheres grow toward the covering ones with start and goals still free
     if hybrid:  # edges at the start and goals in spheres grown as far as they allow, the rest covering
         env.use("fitted")
-        lo, hi = 0.0, 1.0
+        hi = 1.0
         if _roots_free(env, q0, goals, st.d_min):
             for _ in range(8):
                 mid = 0.5 * (lo + hi)
@@ -275,15 +282,16 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
 
     now = clock_now()
     deadline = now + st.time_budget_s
-    fallback = hybrid and len(env._cloud[0]) == 0 and st.fitted_fallback < 1
+    fallback = env.cover_meshes and len(env._cloud[0]) == 0 and st.fitted_fallback < 1
     search_end = now + st.fitted_fallback * st.time_budget_s if fallback else deadline
     attempt, exact = 0, False
     while True:
         path, gi, traj, chk, why = _attempt(env, q0, goals, st, deadline, search_end, Wc, Wr, rcap, vmax, amax,
                                             timings, attempt, thr, exact)
         if path is None and not exact and fallback and clock_now() < deadline:
-            # the covering spheres leave no way found in time: the spheres as given, checked on the meshes
-            env.use("fitted")
+            # the covering spheres leave no way found in time: the spheres as given, grown as far as the
+            # roots allow everywhere (not only near them), checked on the meshes
+            env.use("fitted", blend=lo)
             Wc = Wr = env.world
             rcap, exact, search_end, attempt = float("inf"), True, deadline, attempt + 1
             timings["fitted_after"] = (clock_now() - now) * 1e3
@@ -323,15 +331,18 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     The search and the shortcut keep sphere clearance ``thr`` (<= d_min); the dense check d_min - 1 mm.
     Root edges are relaxed (``Wr``) for ``rcap`` rad (inf: not hybrid, ``Wr`` is ``Wc``). Past
     ``deadline`` the check is a failed one of kind ``"timeout"`` (the stages look at the clock
-    between steps); the search itself ends at ``search_end``. ``exact``: every sample the covering
-    spheres leave in doubt is checked on the collision meshes (:func:`exact_check`).
+    between steps); the search itself ends at ``search_end``, or sooner when it stalls
+    (:data:`FALLBACK_STALL`) while ``search_end`` is before ``deadline`` (a fallback is pending).
+    ``exact``: every sample the covering spheres leave in doubt is checked on the collision meshes
+    (:func:`exact_check`).
     """
     # global stage ----------------------------------------------------------------------------
     t1, c1 = time.perf_counter(), _cpu_clock()
     path, gi, why = None, -1, ""
     res = float(st.search_resolution)
     while path is None:
-        path, gi, why = search(env, q0, goals, st, res, search_end, Wc, Wr, attempt, thr, rcap)
+        path, gi, why = search(env, q0, goals, st, res, search_end, Wc, Wr, attempt, thr, rcap,
+                               FALLBACK_STALL if search_end < deadline else 0)
         if path is None:
             timings.add("search", t1, c1)
             return None, -1, None, None, why

@@ -40,11 +40,14 @@ class MotionSettings:
         root_relaxed_rad: when the start or a goal is free only in the relaxed (partially grown)
             spheres, an edge leaving it is checked in them for its first ``root_relaxed_rad`` rad
             (max |dq|) and in the mesh-covering spheres beyond.
-        fitted_fallback: when the start or a goal is free only in the relaxed spheres: fraction of
-            ``time_budget_s`` after which a search that has found no path gives way to a search in
-            the spheres as given (they may leave parts of the meshes uncovered, so every sample of
-            that trajectory the covering spheres leave in doubt is checked on the collision
-            meshes); 1: never. Not with a point cloud (the mesh check measures primitives only).
+        fitted_fallback: fraction of ``time_budget_s`` after which a search in the mesh-covering
+            spheres that has found no path gives way to a search in the spheres as given, grown
+            toward the covering ones as far as the start and every goal stay free (they may leave
+            parts of the meshes uncovered, so every sample of that trajectory the covering spheres
+            leave in doubt is checked on the collision meshes); the search gives way sooner when
+            neither tree has gained a node in its last few thousand iterations (a root walled in by
+            the covering spheres); 1: never. Not with a point cloud (the mesh check measures
+            primitives only).
         budget_clock: the clock ``time_budget_s`` is counted on: ``"wall"`` (what the caller
             waits for) or ``"cpu"``, the process's CPU time (on a machine shared with other busy
             processes the same budget then buys the same work as on an idle one;

@@ -54,13 +54,20 @@ def path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: flo
                for k, (a, b) in enumerate(zip(path[:-1], path[1:])))
 
 
+#: iterations per call of the compiled search (the clock is read between calls)
+CHUNK = 32
+
+
 def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, res: float,
            deadline: float, W: tuple, Wr: tuple, attempt: int = 0,
-           thr: float | None = None, rcap: float = float("inf")) -> tuple[np.ndarray | None, int, str]:
+           thr: float | None = None, rcap: float = float("inf"),
+           stall: int = 0) -> tuple[np.ndarray | None, int, str]:
     """RRT-Connect from q0 to the goal set (a direct edge first): (path, goal index, why not).
 
     Nodes and edges are checked in ``W``, edges leaving the start or a goal in ``Wr`` for their
-    first ``rcap`` rad (max |dq|) and in ``W`` beyond.
+    first ``rcap`` rad (max |dq|) and in ``W`` beyond. ``stall`` > 0: the search also gives up
+    when neither tree has gained a node in its last ``stall`` iterations (a root walled in by the
+    spheres of ``W``; the caller has another model to try), its reason then starting ``"stalled"``.
     """
     s, BS = env.scratch, batch_state(env)
     thr, lever = float(st.d_min if thr is None else thr), env.lever
@@ -78,14 +85,18 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
     rng, win = np.full(3, float(st.rrt_range)), np.zeros((2, 2), np.int64)  # each tree's range adapts
     R.seed(int(st.seed) + 7 * attempt)
     robot = env.robot
-    status, grown = 0, 0
+    status, grown, idle, size = 0, 0, 0, int(count.sum())
     while status != 1 and clock_now() < deadline:
         if status < 0:  # the trees are full: start over from the roots (the random stream goes on)
             grown += int(count.sum())
             count[:] = nroot
             parent[:] = -1
-        status = R.rrt_connect(X, parent, count, robot.lower, robot.upper, 32, rng, win, W, Wr, nroot, rcap,
+        status = R.rrt_connect(X, parent, count, robot.lower, robot.upper, CHUNK, rng, win, W, Wr, nroot, rcap,
                                s.T, s.C, s.G, s.out, thr, lever, res, link, BS)
+        idle = idle + CHUNK if int(count.sum()) == size and status == 0 else 0
+        size = int(count.sum())
+        if stall and idle >= stall:
+            return None, -1, f"stalled: no node added in {idle} iterations ({grown + size} nodes)"
     if status != 1:
         return None, -1, f"the time budget of {st.time_budget_s:g} s ran out ({grown + int(count.sum())} nodes)"
     a, b = [], []
