@@ -93,8 +93,8 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
             parent[:] = -1
         status = R.rrt_connect(X, parent, count, robot.lower, robot.upper, CHUNK, rng, win, W, Wr, nroot, rcap,
                                s.T, s.C, s.G, s.out, thr, lever, res, link, BS)
-        idle = idle + CHUNK if int(count.sum()) == size and status == 0 else 0
-        size = int(count.sum())
+        grew, size = int(count.sum()) != size, int(count.sum())
+        idle = 0 if grew or status != 0 else idle + CHUNK
         if stall and idle >= stall:
             return None, -1, f"stalled: no node added in {idle} iterations ({grown + size} nodes)"
     if status != 1:
