@@ -10,11 +10,13 @@ import json
 import numpy as np
 import pytest
 
+from robointel.geometry._kernels import point_distances
 from robointel.io.mbm import load_mbm_problems
 from robointel.planning import Environment, MotionSettings
 from robointel.planning import _collision_kernels as K
 from robointel.planning import _node_check as NC
 from robointel.planning import _rrt_kernels as R
+from robointel.planning._batch_view import obstacle_boxes
 from robointel.planning.budget_clock import now as clock_now
 from robointel.planning.motion import FALLBACK_STALL, _goal_set
 from robointel.planning.tree_search import batch_state, search
@@ -102,6 +104,7 @@ def test_node_check_gives_config_valids_verdict(cage):
     accepts exactly the configurations ``config_valid`` does: uniform ones and ones near the cage goal."""
     env, q0, goals = cage
     W, s = env.world_cover, env.scratch
+    obox = obstacle_boxes(W[12], W[13])
     rs = np.random.default_rng(5)
     U = rs.uniform(env.robot.lower, env.robot.upper, (3000, len(q0)))
     D = U - goals[0]
@@ -111,9 +114,36 @@ def test_node_check_gives_config_valids_verdict(cage):
         for q in np.concatenate([U, near]):
             v = K.config_valid(q, W, s.T, s.C, s.G, s.out, thr)
             kind = int(s.out[0])
-            assert NC.config_free(q, W, s.T, s.C, s.G, s.out, thr) == v
+            assert NC.config_free(q, W, s.T, s.C, s.G, s.out, thr, obox) == v
             seen.add((v, kind))
     assert {(True, -1), (False, K.ENV), (False, K.SELF)} <= seen  # free, an obstacle and a self-collision met
+
+
+def test_clearance_is_the_brute_force_minimum(cage):
+    """The compiled clearance (obstacles, and self-collision pairs culled by group and then by each sphere
+    against the other group's bounding sphere) equals the minimum over every obstacle and every checked sphere
+    pair, measured one by one: near the cage goal, where the links crowd the bars and each other."""
+    env, q0, goals = cage
+    W, s = env.world_cover, env.scratch
+    rs = np.random.default_rng(9)
+    U = rs.uniform(env.robot.lower, env.robot.upper, (400, len(q0)))
+    D = U - goals[0]
+    near = goals[0] + rs.uniform(0.0, 0.5, (400, 1)) * D / np.linalg.norm(D, axis=1)[:, None]
+    sr, gj, gs, smask, ssr = W[7], W[8], W[11], W[15], W[21]
+    moving = np.repeat(gj != 0, np.diff(gs))  # spheres fixed to the base are not checked against obstacles
+    I, J = np.nonzero(smask)
+    below = 0
+    for q in np.concatenate([U, near]):
+        K.sphere_centres(q, W, s.T, s.C, s.G)
+        C = s.C.copy()
+        env_min = min((float(np.min(point_distances(int(t), p, C[moving])[0] - sr[moving]))
+                       for t, p in zip(W[12], W[13])), default=np.inf)
+        self_min = float(np.min(np.linalg.norm(C[I] - C[J], axis=1) - ssr[I] - ssr[J])) if len(I) else np.inf
+        want = min(0.5, env_min, self_min)
+        got = K.config_clearance(q, W, s.T, s.C, s.G, s.out, 0.5)
+        assert got == pytest.approx(want, abs=1e-9)
+        below += self_min < min(0.5, env_min)
+    assert below > 0  # some configurations are decided by a self-collision pair
 
 
 def test_a_search_with_no_way_out_stalls_and_says_so(cage):

@@ -46,33 +46,34 @@ def batch_state(W: tuple) -> tuple:
     """The batch state of world ``W`` (and of every world with its joints, spheres and self pairs).
 
     (the :func:`~robointel.planning._batch_view.batch_world` view, the :class:`BatchScratch`
-    arrays, rate (m, nj), irate (m,), ipair (s,), adv (lanes,), f (lanes,), lo, hi (the stretch
-    queue), pair levers (p,)).
+    arrays, rate (m, nj), irate (m,), adv (lanes,), f (lanes,), lo, hi (the stretch queue), pair
+    levers (p,)).
     """
     P = batch_world(W)
     lanes = LANES
     S = BatchScratch(W, len(P[7])).arrays()
     m, nj = W[23].shape[0], W[23].shape[1]
     qcap = 4096
-    return (P, S, np.empty((m, nj)), np.empty(m), np.empty(len(P[1])), np.empty(lanes), np.empty(lanes),
-            np.empty(qcap), np.empty(qcap), np.empty(W[20].shape[0]))
+    return (P, S, np.empty((m, nj)), np.empty(m), np.empty(lanes), np.empty(lanes), np.empty(qcap), np.empty(qcap),
+            np.empty(W[20].shape[0]))
 
 
 @njit(cache=True, fastmath=FM)
 def batch_advance(B, W, BS, thresh, res, cap, out):  # pragma: no cover - compiled
-    """Path-parameter radius ``BS[5]`` (adv) proven around each lane of the batch ``BS[1][0]``; False on a collision.
+    """Path-parameter radius ``BS[4]`` (adv) proven around each lane of the batch ``BS[1][0]``; False on a collision.
 
     On entry adv[b] is the radius lane b needs (the caller's spacing of the lanes); on return the
     radius it proves, at most that: the pairs that cannot bring a lane below its need are not
     looked into. Lane b proves min(need, adv) with adv = min over spheres i of
     (min(d_i, cap) - thresh + res / 2) / rate_i (obstacles; ``BS[3]`` holds 1 / rate_i) and over
-    self-collision sphere pairs of (d_ij - thresh + res / 2) / (relative rate) (``BS[4]``), where
+    self-collision sphere pairs of (d_ij - thresh + res / 2) / (relative rate ``rate[i, joint of j] +
+    rate[j, joint of i]``, worked out only for the pairs looked into), where
     every d is >= thresh, at least
     res / 2 of travel at the largest rate; a lane with a distance below ``thresh`` ends the call
     (False, ``out`` = the pair: kind, sphere, obstacle or sphere, lane). Groups and group pairs whose
     bounding spheres cannot lower a lane's radius are not looked into.
     """
-    P, S, rate, irate, adv = BS[0], BS[1], BS[2], BS[3], BS[5]
+    P, S, rate, irate, adv = BS[0], BS[1], BS[2], BS[3], BS[4]
     thresh -= TOL  # a lane exactly at thresh passes, whatever the rounding (its radius TOL / rate larger)
     batch_groups(B, W, S)
     X, Y, Z, GX, GY, GZ, L, GB = S[2], S[3], S[4], S[5], S[6], S[7], S[8], S[9]
@@ -92,7 +93,9 @@ def batch_advance(B, W, BS, thresh, res, cap, out):  # pragma: no cover - compil
     for b in range(LANES):
         adv[b] = min(adv[b], a0)
         amax = max(amax, adv[b])
-    for k in range(gr.shape[0]):
+    ng = gr.shape[0]
+    for kk in range(ng):  # from the tool back: most colliding edges meet an obstacle at the end of the chain
+        k = ng - 1 - kk
         if gj[k] == 0:
             continue
         Rg = 0.0
@@ -141,7 +144,7 @@ def batch_advance(B, W, BS, thresh, res, cap, out):  # pragma: no cover - compil
             amax = 0.0
             for b in range(LANES):
                 amax = max(amax, adv[b])
-    gpairs, sgr, gL = W[14], W[22], BS[9]
+    gpairs, sgr, gL = W[14], W[22], BS[8]
     start, ca, cb, cr = P[0], P[4], P[5], S[14]
     CX, CY, CZ = S[11], S[12], S[13]
     clustered = False
@@ -187,13 +190,13 @@ def _sphere_pairs(t, P, S, W, BS, thresh, half, out):  # pragma: no cover - comp
     """The sphere pairs of cluster pair t in :func:`batch_advance`: lower each lane's radius; False on a collision."""
     pi, pj, sstart = P[1], P[2], P[6]
     X, Y, Z, D = S[2], S[3], S[4], S[8][2]
-    ssr, ipair, adv = W[21], BS[4], BS[5]
+    ssr, sj, rate, adv = W[21], W[5], BS[2], BS[4]
     for s in range(sstart[t], sstart[t + 1]):
         i, j = pi[s], pj[s]
         xi, yi, zi, xj, yj, zj = X[i], Y[i], Z[i], X[j], Y[j], Z[j]
         rr = ssr[i] + ssr[j]
-        iL = ipair[s]
-        Lij = 1.0 / iL
+        Lij = rate[i, sj[j]] + rate[j, sj[i]]  # their relative travel on the edge
+        iL = 1.0 / Lij if Lij > 0.0 else np.inf
         low = rr + thresh  # centre distances below low: a collision
         base = rr + thresh - half
         need = False
@@ -219,7 +222,7 @@ def _sphere_pairs(t, P, S, W, BS, thresh, half, out):  # pragma: no cover - comp
 
 @njit(cache=True)
 def edge_rates(q0, q1, W, BS):  # pragma: no cover - compiled
-    """The per-edge rates of q0 -> q1 in ``BS``: sphere rates (m, nj), 1 / obstacle rate, 1 / pair rate, pair levers.
+    """The per-edge rates of q0 -> q1 in ``BS``: sphere rates (m, nj), 1 / obstacle rate, group-pair levers.
 
     Returns the largest rate (0: nothing moves relative to anything).
     """
@@ -227,19 +230,14 @@ def edge_rates(q0, q1, W, BS):  # pragma: no cover - compiled
     dq = np.empty(n)
     for k in range(n):
         dq[k] = abs(q1[k] - q0[k])
-    rate, irate, ipair, gL = BS[2], BS[3], BS[4], BS[9]
+    rate, irate, gL = BS[2], BS[3], BS[8]
     _rates(dq, W, rate)
     rm = 0.0
     for i in range(rate.shape[0]):
         irate[i] = 1.0 / rate[i, 0] if rate[i, 0] > 0.0 else np.inf
         for J in range(rate.shape[1]):
             rm = max(rm, rate[i, J])
-    sj, rel = W[5], W[20]
-    pi, pj = BS[0][1], BS[0][2]
-    for s in range(pi.shape[0]):
-        i, j = pi[s], pj[s]
-        Lij = rate[i, sj[j]] + rate[j, sj[i]]
-        ipair[s] = 1.0 / Lij if Lij > 0.0 else np.inf
+    rel = W[20]
     for p in range(rel.shape[0]):
         v = 0.0
         for k in range(n):
@@ -277,7 +275,7 @@ def edge_batch(q0, q1, W, BS, thresh, res, out):  # pragma: no cover - compiled
     pair and the batch lane) or, conservatively, when the stretch queue would overflow.
     """
     rm = edge_rates(q0, q1, W, BS)
-    S, adv, F, lo, hi = BS[1], BS[5], BS[6], BS[7], BS[8]
+    S, adv, F, lo, hi = BS[1], BS[4], BS[5], BS[6], BS[7]
     lanes = F.shape[0]
     Qt = S[0]
     cap = thresh + 0.25

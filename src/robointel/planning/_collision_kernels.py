@@ -203,11 +203,16 @@ def full_clearance(C, G, W, cap, stop, out, with_self):  # pragma: no cover - co
         dx, dy, dz = G[a, 0] - G[b, 0], G[a, 1] - G[b, 1], G[a, 2] - G[b, 2]
         if math.sqrt(dx * dx + dy * dy + dz * dz) - gr[a] - gr[b] >= best:
             continue
+        bx, by, bz, rb = G[b, 0], G[b, 1], G[b, 2], gr[b]
         for i in range(gs[a], gs[a + 1]):
+            xi, yi, zi = C[i, 0], C[i, 1], C[i, 2]
+            dx, dy, dz = xi - bx, yi - by, zi - bz  # b's bounding sphere holds each of its spheres
+            if math.sqrt(dx * dx + dy * dy + dz * dz) - sr[i] - rb >= best:
+                continue
             for j in range(gs[b], gs[b + 1]):
                 if smask[i, j] == 0:
                     continue
-                dx, dy, dz = C[i, 0] - C[j, 0], C[i, 1] - C[j, 1], C[i, 2] - C[j, 2]
+                dx, dy, dz = xi - C[j, 0], yi - C[j, 1], zi - C[j, 2]
                 d = math.sqrt(dx * dx + dy * dy + dz * dz) - sr[i] - sr[j]
                 if d < best:
                     best = d

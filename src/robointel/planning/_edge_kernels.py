@@ -49,11 +49,22 @@ def _self_advance(C, G, W, thresh, res, dq, out, best, rate, floor):  # pragma: 
         if db >= lim:
             continue
         ja, jb = gj[a], gj[b]
+        bx, by, bz, rb = G[b, 0], G[b, 1], G[b, 2], gr[b]
+        Rb = 0.0  # the largest travel of b's spheres relative to a's joint
+        for j in range(gs[b], gs[b + 1]):
+            Rb = max(Rb, rate[j, ja])
         for i in range(gs[a], gs[a + 1]):
+            # sphere i against b's bounding sphere (it holds each of b's spheres): a lower bound of its
+            # pairs' distances, their relative travel at most rate[i, jb] + Rb
+            xi, yi, zi = C[i, 0], C[i, 1], C[i, 2]
+            dx, dy, dz = xi - bx, yi - by, zi - bz
+            di = math.sqrt(dx * dx + dy * dy + dz * dz) - sr[i] - rb
+            if di >= thresh and max(di - thresh + 0.5 * res, floor) >= best * (rate[i, jb] + Rb):
+                continue
             for j in range(gs[b], gs[b + 1]):
                 if smask[i, j] == 0:
                     continue
-                dx, dy, dz = C[i, 0] - C[j, 0], C[i, 1] - C[j, 1], C[i, 2] - C[j, 2]
+                dx, dy, dz = xi - C[j, 0], yi - C[j, 1], zi - C[j, 2]
                 d = math.sqrt(dx * dx + dy * dy + dz * dz) - sr[i] - sr[j]
                 if d < thresh:
                     out[0], out[1], out[2] = SELF, i, j

@@ -123,6 +123,7 @@ def rrt_connect(X, parent, count, lower, upper, iters, rng, win, W, Wr, nroot, r
     qn = np.empty(n)
     qa = np.empty(n)  # the node extended from (a contiguous copy for the edge check)
     buf = np.empty(cap)
+    obox = BS[0][3]  # the obstacles' boxes (the node check's first test)
     for _ in range(iters):
         # balanced: the smaller tree grows (a goal tree stuck in a pocket gets the attempts, which
         # fail cheaply at the sample's node check)
@@ -136,7 +137,7 @@ def rrt_connect(X, parent, count, lower, upper, iters, rng, win, W, Wr, nroot, r
         for k in range(n):
             qa[k] = X[a, k, i]
         _steer(qa, qr, d, rng[a], qn)
-        ok = config_free(qn, W, T, C, G, out, thresh) and root_edge_batch(
+        ok = config_free(qn, W, T, C, G, out, thresh, obox) and root_edge_batch(
             qa, qn, Wr, W, i < nroot[a], np.bool_(False), rcap, BS, thresh, res, out)
         _adapt(rng, win, a, ok)
         if not ok:
@@ -153,7 +154,7 @@ def rrt_connect(X, parent, count, lower, upper, iters, rng, win, W, Wr, nroot, r
             if count[b] >= cap:
                 return -1
             reached = _steer(qa, qn, d, rng[b], qr)
-            if not reached and not config_free(qr, W, T, C, G, out, thresh):
+            if not reached and not config_free(qr, W, T, C, G, out, thresh, obox):
                 break
             if not root_edge_batch(qa, qr, Wr, W, j < nroot[b], np.bool_(False), rcap, BS, thresh, res, out):
                 break
