@@ -82,21 +82,34 @@ def chain_fk(q, W, T):  # pragma: no cover - compiled
         T[j, 3, 0], T[j, 3, 1], T[j, 3, 2], T[j, 3, 3] = 0.0, 0.0, 0.0, 1.0
 
 
-@njit(cache=True, fastmath=FM)
-def sphere_centres(q, W, T, C, G):  # pragma: no cover - compiled
-    """Fill T (joint placements), C (m, 3) sphere centres and G (g, 3) group centres at q."""
-    chain_fk(q, W, T)
-    sj, sp, gj, gc = W[5], W[6], W[8], W[9]
-    for i in range(sj.shape[0]):
+@njit(cache=True, fastmath=FM, inline="always")
+def place_spheres(lo, hi, W, T, C):  # pragma: no cover - compiled
+    """Sphere centres C[lo:hi] (m, 3) at the joint placements T."""
+    sj, sp = W[5], W[6]
+    for i in range(lo, hi):
         j = sj[i]
         x, y, z = sp[i, 0], sp[i, 1], sp[i, 2]
         for r in range(3):
             C[i, r] = T[j, r, 0] * x + T[j, r, 1] * y + T[j, r, 2] * z + T[j, r, 3]
+
+
+@njit(cache=True, fastmath=FM, inline="always")
+def group_centres(W, T, G):  # pragma: no cover - compiled
+    """Group bounding-sphere centres G (g, 3) at the joint placements T."""
+    gj, gc = W[8], W[9]
     for k in range(gj.shape[0]):
         j = gj[k]
         x, y, z = gc[k, 0], gc[k, 1], gc[k, 2]
         for r in range(3):
             G[k, r] = T[j, r, 0] * x + T[j, r, 1] * y + T[j, r, 2] * z + T[j, r, 3]
+
+
+@njit(cache=True, fastmath=FM)
+def sphere_centres(q, W, T, C, G):  # pragma: no cover - compiled
+    """Fill T (joint placements), C (m, 3) sphere centres and G (g, 3) group centres at q."""
+    chain_fk(q, W, T)
+    place_spheres(0, W[5].shape[0], W, T, C)
+    group_centres(W, T, G)
 
 
 @njit(cache=True, fastmath=FM)

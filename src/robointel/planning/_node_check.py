@@ -20,21 +20,25 @@ import numpy as np
 from numba import njit
 
 from robointel.geometry._kernels import Arr, _one
-from robointel.planning._collision_kernels import CLOUD, ENV, FM, SELF, _aabb_dist, _cloud_min, chain_fk
+from robointel.planning._collision_kernels import (
+    CLOUD,
+    ENV,
+    FM,
+    SELF,
+    _aabb_dist,
+    _cloud_min,
+    chain_fk,
+    group_centres,
+    place_spheres,
+)
 
 
 @njit(cache=True, fastmath=FM, inline="always")
 def _place(k: int, W: tuple, T: Arr, C: Arr, placed: Arr) -> None:  # pragma: no cover - compiled
     """The sphere centres C of group k (as ``sphere_centres`` fills them), unless already placed."""
-    if placed[k]:
-        return
-    sj, sp, gs = W[5], W[6], W[11]
-    for i in range(gs[k], gs[k + 1]):
-        j = sj[i]
-        x, y, z = sp[i, 0], sp[i, 1], sp[i, 2]
-        for r in range(3):
-            C[i, r] = T[j, r, 0] * x + T[j, r, 1] * y + T[j, r, 2] * z + T[j, r, 3]
-    placed[k] = True
+    if not placed[k]:
+        place_spheres(W[11][k], W[11][k + 1], W, T, C)
+        placed[k] = True
 
 
 @njit(cache=True, fastmath=FM, inline="always")
@@ -59,13 +63,9 @@ def config_free(q: Arr, W: tuple, T: Arr, C: Arr, G: Arr, out: Arr, thresh: floa
     obstacle's box than ``thresh`` is not measured against the obstacle itself.
     """
     chain_fk(q, W, T)
-    gj, gc = W[8], W[9]
+    group_centres(W, T, G)
+    gj = W[8]
     ng = gj.shape[0]
-    for k in range(ng):
-        j = gj[k]
-        x, y, z = gc[k, 0], gc[k, 1], gc[k, 2]
-        for r in range(3):
-            G[k, r] = T[j, r, 0] * x + T[j, r, 1] * y + T[j, r, 2] * z + T[j, r, 3]
     placed = np.zeros(ng, np.bool_)
     sr, gr, gs, types, params, cd = W[7], W[10], W[11], W[12], W[13], W[19]
     out[0] = -1
