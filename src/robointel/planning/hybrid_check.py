@@ -154,7 +154,7 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
                 link, obs = mg.pair_names(int(which[m]))
                 return DenseCheck(False, f"collision-mesh check: link {link!r} is {d[m] * 1e3:.2f} mm from {obs!r} "
                                   f"at t = {dense.t[s0 + k]:.3f} s", "collision", min(float(d[m]), chk.min_clearance_m),
-                                  chk.samples, (link,))
+                                  chk.samples, (link,), Q[k].copy())
             next_due(Cq, mg.pair_lever, which, k, d - thr, due)
     return chk
 
@@ -213,7 +213,7 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
             la, lb = sg.solids[sg.pairs[p, 0]].link, sg.solids[sg.pairs[p, 1]].link
             return DenseCheck(False, f"self-collision check: link {la!r} is {d[w] * 1e3:.2f} mm from link {lb!r} "
                               f"at t = {dense.t[k]:.3f} s", "collision", min(float(d[w]), chk.min_clearance_m),
-                              chk.samples, (la, lb))
+                              chk.samples, (la, lb), Q[k].copy())
         if not near:  # proven until the relative travel since eats the margin
             next_due(Cq, lever, which, k, d - thr, due)
             continue
@@ -230,6 +230,41 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
         keep = np.ones(len(which), bool)
         keep[near] = False
         next_due(Cq, lever, which[keep], k, d[keep] - thr, due)
+
+
+def path_touches(env: Environment, path: np.ndarray, chk: DenseCheck, *, d_min: float) -> bool:
+    """Whether the polyline ``path`` itself fails the collision-mesh check that a timing of it failed.
+
+    The point of the polyline nearest (in joint space) to the failed sample ``chk.q`` is measured on
+    the collision meshes: against the obstacles when ``chk.links`` names one link (threshold
+    max(d_min - 1 mm, 0), as :func:`exact_check`), between the links when it names two (threshold
+    max(``env.self_padding`` - 1 mm, 0), as :func:`self_check`). When that point is below the
+    threshold too, timings that follow the polyline more closely (closer spline knots, rest-to-rest
+    motion along it) cannot pass there: the path itself must change.
+
+    Args:
+        env: the environment the check ran in.
+        path: (k, n) the polyline the trajectory was timed along, rad.
+        chk: a failed collision-mesh check (``chk.q`` set); any other check gives False.
+        d_min: the planner's clearance, m.
+    """
+    if chk.q is None or chk.kind != "collision" or len(path) < 2:
+        return False
+    a, b = path[:-1], path[1:]
+    e = b - a
+    ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-300)
+    s = np.clip(np.einsum("ij,ij->i", chk.q - a, e) / ee, 0.0, 1.0)
+    near = a + s[:, None] * e
+    p = near[int(np.argmin(np.linalg.norm(near - chk.q, axis=1)))]
+    if len(chk.links) == 2:
+        thr = max(env.self_padding - CLEARANCE_TOL, 0.0)
+        d = self_geometry(env.robot, env.disabled).clearance(p, cap=thr + 1e-3, thresh=thr)[0]
+    elif len(chk.links) == 1:
+        thr = max(d_min - CLEARANCE_TOL, 0.0)
+        d = mesh_geometry(env).clearance(p, cap=thr + 1e-3, thresh=thr)[0]
+    else:
+        return False
+    return bool(d < thr)
 
 
 def exact_roots(env: Environment, q0: np.ndarray, goals: np.ndarray, floor: float) -> np.ndarray:

@@ -34,6 +34,7 @@ from robointel.planning.hybrid_check import (
     exact_roots,
     interior_check,
     interior_window,
+    path_touches,
     self_check,
     timed_out,
 )
@@ -397,6 +398,7 @@ def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
     t3, c3 = time.perf_counter(), _cpu_clock()
     names = list(robot.joint_names)
     traj, chk = None, None
+    touched = False  # the collision meshes failed the path itself, not only its smoothing
     # hybrid: the interior (between the inner vertices) is checked in the covering spheres Wc alone (they
     # contain the relaxed ones in use, so passing there passes env.world too), the start/goal edges on the meshes
     win = hybrid and not exact and len(path) >= 3
@@ -417,10 +419,13 @@ def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
             chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win, tw)
             if chk.ok or chk.kind != "collision":
                 break
+            if path_touches(env, path, chk, d_min=st.d_min):  # no timing of this path passes there
+                touched = True
+                break
         timings.add("smooth", t3, c3)
     if chk is not None and not chk.ok and chk.kind != "timeout" and clock_now() >= deadline:
         chk = timed_out("the smoothing", chk)  # a collision or a limit: no rest-to-rest fallback past the budget
-    if chk is None or (not chk.ok and chk.kind != "timeout"):  # rest to rest along the checked polyline
+    if chk is None or (not chk.ok and chk.kind != "timeout" and not touched):  # rest to rest along the polyline
         t4, c4 = time.perf_counter(), _cpu_clock()
         if st.jerk_limited:
             jmax = np.asarray(st.jerk_limit if st.jerk_limit is not None else 10 * amax, float)

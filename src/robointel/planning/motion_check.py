@@ -6,7 +6,7 @@ limits of (7.8), checked on the executed curve rather than at the knots).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -39,6 +39,7 @@ class DenseCheck:
         samples: number of samples checked.
         links: the robot links of the failed pair on the exact geometry (the link, or both links
             of a self-collision), when the collision meshes failed the check; else empty.
+        q: (n,) the configuration of the sample the collision meshes failed, rad; else None.
     """
 
     ok: bool
@@ -47,6 +48,7 @@ class DenseCheck:
     min_clearance_m: float
     samples: int
     links: tuple[str, ...] = ()
+    q: np.ndarray | None = field(default=None, compare=False)
 
     @property
     def failure(self) -> Failure:

@@ -25,7 +25,9 @@ class MotionSettings:
             edges are re-checked at ``resolution`` (the search is repeated finer if one fails).
         smooth: time a spline through knots along the path (no stop at the vertices); when that
             spline fails the dense check (it leaves the checked polyline near a corner), knots 4x
-            closer, then time-optimal rest-to-rest motion along the polyline itself.
+            closer, then time-optimal rest-to-rest motion along the polyline itself (neither when
+            the collision meshes fail the polyline itself where they failed the spline: the next
+            attempt changes the path).
         timing: how the smooth path is timed: ``"topp"``, time-optimal along the spline
             (:func:`robointel.planning.topp.topp_spline`, knots every ``spline_step``), or
             ``"temporal"``, temporal optimization (7.7)-(7.9) of the knots every ``knot_step``.
