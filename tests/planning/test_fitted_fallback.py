@@ -11,7 +11,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from robointel.errors import InvalidInput
+from robointel.errors import DescriptionWarning, InvalidInput
 from robointel.geometry.obstacles import Sphere
 from robointel.io.mbm import load_mbm_problems
 from robointel.planning import Environment, MotionSettings, plan_motion
@@ -75,3 +75,39 @@ def test_the_exact_check_refuses_what_the_given_spheres_let_through(ur5):
     assert chk.ok  # the tiny spheres are clear of the ball
     out = exact_check(env, tr, env.world_cover, chk, d_min=0.001, dt=1e-3)
     assert not out.ok and out.kind == "collision" and "forearm_link" in out.reason and "ball" in out.reason
+
+
+def test_a_goal_walled_in_by_the_grown_spheres_is_planned_with_them_grown_less(shared_data, tmp_path):
+    """Fetch bookshelf_thin 60: the goal's gripper sits between shelves; grown as far as the goal allows,
+    the spheres leave it no way out, and the fallback's search stalls until they grow half as far."""
+    root = shared_data("mbm", "fetch")
+    data = json.loads((root / "problems.json").read_text())
+    raw = next(r for r in data["problems"]["bookshelf_thin"] if r["index"] == 60)
+    one = tmp_path / "one.json"
+    one.write_text(json.dumps({**data, "problems": {"bookshelf_thin": [raw]}}))
+    p = load_mbm_problems(one).select(index=60)[0]
+    with pytest.warns(DescriptionWarning):  # the MotionBenchMaker SRDF names links this URDF lacks
+        robot = Robot.load(root / "fetch.urdf", srdf=root / "fetch.srdf", joints=data["joints"])
+        env = Environment(robot, p.obstacles, srdf=root / "fetch.srdf", spheres=root / "fetch_spherized.urdf")
+    blends: list[float] = []
+    use = env.use
+
+    def spy(model, *, blend=0.0):
+        if model == "fitted":
+            blends.append(float(np.max(blend)))
+        use(model, blend=blend)
+
+    env.use = spy  # type: ignore[method-assign]
+    st = MotionSettings(d_min=0.001, seed=7919 + 60, time_budget_s=60.0)  # generous: the test must hold under load
+    plan = plan_motion(robot, env, p.start, p.goals, settings=st)
+    assert plan.success, plan.reason
+    assert "fitted_after" in plan.timings
+    # the fallback starts from the blend the roots allow (the bisection's last value, set again: the first
+    # repeated value) and the plan ends with the spheres grown half as far or less
+    start = next(k for k in range(1, len(blends)) if blends[k] == blends[k - 1])
+    lo = blends[start]
+    assert lo > 0 and blends[-1] <= 0.5 * lo + 1e-12
+    tr = plan.trajectory
+    v = MBMChecker(root / "fetch.urdf", root / "fetch.srdf", joints=data["joints"]).check_trajectory(
+        tr.t, tr.q, raw, qd=tr.qd, dt=5e-3, amax=robot.acceleration_limit)
+    assert not v.collision and v.min_clearance >= 0.0, (v.pair, v.min_clearance)

@@ -58,6 +58,13 @@ SELF_MARGIN = 0.003
 #: too: on 235 hard Fetch problems the longest pause of those that succeeded had a median of 7,000
 #: iterations and a p90 of 27,000 (4,096 stopped 91 of 116 of them, this 11)
 FALLBACK_STALL = 32768
+#: in the fallback, a search stalls (gives way) only while a tree holds at most this many nodes: a root
+#: walled in (Fetch bookshelf_thin goals between shelves: 5 to 15 nodes in both trees after 1 s), not a
+#: search pausing on its way
+WALLED_NODES = 16
+#: in the fallback, a stalled search halves the spheres' growth toward the covering ones; below this
+#: blend they are the spheres as given
+FALLBACK_MIN_BLEND = 0.05
 #: random seeds of the numeric IK for a pose goal (each distinct solution joins the goal set)
 IK_SEEDS = 32
 
@@ -287,8 +294,11 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     search_end = now + st.fitted_fallback * st.time_budget_s if fallback else deadline
     attempt, exact = 0, False
     while True:
+        # a search gives way when it stalls while another model is left to try: the fallback, or in the
+        # fallback the spheres grown less far
+        stall = FALLBACK_STALL if search_end < deadline or (exact and np.any(env.blend > 0)) else 0
         path, gi, traj, chk, why = _attempt(env, q0, goals, st, deadline, search_end, Wc, Wr, rcap, vmax, amax,
-                                            timings, attempt, thr, exact)
+                                            timings, attempt, thr, exact, stall, WALLED_NODES if exact else None)
         if path is None and not exact and fallback and clock_now() < deadline:
             # the covering spheres leave no way found in time: the spheres as given, grown as far as the
             # roots allow everywhere (not only near them), checked on the meshes
@@ -296,6 +306,13 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
             Wc = Wr = env.world
             rcap, exact, search_end, attempt = float("inf"), True, deadline, attempt + 1
             timings["fitted_after"] = (clock_now() - now) * 1e3
+            continue
+        if path is None and exact and why.startswith("stalled") and clock_now() < deadline:
+            # a root walled in by the grown spheres (grown until a root barely kept its clearance): half as far
+            b = 0.5 * env.blend
+            env.use("fitted", blend=np.where(b < FALLBACK_MIN_BLEND, 0.0, b))
+            Wc = Wr = env.world
+            attempt += 1
             continue
         if path is None:
             return _fail(f"no collision-free path found: {why}", Failure.TIMEOUT, t0, timings)
@@ -325,15 +342,16 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
 
 def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, deadline: float,
              search_end: float, Wc: tuple, Wr: tuple, rcap: float, vmax: np.ndarray, amax: np.ndarray,
-             timings: StageTimes, attempt: int, thr: float,
-             exact: bool = False) -> tuple[np.ndarray | None, int, Trajectory | None, DenseCheck | None, str]:
+             timings: StageTimes, attempt: int, thr: float, exact: bool = False, stall: int = 0,
+             walled: int | None = None) -> tuple[np.ndarray | None, int, Trajectory | None, DenseCheck | None, str]:
     """One search, shortcut, timing and dense check: (path, goal, trajectory, check, why not).
 
     The search and the shortcut keep sphere clearance ``thr`` (<= d_min); the dense check d_min - 1 mm.
     Root edges are relaxed (``Wr``) for ``rcap`` rad (inf: not hybrid, ``Wr`` is ``Wc``). Past
     ``deadline`` the check is a failed one of kind ``"timeout"`` (the stages look at the clock
-    between steps); the search itself ends at ``search_end``, or sooner when it stalls
-    (:data:`FALLBACK_STALL`) while ``search_end`` is before ``deadline`` (a fallback is pending).
+    between steps); the search itself ends at ``search_end``, or sooner when it stalls (no node added
+    in ``stall`` > 0 iterations, with ``walled`` only while a tree holds at most that many nodes
+    besides its roots: the caller has another model to try; its reason then starts ``"stalled"``).
     ``exact``: every sample the covering spheres leave in doubt is checked on the collision meshes
     (:func:`exact_check`).
     """
@@ -343,7 +361,7 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     res = float(st.search_resolution)
     while path is None:
         path, gi, why = search(env, q0, goals, st, res, search_end, Wc, Wr, attempt, thr, rcap,
-                               FALLBACK_STALL if search_end < deadline else 0)
+                               stall, walled)
         if path is None:
             timings.add("search", t1, c1)
             return None, -1, None, None, why

@@ -48,8 +48,9 @@ class MotionSettings:
             parts of the meshes uncovered, so every sample of that trajectory the covering spheres
             leave in doubt is checked on the collision meshes); the search gives way sooner when
             neither tree has gained a node in its last few thousand iterations (a root walled in by
-            the covering spheres); 1: never. Not with a point cloud (the mesh check measures
-            primitives only).
+            the covering spheres), and in the fallback a search that stalls so starts again with the
+            spheres grown half as far (down to the spheres as given); 1: never. Not with a point
+            cloud (the mesh check measures primitives only).
         budget_clock: the clock ``time_budget_s`` is counted on: ``"wall"`` (what the caller
             waits for) or ``"cpu"``, the process's CPU time (on a machine shared with other busy
             processes the same budget then buys the same work as on an idle one;

@@ -61,13 +61,14 @@ CHUNK = 32
 def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, res: float,
            deadline: float, W: tuple, Wr: tuple, attempt: int = 0,
            thr: float | None = None, rcap: float = float("inf"),
-           stall: int = 0) -> tuple[np.ndarray | None, int, str]:
+           stall: int = 0, walled: int | None = None) -> tuple[np.ndarray | None, int, str]:
     """RRT-Connect from q0 to the goal set (a direct edge first): (path, goal index, why not).
 
     Nodes and edges are checked in ``W``, edges leaving the start or a goal in ``Wr`` for their
     first ``rcap`` rad (max |dq|) and in ``W`` beyond. ``stall`` > 0: the search also gives up
     when neither tree has gained a node in its last ``stall`` iterations (a root walled in by the
-    spheres of ``W``; the caller has another model to try), its reason then starting ``"stalled"``.
+    spheres of ``W``; the caller has another model to try), its reason then starting ``"stalled"``;
+    with ``walled``, only while one of the trees holds at most that many nodes besides its roots.
     """
     s, BS = env.scratch, batch_state(env)
     thr, lever = float(st.d_min if thr is None else thr), env.lever
@@ -95,7 +96,7 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
                                s.T, s.C, s.G, s.out, thr, lever, res, link, BS)
         grew, size = int(count.sum()) != size, int(count.sum())
         idle = 0 if grew or status != 0 else idle + CHUNK
-        if stall and idle >= stall:
+        if stall and idle >= stall and (walled is None or int((count - nroot).min()) <= walled):
             return None, -1, f"stalled: no node added in {idle} iterations ({grown + size} nodes)"
     if status != 1:
         return None, -1, f"the time budget of {st.time_budget_s:g} s ran out ({grown + int(count.sum())} nodes)"
