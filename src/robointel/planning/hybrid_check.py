@@ -247,6 +247,9 @@ def path_touches(env: Environment, path: np.ndarray, chk: DenseCheck, *, d_min: 
         path: (k, n) the polyline the trajectory was timed along, rad.
         chk: a failed collision-mesh check (``chk.q`` set); any other check gives False.
         d_min: the planner's clearance, m.
+
+    Returns:
+        True when the polyline's nearest point is below the threshold on the meshes.
     """
     if chk.q is None or chk.kind != "collision" or len(path) < 2:
         return False
