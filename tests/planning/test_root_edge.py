@@ -114,6 +114,7 @@ def test_limit_failed_smoothing_honours_the_budget(monkeypatch, late):
     past the deadline right after it, so the test does not depend on the machine's speed.
     """
     import robointel.planning.motion as M
+    import robointel.planning.smoothing as S
 
     robot = Robot.load("lrmate200id7l")
     env = Environment(robot, [Box(center=[0.35, 0.0, 0.35], size=[0.1, 0.2, 0.7], name="post")], floor=0.0)
@@ -121,7 +122,7 @@ def test_limit_failed_smoothing_honours_the_budget(monkeypatch, late):
     q1 = np.array([-0.9, 0.3, 0.0, 0.0, -0.5, 0.0])
     calls = {"check": 0, "polyline": 0}
     skew = [0.0]
-    real_check, real_polyline = M.check_dense, M.polyline_timing
+    real_check, real_polyline = S.check_dense, S.polyline_timing
 
     def check(*args, **kwargs):  # type: ignore[no-untyped-def]
         calls["check"] += 1
@@ -135,10 +136,11 @@ def test_limit_failed_smoothing_honours_the_budget(monkeypatch, late):
         calls["polyline"] += 1
         return real_polyline(*args, **kwargs)
 
-    monkeypatch.setattr(M, "check_dense", check)
-    monkeypatch.setattr(M, "polyline_timing", polyline)
-    real_now = M.clock_now  # the budget's clock (wall or CPU time)
+    monkeypatch.setattr(S, "check_dense", check)
+    monkeypatch.setattr(S, "polyline_timing", polyline)
+    real_now = M.clock_now  # the budget's clock (wall or CPU time), read by the planner and its smoothing
     monkeypatch.setattr(M, "clock_now", lambda: real_now() + skew[0])
+    monkeypatch.setattr(S, "clock_now", lambda: real_now() + skew[0])
     plan = plan_motion(robot, env, q0, q1, settings=MotionSettings(d_min=0.01, time_budget_s=30.0))
     assert plan.path is not None and len(plan.path) > 2  # the post makes corners: the path was smoothed
     if late:

@@ -29,27 +29,16 @@ from robointel.planning.budget_clock import budget_clock
 from robointel.planning.budget_clock import now as clock_now
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
-from robointel.planning.hybrid_check import (
-    exact_check,
-    exact_roots,
-    interior_check,
-    interior_window,
-    path_touches,
-    self_check,
-    timed_out,
-)
-from robointel.planning.jerk_limited import jerk_limited_polyline
-from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck, check_dense
+from robointel.planning.hybrid_check import exact_roots
+from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck
 from robointel.planning.motion_settings import MotionSettings
-from robointel.planning.polyline_timing import polyline_timing
-from robointel.planning.temporal import temporal_optimize
-from robointel.planning.topp import densify, topp_spline
+from robointel.planning.smoothing import smooth_and_check
+from robointel.planning.stage_times import StageTimes, cpu_clock
+from robointel.planning.topp import topp_spline
 from robointel.planning.tree_search import batch_state, path_valid, search, warm_search
 from robointel.robot.model import Robot
 from robointel.trajectory import Trajectory
 
-#: the process CPU clock of the stage times (bound once: tests replace the module's ``time`` with a fake wall clock)
-_cpu_clock = time.process_time
 #: how far the fitted spheres (inside the meshes) are grown for self-collision during a plan, at most, m
 SELF_MARGIN = 0.003
 #: a search with a fallback pending gives way to it when neither tree has gained a node in this many
@@ -98,19 +87,6 @@ class MotionPlan:
     min_clearance_m: float = float("nan")
     goal_index: int = -1
     cpu_timings: dict[str, float] = field(default_factory=dict)
-
-
-class StageTimes(dict):
-    """Wall time per stage, ms (the dict itself), with the process CPU time per stage, ms, in ``cpu``."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.cpu: dict[str, float] = {}
-
-    def add(self, name: str, wall0: float, cpu0: float) -> None:
-        """Add the time since ``wall0`` (``time.perf_counter``) and ``cpu0`` (``_cpu_clock``) to ``name``."""
-        self[name] = self.get(name, 0.0) + (time.perf_counter() - wall0) * 1e3
-        self.cpu[name] = self.cpu.get(name, 0.0) + (_cpu_clock() - cpu0) * 1e3
 
 
 def _goal_set(robot: Robot, goal: npt.ArrayLike | Sequence[npt.ArrayLike], seed: int) -> np.ndarray:
@@ -173,7 +149,7 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
     if not isinstance(environment, Environment) or environment.robot is not robot:
         raise InvalidInput("environment must be an Environment built for this robot", value=environment)
     _warmup(environment)
-    t0, c0 = time.perf_counter(), _cpu_clock()
+    t0, c0 = time.perf_counter(), cpu_clock()
     timings = StageTimes()
     if not isinstance(settings, MotionSettings):
         raise InvalidInput("settings must be a MotionSettings", value=settings)
@@ -356,7 +332,7 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     (:func:`exact_check`).
     """
     # global stage ----------------------------------------------------------------------------
-    t1, c1 = time.perf_counter(), _cpu_clock()
+    t1, c1 = time.perf_counter(), cpu_clock()
     path, gi, why = None, -1, ""
     res = float(st.search_resolution)
     while path is None:
@@ -389,7 +365,7 @@ def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
     """
     robot = env.robot
     hybrid = rcap != float("inf")
-    t2, c2 = time.perf_counter(), _cpu_clock()
+    t2, c2 = time.perf_counter(), cpu_clock()
     s = env.scratch
     P = np.empty((max(len(path) * 2 + 64, 256), robot.nq))
     P[:len(path)] = path
@@ -401,78 +377,8 @@ def _finish(env: Environment, path: np.ndarray, st: MotionSettings, deadline: fl
     keep[-1] = True
     path = path[keep]
     timings.add("shortcut", t2, c2)
-    traj, chk = _smooth(env, path, st, deadline, Wc, hybrid, vmax, amax, timings, exact)
+    traj, chk = smooth_and_check(env, path, st, deadline, Wc, hybrid, vmax, amax, timings, exact)
     return path, traj, chk
-
-
-def _smooth(env: Environment, path: np.ndarray, st: MotionSettings, deadline: float, Wc: tuple, hybrid: bool,
-            vmax: np.ndarray, amax: np.ndarray, timings: StageTimes,
-            exact: bool) -> tuple[Trajectory | None, DenseCheck | None]:
-    """Timing and the dense (and mesh) checks of the shortened ``path``: (trajectory, check).
-
-    Args and clock as :func:`_finish`; ``hybrid``: relaxed spheres at the roots (``rcap`` finite).
-    """
-    robot = env.robot
-    t3, c3 = time.perf_counter(), _cpu_clock()
-    names = list(robot.joint_names)
-    traj, chk = None, None
-    touched = False  # the collision meshes failed the path itself, not only its smoothing
-    # hybrid: the interior (between the inner vertices) is checked in the covering spheres Wc alone (they
-    # contain the relaxed ones in use, so passing there passes env.world too), the start/goal edges on the meshes
-    win = hybrid and not exact and len(path) >= 3
-    if st.smooth and not st.jerk_limited and len(path) > 2:
-        steps = (st.knot_step,) if st.timing == "temporal" else (st.spline_step, st.spline_step / 4)
-        for step in steps:  # a spline that leaves the checked polyline too far: knots closer together
-            if chk is not None and clock_now() >= deadline:
-                chk = timed_out("the smoothing", chk)
-                break
-            if st.timing == "temporal":
-                tt = temporal_optimize(densify(path, float(step)), vmax, amax).trajectory
-                traj = Trajectory(tt.t, tt.q, tt.qd, tt.qdd, names, {"timing": "temporal optimization (7.7)-(7.9)"})
-            else:
-                traj = topp_spline(path, vmax, amax, step=float(step), dt=st.check_dt, joint_names=names)
-            tw = interior_window(traj, path) if hybrid and not exact else None
-            chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt,
-                              window=(*tw, Wc) if win and tw is not None else None, self_collision=not env.exact_self)
-            chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win, tw)
-            if chk.ok or chk.kind != "collision":
-                break
-            if path_touches(env, path, chk, d_min=st.d_min):  # no timing of this path passes there
-                touched = True
-                break
-        timings.add("smooth", t3, c3)
-    if chk is not None and not chk.ok and chk.kind != "timeout" and clock_now() >= deadline:
-        chk = timed_out("the smoothing", chk)  # a collision or a limit: no rest-to-rest fallback past the budget
-    if chk is None or (not chk.ok and chk.kind != "timeout" and not touched):  # rest to rest along the polyline
-        t4, c4 = time.perf_counter(), _cpu_clock()
-        if st.jerk_limited:
-            jmax = np.asarray(st.jerk_limit if st.jerk_limit is not None else 10 * amax, float)
-            traj = jerk_limited_polyline(path, vmax, amax, jmax, dt=st.check_dt, joint_names=names)
-        else:
-            traj = polyline_timing(path, vmax, amax, dt=st.check_dt, joint_names=names)
-        tw = interior_window(traj, path) if hybrid and not exact else None
-        chk = check_dense(env, traj, d_min=st.d_min, vmax=vmax, amax=amax, dt=st.check_dt,
-                          window=(*tw, Wc) if win and tw is not None else None, self_collision=not env.exact_self)
-        chk = _mesh_checks(env, traj, path, Wc, chk, st, deadline, hybrid, exact, win, tw)
-        timings.add("timing", t4, c4)
-    return traj, chk
-
-
-def _mesh_checks(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tuple, chk: DenseCheck, st: MotionSettings,
-                 deadline: float, hybrid: bool, exact: bool, window_checked: bool = False,
-                 window: tuple[float, float] | None = None) -> DenseCheck:
-    """The collision-mesh checks a passed dense check still needs: start/goal edges (hybrid) or all (exact).
-
-    ``window``: the trajectory's :func:`interior_window` when already known (hybrid).
-    """
-    if not chk.ok:
-        return chk
-    if exact:
-        chk = exact_check(env, traj, env.world_cover, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline)
-    elif hybrid:
-        chk = interior_check(env, traj, path, Wc, chk, d_min=st.d_min, dt=st.check_dt, deadline=deadline,
-                             window_checked=window_checked, window=window)
-    return self_check(env, traj, chk, dt=st.check_dt, deadline=deadline)
 
 
 _WARM: set[int] = set()
