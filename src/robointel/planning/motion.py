@@ -35,7 +35,7 @@ from robointel.planning.motion_settings import MotionSettings
 from robointel.planning.smoothing import smooth_and_check
 from robointel.planning.stage_times import StageTimes, cpu_clock
 from robointel.planning.topp import topp_spline
-from robointel.planning.tree_search import batch_state, path_valid, search, warm_search
+from robointel.planning.tree_search import TreeCarry, batch_state, path_valid, search, warm_search
 from robointel.robot.model import Robot
 from robointel.trajectory import Trajectory
 
@@ -269,12 +269,14 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     fallback = env.cover_meshes and len(env._cloud[0]) == 0 and st.fitted_fallback < 1
     search_end = now + st.fitted_fallback * st.time_budget_s if fallback else deadline
     attempt, exact = 0, False
+    carry = TreeCarry()  # a search that found no path leaves its trees to the next, in a world no stricter
     while True:
         # a search gives way when it stalls while another model is left to try: the fallback, or in the
         # fallback the spheres grown less far
         stall = FALLBACK_STALL if search_end < deadline or (exact and np.any(env.blend > 0)) else 0
         path, gi, traj, chk, why = _attempt(env, q0, goals, st, deadline, search_end, Wc, Wr, rcap, vmax, amax,
-                                            timings, attempt, thr, exact, stall, WALLED_NODES if exact else None)
+                                            timings, attempt, thr, exact, stall, WALLED_NODES if exact else None,
+                                            carry)
         if path is None and not exact and fallback and clock_now() < deadline:
             # the covering spheres leave no way found in time: the spheres as given, grown as far as the
             # roots allow everywhere (not only near them), checked on the meshes
@@ -319,7 +321,8 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
 def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, deadline: float,
              search_end: float, Wc: tuple, Wr: tuple, rcap: float, vmax: np.ndarray, amax: np.ndarray,
              timings: StageTimes, attempt: int, thr: float, exact: bool = False, stall: int = 0,
-             walled: int | None = None) -> tuple[np.ndarray | None, int, Trajectory | None, DenseCheck | None, str]:
+             walled: int | None = None, carry: TreeCarry | None = None
+             ) -> tuple[np.ndarray | None, int, Trajectory | None, DenseCheck | None, str]:
     """One search, shortcut, timing and dense check: (path, goal, trajectory, check, why not).
 
     The search and the shortcut keep sphere clearance ``thr`` (<= d_min); the dense check d_min - 1 mm.
@@ -329,7 +332,8 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     in ``stall`` > 0 iterations, with ``walled`` only while a tree holds at most that many nodes
     besides its roots: the caller has another model to try; its reason then starts ``"stalled"``).
     ``exact``: every sample the covering spheres leave in doubt is checked on the collision meshes
-    (:func:`exact_check`).
+    (:func:`exact_check`). ``carry``: the trees of the last search that found no path
+    (:class:`~robointel.planning.tree_search.TreeCarry`), gone on from where they fit.
     """
     # global stage ----------------------------------------------------------------------------
     t1, c1 = time.perf_counter(), cpu_clock()
@@ -337,7 +341,7 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     res = float(st.search_resolution)
     while path is None:
         path, gi, why = search(env, q0, goals, st, res, search_end, Wc, Wr, attempt, thr, rcap,
-                               stall, walled)
+                               stall, walled, carry)
         if path is None:
             timings.add("search", t1, c1)
             return None, -1, None, None, why

@@ -6,6 +6,8 @@ at the fine resolution.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from robointel.planning import _batch_edges as BE
@@ -57,11 +59,71 @@ def path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: flo
 #: iterations per call of the compiled search (the clock is read between calls)
 CHUNK = 32
 
+#: the packed world's entries that place the spheres and obstacles and pick the self-collision pairs (the
+#: radii aside): trees carry over only between worlds equal in all of them
+_SHAPE = (5, 6, 8, 9, 11, 12, 13, 14, 15, 16, 17, 18, 19)
+#: the radii: obstacle spheres and groups, self-collision spheres and groups
+_RADII = (7, 10, 21, 22)
+
+
+@dataclass
+class SearchTrees:
+    """The trees of a search that found no path, for a later search in a world no stricter to go on from.
+
+    Every node of them is free, and every edge valid, in the worlds they were grown in at clearance
+    ``thr`` and resolution ``res``; so in any world with the same spheres, obstacles and self-collision
+    pairs and no radius larger (e.g. the fitted spheres after the covering ones, or grown half as far).
+
+    Attributes:
+        X: (2, n, cap) the nodes of each tree joint by joint, rad.
+        parent: (2, cap) parent of each node (-1: a root).
+        count: (2,) nodes in each tree.
+        rng: (3,) the trees' adapted ranges and the range asked for, rad.
+        win: (2, 2) each tree's range-adaptation window.
+        W: the world the nodes were checked in.
+        radii: per radius entry of the packed world, the smaller of its values in ``W`` and in the
+            relaxed world of the root edges (each node and edge was checked in one of them), m.
+        thr: the clearance kept, m.
+        res: the edge-check resolution, m of sphere-centre travel.
+    """
+
+    X: np.ndarray
+    parent: np.ndarray
+    count: np.ndarray
+    rng: np.ndarray
+    win: np.ndarray
+    W: tuple
+    radii: tuple
+    thr: float
+    res: float
+
+    def fits(self, W: tuple, Wr: tuple, thr: float, res: float, n: int, cap: int) -> bool:
+        """Whether every node and edge is still valid when checked in ``W`` (root edges in ``Wr``)."""
+        if self.X.shape != (2, n, cap) or thr != self.thr or res < self.res:
+            return False
+        if any(W[k] is not self.W[k] and not np.array_equal(W[k], self.W[k]) for k in _SHAPE):
+            return False
+        return all(np.all(np.maximum(W[k], Wr[k]) <= r) for k, r in zip(_RADII, self.radii))
+
+    @classmethod
+    def of(cls, X: np.ndarray, parent: np.ndarray, count: np.ndarray, rng: np.ndarray, win: np.ndarray, W: tuple,
+           Wr: tuple, thr: float, res: float) -> SearchTrees:
+        """The trees grown with nodes checked in ``W`` and root edges in ``Wr`` (their radii the smaller)."""
+        return cls(X, parent, count, rng, win, W, tuple(np.minimum(W[k], Wr[k]) for k in _RADII), thr, res)
+
+
+class TreeCarry:
+    """Holds the trees of the last search that found no path (:class:`SearchTrees`), or None."""
+
+    def __init__(self) -> None:
+        self.trees: SearchTrees | None = None
+
 
 def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettings, res: float,
            deadline: float, W: tuple, Wr: tuple, attempt: int = 0,
            thr: float | None = None, rcap: float = float("inf"),
-           stall: int = 0, walled: int | None = None) -> tuple[np.ndarray | None, int, str]:
+           stall: int = 0, walled: int | None = None,
+           carry: TreeCarry | None = None) -> tuple[np.ndarray | None, int, str]:
     """RRT-Connect from q0 to the goal set (a direct edge first): (path, goal index, why not).
 
     Nodes and edges are checked in ``W``, edges leaving the start or a goal in ``Wr`` for their
@@ -69,6 +131,8 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
     when neither tree has gained a node in its last ``stall`` iterations (a root walled in by the
     spheres of ``W``; the caller has another model to try), its reason then starting ``"stalled"``;
     with ``walled``, only while one of the trees holds at most that many nodes besides its roots.
+    With ``carry``, the search goes on from the trees it holds when they :meth:`~SearchTrees.fits`
+    this world (same start and goals), and leaves its own there when it finds no path.
     """
     s, BS = env.scratch, batch_state(env)
     thr, lever = float(st.d_min if thr is None else thr), env.lever
@@ -77,13 +141,20 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
             return np.array([q0, g]), k, ""
     n = len(q0)
     cap = int(st.max_nodes)
-    X = np.empty((2, n, cap))  # the trees' nodes joint by joint (the kernel's nearest-neighbour scan)
-    parent = np.full((2, cap), -1, np.int64)
-    count = np.array([1, len(goals)], np.int64)
-    nroot = count.copy()
-    X[0, :, 0], X[1, :, :len(goals)] = q0, goals.T
+    nroot = np.array([1, len(goals)], np.int64)
+    old = None if carry is None else carry.trees
+    if old is not None and old.fits(W, Wr, thr, res, n, cap) and np.array_equal(old.X[0, :, 0], q0) and \
+            np.array_equal(old.X[1, :, :len(goals)], goals.T) and float(old.rng[2]) == float(st.rrt_range):
+        X, parent, count, rng, win = old.X, old.parent, old.count, old.rng, old.win
+    else:
+        X = np.empty((2, n, cap))  # the trees' nodes joint by joint (the kernel's nearest-neighbour scan)
+        parent = np.full((2, cap), -1, np.int64)
+        count = nroot.copy()
+        X[0, :, 0], X[1, :, :len(goals)] = q0, goals.T
+        rng, win = np.full(3, float(st.rrt_range)), np.zeros((2, 2), np.int64)  # each tree's range adapts
+    if carry is not None:
+        carry.trees = None
     link = np.zeros(2, np.int64)
-    rng, win = np.full(3, float(st.rrt_range)), np.zeros((2, 2), np.int64)  # each tree's range adapts
     R.seed(int(st.seed) + 7 * attempt)
     robot = env.robot
     status, grown, idle, size = 0, 0, 0, int(count.sum())
@@ -97,8 +168,12 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
         grew, size = int(count.sum()) != size, int(count.sum())
         idle = 0 if grew or status != 0 else idle + CHUNK
         if stall and idle >= stall and (walled is None or int((count - nroot).min()) <= walled):
+            if carry is not None:
+                carry.trees = SearchTrees.of(X, parent, count, rng, win, W, Wr, thr, res)
             return None, -1, f"stalled: no node added in {idle} iterations ({grown + size} nodes)"
     if status != 1:
+        if carry is not None:
+            carry.trees = SearchTrees.of(X, parent, count, rng, win, W, Wr, thr, res)
         return None, -1, f"the time budget of {st.time_budget_s:g} s ran out ({grown + int(count.sum())} nodes)"
     a, b = [], []
     i = int(link[0])

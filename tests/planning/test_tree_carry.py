@@ -1,0 +1,99 @@
+"""Trees carried from a search that found no path to the next one, in a world no stricter.
+
+The search in the mesh-covering spheres gives way to one in the spheres as given (smaller radii, same
+centres): every node and edge of the first search's trees is valid there, so the second goes on from
+them. A world with any radius larger (self-collision spheres grown after a mesh refusal), another
+clearance or a finer resolution starts afresh.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from robointel.io.mbm import load_mbm_problems
+from robointel.planning import Environment, MotionSettings
+from robointel.planning import _batch_edges as BE
+from robointel.planning.budget_clock import now as clock_now
+from robointel.planning.motion import _goal_set, _warmup
+from robointel.planning.tree_search import SearchTrees, TreeCarry, batch_state, search
+from robointel.robot import Robot
+
+
+@pytest.fixture(scope="module")
+def cage(shared_data, tmp_path_factory):
+    root = shared_data("mbm", "ur5")
+    robot = Robot.load(root / "ur5.urdf")
+    data = json.loads((root / "problems.json").read_text())
+    one = tmp_path_factory.mktemp("carry") / "one.json"  # the reader on this problem alone
+    one.write_text(json.dumps({**data, "problems": {"cage": [r for r in data["problems"]["cage"] if r["index"] == 4]}}))
+    p = load_mbm_problems(one).select(index=4)[0]
+    env = Environment(robot, p.obstacles, srdf=root / "ur5.srdf", spheres=root / "ur5_spherized.urdf")
+    _warmup(env)
+    return env, np.asarray(p.start, float), _goal_set(robot, p.goals, 0)
+
+
+def _failed_search(env, q0, goals, st, carry):
+    """A search in the covering spheres cut short (a few chunks) so that it finds no path; its trees in carry."""
+    env.use("cover")
+    W = env.world
+    for budget in (0.05, 0.03, 0.02, 0.01, 0.005):
+        path, _, why = search(env, q0, goals, st, 0.02, clock_now() + budget, W, W, attempt=1, thr=0.001,
+                              carry=carry)
+        if path is None and carry.trees.count.sum() > len(goals) + 1:  # no path, and the trees grew
+            return W, why
+    pytest.skip("every short search found a path or grew no tree")
+
+
+def test_the_fitted_search_goes_on_from_the_covering_search_trees(cage):
+    env, q0, goals = cage
+    st = MotionSettings(d_min=0.001, seed=3)
+    carry = TreeCarry()
+    Wc, why = _failed_search(env, q0, goals, st, carry)
+    trees = carry.trees
+    assert trees is not None and why.startswith("the time budget")
+    count = trees.count.copy()
+    env.use("fitted")
+    Wf = env.world
+    assert trees.fits(Wf, Wf, 0.001, 0.02, len(q0), st.max_nodes)
+    # the property the carry rests on: every node free and every edge valid in the fitted spheres
+    s, BS = env.scratch, batch_state(env)
+    X, parent = trees.X, trees.parent
+    for t in range(2):
+        for i in range(int(count[t])):
+            q = X[t, :, i]
+            assert env.clearance(q, cap=0.1) >= 0.001 - 1e-9
+            if parent[t, i] >= 0:
+                a = np.ascontiguousarray(X[t, :, parent[t, i]])
+                assert BE.root_edge_batch(a, np.ascontiguousarray(q), Wf, Wf, False, False, np.inf, BS, 0.001, 0.02,
+                                          s.out)
+    # the next search starts from them: its trees hold at least as many nodes (it reports them on failure)
+    path, _, why2 = search(env, q0, goals, st, 0.02, clock_now(), Wf, Wf, attempt=2, thr=0.001, carry=carry)
+    assert path is None and f"({int(count.sum())} nodes)" in why2
+    assert carry.trees is not None and carry.trees.X is X
+
+
+def test_a_stricter_world_starts_afresh(cage):
+    env, q0, goals = cage
+    st = MotionSettings(d_min=0.001, seed=5)
+    carry = TreeCarry()
+    Wc, _ = _failed_search(env, q0, goals, st, carry)
+    trees = carry.trees
+    assert isinstance(trees, SearchTrees)
+    n, cap = len(q0), st.max_nodes
+    assert trees.fits(Wc, Wc, 0.001, 0.02, n, cap)
+    assert trees.fits(Wc, Wc, 0.001, 0.04, n, cap)  # a coarser resolution: the proofs hold
+    assert not trees.fits(Wc, Wc, 0.001, 0.005, n, cap)  # finer: they do not
+    assert not trees.fits(Wc, Wc, 0.002, 0.02, n, cap)  # another clearance
+    env.set_self_blend(1.0)  # the self-collision spheres grown toward the covering ones
+    try:
+        Wg = env.world_cover
+        if np.all(Wg[21] <= Wc[21]):
+            pytest.skip("the self-collision spheres did not grow")
+        assert not trees.fits(Wg, Wg, 0.001, 0.02, n, cap)
+        path, _, why = search(env, q0, goals, st, 0.02, clock_now(), Wg, Wg, attempt=2, thr=0.001, carry=carry)
+        assert path is None and f"({len(goals) + 1} nodes)" in why  # the roots alone: started afresh
+    finally:
+        env.set_self_blend(0.0)
+        env.use("cover")
