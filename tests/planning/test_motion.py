@@ -72,7 +72,7 @@ def test_kernel_kinematics_match_pinocchio(mbm):
     robot = env.robot
     from robointel.planning import _collision_kernels as K
 
-    order = np.argsort(env.spheres.joints, kind="stable")
+    order = env.sphere_order
     s = env.scratch
     for q in robot.random_configuration(3, 20):
         K.sphere_centres(q, env.world, s.T, s.C, s.G)

@@ -23,7 +23,7 @@ from robointel.errors import CollisionAtStart, DescriptionError, InvalidInput
 from robointel.geometry import _kernels as GK
 from robointel.geometry.obstacles import Box, Capsule, Cylinder, Obstacle, PointCloud, Sphere
 from robointel.planning import _collision_kernels as K
-from robointel.planning._sphere_pack import _chain_arrays, _levers, _sphere_levers, _variable_pairs
+from robointel.planning._sphere_pack import _chain_arrays, _levers, _sphere_levers, _variable_pairs, culling_groups
 from robointel.robot.collision import SphereModel, primitive_spheres
 from robointel.robot.model import Robot
 from robointel.robot.sphere_cover import cover_meshes
@@ -114,7 +114,7 @@ class Contact:
 
 
 #: the attributes :meth:`Environment._pack_spheres` derives from the robot alone (cached per robot)
-_PACKED = ("spheres", "_chain", "sphere_links", "lever", "_self", "_rel", "_fitted", "_cover")
+_PACKED = ("spheres", "_chain", "sphere_links", "sphere_order", "lever", "_self", "_rel", "_fitted", "_cover")
 
 
 class Environment:
@@ -234,13 +234,13 @@ class Environment:
     # ------------------------------------------------------------------ packing
     def _pack_spheres(self) -> None:
         sm = self.spheres
-        order = np.argsort(sm.joints, kind="stable")
+        order, groups, gs = culling_groups(sm.joints, sm._in_joint, sm.radii)  # sorted by joint, wide ones split
         self.sphere_links = [sm.links[i] for i in order]
+        #: (m,) the sphere model's index of each packed sphere
+        self.sphere_order = order
         sj = sm.joints[order].astype(np.int64)
         sp = np.ascontiguousarray(sm._in_joint[order])
         sr = np.ascontiguousarray(sm.radii[order])
-        groups = np.unique(sj)
-        gs = np.searchsorted(sj, groups).tolist() + [len(sj)]
         gc = np.array([sp[gs[k]:gs[k + 1]].mean(0) for k in range(len(groups))]).reshape(-1, 3)
         gr = np.array([np.max(np.linalg.norm(sp[gs[k]:gs[k + 1]] - gc[k], axis=1) + sr[gs[k]:gs[k + 1]])
                        for k in range(len(groups))])
@@ -256,7 +256,7 @@ class Environment:
             smask[a, b] = smask[b, a] = 1
         self._spheres = (sj, sp, sr, groups.astype(np.int64), gc, gr, np.array(gs, np.int64))
         smask &= _variable_pairs(self._chain + self._spheres + _world_tail(), self.robot, smask)
-        gid = np.searchsorted(groups, sj)
+        gid = np.repeat(np.arange(len(groups)), np.diff(gs))  # each sphere's group
         gp = {(min(gid[a], gid[b]), max(gid[a], gid[b])) for a, b in zip(*np.nonzero(smask))}
         gpairs = np.array(sorted(gp), np.int64).reshape(-1, 2)
         self._spheres = (sj, sp, sr, groups.astype(np.int64), gc, gr, np.array(gs, np.int64))
