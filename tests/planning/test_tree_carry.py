@@ -34,23 +34,24 @@ def cage(shared_data, tmp_path_factory):
     return env, np.asarray(p.start, float), _goal_set(robot, p.goals, 0)
 
 
-def _failed_search(env, q0, goals, st, carry):
-    """A search in the covering spheres cut short (a few chunks) so that it finds no path; its trees in carry."""
+def _failed_search(cage, seed):
+    """A search in the covering spheres cut short so that it finds no path: (env, q0, goals, settings, world,
+    why, carry holding its trees)."""
+    env, q0, goals = cage
+    st = MotionSettings(d_min=0.001, seed=seed)
+    carry = TreeCarry()
     env.use("cover")
     W = env.world
     for budget in (0.05, 0.03, 0.02, 0.01, 0.005):
         path, _, why = search(env, q0, goals, st, 0.02, clock_now() + budget, W, W, attempt=1, thr=0.001,
                               carry=carry)
         if path is None and carry.trees.count.sum() > len(goals) + 1:  # no path, and the trees grew
-            return W, why
+            return env, q0, goals, st, W, why, carry
     pytest.skip("every short search found a path or grew no tree")
 
 
 def test_the_fitted_search_goes_on_from_the_covering_search_trees(cage):
-    env, q0, goals = cage
-    st = MotionSettings(d_min=0.001, seed=3)
-    carry = TreeCarry()
-    Wc, why = _failed_search(env, q0, goals, st, carry)
+    env, q0, goals, st, Wc, why, carry = _failed_search(cage, seed=3)
     trees = carry.trees
     assert trees is not None and why.startswith("the time budget")
     count = trees.count.copy()
@@ -75,10 +76,7 @@ def test_the_fitted_search_goes_on_from_the_covering_search_trees(cage):
 
 
 def test_a_stricter_world_starts_afresh(cage):
-    env, q0, goals = cage
-    st = MotionSettings(d_min=0.001, seed=5)
-    carry = TreeCarry()
-    Wc, _ = _failed_search(env, q0, goals, st, carry)
+    env, q0, goals, st, Wc, _, carry = _failed_search(cage, seed=5)
     trees = carry.trees
     assert isinstance(trees, SearchTrees)
     n, cap = len(q0), st.max_nodes

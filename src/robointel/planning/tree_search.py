@@ -157,7 +157,7 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
     link = np.zeros(2, np.int64)
     R.seed(int(st.seed) + 7 * attempt)
     robot = env.robot
-    status, grown, idle, size = 0, 0, 0, int(count.sum())
+    status, grown, idle, size, why = 0, 0, 0, int(count.sum()), ""
     while status != 1 and clock_now() < deadline:
         if status < 0:  # the trees are full: start over from the roots (the random stream goes on)
             grown += int(count.sum())
@@ -168,13 +168,12 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
         grew, size = int(count.sum()) != size, int(count.sum())
         idle = 0 if grew or status != 0 else idle + CHUNK
         if stall and idle >= stall and (walled is None or int((count - nroot).min()) <= walled):
-            if carry is not None:
-                carry.trees = SearchTrees.of(X, parent, count, rng, win, W, Wr, thr, res)
-            return None, -1, f"stalled: no node added in {idle} iterations ({grown + size} nodes)"
+            why = f"stalled: no node added in {idle} iterations ({grown + size} nodes)"
+            break
     if status != 1:
         if carry is not None:
             carry.trees = SearchTrees.of(X, parent, count, rng, win, W, Wr, thr, res)
-        return None, -1, f"the time budget of {st.time_budget_s:g} s ran out ({grown + int(count.sum())} nodes)"
+        return None, -1, why or f"the time budget of {st.time_budget_s:g} s ran out ({grown + int(count.sum())} nodes)"
     a, b = [], []
     i = int(link[0])
     while i >= 0:
