@@ -279,12 +279,15 @@ def test_sessions_with_a_token_and_the_operator_controls(lrmate, tmp_path):
                 q_before = app.desired.copy()
                 btn = A.get_by_role("button", name="hold >")
                 btn.hover()
+                t_down = time.monotonic()
                 A.mouse.down()
-                time.sleep(1.0)
+                # held: the joint keeps moving (several callbacks' worth, however slowly the page sends them)
+                _wait(lambda: np.degrees(app.desired[0] - q_before[0]) > 3.0, what="the held jog moving on")
                 A.mouse.up()
+                t_held = time.monotonic() - t_down
                 _wait(lambda: not app._ramp, what="the held jog's last steps")
                 held = np.degrees(app.desired[0] - q_before[0])
-                assert 2.0 < held < 15.0                      # ~10 deg/s while held, nothing after the release
+                assert 3.0 < held <= 10.0 * t_held + 2.0      # at most 10 deg/s while held, then one lead's worth
                 np.testing.assert_allclose(app.desired[1:], q_before[1:], atol=1e-12)
                 q_release = app.desired.copy()
                 time.sleep(0.5)
