@@ -287,7 +287,7 @@ def test_sessions_with_a_token_and_the_operator_controls(lrmate, tmp_path):
                 t_held = time.monotonic() - t_down
                 _wait(lambda: not app._ramp, what="the held jog's last steps")
                 held = np.degrees(app.desired[0] - q_before[0])
-                assert 3.0 < held <= 10.0 * t_held + 2.0      # at most 10 deg/s while held, then one lead's worth
+                assert 3.0 < held <= 10.0 * t_held + 2.0      # at most 10 deg/s while held, then the ramp's last steps
                 np.testing.assert_allclose(app.desired[1:], q_before[1:], atol=1e-12)
                 q_release = app.desired.copy()
                 time.sleep(0.5)
