@@ -80,6 +80,8 @@ def rrtconnect(robot: Robot, obstacles: Any, start: np.ndarray, goal: np.ndarray
         s1[i] = float(goal[i])
     ss.setStartAndGoalStates(s0, s1)
     ss.setPlanner(og.RRTConnect(si))
+    if obstacles:  # the compiled check built (or loaded) before the clock starts: OMPL's timeout is for planning
+        min_distance(robot, np.asarray(start, float), obstacles, movable_only=True)
     t0 = time.perf_counter()
     status = ss.solve(float(timeout))
     t1 = time.perf_counter()
