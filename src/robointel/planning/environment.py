@@ -259,7 +259,6 @@ class Environment:
         gid = np.repeat(np.arange(len(groups)), np.diff(gs))  # each sphere's group
         gp = {(min(gid[a], gid[b]), max(gid[a], gid[b])) for a, b in zip(*np.nonzero(smask))}
         gpairs = np.array(sorted(gp), np.int64).reshape(-1, 2)
-        self._spheres = (sj, sp, sr, groups.astype(np.int64), gc, gr, np.array(gs, np.int64))
         self.lever = _levers(self.robot, self._chain, sj, sp)
         anc = self.robot._ancestor  # (nj, nq): does config index k move joint j?
         rel = np.array([(anc[groups[a]] ^ anc[groups[b]]) * self.lever for a, b in gpairs]).reshape(-1, self.robot.nq)
