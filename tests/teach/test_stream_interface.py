@@ -70,9 +70,7 @@ def test_stream_drives_the_fanuc_emulator_and_its_estop_stops_it(lrmate):
             try:
                 ctl.submit({"type": "acquire"})
                 tgt = _target()
-                assert ctl.submit({"type": "joint_target", "q": tgt.tolist()}) is None
-                _wait_until(lambda: _near(emu, tgt))  # the follower and the plant's lag close on the target
-                np.testing.assert_allclose(np.radians(emu.call("q_meas_deg")[:6]), tgt, atol=np.radians(0.1))
+                _drive_to(ctl, emu, tgt)
                 t_inj = emu.timed("press_estop")[1]
                 _wait_until(lambda: ctl.state(LOCAL)["mode"] == "faulted", timeout=5.0)  # the next status says so
                 s = ctl.state(LOCAL)
@@ -87,13 +85,30 @@ def test_stream_drives_the_fanuc_emulator_and_its_estop_stops_it(lrmate):
                 time.sleep(0.1)
                 reply = ctl.submit({"type": "resume"})
                 assert reply["type"] == "ok", reply
-                assert ctl.submit({"type": "joint_target", "q": READY.tolist()}) is None
-                _wait_until(lambda: _near(emu, READY))
-                np.testing.assert_allclose(np.radians(emu.call("q_meas_deg")[:6]), READY, atol=np.radians(0.1))
+                _drive_to(ctl, emu, READY)
             finally:
                 ctl.stop()
         # every strict-conformance violation but the arrival-gap flag, as in tests/interface
         assert protocol_violations(emu.call("violations")) == []
+
+
+def _drive_to(ctl, emu, q, attempts=3):
+    """Stream ``q`` until the emulated arm is within 0.1 deg of it.
+
+    A host too busy to feed the look-ahead for 10 controller periods is stopped by the interface
+    ("command stream stalled"), which latches a fault: that is the designed answer to a stall, so the
+    test resumes and sends the target again, as an operator would. Any other fault fails the test.
+    """
+    for _ in range(attempts):
+        assert ctl.submit({"type": "joint_target", "q": q.tolist()}) is None
+        _wait_until(lambda: _near(emu, q) or ctl.state(LOCAL)["mode"] == "faulted")
+        if _near(emu, q):
+            return
+        s = ctl.state(LOCAL)
+        assert s["mode"] == "faulted" and "stalled" in (s["fault"] or ""), s
+        assert ctl.submit({"type": "resume"})["type"] == "ok"
+    np.testing.assert_allclose(np.radians(emu.call("q_meas_deg")[:6]), q, atol=np.radians(0.1),
+                               err_msg=str(ctl.state(LOCAL)))
 
 
 def _near(emu, q):
