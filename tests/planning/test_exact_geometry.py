@@ -45,6 +45,7 @@ def test_clearance_is_exact_below_the_threshold_and_a_lower_bound_above(shared_d
                 assert (link != "") == (d < 0.101)
                 near += d < 0.101
     assert near >= 8 and below >= 2
+    assert mg.pair_distances(q, np.zeros(0, np.int64), thresh=0.0).shape == (0,)  # no pair asked: none measured
 
 
 def test_mesh_levers_bound_every_vertex_displacement(shared_data):

@@ -202,6 +202,8 @@ class MeshGeometry:
         box where that is more than ``near`` (m) above ``thresh``, else the convex hull's distance
         (:func:`bounded_distance`, refined on the mesh below ``thresh``).
         """
+        if len(which) == 0:
+            return np.empty(0)
         robot = self.robot
         pin.framesForwardKinematics(robot.model, robot.data, q)
         pp, oo = np.divmod(np.asarray(which, np.int64), len(self.obstacles))
