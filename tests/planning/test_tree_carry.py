@@ -95,3 +95,28 @@ def test_a_stricter_world_starts_afresh(cage):
     finally:
         env.set_self_blend(0.0)
         env.use("cover")
+
+
+def test_the_search_does_not_depend_on_how_its_iterations_are_cut_into_calls(cage, monkeypatch):
+    import robointel.planning.tree_search as TS
+
+    env, q0, goals = cage
+    st = MotionSettings(d_min=0.001, seed=5)
+    env.use("cover")
+    W = env.world
+    kernel, calls = TS.R.rrt_connect, []
+
+    def counted(*args):
+        calls[-1] += 1
+        return kernel(*args)
+
+    monkeypatch.setattr(TS.R, "rrt_connect", counted)
+    found = []
+    for most in (TS.CHUNK, TS.MAX_CHUNK):  # calls of 32 iterations each, then calls growing to 1,024
+        monkeypatch.setattr(TS, "MAX_CHUNK", most)
+        calls.append(0)
+        path, gi, why = search(env, q0, goals, st, 0.02, clock_now() + 30.0, W, W, attempt=1, thr=0.001)
+        assert path is not None, why
+        found.append((path, gi))
+    assert calls[0] > calls[1] >= 1 and calls[0] > 2  # cut differently ...
+    assert found[0][1] == found[1][1] and np.array_equal(found[0][0], found[1][0])  # ... the same path

@@ -6,6 +6,7 @@ at the fine resolution.
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,8 +57,13 @@ def path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: flo
                for k, (a, b) in enumerate(zip(path[:-1], path[1:])))
 
 
-#: iterations per call of the compiled search (the clock is read between calls)
+#: iterations of the first call of the compiled search (the clock is read between calls)
 CHUNK = 32
+#: the most iterations per call: the calls double while one takes less than half of :data:`CHUNK_S`
+MAX_CHUNK = 1024
+#: the wall time one call of the compiled search aims at, s: long enough that calling it (typing its
+#: arguments, about 11 us) costs little, short enough that the deadline is read every few milliseconds
+CHUNK_S = 1e-3
 
 #: the packed world's entries that place the spheres and obstacles and pick the self-collision pairs (the
 #: radii aside): trees carry over only between worlds equal in all of them
@@ -129,7 +135,8 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
     Nodes and edges are checked in ``W``, edges leaving the start or a goal in ``Wr`` for their
     first ``rcap`` rad (max |dq|) and in ``W`` beyond. ``stall`` > 0: the search also gives up
     when neither tree has gained a node in its last ``stall`` iterations (a root walled in by the
-    spheres of ``W``; the caller has another model to try), its reason then starting ``"stalled"``;
+    spheres of ``W``; the caller has another model to try; counted over whole calls of the compiled
+    kernel, of :data:`CHUNK` to :data:`MAX_CHUNK` iterations), its reason then starting ``"stalled"``;
     with ``walled``, only while one of the trees holds at most that many nodes besides its roots.
     With ``carry``, the search goes on from the trees it holds when they :meth:`~SearchTrees.fits`
     this world (same start and goals), and leaves its own there when it finds no path.
@@ -158,15 +165,22 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
     R.seed(int(st.seed) + 7 * attempt)
     robot = env.robot
     status, grown, idle, size, why = 0, 0, 0, int(count.sum()), ""
+    chunk = CHUNK  # (the search does not depend on how its iterations are cut into calls)
     while status != 1 and clock_now() < deadline:
         if status < 0:  # the trees are full: start over from the roots (the random stream goes on)
             grown += int(count.sum())
             count[:] = nroot
             parent[:] = -1
-        status = R.rrt_connect(X, parent, count, robot.lower, robot.upper, CHUNK, rng, win, W, Wr, nroot, rcap,
+        t0 = time.perf_counter()
+        status = R.rrt_connect(X, parent, count, robot.lower, robot.upper, chunk, rng, win, W, Wr, nroot, rcap,
                                s.T, s.C, s.G, s.out, thr, lever, res, link, BS)
+        took = time.perf_counter() - t0
         grew, size = int(count.sum()) != size, int(count.sum())
-        idle = 0 if grew or status != 0 else idle + CHUNK
+        idle = 0 if grew or status != 0 else idle + chunk
+        if took < 0.5 * CHUNK_S and chunk < MAX_CHUNK:
+            chunk *= 2
+        elif took > 2.0 * CHUNK_S and chunk > CHUNK:
+            chunk //= 2
         if stall and idle >= stall and (walled is None or int((count - nroot).min()) <= walled):
             why = f"stalled: no node added in {idle} iterations ({grown + size} nodes)"
             break
