@@ -135,8 +135,8 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
     Nodes and edges are checked in ``W``, edges leaving the start or a goal in ``Wr`` for their
     first ``rcap`` rad (max |dq|) and in ``W`` beyond. ``stall`` > 0: the search also gives up
     when neither tree has gained a node in its last ``stall`` iterations (a root walled in by the
-    spheres of ``W``; the caller has another model to try; counted over whole calls of the compiled
-    kernel, of :data:`CHUNK` to :data:`MAX_CHUNK` iterations), its reason then starting ``"stalled"``;
+    spheres of ``W``; the caller has another model to try; counted from the end of the last call of the
+    compiled kernel that added a node), its reason then starting ``"stalled"``;
     with ``walled``, only while one of the trees holds at most that many nodes besides its roots.
     With ``carry``, the search goes on from the trees it holds when they :meth:`~SearchTrees.fits`
     this world (same start and goals), and leaves its own there when it finds no path.
@@ -171,12 +171,13 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
             grown += int(count.sum())
             count[:] = nroot
             parent[:] = -1
+        iters = min(chunk, stall - idle) if 0 < stall and idle < stall else chunk  # (a stall: after ``stall``)
         t0 = time.perf_counter()
-        status = R.rrt_connect(X, parent, count, robot.lower, robot.upper, chunk, rng, win, W, Wr, nroot, rcap,
+        status = R.rrt_connect(X, parent, count, robot.lower, robot.upper, iters, rng, win, W, Wr, nroot, rcap,
                                s.T, s.C, s.G, s.out, thr, lever, res, link, BS)
         took = time.perf_counter() - t0
         grew, size = int(count.sum()) != size, int(count.sum())
-        idle = 0 if grew or status != 0 else idle + chunk
+        idle = 0 if grew or status != 0 else idle + iters
         if took < 0.5 * CHUNK_S and chunk < MAX_CHUNK:
             chunk *= 2
         elif took > 2.0 * CHUNK_S and chunk > CHUNK:
