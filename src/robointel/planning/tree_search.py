@@ -62,7 +62,7 @@ CHUNK = 32
 #: the most iterations per call: the calls double while one takes less than half of :data:`CHUNK_S`
 MAX_CHUNK = 1024
 #: the wall time one call of the compiled search aims at, s: long enough that calling it (typing its
-#: arguments, about 11 us) costs little, short enough that the deadline is read every few milliseconds
+#: arguments, about 11 us) costs little, short enough that the deadline is read about every millisecond
 CHUNK_S = 1e-3
 
 #: the packed world's entries that place the spheres and obstacles and pick the self-collision pairs (the
