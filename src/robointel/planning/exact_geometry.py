@@ -13,6 +13,7 @@ from typing import Any
 import coal
 import numpy as np
 import pinocchio as pin
+from numba import njit
 
 from robointel.errors import DescriptionError
 from robointel.geometry.obstacles import Box, Capsule, Cylinder, Obstacle, Sphere
@@ -105,6 +106,35 @@ def _axis_frame(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.stack([x, _cross(u, x), u], 1)
 
 
+@njit(cache=True)
+def sphere_box_bounds(T: np.ndarray, part_frame: np.ndarray, centres: np.ndarray, radii: np.ndarray,
+                      lo: np.ndarray, hi: np.ndarray, pp: np.ndarray, oo: np.ndarray,
+                      out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """out[n] = distance from part pp[n]'s bounding sphere to obstacle oo[n]'s box (a lower bound), m.
+
+    Args:
+        T: (F, 4, 4) the placements of the parts' link frames in the world.
+        part_frame: (P,) each part's index into T.
+        centres: (P, 3) each part's bounding-sphere centre in its link frame, m.
+        radii: (P,) the bounding spheres' radii, m.
+        lo: (O, 3) each obstacle's axis-aligned box, lower corner, m.
+        hi: (O, 3) upper corner, m.
+        pp: (N,) the parts of the pairs.
+        oo: (N,) the obstacles of the pairs.
+        out: (N,) receives the bounds (negative: the sphere reaches into the box).
+    """
+    for n in range(pp.shape[0]):
+        p, o = pp[n], oo[n]
+        M = T[part_frame[p]]
+        c0, c1, c2 = centres[p, 0], centres[p, 1], centres[p, 2]
+        d2 = 0.0
+        for r in range(3):
+            x = M[r, 0] * c0 + M[r, 1] * c1 + M[r, 2] * c2 + M[r, 3]
+            e = max(max(lo[o, r] - x, x - hi[o, r]), 0.0)
+            d2 += e * e
+        out[n] = np.sqrt(d2) - radii[p]
+
+
 class MeshGeometry:
     """The moving links' collision meshes and the primitive obstacles as ``coal`` objects.
 
@@ -135,6 +165,8 @@ class MeshGeometry:
         self._req = coal.DistanceRequest()
         self._frames, self._part_frame = side.frames, side.part_frame
         self._centres, self._radii = side.centres, side.radii
+        P, O = len(self.parts), len(self.obstacles)
+        self._all_pp, self._all_oo = np.repeat(np.arange(P), O), np.tile(np.arange(O), P)  # every pair p * O + o
 
     @property
     def empty(self) -> bool:
@@ -160,23 +192,19 @@ class MeshGeometry:
         Returns:
             (distance m, link, obstacle label); negative distances are penetration depths.
         """
-        robot = self.robot
         best, bl, bo = cap, "", ""
         if not self.parts or not self.obstacles:
             return best, bl, bo
-        pin.framesForwardKinematics(robot.model, robot.data, q)
-        Tl = np.array([robot.data.oMf[f].homogeneous for f in self._frames])  # (F, 4, 4)
-        Tf = Tl[self._part_frame]  # (P, 4, 4) each part's link placement
-        centre = np.einsum("pij,pj->pi", Tf[:, :3, :3], self._centres) + Tf[:, :3, 3]
-        # broad phase: every part's bounding sphere against every obstacle's box at once
-        gap = np.maximum(0.0, np.maximum(self._lo[None] - centre[:, None], centre[:, None] - self._hi[None]))
-        bound = np.sqrt(np.einsum("poi,poi->po", gap, gap)) - self._radii[:, None]  # (P, O)
-        flat = bound.ravel()
+        Tl = self._frame_placements(q)
+        # broad phase: every part's bounding sphere against every obstacle's box, pair p * O + o
+        flat = np.empty(len(self._all_pp))
+        sphere_box_bounds(Tl, self._part_frame, self._centres, self._radii, self._lo, self._hi, self._all_pp,
+                          self._all_oo, flat)
         cand = np.flatnonzero(flat < best)
         if cand.size == 0:
             return best, bl, bo
         order = cand[np.argsort(flat[cand], kind="stable")]
-        nobs = bound.shape[1]
+        nobs = len(self.obstacles)
         req = coal.DistanceRequest()
         placed: dict[int, Any] = {}
         for k in order:
@@ -186,7 +214,7 @@ class MeshGeometry:
             part = self.parts[p]
             Tp = placed.get(p)
             if Tp is None:
-                T = Tf[p] @ part.placement
+                T = Tl[self._part_frame[p]] @ part.placement
                 Tp = placed[p] = coal.Transform3s(T[:3, :3], T[:3, 3])
             label, g, To = self.obstacles[o][:3]
             d = bounded_distance(part.hull, part.mesh, Tp, g, g, To, min(thresh, best), req)
@@ -204,26 +232,28 @@ class MeshGeometry:
         """
         if len(which) == 0:
             return np.empty(0)
-        robot = self.robot
-        pin.framesForwardKinematics(robot.model, robot.data, q)
+        Tl = self._frame_placements(q)
         pp, oo = np.divmod(np.asarray(which, np.int64), len(self.obstacles))
-        parts = np.unique(pp)
-        Tl = np.array([robot.data.oMf[self.parts[p].frame].homogeneous for p in parts])  # (U, 4, 4)
-        slot = np.searchsorted(parts, pp)
-        c = np.einsum("pij,pj->pi", Tl[:, :3, :3], self._centres[parts]) + Tl[:, :3, 3]
-        gap = np.maximum(0.0, np.maximum(self._lo[oo] - c[slot], c[slot] - self._hi[oo]))
-        out = np.sqrt(np.einsum("pi,pi->p", gap, gap)) - self._radii[pp]  # the broad phase, (len(which),)
+        out = np.empty(len(pp))  # the broad phase
+        sphere_box_bounds(Tl, self._part_frame, self._centres, self._radii, self._lo, self._hi, pp, oo, out)
         placed: dict[int, Any] = {}  # each part's coal placement
-        for n in np.flatnonzero(out <= thresh + near):
+        for n in np.flatnonzero(out <= thresh + near).tolist():
             p, o = int(pp[n]), int(oo[n])
             part = self.parts[p]
             T = placed.get(p)
             if T is None:
-                Mp = Tl[slot[n]] @ part.placement
+                Mp = Tl[self._part_frame[p]] @ part.placement
                 T = placed[p] = coal.Transform3s(Mp[:3, :3], Mp[:3, 3])
             g, To = self.obstacles[o][1:3]
             out[n] = bounded_distance(part.hull, part.mesh, T, g, g, To, thresh, self._req)
         return out
+
+    def _frame_placements(self, q: np.ndarray) -> np.ndarray:
+        """(F, 4, 4) the placements at q of the link frames that carry parts (``self._frames``)."""
+        robot = self.robot
+        pin.framesForwardKinematics(robot.model, robot.data, q)
+        oMf = robot.data.oMf
+        return np.array([oMf[f].homogeneous for f in self._frames])
 
     def pair_names(self, i: int) -> tuple[str, str]:
         """(link, obstacle label) of pair ``i`` (p * O + o)."""
