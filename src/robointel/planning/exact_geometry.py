@@ -7,6 +7,7 @@ hull is closer than the threshold is the exact mesh distance (BVH) computed.
 """
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -78,7 +79,7 @@ def bounded_distance(hull_a: Any, ga: Any, Ta: Any, hull_b: Any, gb: Any, Tb: An
     Returns:
         The distance, m: exact when below ``thresh``, else a lower bound >= ``thresh``.
     """
-    d = hull_bound(float(coal.distance(hull_a, Ta, hull_b, Tb, req, coal.DistanceResult())))
+    d = hull_bound(float(coal.distance(hull_a, Ta, hull_b, Tb, req, _distance_result())))
     if d > thresh:
         return d
     t0 = max(thresh, 0.0)  # (coal takes no negative margin for meshes: a contact is a contact)
@@ -91,6 +92,23 @@ def bounded_distance(hull_a: Any, ga: Any, Ta: Any, hull_b: Any, gb: Any, Tb: An
     if not coal.collide(ga, Ta, gb, Tb, creq, coal.CollisionResult()):
         return t0
     return min(contact_distance(ga, Ta, gb, Tb, req), t0 - 1e-12)  # closer than t0: the query said so
+
+
+_THREAD = threading.local()
+
+
+def _distance_result() -> Any:
+    """This thread's ``coal.DistanceResult``, cleared: one object per thread (making one costs ~1.7 us, clearing 0.3).
+
+    Coal keeps the smallest distance a result has seen, so a result is cleared before each query and never
+    shared between threads.
+    """
+    r = getattr(_THREAD, "result", None)
+    if r is None:
+        r = _THREAD.result = coal.DistanceResult()
+    else:
+        r.clear()
+    return r
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
