@@ -51,9 +51,28 @@ GJK_TOL = 1e-6
 def hull_bound(d: float) -> float:
     """A GJK hull distance ``d`` (m) lowered by its tolerance: a lower bound of the exact distance."""
     return d - GJK_TOL * (1.0 + abs(d))
+
+
 #: security margins (m, above the threshold) at which :func:`bounded_distance` asks coal for a collision
 #: before it measures a distance: a pair clear at a margin is proven at least that far apart
 MARGINS = (0.004, 0.001)
+
+
+_THREAD = threading.local()
+
+
+def _distance_result() -> Any:
+    """This thread's ``coal.DistanceResult``, cleared: one object per thread (making one costs ~1.7 us, clearing 0.3).
+
+    Coal keeps the smallest distance a result has seen, so a result is cleared before each query and never
+    shared between threads.
+    """
+    r = getattr(_THREAD, "result", None)
+    if r is None:
+        r = _THREAD.result = coal.DistanceResult()
+    else:
+        r.clear()
+    return r
 
 
 def bounded_distance(hull_a: Any, ga: Any, Ta: Any, hull_b: Any, gb: Any, Tb: Any, thresh: float,
@@ -92,23 +111,6 @@ def bounded_distance(hull_a: Any, ga: Any, Ta: Any, hull_b: Any, gb: Any, Tb: An
     if not coal.collide(ga, Ta, gb, Tb, creq, coal.CollisionResult()):
         return t0
     return min(contact_distance(ga, Ta, gb, Tb, req), t0 - 1e-12)  # closer than t0: the query said so
-
-
-_THREAD = threading.local()
-
-
-def _distance_result() -> Any:
-    """This thread's ``coal.DistanceResult``, cleared: one object per thread (making one costs ~1.7 us, clearing 0.3).
-
-    Coal keeps the smallest distance a result has seen, so a result is cleared before each query and never
-    shared between threads.
-    """
-    r = getattr(_THREAD, "result", None)
-    if r is None:
-        r = _THREAD.result = coal.DistanceResult()
-    else:
-        r.clear()
-    return r
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -151,6 +153,12 @@ def sphere_box_bounds(T: np.ndarray, part_frame: np.ndarray, centres: np.ndarray
             e = max(max(lo[o, r] - x, x - hi[o, r]), 0.0)
             d2 += e * e
         out[n] = np.sqrt(d2) - radii[p]
+
+
+def warm_broad_phase() -> None:
+    """Compile (or load from numba's disk cache) :func:`sphere_box_bounds` for the argument types it is called with."""
+    i1, f1 = np.zeros(1, np.int64), np.zeros(1)
+    sphere_box_bounds(np.zeros((1, 4, 4)), i1, np.zeros((1, 3)), f1, np.zeros((1, 3)), np.zeros((1, 3)), i1, i1, f1)
 
 
 class MeshGeometry:

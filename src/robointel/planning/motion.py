@@ -28,7 +28,7 @@ from robointel.planning import _time_shortcut as TS
 from robointel.planning.budget_clock import budget_clock
 from robointel.planning.budget_clock import now as clock_now
 from robointel.planning.environment import Environment
-from robointel.planning.exact_geometry import MeshGeometry, sphere_box_bounds
+from robointel.planning.exact_geometry import MeshGeometry, warm_broad_phase
 from robointel.planning.hybrid_check import exact_roots
 from robointel.planning.motion_check import CLEARANCE_TOL, DenseCheck
 from robointel.planning.motion_settings import MotionSettings
@@ -414,8 +414,7 @@ def _warmup(env: Environment) -> None:
     D.env_below(P, V, W, s.T, s.C, s.G, s.out, env.lever, 0.0)
     if env.cover_meshes:  # the collision meshes and their hulls, loaded once per robot; the broad phase
         MeshGeometry(env.robot, [])
-        i1, f1 = np.zeros(1, np.int64), np.zeros(1)
-        sphere_box_bounds(np.zeros((1, 4, 4)), i1, np.zeros((1, 3)), f1, np.zeros((1, 3)), np.zeros((1, 3)), i1, i1, f1)
+        warm_broad_phase()
     lim = np.ones(env.robot.nq)
     e = 0.1 * np.eye(env.robot.nq)
     topp_spline(np.array([q, q + e[0], q + e[0] + e[-1]]), lim, lim)  # a path with a corner
