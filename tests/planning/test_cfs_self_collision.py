@@ -52,3 +52,30 @@ def test_a_waypoint_in_self_collision_is_refused_naming_the_links(ur5):
     pl = TrajectoryPlanner(ur5, (), N=10, dt=0.1)
     with pytest.raises(CollisionAtStart, match="self-collision: link '.*' is .* mm from link"):
         pl.check_waypoints(np.array([A, inside]), ["a", "inside"])
+
+
+def test_far_self_pairs_are_left_out_without_changing_a_row_or_a_minimum(ur5):
+    from robointel.geometry import Box
+    from robointel.planning.segment import all_clearances, sphere_clearances
+
+    st = PlannerSettings(d_min=0.02, margin=0.05)
+    box = [Box(center=np.array([0.45, 0.1, 0.3]), size=np.array([0.1, 0.4, 0.3]))]
+    Q = A + np.linspace(0.0, 1.0, 30)[:, None] * (B - A)
+    got = all_clearances(ur5, Q, box, st)
+    full_d, full_g = self_clearances(ur5, Q)
+    full_d = full_d + st.d_min - st.self_d_min
+    obs = sphere_clearances(ur5, Q, box)
+    k = obs.d.reshape(len(Q), -1).shape[1]
+    assert got.n_obstacle == k
+    np.testing.assert_array_equal(got.d[:, :k], obs.d.reshape(len(Q), -1))
+    far = st.d_min + st.safety + st.margin
+    near = full_d.min(axis=0) < far
+    assert 0 < near.sum() < len(near)  # some pairs come within the margin somewhere, most never do
+    # every pair that can enter the QP is there with its gradient; the rest is one column of their minimum
+    assert got.d.shape[1] == k + near.sum() + 1
+    np.testing.assert_array_equal(got.d[:, k:-1], full_d[:, near])
+    np.testing.assert_array_equal(got.grad[:, k:-1], full_g[:, near])
+    np.testing.assert_array_equal(got.d[:, -1], full_d[:, ~near].min(axis=1))
+    assert (got.d[:, -1] >= far).all() and not got.grad[:, -1].any()
+    np.testing.assert_array_equal(got.d.min(axis=1), np.minimum(obs.d.reshape(len(Q), -1).min(axis=1),
+                                                                full_d.min(axis=1)))

@@ -193,12 +193,14 @@ def sphere_distances(robot: Robot, q: ArrayLike, obstacles: Any, spheres: Sphere
 
 
 def sphere_distances_batch(robot: Robot, Q: ArrayLike, obstacles: Any, spheres: SphereModel | None = None, *,
-                           movable_only: bool = False) -> SphereDistances:
+                           movable_only: bool = False,
+                           kinematics: tuple[np.ndarray, np.ndarray] | None = None) -> SphereDistances:
     """:func:`sphere_distances` at T configurations ``Q`` (T, n) in one compiled call.
 
     :func:`sphere_distances` at T configurations ``Q`` (T, n) in one compiled call (CFS collision constraints at all
     time steps, Ch. 7). Results carry a leading (T,) axis: d (T, m, k), grad (T, m, k, n), normals/points (T, m, k,
-    3); ``spheres`` stays (m,).
+    3); ``spheres`` stays (m,). ``kinematics``: the sphere model's ``kinematics_batch(Q)`` (centres (T, M, 3) m,
+    Jacobians (T, M, 3, n)) when the caller has it already (all M spheres of the model).
     """
     sm = _sphere_model(robot, spheres)
     os_ = _obstacle_set(obstacles)
@@ -207,9 +209,9 @@ def sphere_distances_batch(robot: Robot, Q: ArrayLike, obstacles: Any, spheres: 
     mask = np.asarray(sm.movable, bool)
     radii = np.asarray(sm.radii, float)[idx]
     T, m, n = len(Q), len(idx), robot.nq
-    if T and hasattr(sm, "kinematics_batch"):
+    if T and (kinematics is not None or hasattr(sm, "kinematics_batch")):
         # one compiled kinematics pass over all configurations
-        C, J = sm.kinematics_batch(Q)
+        C, J = sm.kinematics_batch(Q) if kinematics is None else kinematics
         if movable_only:
             C, J = C[:, mask], J[:, mask]
         C, J = np.ascontiguousarray(C), np.ascontiguousarray(J)

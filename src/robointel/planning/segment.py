@@ -145,7 +145,8 @@ class Clearances:
     n_obstacle: int
 
 
-def self_clearances(robot: Robot, Q: np.ndarray, pairs: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def self_clearances(robot: Robot, Q: np.ndarray, pairs: np.ndarray | None = None, *,
+                    kinematics: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Signed distances between the spheres of each self-collision pair, and their gradients.
 
     d_ik = ||p_i(q) - p_k(q)|| - r_i - r_k, grad = u^T (J_i - J_k) with u the unit vector from p_k to p_i.
@@ -154,6 +155,7 @@ def self_clearances(robot: Robot, Q: np.ndarray, pairs: np.ndarray | None = None
         robot: The robot (its ``spheres`` and their ``self_pairs``: spheres on non-adjacent links).
         Q: (B, n) configurations, rad.
         pairs: (P, 2) sphere index pairs (default ``robot.spheres.self_pairs``).
+        kinematics: ``robot.spheres.kinematics_batch(Q)`` when the caller has it already.
 
     Returns:
         d (B, P) in m and grad (B, P, n) in m/rad.
@@ -163,7 +165,7 @@ def self_clearances(robot: Robot, Q: np.ndarray, pairs: np.ndarray | None = None
     B, n = len(Q), robot.nq
     if not len(pr) or not B:
         return np.zeros((B, 0)), np.zeros((B, 0, n))
-    C, J = sm.kinematics_batch(np.asarray(Q, float))
+    C, J = sm.kinematics_batch(np.asarray(Q, float)) if kinematics is None else kinematics
     d, g = np.empty((B, len(pr))), np.empty((B, len(pr), n))
     pair_clearances(np.ascontiguousarray(C, dtype=float), np.ascontiguousarray(J, dtype=float),
                     np.ascontiguousarray(pr[:, 0]), np.ascontiguousarray(pr[:, 1]),
@@ -174,25 +176,43 @@ def self_clearances(robot: Robot, Q: np.ndarray, pairs: np.ndarray | None = None
 def all_clearances(robot: Robot, Q: np.ndarray, obstacles: Any, settings: PlannerSettings) -> Clearances:
     """The obstacle and (with ``settings.self_collision``) self clearances CFS constrains, at Q (B, n).
 
+    The sphere kinematics are computed once for both. A self pair whose (shifted) clearance is at
+    least ``d_min + safety + margin`` at every one of the B configurations cannot enter the QP (a
+    row is constrained only within ``margin`` of the requirement ``d_min + safety``): such pairs
+    are left out, and one column with their smallest clearance per configuration (gradient zero)
+    stands for them, so that every minimum over the columns (feasibility, the elastic merit, the
+    reported clearance) is the same as with all pairs.
+
     Args:
         robot: The robot.
         Q: (B, n) configurations, rad.
         obstacles: The obstacles.
-        settings: ``self_collision``, ``d_min`` and ``self_d_min``.
+        settings: ``self_collision``, ``d_min``, ``self_d_min``, ``safety`` and ``margin``.
 
     Returns:
         The :class:`Clearances`.
     """
     B, n = len(Q), robot.nq
+    sm = robot.spheres
+    kin = None
+    if B and settings.self_collision and len(sm.self_pairs) and hasattr(sm, "kinematics_batch"):
+        kin = sm.kinematics_batch(np.asarray(Q, float))
     if obstacles:
-        D = sphere_clearances(robot, Q, obstacles)
+        D = sphere_distances_batch(robot, Q, tuple(obstacles), movable_only=True, kinematics=kin)
         d, g = D.d.reshape(B, -1), D.grad.reshape(B, -1, n)
     else:
         d, g = np.zeros((B, 0)), np.zeros((B, 0, n))
     k = d.shape[1]
     if settings.self_collision:
-        ds, gs = self_clearances(robot, Q)
-        d = np.concatenate([d, ds + (settings.d_min - settings.self_d_min)], axis=1)
+        ds, gs = self_clearances(robot, Q, kinematics=kin)
+        ds += settings.d_min - settings.self_d_min
+        far = settings.d_min + settings.safety + settings.margin
+        keep = ds.min(axis=0, initial=np.inf) < far
+        if not keep.all():  # the far pairs: one column of their minimum, never a QP row
+            rest = ds[:, ~keep].min(axis=1, keepdims=True)
+            ds, gs = np.concatenate([ds[:, keep], rest], axis=1), np.concatenate([gs[:, keep], np.zeros((B, 1, n))],
+                                                                                   axis=1)
+        d = np.concatenate([d, ds], axis=1)
         g = np.concatenate([g, gs], axis=1)
     return Clearances(d, g, k)
 
