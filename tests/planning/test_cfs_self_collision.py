@@ -79,3 +79,6 @@ def test_far_self_pairs_are_left_out_without_changing_a_row_or_a_minimum(ur5):
     assert (got.d[:, -1] >= far).all() and not got.grad[:, -1].any()
     np.testing.assert_array_equal(got.d.min(axis=1), np.minimum(obs.d.reshape(len(Q), -1).min(axis=1),
                                                                 full_d.min(axis=1)))
+    every = all_clearances(ur5, Q, box, st, cull=False)  # SLSQP's fixed set of constraints: every pair
+    np.testing.assert_array_equal(every.d[:, k:], full_d)
+    np.testing.assert_array_equal(every.grad[:, k:], full_g)

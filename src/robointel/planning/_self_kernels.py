@@ -29,3 +29,17 @@ def pair_clearances(C: np.ndarray, J: np.ndarray, a: np.ndarray, b: np.ndarray, 
             for j in range(n):
                 g[s, p, j] = (v0 * (J[s, i, 0, j] - J[s, k, 0, j]) + v1 * (J[s, i, 1, j] - J[s, k, 1, j])
                               + v2 * (J[s, i, 2, j] - J[s, k, 2, j]))
+
+
+@njit(cache=True)
+def pair_distances(C: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray,
+                   d: np.ndarray) -> None:  # pragma: no cover - compiled
+    """Fill d (B, P) from sphere centres C (B, m, 3): :func:`pair_clearances` without the gradients."""
+    B, P = d.shape
+    for s in range(B):
+        for p in range(P):
+            i, k = a[p], b[p]
+            v0 = C[s, i, 0] - C[s, k, 0]
+            v1 = C[s, i, 1] - C[s, k, 1]
+            v2 = C[s, i, 2] - C[s, k, 2]
+            d[s, p] = (v0 * v0 + v1 * v1 + v2 * v2) ** 0.5 - radii[i] - radii[k]

@@ -12,7 +12,7 @@ import numpy as np
 
 from robointel.errors import CollisionAtStart, InvalidInput
 from robointel.geometry import sphere_distances_batch
-from robointel.planning._self_kernels import pair_clearances
+from robointel.planning._self_kernels import pair_clearances, pair_distances
 
 if TYPE_CHECKING:  # pragma: no cover
     from robointel.geometry.distance import SphereDistances
@@ -173,7 +173,8 @@ def self_clearances(robot: Robot, Q: np.ndarray, pairs: np.ndarray | None = None
     return d, g
 
 
-def all_clearances(robot: Robot, Q: np.ndarray, obstacles: Any, settings: PlannerSettings) -> Clearances:
+def all_clearances(robot: Robot, Q: np.ndarray, obstacles: Any, settings: PlannerSettings, *,
+                   cull: bool = True) -> Clearances:
     """The obstacle and (with ``settings.self_collision``) self clearances CFS constrains, at Q (B, n).
 
     The sphere kinematics are computed once for both. A self pair whose (shifted) clearance is at
@@ -181,13 +182,15 @@ def all_clearances(robot: Robot, Q: np.ndarray, obstacles: Any, settings: Planne
     row is constrained only within ``margin`` of the requirement ``d_min + safety``): such pairs
     are left out, and one column with their smallest clearance per configuration (gradient zero)
     stands for them, so that every minimum over the columns (feasibility, the elastic merit, the
-    reported clearance) is the same as with all pairs.
+    reported clearance) is the same as with all pairs. ``cull=False`` keeps every pair (a solver that
+    needs the same constraints at every call, SLSQP).
 
     Args:
         robot: The robot.
         Q: (B, n) configurations, rad.
         obstacles: The obstacles.
         settings: ``self_collision``, ``d_min``, ``self_d_min``, ``safety`` and ``margin``.
+        cull: leave out the self pairs that cannot enter the QP (see above).
 
     Returns:
         The :class:`Clearances`.
@@ -203,16 +206,25 @@ def all_clearances(robot: Robot, Q: np.ndarray, obstacles: Any, settings: Planne
     else:
         d, g = np.zeros((B, 0)), np.zeros((B, 0, n))
     k = d.shape[1]
-    if settings.self_collision:
-        ds, gs = self_clearances(robot, Q, kinematics=kin)
-        ds += settings.d_min - settings.self_d_min
-        far = settings.d_min + settings.safety + settings.margin
-        keep = ds.min(axis=0, initial=np.inf) < far
+    if kin is not None and cull:
+        shift = settings.d_min - settings.self_d_min
+        pr = np.asarray(sm.self_pairs, np.int64).reshape(-1, 2)
+        C = np.ascontiguousarray(kin[0], dtype=float)
+        dall = np.empty((B, len(pr)))
+        pair_distances(C, np.ascontiguousarray(pr[:, 0]), np.ascontiguousarray(pr[:, 1]),
+                       np.ascontiguousarray(sm.radii, dtype=float), dall)
+        dall += shift
+        keep = dall.min(axis=0) < settings.d_min + settings.safety + settings.margin
+        ds, gs = self_clearances(robot, Q, pr[keep], kinematics=(C, kin[1]))
+        ds += shift
         if not keep.all():  # the far pairs: one column of their minimum, never a QP row
-            rest = ds[:, ~keep].min(axis=1, keepdims=True)
-            ds, gs = np.concatenate([ds[:, keep], rest], axis=1), np.concatenate([gs[:, keep], np.zeros((B, 1, n))],
-                                                                                   axis=1)
+            ds = np.concatenate([ds, dall[:, ~keep].min(axis=1, keepdims=True)], axis=1)
+            gs = np.concatenate([gs, np.zeros((B, 1, n))], axis=1)
         d = np.concatenate([d, ds], axis=1)
+        g = np.concatenate([g, gs], axis=1)
+    elif settings.self_collision:
+        ds, gs = self_clearances(robot, Q, kinematics=kin)
+        d = np.concatenate([d, ds + (settings.d_min - settings.self_d_min)], axis=1)
         g = np.concatenate([g, gs], axis=1)
     return Clearances(d, g, k)
 

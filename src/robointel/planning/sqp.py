@@ -110,7 +110,7 @@ def slsqp_segment(planner: TrajectoryPlanner, start: ArrayLike, goal: ArrayLike,
         key = z.tobytes()
         if key not in cache:
             cache.clear()
-            cache[key] = planner.distances(knots(z))
+            cache[key] = planner.distances(knots(z), cull=False)  # a fixed set of constraints
         return cache[key]
 
     def fun(z: np.ndarray) -> NDArray[np.float64]:

@@ -206,14 +206,15 @@ class TrajectoryPlanner:
         t, a = self._sample_t, self._sample_a[:, None]
         return (1 - a) * X[t] + a * X[t + 1]
 
-    def distances(self, X: np.ndarray) -> Clearances | None:
+    def distances(self, X: np.ndarray, *, cull: bool = True) -> Clearances | None:
         """Exact clearances at all samples of the knots X (N+1, n): :func:`all_clearances` (obstacles, self pairs).
 
-        d (S, C) and grad (S, C, n); None when there is nothing to keep clear of.
+        d (S, C) and grad (S, C, n); None when there is nothing to keep clear of. ``cull=False``: every
+        self pair, so that C is the same at every call.
         """
         if not self.obstacles and not (self.settings.self_collision and len(self.robot.spheres.self_pairs)):
             return None
-        return all_clearances(self.robot, self._sample_configs(X), self.obstacles, self.settings)
+        return all_clearances(self.robot, self._sample_configs(X), self.obstacles, self.settings, cull=cull)
 
     def config_distances(self, Q: np.ndarray) -> SphereDistances:
         """Sphere/obstacle distances at configurations Q (B, n): see :func:`sphere_clearances`."""
