@@ -37,9 +37,27 @@ SELF_EARLY = 128
 
 def _travel(Q: np.ndarray) -> np.ndarray:
     """(K, n): each joint's travel from sample 0 to each sample of Q (K, n) (the schedules' clock), rad."""
-    Cq = np.zeros(Q.shape)
-    np.cumsum(np.abs(np.diff(Q, axis=0)), axis=0, out=Cq[1:])
+    Cq = np.empty(Q.shape)
+    D.variation(Q, Cq)
     return Cq
+
+
+@njit(cache=True)
+def _front(due: np.ndarray, m: int, early: int, out: np.ndarray) -> tuple[int, int]:  # pragma: no cover - compiled
+    """The next sample to measure at, k = min(due[:m]), and the pairs due by k + ``early``.
+
+    Writes their positions in ``due`` to ``out[:c]``; returns (k, c).
+    """
+    k = due[0]
+    for i in range(1, m):
+        if due[i] < k:
+            k = due[i]
+    c = 0
+    for i in range(m):
+        if due[i] <= k + early:
+            out[c] = i
+            c += 1
+    return k, c
 
 
 def timed_out(what: str, chk: DenseCheck) -> DenseCheck:
@@ -136,7 +154,7 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
         idx = np.flatnonzero(doubt)
         # each (part, obstacle) pair measured at the first doubtful sample, then again only at the first
         # doubtful sample where its travel since (pair_lever) may have eaten its margin (as in self_check)
-        Cq = _travel(Q)
+        Cq = V
         due = np.zeros(len(mg.pair_lever), np.int64)
         n = 0
         while True:
@@ -197,11 +215,14 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
     m = len(tree.roots)
     item[:m], due[:m], lever[:m] = tree.roots, 0, tree.lever[tree.roots]
     n = 0
+    front = np.empty(cap, np.int64)
     while True:
-        k = int(due[:m].min())
+        if len(front) < m:
+            front = np.empty(len(due), np.int64)
+        k, c = _front(due, m, SELF_EARLY, front)
         if k >= K:
             return chk
-        which = np.flatnonzero(due[:m] <= k + SELF_EARLY)
+        which = front[:c].copy()
         if n % MESH_CHUNK == 0 and clock_now() >= deadline:
             return timed_out("the self-collision check", chk)
         n += 1
