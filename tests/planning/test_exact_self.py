@@ -155,3 +155,16 @@ def test_tree_closest_below_agrees_with_every_pair(ur5_self):
                 assert abs(got[0] - ref) <= 1e-9
                 found += 1
     assert found >= 3
+
+
+def test_the_schedule_front_and_the_joints_travel():
+    from robointel.planning.hybrid_check import _front, _travel
+
+    due = np.array([40, 7, 300, 9, 135, 136, 7000], np.int64)
+    out = np.empty(len(due), np.int64)
+    k, c = _front(due, 6, 128, out)  # the last entry is past m: not looked at
+    assert (k, list(out[:c])) == (7, [0, 1, 3, 4])  # due by 7 + 128
+    Q = np.random.default_rng(3).normal(size=(50, 4))
+    Cq = _travel(Q)
+    np.testing.assert_allclose(Cq[1:], np.cumsum(np.abs(np.diff(Q, axis=0)), axis=0), rtol=1e-14, atol=1e-14)
+    assert not Cq[0].any()
