@@ -118,3 +118,22 @@ def test_ftol_stops_early_on_a_feasible_iterate():
     quick = cfs(H, f, constraints=cons, z0=np.array(z0), eps=1e-10, max_iter=200, ftol=1e-3)
     assert quick.converged and quick.feasible and quick.iterations < full.iterations
     assert quick.costs[-1] <= quick.costs[0]
+
+
+def test_a_dense_qp_solved_through_the_cholesky_factor_is_the_same_qp():
+    from robointel.planning.qp import cholesky_factor
+
+    rng = np.random.default_rng(5)
+    n, m = 30, 45
+    B = rng.normal(size=(n, n))
+    P = B @ B.T + np.eye(n)
+    q, A = rng.normal(size=n), rng.normal(size=(m, n))
+    l, u = np.full(m, -1e20), rng.uniform(0.1, 1.0, m)
+    u[:10] = -0.2  # some rows active at the solution
+    plain = DenseQP().solve(P, q, A, l, u, full_P=True)
+    fac = DenseQP().solve(P, q, A, l, u, full_P=True, factor=cholesky_factor(P))
+    assert plain.solved and fac.solved
+    np.testing.assert_allclose(fac.x, plain.x, atol=1e-9)
+    np.testing.assert_allclose(fac.y, plain.y, atol=1e-9)
+    assert np.any(np.abs(plain.y) > 1e-6)
+    assert cholesky_factor(-np.eye(3)) is None  # not positive definite: no factor

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from robointel.errors import InvalidInput
-from robointel.planning.qp import INF, DenseQP, QPSolution, SparseQP
+from robointel.planning.qp import INF, DenseQP, QPSolution, SparseQP, cholesky_factor
 
 SOLVERS = ("daqp", "osqp")
 """The solvers :class:`SegmentQPSolver` offers."""
@@ -52,6 +52,7 @@ class SegmentQPSolver:
         self.qp = SparseQP(eps_abs=1e-5, eps_rel=1e-5, polishing=False, max_iter=20000)
         self._dense = DenseQP()
         self._Pz_dense: np.ndarray | None = None
+        self._factors: dict[bool, tuple[np.ndarray, np.ndarray] | None] = {}  # per "slacks in the QP"
         self._Ad: np.ndarray | None = None
         self._data_rc: tuple[np.ndarray, np.ndarray] | None = None
         self._y_full: np.ndarray | None = None
@@ -104,11 +105,14 @@ class SegmentQPSolver:
         if not elastic:
             work[self._slack_rows] = False
         P = Pz if elastic else Pz[: self.nv, : self.nv]
+        if elastic not in self._factors:  # P is the same at every call: factored once
+            self._factors[elastic] = cholesky_factor(P)
+        factor = self._factors[elastic]
         sol: QPSolution | None = None
         for _ in range(8):
             y0 = self._y_full[work] if self._y_full is not None else None
             sol = self._dense.solve(P, qz[:nvar], np.ascontiguousarray(Ad[work, :nvar]), l[work], u[work],
-                                    x0=z0[:nvar], full_P=True, y0=y0)
+                                    x0=z0[:nvar], full_P=True, y0=y0, factor=factor)
             self.stats["daqp"] += 1
             self.stats["daqp_iterations"] = self.stats.get("daqp_iterations", 0) + sol.iterations
             if not sol.solved:
