@@ -103,3 +103,20 @@ def test_numeric_ik_solves_reachable_poses(name, shared_data):
     far[:3, 3] = [5.0, 0.0, 0.0]
     with pytest.raises(IKFailure, match="unreachable"):
         r.ik_numeric(far, restarts=5)
+
+
+@pytest.mark.parametrize("urdf", ["kinova_description/robots/kinova.urdf", "panda_description/urdf/panda.urdf",
+                                  "ur_description/urdf/ur5_robot.urdf"])
+def test_compiled_batch_kinematics_are_pinocchios(urdf):
+    r = Robot.load(example_robot_urdf(urdf))
+    rng = np.random.default_rng(11)
+    lo, hi = np.maximum(r.lower, -3.0), np.minimum(r.upper, 3.0)
+    Q = rng.uniform(lo, hi, (7, r.nq))
+    joints = rng.integers(1, r.model.njoints, 9)
+    pts = rng.normal(scale=0.2, size=(9, 3))
+    assert r._chain_batch  # each joint its own coordinate: the compiled path
+    P, J = r.points_kinematics_batch(Q, joints, pts, angular=True)
+    r._chain_batch = False  # Pinocchio's computeJointJacobians, sample by sample
+    P0, J0 = r.points_kinematics_batch(Q, joints, pts, angular=True)
+    np.testing.assert_allclose(P, P0, atol=1e-12)
+    np.testing.assert_allclose(J, J0, atol=1e-12)

@@ -12,6 +12,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from robointel.robot._ik_kernels import chain_placements
+
 #: any numpy array (the compiled kernels take contiguous float64/int64/bool arrays)
 Arr = NDArray[Any]
 
@@ -143,3 +145,39 @@ def points_jacobians_batch(T: Arr, Jw: Arr, joints: Arr, pts: Arr,  # pragma: no
     """:func:`points_jacobians` for a batch: T (B, nj, 4, 4), Jw (B, 6, n) -> P (B, m, 3), J (B, m, 6, n)."""
     for b in range(T.shape[0]):
         points_jacobians(T[b], Jw[b], joints, pts, anc, P[b], J[b])
+
+
+@njit(cache=True)
+def chain_jacobians_batch(Q: Arr, parent: Arr, place: Arr, axis: Arr, kind: Arr, qidx: Arr,  # pragma: no cover
+                          T: Arr, Jw: Arr) -> None:
+    """Every joint's placement T (B, nj, 4, 4) and the joint Jacobians Jw (B, 6, n) at each Q[b].
+
+    Jw is Pinocchio's ``computeJointJacobians`` (WORLD frame: the spatial velocity at the world
+    origin): a revolute joint with world axis a through o contributes [o x a; a] to its column, a
+    prismatic one [a; 0]. The chain arrays are :func:`~robointel.robot.chain.chain_arrays`' (each
+    joint its own configuration index); T[b, 0] is set to the identity.
+    """
+    nj = parent.shape[0]
+    for b in range(Q.shape[0]):
+        Tb = T[b]
+        for r in range(4):
+            for c in range(4):
+                Tb[0, r, c] = 1.0 if r == c else 0.0
+        chain_placements(Q[b], parent, place, axis, kind, qidx, Tb)
+        for k in range(Jw.shape[2]):
+            for r in range(6):
+                Jw[b, r, k] = 0.0
+        for j in range(1, nj):
+            k = qidx[j]
+            ax, ay, az = axis[j, 0], axis[j, 1], axis[j, 2]
+            a0 = Tb[j, 0, 0] * ax + Tb[j, 0, 1] * ay + Tb[j, 0, 2] * az
+            a1 = Tb[j, 1, 0] * ax + Tb[j, 1, 1] * ay + Tb[j, 1, 2] * az
+            a2 = Tb[j, 2, 0] * ax + Tb[j, 2, 1] * ay + Tb[j, 2, 2] * az
+            if kind[j] == 0:
+                o0, o1, o2 = Tb[j, 0, 3], Tb[j, 1, 3], Tb[j, 2, 3]
+                Jw[b, 0, k] = o1 * a2 - o2 * a1
+                Jw[b, 1, k] = o2 * a0 - o0 * a2
+                Jw[b, 2, k] = o0 * a1 - o1 * a0
+                Jw[b, 3, k], Jw[b, 4, k], Jw[b, 5, k] = a0, a1, a2
+            else:
+                Jw[b, 0, k], Jw[b, 1, k], Jw[b, 2, k] = a0, a1, a2

@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from robointel._validate import as_array
 from robointel.errors import DescriptionError, DescriptionWarning, IKFailure, InvalidInput
-from robointel.robot._kernels import points_jacobians, points_jacobians_batch
+from robointel.robot._kernels import chain_jacobians_batch, points_jacobians, points_jacobians_batch
 from robointel.robot.catalogue import find_urdf
 from robointel.robot.chain import chain_arrays
 from robointel.robot.collision import SphereModel
@@ -144,6 +144,9 @@ class Robot(JointSpace, RigidBodyDynamics):
                 if a > 0:
                     self._ancestor[j, model.joints[a].idx_v] = True
         self.chain = chain_arrays(model)
+        # the compiled batch kinematics need each joint on its own configuration index
+        q_of = self.chain[4][1:]
+        self._chain_batch = len(np.unique(q_of)) == len(q_of) and len(q_of) == self.nq
         # live references into Pinocchio's data (they follow every kinematics call)
         self._oMi = [self.data.oMi[i] for i in range(model.njoints)]
         self._Jw = self.data.J
@@ -317,11 +320,14 @@ class Robot(JointSpace, RigidBodyDynamics):
         B, nj = len(Q), self.model.njoints
         Ts = np.empty((B, nj, 4, 4))
         Jws = np.empty((B, 6, self.nq))
-        for b in range(B):
-            pin.computeJointJacobians(self.model, self.data, Q[b])
-            for i, x in enumerate(self._oMi):
-                Ts[b, i] = x.np
-            Jws[b] = self._Jw
+        if self._chain_batch:  # compiled over the joint chain: Pinocchio's placements and joint Jacobians
+            chain_jacobians_batch(np.ascontiguousarray(Q, dtype=float), *self.chain, Ts, Jws)
+        else:
+            for b in range(B):
+                pin.computeJointJacobians(self.model, self.data, Q[b])
+                for i, x in enumerate(self._oMi):
+                    Ts[b, i] = x.np
+                Jws[b] = self._Jw
         m = len(joints)
         P = np.empty((B, m, 3))
         J = np.empty((B, m, 6, self.nq))
