@@ -347,10 +347,17 @@ class Environment:
             InvalidInput: a blend outside [0, 1] or of the wrong length.
         """
         m = len(self._fitted[2])
-        b = np.broadcast_to(np.asarray(blend, float), (m,)) if np.ndim(blend) == 0 else np.asarray(blend, float)
+        gs = self._fitted[6]
+        if np.ndim(blend) == 0:  # one blend for all (the planner's bisection calls this often: no reductions)
+            v = float(blend)  # type: ignore[arg-type]
+            if not 0.0 <= v <= 1.0:
+                raise InvalidInput(f"a blend must be in [0, 1], one or one per sphere ({m}), got {blend}", value=blend)
+            b = np.full(m, v)
+            b.flags.writeable = False
+            return b, np.full(len(gs) - 1, v) if m else np.zeros(0)
+        b = np.asarray(blend, float)
         if b.shape != (m,) or not (np.all(b >= 0.0) and np.all(b <= 1.0)):
             raise InvalidInput(f"a blend must be in [0, 1], one or one per sphere ({m}), got {blend}", value=blend)
-        gs = self._fitted[6]
         bg = np.maximum.reduceat(b, gs[:-1]) if m else np.zeros(0)
         return b, bg
 
