@@ -70,3 +70,16 @@ def test_mesh_levers_bound_every_vertex_displacement(shared_data):
             moved = np.linalg.norm(v @ (a[:3, :3] - b[:3, :3]).T + (a[:3, 3] - b[:3, 3]), axis=1).max()
             worst = max(worst, moved / float(mg.part_lever[i] @ np.abs(dq)))
     assert 0.3 < worst <= 1.0  # each part's own bound, and not a vacuous one
+
+
+def test_compiled_frame_placements_are_pinocchios(shared_data):
+    from robointel.geometry import Box
+
+    r = Robot.load(shared_data("mbm", "fetch", "fetch.urdf"))  # a prismatic torso below the arm
+    mg = MeshGeometry(r, [Box(center=np.array([0.8, 0.0, 0.5]), size=np.array([0.2, 0.2, 0.2]))])
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        q = rng.uniform(np.maximum(r.lower, -3.0), np.minimum(r.upper, 3.0))
+        pin.framesForwardKinematics(r.model, r.data, q)
+        want = np.array([r.data.oMf[f].homogeneous for f in mg._frames])
+        np.testing.assert_allclose(mg._frame_placements(q), want, rtol=0, atol=1e-12)

@@ -18,6 +18,7 @@ from numba import njit
 
 from robointel.errors import DescriptionError
 from robointel.geometry.obstacles import Box, Capsule, Cylinder, Obstacle, Sphere
+from robointel.robot._ik_kernels import chain_placements
 from robointel.robot.model import Robot
 
 
@@ -155,10 +156,33 @@ def sphere_box_bounds(T: np.ndarray, part_frame: np.ndarray, centres: np.ndarray
         out[n] = np.sqrt(d2) - radii[p]
 
 
+@njit(cache=True)
+def frame_placements(q: np.ndarray, parent: np.ndarray, place: np.ndarray, axis: np.ndarray, kind: np.ndarray,
+                     qidx: np.ndarray, frame_joint: np.ndarray, frame_place: np.ndarray, T: np.ndarray,
+                     out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """out[f] = the world placement (4, 4) at q of a frame on joint ``frame_joint[f]`` at ``frame_place[f]``.
+
+    The joints' placements T (nj, 4, 4) by the chain kernel (:func:`~robointel.robot._ik_kernels.chain_placements`,
+    the chain arrays of :func:`~robointel.robot.chain.chain_arrays`); Pinocchio's ``oMf`` of those frames.
+    """
+    for r in range(4):
+        for c in range(4):
+            T[0, r, c] = 1.0 if r == c else 0.0
+    chain_placements(q, parent, place, axis, kind, qidx, T)
+    for f in range(frame_joint.shape[0]):
+        A, B = T[frame_joint[f]], frame_place[f]
+        for r in range(3):
+            for c in range(4):
+                out[f, r, c] = A[r, 0] * B[0, c] + A[r, 1] * B[1, c] + A[r, 2] * B[2, c] + A[r, 3] * B[3, c]
+        out[f, 3, 0], out[f, 3, 1], out[f, 3, 2], out[f, 3, 3] = 0.0, 0.0, 0.0, 1.0
+
+
 def warm_broad_phase() -> None:
-    """Compile (or load from numba's disk cache) :func:`sphere_box_bounds` for the argument types it is called with."""
+    """Compile (or load from numba's disk cache) :func:`sphere_box_bounds` and :func:`frame_placements`."""
     i1, f1 = np.zeros(1, np.int64), np.zeros(1)
     sphere_box_bounds(np.zeros((1, 4, 4)), i1, np.zeros((1, 3)), f1, np.zeros((1, 3)), np.zeros((1, 3)), i1, i1, f1)
+    i2, T = np.array([-1, 0], np.int64), np.zeros((2, 4, 4))
+    frame_placements(f1, i2, T, np.zeros((2, 3)), i2, i2, i1, np.zeros((1, 4, 4)), T.copy(), np.zeros((1, 4, 4)))
 
 
 class MeshGeometry:
@@ -190,6 +214,7 @@ class MeshGeometry:
         self.pair_lever = np.repeat(side.part_lever, len(self.obstacles), axis=0)
         self._req = coal.DistanceRequest()
         self._frames, self._part_frame = side.frames, side.part_frame
+        self._frame_joint, self._frame_place = side.frame_joint, side.frame_place
         self._centres, self._radii = side.centres, side.radii
         P, O = len(self.parts), len(self.obstacles)
         self._all_pp, self._all_oo = np.repeat(np.arange(P), O), np.tile(np.arange(O), P)  # every pair p * O + o
@@ -277,6 +302,11 @@ class MeshGeometry:
     def _frame_placements(self, q: np.ndarray) -> np.ndarray:
         """(F, 4, 4) the placements at q of the link frames that carry parts (``self._frames``)."""
         robot = self.robot
+        if robot._chain_batch:  # compiled over the joint chain
+            out = np.empty((len(self._frames), 4, 4))
+            frame_placements(np.asarray(q, float), *robot.chain, self._frame_joint, self._frame_place,
+                             np.empty((robot.model.njoints, 4, 4)), out)
+            return out
         pin.framesForwardKinematics(robot.model, robot.data, q)
         oMf = robot.data.oMf
         return np.array([oMf[f].homogeneous for f in self._frames])
@@ -298,6 +328,10 @@ class _RobotMeshes:
         self.parts = parts
         self.part_lever = _part_levers(robot, parts)
         self.frames = sorted({p.frame for p in parts})
+        #: each frame's joint and placement on it (Pinocchio's frame tree, for the compiled placements)
+        self.frame_joint = np.array([robot.model.frames[f].parentJoint for f in self.frames], np.int64)
+        self.frame_place = np.array([robot.model.frames[f].placement.homogeneous for f in self.frames],
+                                    float).reshape(-1, 4, 4)
         self.part_frame = np.array([self.frames.index(p.frame) for p in parts], int)
         self.centres = np.array([p.centre for p in parts], float).reshape(-1, 3)
         self.radii = np.array([p.radius for p in parts], float)
