@@ -10,7 +10,7 @@ import pytest
 
 from robointel.geometry.obstacles import Box, Sphere
 from robointel.planning import Environment
-from robointel.planning import environment as envmod
+from robointel.planning import _sphere_pack as packmod
 from robointel.robot import Robot
 from robointel.robot.collision import SphereModel
 
@@ -26,7 +26,7 @@ def test_environments_of_one_robot_share_the_robot_side_and_agree_with_a_fresh_p
     a = Environment(robot, [wall], floor=0.0)
     b = Environment(robot, [ball], floor=0.0)
     assert a._cover is b._cover and a._self is b._self and a.spheres is b.spheres  # packed once
-    envmod._ROBOT_CACHE.clear()
+    packmod._ROBOT_CACHE.clear()
     fresh = Environment(robot, [ball], floor=0.0)
     assert fresh._cover is not b._cover
     assert _world_equal(fresh, b)

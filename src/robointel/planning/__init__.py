@@ -15,7 +15,7 @@
 
 
 from robointel.planning.cfs import CFSResult, NonlinearConstraint, cfs
-from robointel.planning.environment import Contact, Environment, sphere_model_from_urdf
+from robointel.planning.environment import Contact, Environment
 from robointel.planning.frmp import (
     Execution,
     FRMPResult,
@@ -32,6 +32,7 @@ from robointel.planning.ompl_peer import OMPLResult, rrtconnect
 from robointel.planning.qp import DenseQP, SparseQP
 from robointel.planning.replan import ReplanResult, receding_horizon
 from robointel.planning.scene import Scene, builtin_scenes, load_scene, scene_from_dict
+from robointel.planning.sphere_file import sphere_model_from_urdf
 from robointel.planning.sqp import SQPResult, slsqp, slsqp_segment
 from robointel.planning.temporal import (
     TemporalResult,

@@ -9,6 +9,15 @@ import numpy as np
 from numba import njit
 
 
+@njit(cache=True, inline="always")
+def _offset(C: np.ndarray, s: int, i: int, k: int) -> tuple[float, float, float, float]:  # pragma: no cover
+    """(c_i - c_k, ||c_i - c_k||) at configuration s of the centres C (B, m, 3)."""
+    v0 = C[s, i, 0] - C[s, k, 0]
+    v1 = C[s, i, 1] - C[s, k, 1]
+    v2 = C[s, i, 2] - C[s, k, 2]
+    return v0, v1, v2, (v0 * v0 + v1 * v1 + v2 * v2) ** 0.5
+
+
 @njit(cache=True)
 def pair_clearances(C: np.ndarray, J: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarray, d: np.ndarray,
                     g: np.ndarray) -> None:  # pragma: no cover - compiled
@@ -18,10 +27,7 @@ def pair_clearances(C: np.ndarray, J: np.ndarray, a: np.ndarray, b: np.ndarray, 
     for s in range(B):
         for p in range(P):
             i, k = a[p], b[p]
-            v0 = C[s, i, 0] - C[s, k, 0]
-            v1 = C[s, i, 1] - C[s, k, 1]
-            v2 = C[s, i, 2] - C[s, k, 2]
-            L = (v0 * v0 + v1 * v1 + v2 * v2) ** 0.5
+            v0, v1, v2, L = _offset(C, s, i, k)
             d[s, p] = L - radii[i] - radii[k]
             if L < 1e-12:
                 v0, v1, v2, L = 0.0, 0.0, 1.0, 1.0
@@ -39,7 +45,4 @@ def pair_distances(C: np.ndarray, a: np.ndarray, b: np.ndarray, radii: np.ndarra
     for s in range(B):
         for p in range(P):
             i, k = a[p], b[p]
-            v0 = C[s, i, 0] - C[s, k, 0]
-            v1 = C[s, i, 1] - C[s, k, 1]
-            v2 = C[s, i, 2] - C[s, k, 2]
-            d[s, p] = (v0 * v0 + v1 * v1 + v2 * v2) ** 0.5 - radii[i] - radii[k]
+            d[s, p] = _offset(C, s, i, k)[3] - radii[i] - radii[k]

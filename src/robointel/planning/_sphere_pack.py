@@ -4,10 +4,21 @@ Packed once per robot and sphere set by :class:`~robointel.planning.environment.
 """
 from __future__ import annotations
 
+import weakref
+from typing import Any
+
 import numpy as np
 
 from robointel.planning import _collision_kernels as K
 from robointel.robot.model import Robot
+
+#: per robot (weakly held): spherized-URDF reads and packed sphere models, keyed by their content
+_ROBOT_CACHE: weakref.WeakKeyDictionary[Robot, dict[tuple, Any]] = weakref.WeakKeyDictionary()
+
+
+def robot_cache(robot: Robot) -> dict[tuple, Any]:
+    """The cache of ``robot``'s sphere reads and packed arrays (gone with the robot)."""
+    return _ROBOT_CACHE.setdefault(robot, {})
 
 
 def _variable_pairs(W: tuple, robot: Robot, smask: np.ndarray, samples: int = 500) -> np.ndarray:

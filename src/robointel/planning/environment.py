@@ -8,22 +8,28 @@ A configuration q is valid when every robot sphere keeps distance >= d_min to ev
 """
 from __future__ import annotations
 
-import weakref
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
 from robointel._validate import as_array
-from robointel.errors import CollisionAtStart, DescriptionError, InvalidInput
+from robointel.errors import CollisionAtStart, InvalidInput
 from robointel.geometry import _kernels as GK
 from robointel.geometry.obstacles import Box, Capsule, Cylinder, Obstacle, PointCloud, Sphere
 from robointel.planning import _collision_kernels as K
-from robointel.planning._sphere_pack import _chain_arrays, _levers, _sphere_levers, _variable_pairs, culling_groups
+from robointel.planning._sphere_pack import (
+    _chain_arrays,
+    _levers,
+    _sphere_levers,
+    _variable_pairs,
+    culling_groups,
+    robot_cache,
+)
+from robointel.planning.sphere_file import urdf_spheres
 from robointel.robot.collision import SphereModel, primitive_spheres
 from robointel.robot.model import Robot
 from robointel.robot.sphere_cover import cover_meshes
@@ -32,69 +38,6 @@ from robointel.robot.srdf import disabled_pairs
 #: Cells of the point-cloud grid are at least this large (m).
 CLOUD_CELL = 0.02
 _MAX_CELLS = 2_000_000
-
-
-def sphere_model_from_urdf(robot: Robot, path: str | Path) -> SphereModel:
-    """Spheres read from a "spherized" URDF.
-
-    One ``<sphere>`` collision per sphere, as shipped with VAMP/MotionBenchMaker; bound to ``robot`` by link name.
-
-    Args:
-        robot: the arm the spheres belong to (same link names).
-        path: the spherized URDF file.
-
-    Returns:
-        The sphere model, bound to ``robot``.
-
-    Raises:
-        InvalidInput: the file cannot be read, has no spheres, or names a link ``robot`` lacks.
-    """
-    links, centres, radii = _urdf_spheres(robot, path)
-    return SphereModel(links, centres, radii).bind(robot)
-
-
-def _urdf_spheres(robot: Robot, path: str | Path) -> tuple[list[str], np.ndarray, np.ndarray]:
-    """Links, centres and radii of a spherized URDF's spheres (the file read once per path and version)."""
-    try:
-        st = Path(path).stat()
-    except OSError as exc:
-        raise InvalidInput(f"cannot read sphere URDF {path}: {exc}", value=str(path)) from None
-    key = (str(Path(path).resolve()), st.st_mtime_ns, st.st_size)
-    hit = _robot_cache(robot).get(key)
-    if hit is None:
-        hit = _read_urdf_spheres(robot, path)
-        _robot_cache(robot)[key] = hit
-    links, centres, radii = hit
-    return list(links), centres.copy(), radii.copy()
-
-
-def _read_urdf_spheres(robot: Robot, path: str | Path) -> tuple[list[str], np.ndarray, np.ndarray]:
-    try:
-        src = Robot.load(path)
-    except (DescriptionError, OSError) as exc:
-        raise InvalidInput(f"cannot read sphere URDF {path}: {exc}", value=str(path)) from None
-    links, centres, radii = [], [], []
-    for link, prims in src.collision_primitives().items():
-        for p in prims:
-            if p["type"] != "sphere":
-                continue
-            if link not in robot.link_names:
-                raise InvalidInput(f"sphere URDF {path}: link {link!r} is not a link of {robot.name!r}", value=link)
-            c, r = primitive_spheres(p)
-            links += [link] * len(r)
-            centres.append(c)
-            radii.append(r)
-    if not links:
-        raise InvalidInput(f"sphere URDF {path} holds no <sphere> collision geometry", value=str(path))
-    return links, np.concatenate(centres), np.concatenate(radii)
-
-
-#: per robot (weakly held): spherized-URDF reads and packed sphere models, keyed by their content
-_ROBOT_CACHE: weakref.WeakKeyDictionary[Robot, dict[tuple, Any]] = weakref.WeakKeyDictionary()
-
-
-def _robot_cache(robot: Robot) -> dict[tuple, Any]:
-    return _ROBOT_CACHE.setdefault(robot, {})
 
 
 @dataclass(frozen=True)
@@ -182,7 +125,7 @@ class Environment:
             sm = robot.spheres if spheres is None else spheres
             links, centres, radii = list(sm.links), np.asarray(sm.centers, float), np.asarray(sm.radii, float)
         else:
-            links, centres, radii = _urdf_spheres(robot, spheres)
+            links, centres, radii = urdf_spheres(robot, spheres)
         if attached:
             link = attach_link or robot.flange_frame
             if attach_link is not None:
@@ -210,13 +153,13 @@ class Environment:
         # robot and these inputs only: packed once and shared by every environment of the robot (read-only)
         key = ("pack", tuple(links), np.asarray(centres, float).tobytes(), np.asarray(radii, float).tobytes(),
                frozenset(self.disabled), self.cover_meshes, self.exact_self)
-        pack = _robot_cache(robot).get(key)
+        pack = robot_cache(robot).get(key)
         if pack is None:
             self.spheres = SphereModel(links, centres, radii).bind(robot)
             self._chain = _chain_arrays(robot)
             self._pack_spheres()
             pack = {k: getattr(self, k) for k in _PACKED}
-            _robot_cache(robot)[key] = pack
+            robot_cache(robot)[key] = pack
         self.__dict__.update(pack)
         self._spheres, self.model = self._cover, "cover"
         #: how far each obstacle sphere (packed order) is from the given radius toward the covering one
@@ -313,17 +256,6 @@ class Environment:
         W = self._chain + self._spheres + empty + self._self + _empty_cloud() + self._rel
         s = self.scratch
         return float(K.config_clearance(qq, W, s.T, s.C, s.G, s.out, cap))
-
-    @property
-    def world_self_cover(self) -> tuple:
-        """The packed world with no obstacles and the mesh-covering spheres as self-collision radii.
-
-        Its clearance is the covering spheres' self-collision clearance: a lower bound of the meshes'.
-        """
-        c = self._cover
-        empty = (np.zeros(0, np.int64), np.zeros((0, GK.NPARAM)))
-        return self._chain + c + empty + self._self + _empty_cloud() + (self._rel[0], c[2], c[5], self._rel[3])
-
 
     def _rel_offset(self) -> tuple:
         """The self-collision entries of the world: radii blended by ``self_blend``, less ``self_offset / 2``."""

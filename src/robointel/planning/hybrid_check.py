@@ -222,7 +222,7 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
         k, c = _front(due, m, SELF_EARLY, front)
         if k >= K:
             return chk
-        which = front[:c].copy()
+        which = front[:c]  # (front is written again only at the next round)
         if n % MESH_CHUNK == 0 and clock_now() >= deadline:
             return timed_out("the self-collision check", chk)
         n += 1
