@@ -31,8 +31,15 @@ def test_nearest_is_the_exact_nearest():
             i, d = R._nearest(Q, 2500, q)
             dist = np.linalg.norm(Q[:2500] - q, axis=1)
             assert i == int(np.argmin(dist)) and d == pytest.approx(dist.min(), rel=1e-12)
-            j, e = R._nearest_soa(np.ascontiguousarray(Q.T), 2500, q, np.empty(3000))  # joint by joint
-            assert (j, e) == (i, d)
+            for n in (2500, 15, 16, 17):  # joint by joint; the lanes' remainder
+                j, e = R._nearest_soa(np.ascontiguousarray(Q.T), n, q, np.empty(3000))
+                k = int(np.argmin(dist[:n]))
+                assert j == k and e == pytest.approx(dist[k], rel=1e-12)
+    for nj in (3, 9):  # joints one by one only; two passes of four and one more. A tie: the first
+        Q = rng.uniform(-1, 1, (40, nj))
+        Q[30] = Q[7]
+        j, e = R._nearest_soa(np.ascontiguousarray(Q.T), 40, Q[7] + 1e-3, np.empty(40))
+        assert j == 7 and e == pytest.approx(np.sqrt(nj) * 1e-3, rel=1e-9)
 
 
 def test_adapt_halves_and_doubles_within_bounds():

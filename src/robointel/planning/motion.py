@@ -269,7 +269,7 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
     fallback = env.cover_meshes and len(env._cloud[0]) == 0 and st.fitted_fallback < 1
     search_end = now + st.fitted_fallback * st.time_budget_s if fallback else deadline
     attempt, exact = 0, False
-    carry = TreeCarry()  # a search that found no path leaves its trees to the next, in a world no stricter
+    carry = TreeCarry()  # each search leaves its trees to the next (tree_search.TreeCarry)
     while True:
         # a search gives way when it stalls while another model is left to try: the fallback, or in the
         # fallback the spheres grown less far
@@ -302,9 +302,12 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
         if chk.ok or not (hybrid or exact or env.exact_self) or chk.kind != "collision" or \
                 clock_now() >= deadline:
             break
-        if _grow(env, chk, q0, goals, thr, exact):  # the links the meshes caught kept farther next time
+        grew = _grow(env, chk, q0, goals, thr, exact)  # the links the meshes caught kept farther next time
+        if grew:
             Wc = env.world if exact else env.world_cover
             Wr = env.world if (exact or hybrid) else Wc
+        if not grew or path_valid(env, path, thr, st.resolution, Wc, Wr, rcap):
+            carry.trees = None  # the refused path still valid: the next search looks for another way afresh
         attempt += 1
     goal_index = int(goal_ids[gi])
     assert traj is not None and chk is not None
@@ -332,8 +335,8 @@ def _attempt(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSett
     in ``stall`` > 0 iterations, with ``walled`` only while a tree holds at most that many nodes
     besides its roots: the caller has another model to try; its reason then starts ``"stalled"``).
     ``exact``: every sample the covering spheres leave in doubt is checked on the collision meshes
-    (:func:`exact_check`). ``carry``: the trees of the last search that found no path
-    (:class:`~robointel.planning.tree_search.TreeCarry`), gone on from where they fit.
+    (:func:`exact_check`). ``carry``: the trees of the last search
+    (:class:`~robointel.planning.tree_search.TreeCarry`), gone on from where they are still valid.
     """
     # global stage ----------------------------------------------------------------------------
     t1, c1 = time.perf_counter(), cpu_clock()

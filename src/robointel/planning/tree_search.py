@@ -103,11 +103,14 @@ class SearchTrees:
     thr: float
     res: float
 
+    def placed_alike(self, W: tuple, n: int, cap: int) -> bool:
+        """Whether ``W`` places the same spheres, obstacles and self-collision pairs (the radii aside)."""
+        return self.X.shape == (2, n, cap) and all(W[k] is self.W[k] or np.array_equal(W[k], self.W[k])
+                                                   for k in _SHAPE)
+
     def fits(self, W: tuple, Wr: tuple, thr: float, res: float, n: int, cap: int) -> bool:
         """Whether every node and edge is still valid when checked in ``W`` (root edges in ``Wr``)."""
-        if self.X.shape != (2, n, cap) or thr != self.thr or res < self.res:
-            return False
-        if any(W[k] is not self.W[k] and not np.array_equal(W[k], self.W[k]) for k in _SHAPE):
+        if thr != self.thr or res < self.res or not self.placed_alike(W, n, cap):
             return False
         return all(np.all(np.maximum(W[k], Wr[k]) <= r) for k, r in zip(_RADII, self.radii))
 
@@ -119,7 +122,15 @@ class SearchTrees:
 
 
 class TreeCarry:
-    """Holds the trees of the last search that found no path (:class:`SearchTrees`), or None."""
+    """Holds the trees of the last search (:class:`SearchTrees`), or None.
+
+    A search that found no path leaves its trees for the next search in a world no stricter, which goes
+    on from them as they are. A search that found a path leaves them too, for a search in a stricter
+    world (the links the collision meshes caught grown, a finer resolution): that one keeps the nodes
+    still free and reached by edges still valid (:func:`~robointel.planning._rrt_kernels.revalidate`)
+    and goes on from them. The caller drops them (``trees = None``) when the next search must look
+    for another way in the same world.
+    """
 
     def __init__(self) -> None:
         self.trees: SearchTrees | None = None
@@ -138,8 +149,10 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
     spheres of ``W``; the caller has another model to try; counted from the end of the last call of the
     compiled kernel that added a node), its reason then starting ``"stalled"``;
     with ``walled``, only while one of the trees holds at most that many nodes besides its roots.
-    With ``carry``, the search goes on from the trees it holds when they :meth:`~SearchTrees.fits`
-    this world (same start and goals), and leaves its own there when it finds no path.
+    With ``carry``, the search goes on from the trees it holds (same start and goals, the same
+    spheres placed alike): as they are when they :meth:`~SearchTrees.fits` this world, else from the
+    nodes still free and reached by valid edges in it (:func:`~robointel.planning._rrt_kernels.revalidate`);
+    it leaves its own trees there, whether it found a path or not.
     """
     s, BS = env.scratch, batch_state(env)
     thr, lever = float(st.d_min if thr is None else thr), env.lever
@@ -150,9 +163,11 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
     cap = int(st.max_nodes)
     nroot = np.array([1, len(goals)], np.int64)
     old = None if carry is None else carry.trees
-    if old is not None and old.fits(W, Wr, thr, res, n, cap) and np.array_equal(old.X[0, :, 0], q0) and \
+    if old is not None and old.placed_alike(W, n, cap) and np.array_equal(old.X[0, :, 0], q0) and \
             np.array_equal(old.X[1, :, :len(goals)], goals.T) and float(old.rng[2]) == float(st.rrt_range):
         X, parent, count, rng, win = old.X, old.parent, old.count, old.rng, old.win
+        if not old.fits(W, Wr, thr, res, n, cap):  # a stricter world: the nodes and edges still valid in it
+            R.revalidate(X, parent, count, nroot, W, Wr, rcap, s.T, s.C, s.G, s.out, thr, res, BS)
     else:
         X = np.empty((2, n, cap))  # the trees' nodes joint by joint (the kernel's nearest-neighbour scan)
         parent = np.full((2, cap), -1, np.int64)
@@ -185,9 +200,9 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
         if stall and idle >= stall and (walled is None or int((count - nroot).min()) <= walled):
             why = f"stalled: no node added in {idle} iterations ({grown + size} nodes)"
             break
+    if carry is not None:
+        carry.trees = SearchTrees.of(X, parent, count, rng, win, W, Wr, thr, res)
     if status != 1:
-        if carry is not None:
-            carry.trees = SearchTrees.of(X, parent, count, rng, win, W, Wr, thr, res)
         return None, -1, why or f"the time budget of {st.time_budget_s:g} s ran out ({grown + int(count.sum())} nodes)"
     a, b = [], []
     i = int(link[0])
