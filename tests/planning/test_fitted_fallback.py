@@ -111,3 +111,74 @@ def test_a_goal_walled_in_by_the_grown_spheres_is_planned_with_them_grown_less(s
     v = MBMChecker(root / "fetch.urdf", root / "fetch.srdf", joints=data["joints"]).check_trajectory(
         tr.t, tr.q, raw, qd=tr.qd, dt=5e-3, amax=robot.acceleration_limit)
     assert not v.collision and v.min_clearance >= 0.0, (v.pair, v.min_clearance)
+
+
+def test_the_mesh_check_bound_holds_between_its_samples(ur5):
+    """A sample's exact clearance minus its half steps (:func:`half_steps`) bounds the clearance of the motion
+    to halfway to each neighbouring sample, as an independent check resampling the cubic at other instants
+    sees it: an arm sweeping fast through a box, measured on the meshes 13 times finer."""
+    from scipy.interpolate import CubicHermiteSpline
+
+    from robointel.geometry.obstacles import Box
+    from robointel.planning.hybrid_check import half_steps
+
+    _, robot = ur5
+    q0 = np.array([0.0, -1.2, 1.2, -1.5, -1.5, 0.0])
+    w = np.array([1.5, 0.8, -0.6, 0.0, 0.0, 0.0])  # the base and shoulder at up to 1.5 rad/s
+    t = np.arange(0.0, 0.4, 3e-3)
+    Q = q0 + np.sin(2.0 * t)[:, None] * w / 2.0
+    Qd = np.cos(2.0 * t)[:, None] * w
+    fore = next(part for part in MeshGeometry(robot, []).parts if part.link == "forearm_link")
+    pin.framesForwardKinematics(robot.model, robot.data, Q[len(Q) // 2])
+    T = robot.data.oMf[fore.frame].homogeneous
+    c = T[:3, :3] @ fore.centre + T[:3, 3]
+    box = Box(center=c + np.array([0.0, 0.0, 0.07]), size=np.array([0.05, 0.05, 0.05]), name="box")
+    mg = MeshGeometry(robot, [box])
+    which = np.arange(len(mg.pair_lever))
+    h = half_steps(np.ascontiguousarray(Q), mg.pair_lever.max(axis=0))
+    d = np.array([mg.pair_distances(q, which, thresh=1.0).min() for q in Q])
+    sp = CubicHermiteSpline(t, Q, Qd, axis=0)
+    dips = 0
+    for k in range(len(t) - 1):
+        fine = np.linspace(t[k], t[k + 1], 14)[1:-1]
+        df = min(mg.pair_distances(q, which, thresh=1.0).min() for q in sp(fine))
+        assert df >= min(d[k] - h[k], d[k + 1] - h[k + 1]) - 1e-9, (k, df, d[k], d[k + 1], h[k], h[k + 1])
+        dips += df < min(d[k], d[k + 1])
+    assert d.min() < 0.0 < d[0] and h.max() > 1e-3  # the forearm sweeps fast through the box
+    assert dips > 0  # and the motion between the samples comes closer than the samples themselves
+
+
+def test_the_exact_check_refuses_a_contact_between_its_samples(ur5, monkeypatch):
+    """The forearm sweeps through a box between two samples that both clear it: the samples alone pass, the
+    motion between them is refused."""
+    from robointel.geometry.obstacles import Box
+    from robointel.planning import hybrid_check as HC
+
+    _, robot = ur5
+    q0 = np.array([0.0, -1.2, 1.2, -1.5, -1.5, 0.0])
+    w = np.array([1.5, 0.8, -0.6, 0.0, 0.0, 0.0])
+    t = np.arange(0.0, 0.4, 3e-3)
+    Q = q0 + np.sin(2.0 * t)[:, None] * w / 2.0
+    Qd = np.cos(2.0 * t)[:, None] * w
+    Qdd = -2.0 * np.sin(2.0 * t)[:, None] * w
+    fore = next(part for part in MeshGeometry(robot, []).parts if part.link == "forearm_link")
+    pin.framesForwardKinematics(robot.model, robot.data, Q[len(Q) // 2])
+    T = robot.data.oMf[fore.frame].homogeneous
+    c = T[:3, :3] @ fore.centre + T[:3, 3]
+    box = Box(center=c + np.array([0.0, 0.0, 0.07]), size=np.array([0.05, 0.05, 0.05]), name="box")
+    mg = MeshGeometry(robot, [box])
+    which = np.arange(len(mg.pair_lever))
+    d = np.array([mg.pair_distances(q, which, thresh=1.0).min() for q in Q])
+    inside = np.flatnonzero(d < 0.0)
+    keep = [0, inside[0] - 1, inside[-1] + 1, len(t) - 1]  # the samples around the crossing clear the box
+    assert np.all(d[keep] > 0.0)
+    tr = Trajectory(t[keep], Q[keep], Qd[keep], Qdd[keep])
+    links = [ln for ln in robot.link_names if robot.link_joint(ln) > 0]
+    env = Environment(robot, [box], spheres=SphereModel(links, np.zeros((len(links), 3)), np.full(len(links), 1e-3)))
+    env.use("fitted")
+    ok = check_dense(env, tr, d_min=0.0, vmax=10 * robot.velocity_limit, amax=100 * robot.acceleration_limit)
+    span = float(np.max(np.diff(tr.t)))  # the check at the trajectory's own samples
+    out = exact_check(env, tr, env.world_cover, ok, d_min=0.0, dt=span)
+    assert not out.ok and out.kind == "collision" and "next to t" in out.reason and "box" in out.reason
+    monkeypatch.setattr(HC, "_between", lambda *a: True)  # the samples alone
+    assert exact_check(env, tr, env.world_cover, ok, d_min=0.0, dt=span).ok

@@ -103,8 +103,8 @@ def interior_check(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tup
     mesh-covering spheres (skipped when ``window_checked``: ``chk`` came from
     :func:`~robointel.planning.motion_check.check_dense` with that window in ``Wc``); before and
     after them (the start and goal edges) the exact distance to the collision meshes
-    (:class:`MeshGeometry`: convex hulls, refined on the meshes) must be >= max(d_min - 1 mm, 0).
-    The mesh check looks at the clock every ``MESH_CHUNK`` exact samples: past ``deadline`` it
+    (:class:`MeshGeometry`: convex hulls, refined on the meshes) must be >= max(d_min - 1 mm, 0), over
+    the motion between the samples too (as :func:`exact_check`). The mesh check looks at the clock every ``MESH_CHUNK`` exact samples: past ``deadline`` it
     returns a failed check of kind ``"timeout"``. ``window``: ``interior_window(traj, path)`` when
     the caller has it already.
     """
@@ -126,8 +126,12 @@ def exact_check(env: Environment, traj: Trajectory, Wc: tuple, chk: DenseCheck, 
     """Check a whole trajectory planned with spheres that may leave parts of the meshes uncovered.
 
     Every ``dt`` sample that the mesh-covering spheres ``Wc`` leave closer than
-    max(d_min - 1 mm, 0) to the obstacles gets the exact distance to the collision meshes
-    (:class:`MeshGeometry`), which must be >= that bound. Clock and result as :func:`interior_check`.
+    max(d_min - 1 mm, 0) plus the largest :func:`half_steps` to the obstacles gets the exact distance to
+    the collision meshes (:class:`MeshGeometry`), which must be >= that bound; where it is less than the
+    bound plus the sample's own half steps, the motion to the neighbouring samples is proven by halving
+    (:func:`_between`). The bound then holds over the motion between the samples too (the trajectory's
+    cubic interpolant, as an independent check resampling it at other instants sees it). Clock and
+    result as :func:`interior_check`.
     """
     dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
     return _mesh_check(env, dense, ((0, len(dense.t)),), Wc, chk, d_min=d_min, deadline=deadline)
@@ -141,14 +145,19 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
         return chk
     thr = max(d_min - CLEARANCE_TOL, 0.0)  # the real geometry may not be penetrated at all
     s = env.scratch
+    reach = mg.pair_lever.max(axis=0) if len(mg.pair_lever) else np.zeros(dense.q.shape[1])
+    hall = half_steps(np.ascontiguousarray(dense.q), reach)
     for s0, s1 in spans:
         Q = np.ascontiguousarray(dense.q[s0:s1])
         if len(Q) == 0:
             continue
-        # the covering spheres contain the meshes: only samples they leave below thr need coal
+        # each sample must keep thr plus its half-steps' travel, so that the motion between samples keeps thr
+        h = hall[s0:s1]
+        top = thr + float(h.max())
+        # the covering spheres contain the meshes: only samples they leave below that need coal
         V = np.empty(Q.shape)
         D.variation(Q, V)
-        doubt = D.env_below(Q, V, Wc, s.T, s.C, s.G, s.out, env.lever, thr)
+        doubt = D.env_below(Q, V, Wc, s.T, s.C, s.G, s.out, env.lever, top)
         if not doubt.any():
             continue
         idx = np.flatnonzero(doubt)
@@ -166,15 +175,86 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
                 return timed_out("the collision-mesh check", chk)
             n += 1
             which = np.flatnonzero(due <= k + SELF_EARLY)
-            d = mg.pair_distances(Q[k], which, thresh=thr)
+            d = mg.pair_distances(Q[k], which, thresh=top)
             m = int(np.argmin(d))
-            if d[m] < thr:
+            near = which[d < thr + h[k]]
+            if d[m] < thr or (len(near) and not _between(mg, dense, s0 + k, near, thr, reach)):
                 link, obs = mg.pair_names(int(which[m]))
+                at = f"at t = {dense.t[s0 + k]:.3f} s" if d[m] < thr else f"next to t = {dense.t[s0 + k]:.3f} s"
                 return DenseCheck(False, f"collision-mesh check: link {link!r} is {d[m] * 1e3:.2f} mm from {obs!r} "
-                                  f"at t = {dense.t[s0 + k]:.3f} s", "collision", min(float(d[m]), chk.min_clearance_m),
-                                  chk.samples, (link,), Q[k].copy())
-            next_due(Cq, mg.pair_lever, which, k, d - thr, due)
+                                  f"{at}", "collision", min(float(d[m]), chk.min_clearance_m), chk.samples, (link,),
+                                  Q[k].copy())
+            next_due(Cq, mg.pair_lever, which, k, d - top, due)
     return chk
+
+
+#: how many times the motion between two samples is halved to prove a clearance measured close to the threshold
+#: (a 2 mm half step becomes 0.5 um: what is left unproven there is a contact)
+BETWEEN_DEPTH = 12
+
+
+def _between(mg: MeshGeometry, dense: Trajectory, k: int, which: np.ndarray, thr: float, reach: np.ndarray) -> bool:
+    """Whether the pairs ``which`` keep ``thr`` over the motion from sample k - 1 to sample k + 1 of ``dense``.
+
+    Each of the two steps is halved until the distances at its ends, less half the step's travel
+    (``reach`` times the joints' change, plus the cubic's bend off the chord), are proven above ``thr``,
+    at most :data:`BETWEEN_DEPTH` times; a point closer than ``thr`` on the way, or a step not proven
+    at the deepest level, returns False.
+    """
+    def gap(q: np.ndarray) -> float:
+        return float(mg.pair_distances(np.ascontiguousarray(q), which, thresh=thr + 0.01).min())
+
+    def step(ta: float, tb: float, qa: np.ndarray, qb: np.ndarray, aa: np.ndarray, ab: np.ndarray, da: float,
+             db: float, depth: int) -> bool:
+        dt = tb - ta
+        bend = 0.125 * dt * dt * float(reach @ np.maximum(np.abs(aa), np.abs(ab)))
+        if min(da, db) - 0.5 * float(reach @ np.abs(qb - qa)) - bend >= thr:
+            return True
+        if depth == 0:
+            return False
+        tm = 0.5 * (ta + tb)
+        qm, _, am = (x[0] for x in dense.sample([tm]))
+        dm = gap(qm)
+        return dm >= thr and step(ta, tm, qa, qm, aa, am, da, dm, depth - 1) and \
+            step(tm, tb, qm, qb, am, ab, dm, db, depth - 1)
+
+    n = len(dense.t)
+    idx = [j for j in (k - 1, k, k + 1) if 0 <= j < n]
+    q, _, a = dense.sample(dense.t[idx])
+    d = [gap(x) for x in q]
+    return all(step(dense.t[i], dense.t[j], q[u], q[u + 1], a[u], a[u + 1], d[u], d[u + 1], BETWEEN_DEPTH)
+               for u, (i, j) in enumerate(zip(idx[:-1], idx[1:])))
+
+
+@njit(cache=True)
+def half_steps(Q: np.ndarray, reach: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """Per sample of ``Q`` (K, n), how far any point of the robot may move toward the midpoints of its two steps, m.
+
+    ``reach`` (n,): per joint, the most a point moves per rad of it (the largest of the pairs' levers).
+    Half of each neighbouring step's travel, the larger, plus an eighth of the joints' second difference
+    there (a cubic through the samples leaves their chord by about that): a clearance measured at a sample
+    above the threshold by this much holds over the motion to halfway to each neighbouring sample.
+    """
+    K, n = Q.shape
+    step = np.zeros(max(K - 1, 0))
+    bend = np.zeros(K)
+    for k in range(K - 1):
+        t = 0.0
+        for j in range(n):
+            t += reach[j] * abs(Q[k + 1, j] - Q[k, j])
+        step[k] = t
+    for k in range(1, K - 1):
+        t = 0.0
+        for j in range(n):
+            t += reach[j] * abs(Q[k + 1, j] - 2.0 * Q[k, j] + Q[k - 1, j])
+        bend[k] = 0.125 * t
+    h = np.zeros(K)
+    for k in range(K):
+        a = step[k - 1] if k > 0 else 0.0
+        b = step[k] if k < K - 1 else 0.0
+        c = max(bend[max(k - 1, 0)], bend[k], bend[min(k + 1, K - 1)])
+        h[k] = 0.5 * max(a, b) + c
+    return h
 
 
 def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float,
