@@ -178,7 +178,7 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
             d = mg.pair_distances(Q[k], which, thresh=top)
             m = int(np.argmin(d))
             near = which[d < thr + h[k]]
-            if d[m] < thr or (len(near) and not _between(mg, dense, s0 + k, near, thr, reach)):
+            if d[m] < thr or (len(near) and not _between(mg, dense, s0 + k, near, thr)):
                 link, obs = mg.pair_names(int(which[m]))
                 at = f"at t = {dense.t[s0 + k]:.3f} s" if d[m] < thr else f"next to t = {dense.t[s0 + k]:.3f} s"
                 return DenseCheck(False, f"collision-mesh check: link {link!r} is {d[m] * 1e3:.2f} mm from {obs!r} "
@@ -193,29 +193,31 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
 BETWEEN_DEPTH = 12
 
 
-def _between(mg: MeshGeometry, dense: Trajectory, k: int, which: np.ndarray, thr: float, reach: np.ndarray) -> bool:
+def _between(mg: MeshGeometry, dense: Trajectory, k: int, which: np.ndarray, thr: float) -> bool:
     """Whether the pairs ``which`` keep ``thr`` over the motion from sample k - 1 to sample k + 1 of ``dense``.
 
-    Each of the two steps is halved until the distances at its ends, less half the step's travel
-    (``reach`` times the joints' change, plus the cubic's bend off the chord), are proven above ``thr``,
-    at most :data:`BETWEEN_DEPTH` times; a point closer than ``thr`` on the way, or a step not proven
-    at the deepest level, returns False.
+    Each of the two steps is halved until each pair's distances at its ends, less half the step's
+    travel (the pair's lever times the joints' change, plus the cubic's bend off the chord), are
+    proven above ``thr``, at most :data:`BETWEEN_DEPTH` times; a point closer than ``thr`` on the
+    way, or a step not proven at the deepest level, returns False.
     """
-    def gap(q: np.ndarray) -> float:
-        return float(mg.pair_distances(np.ascontiguousarray(q), which, thresh=thr + 0.01).min())
+    lever = mg.pair_lever[which]
 
-    def step(ta: float, tb: float, qa: np.ndarray, qb: np.ndarray, aa: np.ndarray, ab: np.ndarray, da: float,
-             db: float, depth: int) -> bool:
+    def gap(q: np.ndarray) -> np.ndarray:
+        return mg.pair_distances(np.ascontiguousarray(q), which, thresh=thr + 0.01)
+
+    def step(ta: float, tb: float, qa: np.ndarray, qb: np.ndarray, aa: np.ndarray, ab: np.ndarray, da: np.ndarray,
+             db: np.ndarray, depth: int) -> bool:
         dt = tb - ta
-        bend = 0.125 * dt * dt * float(reach @ np.maximum(np.abs(aa), np.abs(ab)))
-        if min(da, db) - 0.5 * float(reach @ np.abs(qb - qa)) - bend >= thr:
+        move = lever @ (0.5 * np.abs(qb - qa) + 0.125 * dt * dt * np.maximum(np.abs(aa), np.abs(ab)))
+        if float(np.min(np.minimum(da, db) - move)) >= thr:
             return True
         if depth == 0:
             return False
         tm = 0.5 * (ta + tb)
         qm, _, am = (x[0] for x in dense.sample([tm]))
         dm = gap(qm)
-        return dm >= thr and step(ta, tm, qa, qm, aa, am, da, dm, depth - 1) and \
+        return float(dm.min()) >= thr and step(ta, tm, qa, qm, aa, am, da, dm, depth - 1) and \
             step(tm, tb, qm, qb, am, ab, dm, db, depth - 1)
 
     n = len(dense.t)
