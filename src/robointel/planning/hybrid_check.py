@@ -105,8 +105,8 @@ def interior_check(env: Environment, traj: Trajectory, path: np.ndarray, Wc: tup
     after them (the start and goal edges) the exact distance to the collision meshes
     (:class:`MeshGeometry`: convex hulls, refined on the meshes) must be >= max(d_min - 1 mm, 0), over
     the motion between the samples too (as :func:`exact_check`). The mesh check looks at the clock
-    every ``MESH_CHUNK`` exact samples: past ``deadline`` it returns a failed check of kind ``"timeout"``. ``window``: ``interior_window(traj, path)`` when
-    the caller has it already.
+    every ``MESH_CHUNK`` exact samples: past ``deadline`` it returns a failed check of kind
+    ``"timeout"``. ``window``: ``interior_window(traj, path)`` when the caller has it already.
     """
     t0, t1 = interior_window(traj, path) if window is None else window
     if len(path) >= 3 and not window_checked:
