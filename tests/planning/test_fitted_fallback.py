@@ -113,48 +113,11 @@ def test_a_goal_walled_in_by_the_grown_spheres_is_planned_with_them_grown_less(s
     assert not v.collision and v.min_clearance >= 0.0, (v.pair, v.min_clearance)
 
 
-def test_the_mesh_check_bound_holds_between_its_samples(ur5):
-    """A sample's exact clearance minus its half steps (:func:`half_steps`) bounds the clearance of the motion
-    to halfway to each neighbouring sample, as an independent check resampling the cubic at other instants
-    sees it: an arm sweeping fast through a box, measured on the meshes 13 times finer."""
-    from scipy.interpolate import CubicHermiteSpline
-
+def _sweep_through_box(robot):
+    """The UR5's base and shoulder at up to 1.5 rad/s, sampled every 3 ms, the forearm sweeping through a 5 cm box
+    halfway: (t, Q, Qd, Qdd, box, its MeshGeometry, every pair, the exact clearance at each sample)."""
     from robointel.geometry.obstacles import Box
-    from robointel.planning.hybrid_check import half_steps
 
-    _, robot = ur5
-    q0 = np.array([0.0, -1.2, 1.2, -1.5, -1.5, 0.0])
-    w = np.array([1.5, 0.8, -0.6, 0.0, 0.0, 0.0])  # the base and shoulder at up to 1.5 rad/s
-    t = np.arange(0.0, 0.4, 3e-3)
-    Q = q0 + np.sin(2.0 * t)[:, None] * w / 2.0
-    Qd = np.cos(2.0 * t)[:, None] * w
-    fore = next(part for part in MeshGeometry(robot, []).parts if part.link == "forearm_link")
-    pin.framesForwardKinematics(robot.model, robot.data, Q[len(Q) // 2])
-    T = robot.data.oMf[fore.frame].homogeneous
-    c = T[:3, :3] @ fore.centre + T[:3, 3]
-    box = Box(center=c + np.array([0.0, 0.0, 0.07]), size=np.array([0.05, 0.05, 0.05]), name="box")
-    mg = MeshGeometry(robot, [box])
-    which = np.arange(len(mg.pair_lever))
-    h = half_steps(np.ascontiguousarray(Q), mg.pair_lever.max(axis=0))
-    d = np.array([mg.pair_distances(q, which, thresh=1.0).min() for q in Q])
-    sp = CubicHermiteSpline(t, Q, Qd, axis=0)
-    dips = 0
-    for k in range(len(t) - 1):
-        fine = np.linspace(t[k], t[k + 1], 14)[1:-1]
-        df = min(mg.pair_distances(q, which, thresh=1.0).min() for q in sp(fine))
-        assert df >= min(d[k] - h[k], d[k + 1] - h[k + 1]) - 1e-9, (k, df, d[k], d[k + 1], h[k], h[k + 1])
-        dips += df < min(d[k], d[k + 1])
-    assert d.min() < 0.0 < d[0] and h.max() > 1e-3  # the forearm sweeps fast through the box
-    assert dips > 0  # and the motion between the samples comes closer than the samples themselves
-
-
-def test_the_exact_check_refuses_a_contact_between_its_samples(ur5, monkeypatch):
-    """The forearm sweeps through a box between two samples that both clear it: the samples alone pass, the
-    motion between them is refused."""
-    from robointel.geometry.obstacles import Box
-    from robointel.planning import hybrid_check as HC
-
-    _, robot = ur5
     q0 = np.array([0.0, -1.2, 1.2, -1.5, -1.5, 0.0])
     w = np.array([1.5, 0.8, -0.6, 0.0, 0.0, 0.0])
     t = np.arange(0.0, 0.4, 3e-3)
@@ -169,6 +132,38 @@ def test_the_exact_check_refuses_a_contact_between_its_samples(ur5, monkeypatch)
     mg = MeshGeometry(robot, [box])
     which = np.arange(len(mg.pair_lever))
     d = np.array([mg.pair_distances(q, which, thresh=1.0).min() for q in Q])
+    return t, Q, Qd, Qdd, box, mg, which, d
+
+
+def test_the_mesh_check_bound_holds_between_its_samples(ur5):
+    """A sample's exact clearance minus its half steps (:func:`half_steps`) bounds the clearance of the motion
+    to halfway to each neighbouring sample, as an independent check resampling the cubic at other instants
+    sees it: an arm sweeping fast through a box, measured on the meshes 13 times finer."""
+    from scipy.interpolate import CubicHermiteSpline
+
+    from robointel.planning.hybrid_check import half_steps
+
+    _, robot = ur5
+    t, Q, Qd, _, _, mg, which, d = _sweep_through_box(robot)
+    h = half_steps(np.ascontiguousarray(Q), mg.pair_lever.max(axis=0))
+    sp = CubicHermiteSpline(t, Q, Qd, axis=0)
+    dips = 0
+    for k in range(len(t) - 1):
+        fine = np.linspace(t[k], t[k + 1], 14)[1:-1]
+        df = min(mg.pair_distances(q, which, thresh=1.0).min() for q in sp(fine))
+        assert df >= min(d[k] - h[k], d[k + 1] - h[k + 1]) - 1e-9, (k, df, d[k], d[k + 1], h[k], h[k + 1])
+        dips += df < min(d[k], d[k + 1])
+    assert d.min() < 0.0 < d[0] and h.max() > 1e-3  # the forearm sweeps fast through the box
+    assert dips > 0  # and the motion between the samples comes closer than the samples themselves
+
+
+def test_the_exact_check_refuses_a_contact_between_its_samples(ur5, monkeypatch):
+    """The forearm sweeps through a box between two samples that both clear it: the samples alone pass, the
+    motion between them is refused."""
+    from robointel.planning import hybrid_check as HC
+
+    _, robot = ur5
+    t, Q, Qd, Qdd, box, _, _, d = _sweep_through_box(robot)
     inside = np.flatnonzero(d < 0.0)
     keep = [0, inside[0] - 1, inside[-1] + 1, len(t) - 1]  # the samples around the crossing clear the box
     assert np.all(d[keep] > 0.0)
