@@ -83,3 +83,31 @@ def test_compiled_frame_placements_are_pinocchios(shared_data):
         pin.framesForwardKinematics(r.model, r.data, q)
         want = np.array([r.data.oMf[f].homogeneous for f in mg._frames])
         np.testing.assert_allclose(mg._frame_placements(q), want, rtol=0, atol=1e-12)
+
+
+def test_pair_clear_is_a_proof_and_refutes_only_below_its_margin(shared_data):
+    """A pair said clear at a margin is at least that far apart on the meshes; one refused is closer than it."""
+    root = shared_data("mbm", "ur5")
+    pset = load_mbm_problems(root / "problems.json")
+    robot = Robot.load(root / "ur5.urdf")
+    rng = np.random.default_rng(5)
+    req = coal.DistanceRequest()
+    said = {True: 0, False: 0}
+    for fam in ("bookshelf_small", "table_pick"):
+        p = pset.select(families=[fam])[1]
+        mg = MeshGeometry(robot, p.obstacles)
+        nobs = len(mg.obstacles)
+        for q in np.asarray(p.goals[0], float) + rng.normal(0.0, 0.04, (6, 6)):
+            Tl = mg.link_placements(q)
+            pin.framesForwardKinematics(robot.model, robot.data, q)
+            for i in range(len(mg.pair_lever)):
+                part, (_, g, To, _, _) = mg.parts[i // nobs], mg.obstacles[i % nobs]
+                T = robot.data.oMf[part.frame].homogeneous @ part.placement
+                exact = contact_distance(part.mesh, coal.Transform3s(T[:3, :3], T[:3, 3]), g, To, req)
+                if exact > 0.05:
+                    continue
+                for margin in (0.0, 0.002, 0.01, 0.03):
+                    ok = mg.pair_clear(Tl, i, margin)
+                    assert (exact >= margin - 1e-6) if ok else (exact < margin + 1e-6), (i, margin, exact)
+                    said[ok] += 1
+    assert said[True] >= 10 and said[False] >= 10  # both answers seen

@@ -141,7 +141,7 @@ def test_the_mesh_check_bound_holds_between_its_samples(ur5):
     sees it: an arm sweeping fast through a box, measured on the meshes 13 times finer."""
     from scipy.interpolate import CubicHermiteSpline
 
-    from robointel.planning.hybrid_check import half_steps
+    from robointel.planning.between_samples import half_steps
 
     _, robot = ur5
     t, Q, Qd, _, _, mg, which, d = _sweep_through_box(robot)
@@ -175,5 +175,5 @@ def test_the_exact_check_refuses_a_contact_between_its_samples(ur5, monkeypatch)
     span = float(np.max(np.diff(tr.t)))  # the check at the trajectory's own samples
     out = exact_check(env, tr, env.world_cover, ok, d_min=0.0, dt=span)
     assert not out.ok and out.kind == "collision" and "next to t" in out.reason and "box" in out.reason
-    monkeypatch.setattr(HC, "_between", lambda *a: True)  # the samples alone
+    monkeypatch.setattr(HC, "prove_between", lambda *a, **k: -1)  # the samples alone
     assert exact_check(env, tr, env.world_cover, ok, d_min=0.0, dt=span).ok

@@ -299,6 +299,38 @@ class MeshGeometry:
             out[n] = bounded_distance(part.hull, part.mesh, T, g, g, To, thresh, self._req)
         return out
 
+    def pair_clear(self, Tl: np.ndarray, i: int, margin: float) -> bool:
+        """Whether the (part, obstacle) pair ``i`` (p * O + o) is at least ``margin`` (m, >= 0) apart.
+
+        A yes is a proof: the part's bounding sphere to the obstacle's box, then the convex hulls' distance
+        (GJK, less its tolerance), then coal's collision query on the mesh with ``margin`` as its security
+        margin (10-70 us on the UR5's gripper, against 0.4-0.9 ms for the mesh distance).
+
+        Args:
+            Tl: (F, 4, 4) the link frames' placements, :meth:`link_placements` at the configuration.
+            i: the pair.
+            margin: the distance to prove, m.
+        """
+        p, o = divmod(int(i), len(self.obstacles))
+        one = np.empty(1)
+        sphere_box_bounds(Tl, self._part_frame, self._centres, self._radii, self._lo, self._hi,
+                          np.array([p], np.int64), np.array([o], np.int64), one)
+        if one[0] >= margin:
+            return True
+        part = self.parts[p]
+        Mp = Tl[self._part_frame[p]] @ part.placement
+        T = coal.Transform3s(Mp[:3, :3], Mp[:3, 3])
+        g, To = self.obstacles[o][1:3]
+        if hull_bound(float(coal.distance(part.hull, T, g, To, self._req, _distance_result()))) >= margin:
+            return True
+        creq = coal.CollisionRequest()
+        creq.security_margin = max(margin, 0.0)
+        return not coal.collide(part.mesh, T, g, To, creq, coal.CollisionResult())
+
+    def link_placements(self, q: np.ndarray) -> np.ndarray:
+        """(F, 4, 4) the world placements at q (n,) of the link frames that carry parts, for :meth:`pair_clear`."""
+        return self._frame_placements(q)
+
     def _frame_placements(self, q: np.ndarray) -> np.ndarray:
         """(F, 4, 4) the placements at q of the link frames that carry parts (``self._frames``)."""
         robot = self.robot

@@ -11,6 +11,7 @@ from numba import njit
 
 from robointel.errors import CollisionAtStart
 from robointel.planning import _dense_kernels as D
+from robointel.planning.between_samples import OutOfTime, half_steps, prove_between
 from robointel.planning.budget_clock import now as clock_now
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
@@ -125,12 +126,14 @@ def exact_check(env: Environment, traj: Trajectory, Wc: tuple, chk: DenseCheck, 
                 deadline: float = float("inf")) -> DenseCheck:
     """Check a whole trajectory planned with spheres that may leave parts of the meshes uncovered.
 
-    Every ``dt`` sample that the mesh-covering spheres ``Wc`` leave closer than
-    max(d_min - 1 mm, 0) plus the largest :func:`half_steps` to the obstacles gets the exact distance to
-    the collision meshes (:class:`MeshGeometry`), which must be >= that bound; where it is less than the
-    bound plus the sample's own half steps, the motion to the neighbouring samples is proven by halving
-    (:func:`_between`). The bound then holds over the motion between the samples too (the trajectory's
-    cubic interpolant, as an independent check resampling it at other instants sees it). Clock and
+    Every ``dt`` sample that the mesh-covering spheres ``Wc`` leave closer than max(d_min - 1 mm, 0)
+    plus the largest :func:`~robointel.planning.between_samples.half_steps` to the obstacles is measured
+    on the collision meshes (:class:`MeshGeometry`: lower bounds by the hulls and by collision queries
+    at margins, the exact distance only in contact), which must keep that bound; where a pair's bound
+    is less than it plus the sample's own half steps, the motion to the neighbouring samples is proven
+    by halving (:func:`~robointel.planning.between_samples.prove_between`). The bound then holds over
+    the motion between the samples too (the trajectory's cubic interpolant, as an independent check
+    resampling it at other instants sees it). Clock and
     result as :func:`interior_check`.
     """
     dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
@@ -175,88 +178,27 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
                 return timed_out("the collision-mesh check", chk)
             n += 1
             which = np.flatnonzero(due <= k + SELF_EARLY)
-            d = mg.pair_distances(Q[k], which, thresh=top)
+            # lower bounds (hull, collision queries at margins); exact only in contact (the error says how deep)
+            d = mg.pair_distances(Q[k], which, thresh=thr)
             m = int(np.argmin(d))
-            near = which[d < thr + h[k]]
-            if d[m] < thr or (len(near) and not _between(mg, dense, s0 + k, near, thr)):
-                link, obs = mg.pair_names(int(which[m]))
-                at = f"at t = {dense.t[s0 + k]:.3f} s" if d[m] < thr else f"next to t = {dense.t[s0 + k]:.3f} s"
-                return DenseCheck(False, f"collision-mesh check: link {link!r} is {d[m] * 1e3:.2f} mm from {obs!r} "
-                                  f"{at}", "collision", min(float(d[m]), chk.min_clearance_m), chk.samples, (link,),
-                                  Q[k].copy())
+            close = np.flatnonzero(d < thr + h[k])
+            bad = m if d[m] < thr else -1
+            if bad < 0 and len(close):
+                try:
+                    u = prove_between(mg, dense, s0 + k, which[close], thr, d[close], deadline=deadline)
+                except OutOfTime:
+                    return timed_out("the collision-mesh check", chk)
+                bad = int(close[u]) if u >= 0 else -1
+            if bad >= 0:
+                link, obs = mg.pair_names(int(which[bad]))
+                what = (f"is {d[bad] * 1e3:.2f} mm from {obs!r} at t = {dense.t[s0 + k]:.3f} s" if d[bad] < thr else
+                        f"comes closer than {thr * 1e3:.2f} mm to {obs!r} next to t = {dense.t[s0 + k]:.3f} s")
+                return DenseCheck(False, f"collision-mesh check: link {link!r} {what}", "collision",
+                                  min(float(d[bad]), chk.min_clearance_m), chk.samples, (link,), Q[k].copy())
             next_due(Cq, mg.pair_lever, which, k, d - top, due)
     return chk
 
 
-#: how many times the motion between two samples is halved to prove a clearance measured close to the threshold
-#: (a 2 mm half step becomes 0.5 um: what is left unproven there is a contact)
-BETWEEN_DEPTH = 12
-
-
-def _between(mg: MeshGeometry, dense: Trajectory, k: int, which: np.ndarray, thr: float) -> bool:
-    """Whether the pairs ``which`` keep ``thr`` over the motion from sample k - 1 to sample k + 1 of ``dense``.
-
-    Each of the two steps is halved until each pair's distances at its ends, less half the step's
-    travel (the pair's lever times the joints' change, plus the cubic's bend off the chord), are
-    proven above ``thr``, at most :data:`BETWEEN_DEPTH` times; a point closer than ``thr`` on the
-    way, or a step not proven at the deepest level, returns False.
-    """
-    lever = mg.pair_lever[which]
-
-    def gap(q: np.ndarray) -> np.ndarray:
-        return mg.pair_distances(np.ascontiguousarray(q), which, thresh=thr + 0.01)
-
-    def step(ta: float, tb: float, qa: np.ndarray, qb: np.ndarray, aa: np.ndarray, ab: np.ndarray, da: np.ndarray,
-             db: np.ndarray, depth: int) -> bool:
-        dt = tb - ta
-        move = lever @ (0.5 * np.abs(qb - qa) + 0.125 * dt * dt * np.maximum(np.abs(aa), np.abs(ab)))
-        if float(np.min(np.minimum(da, db) - move)) >= thr:
-            return True
-        if depth == 0:
-            return False
-        tm = 0.5 * (ta + tb)
-        qm, _, am = (x[0] for x in dense.sample([tm]))
-        dm = gap(qm)
-        return float(dm.min()) >= thr and step(ta, tm, qa, qm, aa, am, da, dm, depth - 1) and \
-            step(tm, tb, qm, qb, am, ab, dm, db, depth - 1)
-
-    n = len(dense.t)
-    idx = [j for j in (k - 1, k, k + 1) if 0 <= j < n]
-    q, _, a = dense.sample(dense.t[idx])
-    d = [gap(x) for x in q]
-    return all(step(dense.t[i], dense.t[j], q[u], q[u + 1], a[u], a[u + 1], d[u], d[u + 1], BETWEEN_DEPTH)
-               for u, (i, j) in enumerate(zip(idx[:-1], idx[1:])))
-
-
-@njit(cache=True)
-def half_steps(Q: np.ndarray, reach: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
-    """Per sample of ``Q`` (K, n), how far any point of the robot may move toward the midpoints of its two steps, m.
-
-    ``reach`` (n,): per joint, the most a point moves per rad of it (the largest of the pairs' levers).
-    Half of each neighbouring step's travel, the larger, plus an eighth of the joints' second difference
-    there (a cubic through the samples leaves their chord by about that): a clearance measured at a sample
-    above the threshold by this much holds over the motion to halfway to each neighbouring sample.
-    """
-    K, n = Q.shape
-    step = np.zeros(max(K - 1, 0))
-    bend = np.zeros(K)
-    for k in range(K - 1):
-        t = 0.0
-        for j in range(n):
-            t += reach[j] * abs(Q[k + 1, j] - Q[k, j])
-        step[k] = t
-    for k in range(1, K - 1):
-        t = 0.0
-        for j in range(n):
-            t += reach[j] * abs(Q[k + 1, j] - 2.0 * Q[k, j] + Q[k - 1, j])
-        bend[k] = 0.125 * t
-    h = np.zeros(K)
-    for k in range(K):
-        a = step[k - 1] if k > 0 else 0.0
-        b = step[k] if k < K - 1 else 0.0
-        c = max(bend[max(k - 1, 0)], bend[k], bend[min(k + 1, K - 1)])
-        h[k] = 0.5 * max(a, b) + c
-    return h
 
 
 def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float,
