@@ -177,3 +177,27 @@ def test_the_exact_check_refuses_a_contact_between_its_samples(ur5, monkeypatch)
     assert not out.ok and out.kind == "collision" and "next to t" in out.reason and "box" in out.reason
     monkeypatch.setattr(HC, "prove_between", lambda *a, **k: -1)  # the samples alone
     assert exact_check(env, tr, env.world_cover, ok, d_min=0.0, dt=span).ok
+
+
+def test_the_self_check_refuses_a_contact_between_its_samples(ur5, monkeypatch):
+    """A wrist turn of 0.4 rad sweeps the gripper's finger tip through the upper arm between two samples that
+    both keep 8 mm: the exact self-collision check refuses the motion, its samples alone would pass it."""
+    from robointel.planning import hybrid_check as HC
+    from robointel.planning.exact_self import self_geometry
+    from robointel.planning.hybrid_check import self_check
+    from robointel.planning.motion_check import DenseCheck
+
+    root, robot = ur5
+    env = Environment(robot, [], srdf=root / "ur5.srdf", exact_self=True)
+    sg = self_geometry(robot, env.disabled)
+    qa = np.array([0.416, 1.967, 2.052, 2.242, 1.585, -2.303])
+    qb = qa - np.array([0.0, 0.0, 0.0, 0.0, 0.4, 0.0])
+    assert min(sg.clearance(qa, cap=0.1)[0], sg.clearance(qb, cap=0.1)[0]) > 5e-3  # both samples clear
+    assert sg.clearance(0.5 * (qa + qb), cap=0.1)[0] < 0.0  # the motion between them in contact
+    tr = Trajectory(np.array([0.0, 0.4]), np.stack([qa, qb]), np.zeros((2, 6)), np.zeros((2, 6)))
+    ok = DenseCheck(True, "", "", 1.0, 2)
+    out = self_check(env, tr, ok, dt=0.4)
+    assert not out.ok and out.kind == "collision" and "next to t" in out.reason, out.reason
+    assert "upper_arm_link" in out.links
+    monkeypatch.setattr(HC, "prove_between", lambda *a, **k: -1)  # the samples alone
+    assert self_check(env, tr, ok, dt=0.4).ok

@@ -60,6 +60,8 @@ MARGINS = (0.004, 0.001)
 
 
 _THREAD = threading.local()
+#: a distance request with coal's defaults (read only)
+DISTANCE_REQUEST = coal.DistanceRequest()
 
 
 def _distance_result() -> Any:
@@ -112,6 +114,20 @@ def bounded_distance(hull_a: Any, ga: Any, Ta: Any, hull_b: Any, gb: Any, Tb: An
     if not coal.collide(ga, Ta, gb, Tb, creq, coal.CollisionResult()):
         return t0
     return min(contact_distance(ga, Ta, gb, Tb, req), t0 - 1e-12)  # closer than t0: the query said so
+
+
+def placed_clear(hull_a: Any, ga: Any, Ta: Any, hull_b: Any, gb: Any, Tb: Any, margin: float) -> bool:
+    """Whether two placed geometries are proven at least ``margin`` (m) apart.
+
+    The convex hulls' distance (GJK, less its tolerance) first; below ``margin``, coal's collision query
+    on the geometries with ``margin`` (at least 0) as its security margin. Arguments as
+    :func:`bounded_distance`.
+    """
+    if hull_bound(float(coal.distance(hull_a, Ta, hull_b, Tb, DISTANCE_REQUEST, _distance_result()))) >= margin:
+        return True
+    creq = coal.CollisionRequest()
+    creq.security_margin = max(margin, 0.0)
+    return not coal.collide(ga, Ta, gb, Tb, creq, coal.CollisionResult())
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -319,13 +335,8 @@ class MeshGeometry:
             return True
         part = self.parts[p]
         Mp = Tl[self._part_frame[p]] @ part.placement
-        T = coal.Transform3s(Mp[:3, :3], Mp[:3, 3])
         g, To = self.obstacles[o][1:3]
-        if hull_bound(float(coal.distance(part.hull, T, g, To, self._req, _distance_result()))) >= margin:
-            return True
-        creq = coal.CollisionRequest()
-        creq.security_margin = max(margin, 0.0)
-        return not coal.collide(part.mesh, T, g, To, creq, coal.CollisionResult())
+        return placed_clear(part.hull, part.mesh, coal.Transform3s(Mp[:3, :3], Mp[:3, 3]), g, g, To, margin)
 
     def link_placements(self, q: np.ndarray) -> np.ndarray:
         """(F, 4, 4) the world placements at q (n,) of the link frames that carry parts, for :meth:`pair_clear`."""

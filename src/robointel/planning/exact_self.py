@@ -20,8 +20,9 @@ import numpy as np
 import pinocchio as pin
 from numba import njit
 
-from robointel.planning.exact_geometry import bounded_distance, coal_geometry, hull_bound
+from robointel.planning.exact_geometry import bounded_distance, coal_geometry, hull_bound, placed_clear
 from robointel.planning.self_tree import SelfTree
+from robointel.robot._ik_kernels import chain_placements
 from robointel.robot.model import Robot
 
 
@@ -276,6 +277,29 @@ class SelfGeometry:
         gd = self._gd
         return bounded_distance(si.hull, si.geom, _transform(gd.oMg[i]), sj.hull, sj.geom, _transform(gd.oMg[j]),
                                 thresh, self._req)
+
+    def link_placements(self, q: np.ndarray) -> np.ndarray:
+        """(J, 4, 4) the joints' world placements at q (n,) (Pinocchio's ``oMi``), for :meth:`pair_clear`."""
+        robot, q = self.robot, np.asarray(q, float)
+        if robot._chain_batch:  # compiled over the joint chain
+            T = np.empty((robot.model.njoints, 4, 4))
+            T[0] = np.eye(4)
+            chain_placements(q, *robot.chain, T)
+            return T
+        pin.forwardKinematics(robot.model, self._data, q)
+        return np.array([M.homogeneous for M in self._data.oMi])
+
+    def pair_clear(self, T: np.ndarray, p: int, margin: float) -> bool:
+        """Whether solid pair ``p`` is at least ``margin`` (m) apart at the joint placements T.
+
+        A yes is a proof (:func:`~robointel.planning.exact_geometry.placed_clear`: hulls, then a
+        collision query with ``margin`` as its security margin).
+        """
+        i, j = int(self.pairs[p, 0]), int(self.pairs[p, 1])
+        Mi, Mj = T[self._solid_joint[i]] @ self._in_joint[i], T[self._solid_joint[j]] @ self._in_joint[j]
+        si, sj = self.solids[i], self.solids[j]
+        return placed_clear(si.hull, si.geom, coal.Transform3s(Mi[:3, :3], Mi[:3, 3]), sj.hull, sj.geom,
+                            coal.Transform3s(Mj[:3, :3], Mj[:3, 3]), margin)
 
     @property
     def empty(self) -> bool:

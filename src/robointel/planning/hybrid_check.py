@@ -11,7 +11,7 @@ from numba import njit
 
 from robointel.errors import CollisionAtStart
 from robointel.planning import _dense_kernels as D
-from robointel.planning.between_samples import OutOfTime, half_steps, prove_between
+from robointel.planning.between_samples import OutOfTime, half_steps, pair_half_steps, prove_between
 from robointel.planning.budget_clock import now as clock_now
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
@@ -181,9 +181,11 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
             # lower bounds (hull, collision queries at margins); exact only in contact (the error says how deep)
             d = mg.pair_distances(Q[k], which, thresh=thr)
             m = int(np.argmin(d))
-            close = np.flatnonzero(d < thr + h[k])
             bad = m if d[m] < thr else -1
-            if bad < 0 and len(close):
+            close = np.flatnonzero(d < thr + h[k]) if bad < 0 and d[m] < thr + h[k] else np.zeros(0, np.int64)
+            if len(close):  # (h: the largest lever's; then each pair's own)
+                close = close[d[close] < thr + pair_half_steps(Q, k, mg.pair_lever[which[close]])]
+            if len(close):
                 try:
                     u = prove_between(mg, dense, s0 + k, which[close], thr, d[close], deadline=deadline)
                 except OutOfTime:
@@ -227,6 +229,9 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
     dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
     Q = np.ascontiguousarray(dense.q)
     K = len(Q)
+    # each sample keeps thr plus its half steps (the motion halfway to its neighbours), or is proven between
+    h = half_steps(Q, sg.pair_lever.max(axis=0))
+    top = thr + float(h.max())
     # Cq[k]: each joint's travel from sample 0 to sample k; pair p's distance changes by at most
     # pair_lever[p] . (Cq[j] - Cq[k]) from sample k to sample j
     Cq = _travel(Q)
@@ -251,16 +256,28 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
             return timed_out("the self-collision check", chk)
         n += 1
         its = item[which]
-        d, hits, near = tree.measure(Q[k], its, thresh=thr, expand=thr + EXPAND)
-        if hits:
-            w = min(hits, key=lambda h: d[h])
+        d, hits, near = tree.measure(Q[k], its, thresh=thr, expand=top + EXPAND)
+        w = min(hits, key=lambda i: d[i]) if hits else -1
+        if w < 0 and float(d.min()) < thr + h[k]:  # solid pairs close to thr: proven over the motion between
+            leaves = tree.leaf[its]
+            close = np.flatnonzero((leaves >= 0) & (d < thr + h[k]))  # (h: the largest lever's; then their own)
+            if len(close):
+                close = close[d[close] < thr + pair_half_steps(Q, k, sg.pair_lever[leaves[close]])]
+            if len(close):
+                try:
+                    u = prove_between(sg, dense, k, leaves[close], thr, d[close], deadline=deadline)
+                except OutOfTime:
+                    return timed_out("the self-collision check", chk)
+                w = int(close[u]) if u >= 0 else -1
+        if w >= 0:
             p = int(tree.leaf[its[w]])
             la, lb = sg.solids[sg.pairs[p, 0]].link, sg.solids[sg.pairs[p, 1]].link
-            return DenseCheck(False, f"self-collision check: link {la!r} is {d[w] * 1e3:.2f} mm from link {lb!r} "
-                              f"at t = {dense.t[k]:.3f} s", "collision", min(float(d[w]), chk.min_clearance_m),
-                              chk.samples, (la, lb), Q[k].copy())
+            what = (f"is {d[w] * 1e3:.2f} mm from link {lb!r} at t = {dense.t[k]:.3f} s" if d[w] < thr else
+                    f"comes closer than {thr * 1e3:.2f} mm to link {lb!r} next to t = {dense.t[k]:.3f} s")
+            return DenseCheck(False, f"self-collision check: link {la!r} {what}", "collision",
+                              min(float(d[w]), chk.min_clearance_m), chk.samples, (la, lb), Q[k].copy())
         if not near:  # proven until the relative travel since eats the margin
-            next_due(Cq, lever, which, k, d - thr, due)
+            next_due(Cq, lever, which, k, d - top, due)
             continue
         for w in near:  # replaced by its children's pairs, measured at this sample
             due[which[w]] = RETIRED
@@ -274,7 +291,7 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
             m += len(kids)
         keep = np.ones(len(which), bool)
         keep[near] = False
-        next_due(Cq, lever, which[keep], k, d[keep] - thr, due)
+        next_due(Cq, lever, which[keep], k, d[keep] - top, due)
 
 
 def path_touches(env: Environment, path: np.ndarray, chk: DenseCheck, *, d_min: float) -> bool:
