@@ -184,7 +184,7 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
             bad = m if d[m] < thr else -1
             close = np.flatnonzero(d < thr + h[k]) if bad < 0 and d[m] < thr + h[k] else np.zeros(0, np.int64)
             if len(close):  # (h: the largest lever's; then each pair's own)
-                close = close[d[close] < thr + pair_half_steps(Q, k, mg.pair_lever[which[close]])]
+                close = close[d[close] < thr + pair_half_steps(dense.q, s0 + k, mg.pair_lever[which[close]])]
             if len(close):
                 try:
                     u = prove_between(mg, dense, s0 + k, which[close], thr, d[close], deadline=deadline)
