@@ -15,6 +15,7 @@ from robointel.errors import DescriptionWarning, InvalidInput
 from robointel.geometry.obstacles import Sphere
 from robointel.io.mbm import load_mbm_problems
 from robointel.planning import Environment, MotionSettings, plan_motion
+from robointel.planning.between_samples import BetweenProofs
 from robointel.planning.exact_geometry import MeshGeometry
 from robointel.planning.hybrid_check import exact_check
 from robointel.planning.motion_check import check_dense
@@ -160,7 +161,6 @@ def test_the_mesh_check_bound_holds_between_its_samples(ur5):
 def test_the_exact_check_refuses_a_contact_between_its_samples(ur5, monkeypatch):
     """The forearm sweeps through a box between two samples that both clear it: the samples alone pass, the
     motion between them is refused."""
-    from robointel.planning import hybrid_check as HC
 
     _, robot = ur5
     t, Q, Qd, Qdd, box, _, _, d = _sweep_through_box(robot)
@@ -175,14 +175,13 @@ def test_the_exact_check_refuses_a_contact_between_its_samples(ur5, monkeypatch)
     span = float(np.max(np.diff(tr.t)))  # the check at the trajectory's own samples
     out = exact_check(env, tr, env.world_cover, ok, d_min=0.0, dt=span)
     assert not out.ok and out.kind == "collision" and "next to t" in out.reason and "box" in out.reason
-    monkeypatch.setattr(HC, "prove_between", lambda *a, **k: -1)  # the samples alone
+    monkeypatch.setattr(BetweenProofs, "first_refused", lambda *a, **k: -1)  # the samples alone
     assert exact_check(env, tr, env.world_cover, ok, d_min=0.0, dt=span).ok
 
 
 def test_the_self_check_refuses_a_contact_between_its_samples(ur5, monkeypatch):
     """A wrist turn of 0.4 rad sweeps the gripper's finger tip through the upper arm between two samples that
     both keep 8 mm: the exact self-collision check refuses the motion, its samples alone would pass it."""
-    from robointel.planning import hybrid_check as HC
     from robointel.planning.exact_self import self_geometry
     from robointel.planning.hybrid_check import self_check
     from robointel.planning.motion_check import DenseCheck
@@ -199,5 +198,5 @@ def test_the_self_check_refuses_a_contact_between_its_samples(ur5, monkeypatch):
     out = self_check(env, tr, ok, dt=0.4)
     assert not out.ok and out.kind == "collision" and "next to t" in out.reason, out.reason
     assert "upper_arm_link" in out.links
-    monkeypatch.setattr(HC, "prove_between", lambda *a, **k: -1)  # the samples alone
+    monkeypatch.setattr(BetweenProofs, "first_refused", lambda *a, **k: -1)  # the samples alone
     assert self_check(env, tr, ok, dt=0.4).ok

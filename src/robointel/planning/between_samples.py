@@ -2,9 +2,10 @@
 
 An independent check resamples a trajectory's cubic at other instants than the planner's samples: a
 clearance at the samples says nothing of the motion between them unless it keeps a margin for that
-motion. :func:`half_steps` is that margin per sample; where a (part, obstacle) pair is measured closer
-than the threshold plus it, :func:`prove_between` halves the two steps next to the sample until the pair
-is proven clear over each piece, by collision queries with the piece's travel as their security margin.
+motion. :func:`half_steps` is that margin per sample; where a pair (a link and an obstacle, or two links) is
+measured closer than the threshold plus its own (:func:`pair_half_steps`),
+:meth:`BetweenProofs.first_refused` halves the two steps next to the sample until the pair is proven
+clear over each piece, by collision queries with the piece's travel as their security margin.
 """
 from __future__ import annotations
 
@@ -24,7 +25,7 @@ QUERY_CHUNK = 64
 
 
 class OutOfTime(Exception):
-    """The time budget ran out inside :func:`prove_between`."""
+    """The time budget ran out inside a between-sample proof."""
 
 
 class PairGeometry(Protocol):
@@ -44,118 +45,107 @@ class PairGeometry(Protocol):
         """Whether pair i is proven at least ``margin`` (m) apart at the placements T."""
 
 
-class _Points:
-    """The trajectory's configuration, acceleration and placements at the times asked, each computed once."""
+class BetweenProofs:
+    """The between-sample proofs of one trajectory's check, sharing their work across its samples.
 
-    def __init__(self, mg: PairGeometry, dense: Trajectory, deadline: float) -> None:
-        self.mg, self.dense, self.deadline = mg, dense, deadline
-        self.at: dict[float, tuple[np.ndarray, np.ndarray]] = {}  # t -> (q, qd)
-        self.placed: dict[float, np.ndarray] = {}
+    For a pair measured closer than the threshold plus its half steps at sample k,
+    :meth:`first_refused` proves the two steps next to k. Each step is halved until the pair is proven
+    at least ``thr`` plus half the piece's travel (the pair's lever times the joints' change, plus the
+    cubic's bend off the chord) apart at both of its ends, at most :data:`BETWEEN_DEPTH` times; a
+    midpoint closer than ``thr``, or a piece not proven at the deepest level, refuses the pair. Each
+    proof is a collision query with that distance as its margin (``mg.pair_clear``). Kept for the
+    whole check: the configurations and placements of the instants visited, per pair and instant the
+    largest margin proven and the smallest refuted (a margin between them costs no query), and the
+    steps proven (a pair measured at consecutive samples has their common step proven once).
+
+    Args:
+        mg: the exact geometry (robot-obstacle or self pairs).
+        dense: the trajectory, sampled at its check's step.
+        thr: the clearance to keep, m.
+        deadline: :func:`~robointel.planning.budget_clock.now` past which a proof gives up.
+    """
+
+    def __init__(self, mg: PairGeometry, dense: Trajectory, thr: float, *, deadline: float = float("inf")) -> None:
+        self.mg, self.dense, self.thr, self.deadline = mg, dense, thr, deadline
+        self._at: dict[float, tuple[np.ndarray, np.ndarray]] = {}  # t -> (q, qd) of the cubic
+        self._placed: dict[float, np.ndarray] = {}  # t -> mg.link_placements
+        self._bounds: dict[tuple[int, float], list[float]] = {}  # (pair, t) -> [proven, refuted] margins
+        self._done: set[tuple[int, int]] = set()  # (pair, j): the step from sample j to j + 1 proven
         self.queries = 0
 
-    def add(self, t: float, q: np.ndarray, qd: np.ndarray) -> None:
-        """Keep the configuration q (n,) and velocity qd (n,) of time t, s."""
-        self.at[t] = (np.ascontiguousarray(q, dtype=float), np.asarray(qd, float))
+    def first_refused(self, k: int, which: np.ndarray, known: np.ndarray | None = None) -> int:
+        """The position in ``which`` of the first pair not proven to keep ``thr`` from sample k - 1 to k + 1, or -1.
 
-    def get(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """(q, qd) of the trajectory's cubic at time t, s."""
-        got = self.at.get(t)
-        if got is None:
-            q, qd, _ = (x[0] for x in self.dense.sample([t]))
-            self.add(t, q, qd)
-            got = self.at[t]
-        return got
+        Args:
+            k: the sample.
+            which: (m,) the pairs (indices into ``mg.pair_lever``).
+            known: (m,) lower bounds of the pairs' distances at sample k, m (e.g. as measured there), or None.
 
-    def clear(self, i: int, t: float, margin: float) -> bool:
-        """Whether pair i is proven at least ``margin`` (m) apart at time t (one collision query)."""
-        self.queries += 1
-        if self.queries % QUERY_CHUNK == 0 and clock_now() >= self.deadline:
-            raise OutOfTime
-        T = self.placed.get(t)
-        if T is None:
-            T = self.placed[t] = self.mg.link_placements(self.get(t)[0])
-        return self.mg.pair_clear(T, i, margin)
+        Raises:
+            OutOfTime: past the deadline (looked at every :data:`QUERY_CHUNK` queries).
+        """
+        dense = self.dense
+        idx = [j for j in (k - 1, k, k + 1) if 0 <= j < len(dense.t)]
+        for j in idx:  # (the cubic interpolates the samples' positions and velocities)
+            self._at.setdefault(float(dense.t[j]), (np.ascontiguousarray(dense.q[j]), np.asarray(dense.qd[j])))
+        tk = float(dense.t[k])
+        for u, i in enumerate(np.asarray(which).tolist()):
+            if known is not None:
+                lo_hi = self._bounds.setdefault((i, tk), [-np.inf, np.inf])
+                lo_hi[0] = max(lo_hi[0], float(known[u]))
+            for j0, j1 in zip(idx[:-1], idx[1:]):
+                if (i, j0) in self._done:
+                    continue
+                if not self._step(i, float(dense.t[j0]), float(dense.t[j1]), BETWEEN_DEPTH):
+                    return u
+                self._done.add((i, j0))
+        return -1
 
+    def _get(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(q, qd) of the trajectory's cubic at a sample's time or a midpoint visited, t (s)."""
+        return self._at[t]
 
-def _prove_pair(pts: _Points, i: int, ts: list[float], thr: float, known: tuple[float, float] | None) -> bool:
-    """Whether pair i keeps ``thr`` over the motion through the times ``ts`` (:func:`prove_between`'s rule)."""
-    lever = pts.mg.pair_lever[i]
-    # per time: the largest margin proven clear, the smallest refuted
-    bounds: dict[float, list[float]] = {}
-    if known is not None:
-        bounds[known[0]] = [known[1], np.inf]
-
-    def clear(t: float, margin: float) -> bool:
-        lo_hi = bounds.setdefault(t, [-np.inf, np.inf])
+    def _clear(self, i: int, t: float, margin: float) -> bool:
+        """Whether pair i is proven at least ``margin`` (m) apart at time t (a query unless the bounds decide)."""
+        lo_hi = self._bounds.setdefault((i, t), [-np.inf, np.inf])
         if margin <= lo_hi[0]:
             return True
         if margin >= lo_hi[1]:
             return False
-        ok = pts.clear(i, t, margin)
+        self.queries += 1
+        if self.queries % QUERY_CHUNK == 0 and clock_now() >= self.deadline:
+            raise OutOfTime
+        T = self._placed.get(t)
+        if T is None:
+            T = self._placed[t] = self.mg.link_placements(self._get(t)[0])
+        ok = self.mg.pair_clear(T, i, margin)
         lo_hi[0 if ok else 1] = margin
         return ok
 
-    def step(ta: float, tb: float, depth: int) -> bool:
-        (qa, va), (qb, vb) = pts.get(ta), pts.get(tb)
+    def _step(self, i: int, ta: float, tb: float, depth: int) -> bool:
+        """Whether pair i keeps ``thr`` over the motion from ta to tb (halved at most ``depth`` times)."""
+        (qa, va), (qb, vb) = self._get(ta), self._get(tb)
         h = tb - ta
         d = qb - qa
         # the cubic on [ta, tb] leaves its chord by at most h^2 / 8 times its largest acceleration there,
         # which is at an end (linear in t): its ends' accelerations from its Hermite data
         acc = np.maximum(np.abs(6.0 * d / h - 4.0 * va - 2.0 * vb), np.abs(6.0 * d / h - 2.0 * va - 4.0 * vb)) / h
-        move = float(lever @ (0.5 * np.abs(d) + 0.125 * h * h * acc))
-        if clear(ta, thr + move) and clear(tb, thr + move):
+        margin = self.thr + float(self.mg.pair_lever[i] @ (0.5 * np.abs(d) + 0.125 * h * h * acc))
+        if self._clear(i, ta, margin) and self._clear(i, tb, margin):
             return True
         if depth == 0:
             return False
         tm = 0.5 * (ta + tb)
-        return clear(tm, thr) and step(ta, tm, depth - 1) and step(tm, tb, depth - 1)
-
-    return all(step(ta, tb, BETWEEN_DEPTH) for ta, tb in zip(ts[:-1], ts[1:]))
-
-
-def prove_between(mg: PairGeometry, dense: Trajectory, k: int, which: np.ndarray, thr: float,
-                  known: np.ndarray | None = None, *, deadline: float = float("inf")) -> int:
-    """The first of the pairs ``which`` not proven to keep ``thr`` from sample k - 1 to k + 1 of ``dense``, or -1.
-
-    Pair by pair, each of the two steps is halved until the pair is proven at least ``thr`` plus half
-    the step's travel (the pair's lever times the joints' change, plus the cubic's bend off the chord)
-    apart at both of its ends, at most :data:`BETWEEN_DEPTH` times; a midpoint closer than
-    ``thr``, or a step not proven at the deepest level, refuses the pair. Each proof is a collision
-    query with that distance as its margin (``mg.pair_clear``); a time's proven and refuted margins
-    are kept, so a margin between them costs no query.
-
-    Args:
-        mg: the exact geometry (robot-obstacle or self pairs).
-        dense: the trajectory, sampled at its check's step.
-        k: the sample.
-        which: (m,) the pairs (indices into ``mg.pair_lever``).
-        thr: the clearance to keep, m.
-        known: (m,) lower bounds of the pairs' distances at sample k, m (e.g. as measured there), or None.
-        deadline: :func:`~robointel.planning.budget_clock.now` past which the proof gives up.
-
-    Returns:
-        The position in ``which`` of the first pair refused, -1 when every pair is proven.
-
-    Raises:
-        OutOfTime: past ``deadline`` (looked at every :data:`QUERY_CHUNK` queries).
-    """
-    idx = [j for j in (k - 1, k, k + 1) if 0 <= j < len(dense.t)]
-    ts = [float(dense.t[j]) for j in idx]
-    pts = _Points(mg, dense, deadline)
-    for t, j in zip(ts, idx):  # (the cubic interpolates the samples' positions and velocities)
-        pts.add(t, dense.q[j], dense.qd[j])
-    tk = float(dense.t[k])
-    for u, i in enumerate(np.asarray(which).tolist()):
-        if not _prove_pair(pts, i, ts, thr, None if known is None else (tk, float(known[u]))):
-            return u
-    return -1
+        if tm not in self._at:  # the cubic's midpoint from its Hermite data
+            self._at[tm] = (0.5 * (qa + qb) + 0.125 * h * (va - vb), 1.5 * d / h - 0.25 * (va + vb))
+        return self._clear(i, tm, self.thr) and self._step(i, ta, tm, depth - 1) and self._step(i, tm, tb, depth - 1)
 
 
 def pair_half_steps(Q: np.ndarray, k: int, lever: np.ndarray) -> np.ndarray:
     """:func:`half_steps` at sample k of ``Q`` (K, n) for each pair's own ``lever`` (m, n), m: (m,), each <= it.
 
     A pair measured above its threshold by this much keeps it over the motion halfway to each neighbouring
-    sample; only a pair closer than that needs :func:`prove_between`.
+    sample; only a pair closer than that needs :meth:`BetweenProofs.first_refused`.
     """
     K = len(Q)
     a = np.abs(Q[k] - Q[k - 1]) if k > 0 else np.zeros(Q.shape[1])
@@ -197,5 +187,5 @@ def half_steps(Q: np.ndarray, reach: np.ndarray) -> np.ndarray:  # pragma: no co
     return h
 
 
-__all__ = ["BETWEEN_DEPTH", "OutOfTime", "PairGeometry", "QUERY_CHUNK", "half_steps", "pair_half_steps",
-           "prove_between"]
+__all__ = ["BETWEEN_DEPTH", "BetweenProofs", "OutOfTime", "PairGeometry", "QUERY_CHUNK", "half_steps",
+           "pair_half_steps"]

@@ -11,7 +11,7 @@ from numba import njit
 
 from robointel.errors import CollisionAtStart
 from robointel.planning import _dense_kernels as D
-from robointel.planning.between_samples import OutOfTime, half_steps, pair_half_steps, prove_between
+from robointel.planning.between_samples import BetweenProofs, OutOfTime, half_steps, pair_half_steps
 from robointel.planning.budget_clock import now as clock_now
 from robointel.planning.environment import Environment
 from robointel.planning.exact_geometry import MeshGeometry
@@ -131,7 +131,7 @@ def exact_check(env: Environment, traj: Trajectory, Wc: tuple, chk: DenseCheck, 
     on the collision meshes (:class:`MeshGeometry`: lower bounds by the hulls and by collision queries
     at margins, the exact distance only in contact), which must keep that bound; where a pair's bound
     is less than it plus the sample's own half steps, the motion to the neighbouring samples is proven
-    by halving (:func:`~robointel.planning.between_samples.prove_between`). The bound then holds over
+    by halving (:class:`~robointel.planning.between_samples.BetweenProofs`). The bound then holds over
     the motion between the samples too (the trajectory's cubic interpolant, as an independent check
     resampling it at other instants sees it). Clock and
     result as :func:`interior_check`.
@@ -149,6 +149,7 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
     thr = max(d_min - CLEARANCE_TOL, 0.0)  # the real geometry may not be penetrated at all
     s = env.scratch
     reach = mg.pair_lever.max(axis=0) if len(mg.pair_lever) else np.zeros(dense.q.shape[1])
+    proofs: BetweenProofs | None = None  # made at the first pair that needs one
     hall = half_steps(np.ascontiguousarray(dense.q), reach)
     for s0, s1 in spans:
         Q = np.ascontiguousarray(dense.q[s0:s1])
@@ -187,7 +188,8 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
                 close = close[d[close] < thr + pair_half_steps(dense.q, s0 + k, mg.pair_lever[which[close]])]
             if len(close):
                 try:
-                    u = prove_between(mg, dense, s0 + k, which[close], thr, d[close], deadline=deadline)
+                    proofs = proofs or BetweenProofs(mg, dense, thr, deadline=deadline)
+                    u = proofs.first_refused(s0 + k, which[close], d[close])
                 except OutOfTime:
                     return timed_out("the collision-mesh check", chk)
                 bad = int(close[u]) if u >= 0 else -1
@@ -229,6 +231,7 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
     dense = traj if float(np.max(np.diff(traj.t))) <= dt * (1 + 1e-9) else traj.resample(dt)
     Q = np.ascontiguousarray(dense.q)
     K = len(Q)
+    proofs: BetweenProofs | None = None  # made at the first pair that needs one
     # each sample keeps thr plus its half steps (the motion halfway to its neighbours), or is proven between
     h = half_steps(Q, sg.pair_lever.max(axis=0))
     top = thr + float(h.max())
@@ -265,7 +268,8 @@ def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float
                 close = close[d[close] < thr + pair_half_steps(Q, k, sg.pair_lever[leaves[close]])]
             if len(close):
                 try:
-                    u = prove_between(sg, dense, k, leaves[close], thr, d[close], deadline=deadline)
+                    proofs = proofs or BetweenProofs(sg, dense, thr, deadline=deadline)
+                    u = proofs.first_refused(k, leaves[close], d[close])
                 except OutOfTime:
                     return timed_out("the self-collision check", chk)
                 w = int(close[u]) if u >= 0 else -1
