@@ -142,7 +142,7 @@ class BetweenProofs:
 
 
 def pair_half_steps(Q: np.ndarray, k: int, lever: np.ndarray) -> np.ndarray:
-    """:func:`half_steps` at sample k of ``Q`` (K, n) for each pair's own ``lever`` (m, n), m: (m,), each <= it.
+    """:func:`half_steps` at sample k of ``Q`` (K, n) for each pair's own ``lever`` (m, n), m: (m,).
 
     A pair measured above its threshold by this much keeps it over the motion halfway to each neighbouring
     sample; only a pair closer than that needs :meth:`BetweenProofs.first_refused`.

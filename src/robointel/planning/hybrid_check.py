@@ -203,8 +203,6 @@ def _mesh_check(env: Environment, dense: Trajectory, spans: tuple[tuple[int, int
     return chk
 
 
-
-
 def self_check(env: Environment, traj: Trajectory, chk: DenseCheck, *, dt: float,
                deadline: float = float("inf")) -> DenseCheck:
     """Check self-collision on the exact geometry at every ``dt`` sample (``env.exact_self``).
