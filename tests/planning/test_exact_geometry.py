@@ -7,6 +7,7 @@ import pinocchio as pin
 
 from robointel.io.mbm import load_mbm_problems
 from robointel.planning.exact_geometry import MeshGeometry, contact_distance
+from robointel.planning.part_spheres import LEAVES, mesh_triangles, triangle_spheres
 from robointel.robot import Robot
 
 
@@ -111,3 +112,50 @@ def test_pair_clear_is_a_proof_and_refutes_only_below_its_margin(shared_data):
                     assert (exact >= margin - 1e-6) if ok else (exact < margin + 1e-6), (i, margin, exact)
                     said[ok] += 1
     assert said[True] >= 10 and said[False] >= 10  # both answers seen
+
+
+def test_cell_spheres_hold_every_triangle_of_a_mesh(shared_data):
+    """Each mesh part's cell spheres: every triangle lies whole in one of them (its three vertices do)."""
+    root = shared_data("mbm", "ur5")
+    mg = MeshGeometry(Robot.load(root / "ur5.urdf"), [])
+    part = max(mg.parts, key=lambda p: getattr(p.mesh, "num_tris", 0))
+    V, F = mesh_triangles(part.mesh)
+    C, R = triangle_spheres(V, F)
+    assert len(F) > 1000 and 1 < len(R) <= LEAVES
+    inside = np.linalg.norm(V[F][:, :, None, :] - C[None, None], axis=3) <= R[None, None]  # (T, 3, k)
+    assert inside.all(axis=1).any(axis=1).all()
+    assert triangle_spheres(V, F[:0])[1].shape == (0,)
+
+
+def test_part_bounds_never_exceed_the_mesh_distance(shared_data):
+    """The compiled broad phase (bounding and cell spheres to each primitive) is a lower bound of coal's distance."""
+    from robointel.geometry.obstacles import Box, Capsule, Cylinder, Sphere
+
+    root = shared_data("mbm", "ur5")
+    robot = Robot.load(root / "ur5.urdf")
+    rng = np.random.default_rng(11)
+    q0 = np.array([0.0, -1.2, 1.4, -1.8, -1.57, 0.0])
+    pin.framesForwardKinematics(robot.model, robot.data, q0)
+    tip = robot.data.oMf[robot.model.getFrameId(robot.link_names[-1])].translation
+    R = pin.rpy.rpyToMatrix(0.3, -0.5, 0.9)
+    obstacles = [Box(center=tip + [0.12, 0.0, 0.0], size=np.array([0.05, 0.3, 0.2]), rotation=R),
+                 Cylinder(a=tip + [-0.1, 0.1, -0.2], b=tip + [-0.1, 0.1, 0.2], radius=0.03),
+                 Capsule(a=tip + [0.0, -0.15, -0.1], b=tip + [0.1, -0.15, 0.1], radius=0.02),
+                 Sphere(center=tip + [0.0, 0.0, 0.15], radius=0.04)]
+    mg = MeshGeometry(robot, obstacles)
+    req = coal.DistanceRequest()
+    nobs = len(mg.obstacles)
+    pp, oo = np.divmod(np.arange(len(mg.parts) * nobs), nobs)
+    near = 0
+    for q in q0 + rng.normal(0.0, 0.15, (12, 6)):
+        Tl = mg.link_placements(q)
+        bound = np.empty(len(pp))
+        mg._bounds(Tl, pp, oo, bound)
+        pin.framesForwardKinematics(robot.model, robot.data, q)
+        for n, (p, o) in enumerate(zip(pp, oo)):
+            part, (_, g, To, _, _) = mg.parts[p], mg.obstacles[o]
+            T = robot.data.oMf[part.frame].homogeneous @ part.placement
+            exact = contact_distance(part.mesh, coal.Transform3s(T[:3, :3], T[:3, 3]), g, To, req)
+            assert bound[n] <= exact + 1e-7, (p, o, bound[n], exact)
+            near += exact < 0.05 and bound[n] > exact - 0.03
+    assert near >= 10  # and close to it where it matters

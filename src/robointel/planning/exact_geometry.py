@@ -17,7 +17,9 @@ import pinocchio as pin
 from numba import njit
 
 from robointel.errors import DescriptionError
+from robointel.geometry import _kernels as GK
 from robointel.geometry.obstacles import Box, Capsule, Cylinder, Obstacle, Sphere
+from robointel.planning.part_spheres import mesh_triangles, part_bounds, triangle_spheres
 from robointel.robot._ik_kernels import chain_placements
 from robointel.robot.model import Robot
 
@@ -144,35 +146,6 @@ def _axis_frame(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
-def sphere_box_bounds(T: np.ndarray, part_frame: np.ndarray, centres: np.ndarray, radii: np.ndarray,
-                      lo: np.ndarray, hi: np.ndarray, pp: np.ndarray, oo: np.ndarray,
-                      out: np.ndarray) -> None:  # pragma: no cover - compiled
-    """out[n] = distance from part pp[n]'s bounding sphere to obstacle oo[n]'s box (a lower bound), m.
-
-    Args:
-        T: (F, 4, 4) the placements of the parts' link frames in the world.
-        part_frame: (P,) each part's index into T.
-        centres: (P, 3) each part's bounding-sphere centre in its link frame, m.
-        radii: (P,) the bounding spheres' radii, m.
-        lo: (O, 3) each obstacle's axis-aligned box, lower corner, m.
-        hi: (O, 3) upper corner, m.
-        pp: (N,) the parts of the pairs.
-        oo: (N,) the obstacles of the pairs.
-        out: (N,) receives the bounds (negative: the sphere reaches into the box).
-    """
-    for n in range(pp.shape[0]):
-        p, o = pp[n], oo[n]
-        M = T[part_frame[p]]
-        c0, c1, c2 = centres[p, 0], centres[p, 1], centres[p, 2]
-        d2 = 0.0
-        for r in range(3):
-            x = M[r, 0] * c0 + M[r, 1] * c1 + M[r, 2] * c2 + M[r, 3]
-            e = max(max(lo[o, r] - x, x - hi[o, r]), 0.0)
-            d2 += e * e
-        out[n] = np.sqrt(d2) - radii[p]
-
-
-@njit(cache=True)
 def frame_placements(q: np.ndarray, parent: np.ndarray, place: np.ndarray, axis: np.ndarray, kind: np.ndarray,
                      qidx: np.ndarray, frame_joint: np.ndarray, frame_place: np.ndarray, T: np.ndarray,
                      out: np.ndarray) -> None:  # pragma: no cover - compiled
@@ -194,9 +167,10 @@ def frame_placements(q: np.ndarray, parent: np.ndarray, place: np.ndarray, axis:
 
 
 def warm_broad_phase() -> None:
-    """Compile (or load from numba's disk cache) :func:`sphere_box_bounds` and :func:`frame_placements`."""
+    """Compile (or load from numba's disk cache) the broad phase and :func:`frame_placements`."""
     i1, f1 = np.zeros(1, np.int64), np.zeros(1)
-    sphere_box_bounds(np.zeros((1, 4, 4)), i1, np.zeros((1, 3)), f1, np.zeros((1, 3)), np.zeros((1, 3)), i1, i1, f1)
+    part_bounds(np.zeros((1, 4, 4)), i1, np.zeros((1, 3)), f1, np.zeros((1, 3)), f1, np.array([0, 1], np.int64), i1,
+                np.zeros((1, GK.NPARAM)), i1, i1, f1)
     i2, T = np.array([-1, 0], np.int64), np.zeros((2, 4, 4))
     frame_placements(f1, i2, T, np.zeros((2, 3)), i2, i2, i1, np.zeros((1, 4, 4)), T.copy(), np.zeros((1, 4, 4)))
 
@@ -217,13 +191,16 @@ class MeshGeometry:
         side = _PARTS[key]
         self.parts = side.parts
         self.obstacles: list[tuple[str, Any, Any, np.ndarray, np.ndarray]] = []
+        kept = []
         for k, o in enumerate(obstacles):
             g = _coal_obstacle(o)
             if g is not None:
                 lo, hi = o.bounds()
                 self.obstacles.append((o.label(k), g[0], g[1], np.asarray(lo), np.asarray(hi)))
-        self._lo = np.array([o[3] for o in self.obstacles], float).reshape(-1, 3)
-        self._hi = np.array([o[4] for o in self.obstacles], float).reshape(-1, 3)
+                kept.append(o)
+        # each obstacle as a primitive of the compiled distance (part_spheres.part_bounds)
+        self._types = np.array([o._code for o in kept], np.int64)  # type: ignore[attr-defined]
+        self._params = np.array([o._packed for o in kept], float).reshape(-1, GK.NPARAM)  # type: ignore[attr-defined]
         self.part_lever = side.part_lever
         #: (P * O, n): the distance of (part p, obstacle o), pair p * O + o, changes at most
         #: sum_k pair_lever[., k] |dq_k| (m)
@@ -232,8 +209,14 @@ class MeshGeometry:
         self._frames, self._part_frame = side.frames, side.part_frame
         self._frame_joint, self._frame_place = side.frame_joint, side.frame_place
         self._centres, self._radii = side.centres, side.radii
+        self._cells = (side.sub_centres, side.sub_radii, side.sub_start)
         P, O = len(self.parts), len(self.obstacles)
         self._all_pp, self._all_oo = np.repeat(np.arange(P), O), np.tile(np.arange(O), P)  # every pair p * O + o
+
+    def _bounds(self, Tl: np.ndarray, pp: np.ndarray, oo: np.ndarray, out: np.ndarray) -> None:
+        """out[n] = a lower bound of the distance of (part pp[n], obstacle oo[n]) at the link placements Tl, m."""
+        part_bounds(Tl, self._part_frame, self._centres, self._radii, *self._cells, self._types, self._params, pp, oo,
+                    out)
 
     @property
     def empty(self) -> bool:
@@ -247,7 +230,7 @@ class MeshGeometry:
         margins) and measured on the mesh only below ``thresh`` (and below the smallest distance
         found so far): the result is exact below ``thresh`` and a lower bound above it. The (part,
         obstacle) pairs are measured in
-        the order of a lower bound (the part's bounding sphere to the obstacle's box) and not at
+        the order of a lower bound (the part's spheres to the obstacle, :meth:`_bounds`) and not at
         all once that bound reaches the smallest distance found: the result is the minimum over
         every pair.
 
@@ -263,10 +246,9 @@ class MeshGeometry:
         if not self.parts or not self.obstacles:
             return best, bl, bo
         Tl = self._frame_placements(q)
-        # broad phase: every part's bounding sphere against every obstacle's box, pair p * O + o
+        # broad phase: every part's spheres against every obstacle, pair p * O + o
         flat = np.empty(len(self._all_pp))
-        sphere_box_bounds(Tl, self._part_frame, self._centres, self._radii, self._lo, self._hi, self._all_pp,
-                          self._all_oo, flat)
+        self._bounds(Tl, self._all_pp, self._all_oo, flat)
         cand = np.flatnonzero(flat < best)
         if cand.size == 0:
             return best, bl, bo
@@ -290,11 +272,11 @@ class MeshGeometry:
         return best, bl, bo
 
     def pair_distances(self, q: np.ndarray, which: np.ndarray, *, thresh: float,
-                       near: float = 0.05) -> np.ndarray:
+                       near: float = 0.01) -> np.ndarray:
         """Distances (len(which),) of the (part, obstacle) pairs ``which`` (p * O + o) at q.
 
-        Exact below ``thresh``, else lower bounds above it: the part's bounding sphere to the obstacle's
-        box where that is more than ``near`` (m) above ``thresh``, else the convex hull's distance
+        Exact below ``thresh``, else lower bounds above it: the part's spheres to the obstacle (:meth:`_bounds`)
+        where that is more than ``near`` (m) above ``thresh``, else the convex hull's distance
         (:func:`bounded_distance`, refined on the mesh below ``thresh``).
         """
         if len(which) == 0:
@@ -302,7 +284,7 @@ class MeshGeometry:
         Tl = self._frame_placements(q)
         pp, oo = np.divmod(np.asarray(which, np.int64), len(self.obstacles))
         out = np.empty(len(pp))  # the broad phase
-        sphere_box_bounds(Tl, self._part_frame, self._centres, self._radii, self._lo, self._hi, pp, oo, out)
+        self._bounds(Tl, pp, oo, out)
         placed: dict[int, Any] = {}  # each part's coal placement
         for n in np.flatnonzero(out <= thresh + near).tolist():
             p, o = int(pp[n]), int(oo[n])
@@ -318,7 +300,7 @@ class MeshGeometry:
     def pair_clear(self, Tl: np.ndarray, i: int, margin: float) -> bool:
         """Whether the (part, obstacle) pair ``i`` (p * O + o) is at least ``margin`` (m, >= 0) apart.
 
-        A yes is a proof: the part's bounding sphere to the obstacle's box, then the convex hulls' distance
+        A yes is a proof: the part's spheres to the obstacle (:meth:`_bounds`), then the convex hulls' distance
         (GJK, less its tolerance), then coal's collision query on the mesh with ``margin`` as its security
         margin (85-175 us a call on the UR5's finger tip near a shelf, against ~560 us for its mesh distance).
 
@@ -329,8 +311,7 @@ class MeshGeometry:
         """
         p, o = divmod(int(i), len(self.obstacles))
         one = np.empty(1)
-        sphere_box_bounds(Tl, self._part_frame, self._centres, self._radii, self._lo, self._hi,
-                          np.array([p], np.int64), np.array([o], np.int64), one)
+        self._bounds(Tl, np.array([p], np.int64), np.array([o], np.int64), one)
         if one[0] >= margin:
             return True
         part = self.parts[p]
@@ -364,7 +345,8 @@ class _RobotMeshes:
     """What :class:`MeshGeometry` needs of the robot alone (shared read-only by every instance).
 
     ``part_lever``: :func:`_part_levers`; per part its link frame (an index into the distinct
-    ``frames``), bounding-sphere centre and radius.
+    ``frames``), bounding-sphere centre and radius, and its cell spheres
+    (:func:`~robointel.planning.part_spheres.triangle_spheres`: part p's are ``sub_start[p]:sub_start[p + 1]``).
     """
 
     def __init__(self, robot: Robot, parts: list[_Part]) -> None:
@@ -378,7 +360,14 @@ class _RobotMeshes:
         self.part_frame = np.array([self.frames.index(p.frame) for p in parts], int)
         self.centres = np.array([p.centre for p in parts], float).reshape(-1, 3)
         self.radii = np.array([p.radius for p in parts], float)
-        for a in (self.part_lever, self.part_frame, self.centres, self.radii):
+        # each mesh part's cell spheres (part_spheres.triangle_spheres) in its link frame; none for a primitive
+        cells = [triangle_spheres(*mesh_triangles(p.mesh)) for p in parts]
+        self.sub_centres = np.concatenate([c @ p.placement[:3, :3].T + p.placement[:3, 3]
+                                           for (c, _), p in zip(cells, parts)] + [np.zeros((0, 3))])
+        self.sub_radii = np.concatenate([r for _, r in cells] + [np.zeros(0)])
+        self.sub_start = np.concatenate([[0], np.cumsum([len(r) for _, r in cells], dtype=np.int64)]).astype(np.int64)
+        for a in (self.part_lever, self.part_frame, self.centres, self.radii, self.sub_centres, self.sub_radii,
+                  self.sub_start):
             a.flags.writeable = False
 
 
