@@ -200,3 +200,29 @@ def test_the_self_check_refuses_a_contact_between_its_samples(ur5, monkeypatch):
     assert "upper_arm_link" in out.links
     monkeypatch.setattr(BetweenProofs, "first_refused", lambda *a, **k: -1)  # the samples alone
     assert self_check(env, tr, ok, dt=0.4).ok
+
+
+def test_a_link_the_meshes_catch_on_a_hybrid_root_edge_grows_its_spheres_there(ur5, tmp_path):
+    """A hybrid plan's start and goal edges run in the given spheres grown as far as the roots allow; a link
+    the collision meshes catch there grows alone toward its covering spheres, the roots kept clear."""
+    from robointel.planning.motion import _grow
+    from robointel.planning.motion_check import DenseCheck
+
+    root, robot = ur5
+    data = json.loads((root / "problems.json").read_text())
+    raw = next(r for r in data["problems"]["bookshelf_small"] if r["index"] == 5)
+    one = tmp_path / "one.json"
+    one.write_text(json.dumps({**data, "problems": {"bookshelf_small": [raw]}}))
+    p = load_mbm_problems(one).select(index=5)[0]
+    env = Environment(robot, p.obstacles, srdf=root / "ur5.srdf", spheres=root / "ur5_spherized.urdf")
+    q0, goals = np.asarray(p.start, float), np.atleast_2d(np.asarray(p.goals, float))
+    env.use("fitted")
+    link = "robotiq_85_left_finger_tip_link"
+    mask = env.link_spheres([link])
+    assert mask.any() and not env.blend.any()
+    chk = DenseCheck(False, "caught", "collision", 0.0, 1, (link,), goals[0].copy())
+    assert not _grow(env, chk, q0, goals, 0.001, False)  # the obstacle spheres stay as they are without it
+    assert not env.blend.any()
+    assert _grow(env, chk, q0, goals, 0.001, True)
+    assert env.blend[mask].min() > 0 and not env.blend[~mask].any()
+    assert all(env.clearance(q, cap=1.0) >= 0.001 for q in [q0, *goals])

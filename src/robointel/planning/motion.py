@@ -183,20 +183,21 @@ def _roots_free(env: Environment, q0: np.ndarray, goals: np.ndarray, d_min: floa
             and any(env.clearance(g, cap=d_min + 1.0) >= d_min for g in goals))
 
 
-def _grow(env: Environment, chk: DenseCheck, q0: np.ndarray, goals: np.ndarray, thr: float, exact: bool) -> bool:
+def _grow(env: Environment, chk: DenseCheck, q0: np.ndarray, goals: np.ndarray, thr: float, obstacles: bool) -> bool:
     """Move the spheres of the links the collision meshes caught toward the covering ones, for the next attempt.
 
-    A self-collision pair (``chk.links``: two links) grows their self-collision radii; in the
-    fitted-sphere fallback (``exact``), a link the obstacle mesh check caught grows its obstacle
-    radii. Each goes all the way, else half, a quarter... (5 tries) as far as the start and every
-    goal keep clearance ``thr``. Returns whether a radius grew.
+    A self-collision pair (``chk.links``: two links) grows their self-collision radii; with
+    ``obstacles`` (the fitted-sphere fallback, or a hybrid plan, whose start and goal edges run in the
+    fitted spheres), a link the obstacle mesh check caught grows its obstacle radii. Each goes all the
+    way, else half, a quarter... (5 tries) as far as the start and every goal keep clearance ``thr``.
+    Returns whether a radius grew.
     """
     if len(chk.links) == 2:
         cur = np.broadcast_to(np.asarray(env.self_blend, float), (len(env.sphere_links),)).copy()
 
         def put(b: np.ndarray) -> None:
             env.set_self_blend(b)
-    elif len(chk.links) == 1 and exact:
+    elif len(chk.links) == 1 and obstacles:
         cur = env.blend.copy()
 
         def put(b: np.ndarray) -> None:
@@ -302,7 +303,7 @@ def _plan(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSetting
         if chk.ok or not (hybrid or exact or env.exact_self) or chk.kind != "collision" or \
                 clock_now() >= deadline:
             break
-        grew = _grow(env, chk, q0, goals, thr, exact)  # the links the meshes caught kept farther next time
+        grew = _grow(env, chk, q0, goals, thr, exact or hybrid)  # the links caught kept farther next time
         if grew:
             Wc = env.world if exact else env.world_cover
             Wr = env.world if (exact or hybrid) else Wc
