@@ -63,3 +63,21 @@ def test_an_obstacle_contact_on_the_polyline_is_traced_back(shared_data):
     failed = DenseCheck(False, "collision-mesh check", "collision", -0.01, 1, ("wrist_3_link",), q_in)
     assert path_touches(env, np.array([q_out, q_in]), failed, d_min=0.001)  # ends in the ball
     assert not path_touches(env, np.array([q_out, q_out + 1e-3]), failed, d_min=0.001)
+
+
+def test_a_polyline_grazing_the_meshes_within_the_margin_touches(shared_data):
+    """A polyline whose nearest point clears the meshes by less than ``TOUCH_MARGIN`` is not timed again."""
+    from robointel.planning.hybrid_check import TOUCH_MARGIN, mesh_geometry
+
+    root = shared_data("mbm", "ur5")
+    robot = Robot.load(root / "ur5.urdf")
+    q = np.array([0.3, -1.2, 1.4, -1.7, -1.5, 0.2])
+    centre = robot.link_poses(q)["wrist_3_link"][:3, 3] + np.array([0.0, 0.0, 0.25])
+    probe = Environment(robot, [Sphere(centre, 0.01)], srdf=root / "ur5.srdf")
+    d0 = mesh_geometry(probe).clearance(q, cap=1.0, thresh=1.0)[0]  # exact: the meshes to a 10 mm ball
+    assert 0.02 < d0 < 0.9
+    failed = DenseCheck(False, "collision-mesh check", "collision", -0.001, 1, ("wrist_3_link",), q + 1e-4)
+    for gap, touches in ((0.5 * TOUCH_MARGIN, True), (2.0 * TOUCH_MARGIN + 1e-3, False)):
+        env = Environment(robot, [Sphere(centre, 0.01 + d0 - gap)], srdf=root / "ur5.srdf")
+        assert abs(mesh_geometry(env).clearance(q, cap=1.0, thresh=1.0)[0] - gap) < 1e-6
+        assert path_touches(env, np.array([q - 0.01, q + 0.01]), failed, d_min=0.001) is touches

@@ -34,6 +34,9 @@ def mesh_geometry(env: Environment) -> MeshGeometry:
 MESH_CHUNK = 64
 #: samples ahead of its due one a pair is measured at when others are measured there (fewer placements)
 SELF_EARLY = 128
+#: how close above the mesh check's threshold a refused timing's path may pass, at the point nearest the
+#: refusal, and still be timed again (:func:`path_touches`), m
+TOUCH_MARGIN = 0.002
 
 
 def _travel(Q: np.ndarray) -> np.ndarray:
@@ -302,9 +305,10 @@ def path_touches(env: Environment, path: np.ndarray, chk: DenseCheck, *, d_min: 
     The point of the polyline nearest (in joint space) to the failed sample ``chk.q`` is measured on
     the collision meshes: against the obstacles when ``chk.links`` names one link (threshold
     max(d_min - 1 mm, 0), as :func:`exact_check`), between the links when it names two (threshold
-    max(``env.self_padding`` - 1 mm, 0), as :func:`self_check`). When that point is below the
-    threshold too, timings that follow the polyline more closely (closer spline knots, rest-to-rest
-    motion along it) cannot pass there: the path itself must change.
+    max(``env.self_padding`` - 1 mm, 0), as :func:`self_check`). When that point is closer than the
+    threshold plus :data:`TOUCH_MARGIN`, timings that follow the polyline more closely (closer spline
+    knots, rest-to-rest motion along it) do not pass there either (a timing refused between its samples
+    grazes the meshes where the polyline does): the path itself must change.
 
     Args:
         env: the environment the check ran in.
@@ -313,7 +317,8 @@ def path_touches(env: Environment, path: np.ndarray, chk: DenseCheck, *, d_min: 
         d_min: the planner's clearance, m.
 
     Returns:
-        True when the polyline's nearest point is below the threshold on the meshes.
+        True when the polyline's nearest point is closer than the threshold plus :data:`TOUCH_MARGIN` on the
+        meshes.
     """
     if chk.q is None or chk.kind != "collision" or len(path) < 2:
         return False
@@ -324,14 +329,14 @@ def path_touches(env: Environment, path: np.ndarray, chk: DenseCheck, *, d_min: 
     near = a + s[:, None] * e
     p = near[int(np.argmin(np.linalg.norm(near - chk.q, axis=1)))]
     if len(chk.links) == 2:
-        thr = max(env.self_padding - CLEARANCE_TOL, 0.0)
-        d = self_geometry(env.robot, env.disabled).clearance(p, cap=thr + 1e-3, thresh=thr)[0]
+        top = max(env.self_padding - CLEARANCE_TOL, 0.0) + TOUCH_MARGIN
+        d = self_geometry(env.robot, env.disabled).clearance(p, cap=top + TOUCH_MARGIN, thresh=top)[0]
     elif len(chk.links) == 1:
-        thr = max(d_min - CLEARANCE_TOL, 0.0)
-        d = mesh_geometry(env).clearance(p, cap=thr + 1e-3, thresh=thr)[0]
+        top = max(d_min - CLEARANCE_TOL, 0.0) + TOUCH_MARGIN
+        d = mesh_geometry(env).clearance(p, cap=top + TOUCH_MARGIN, thresh=top)[0]
     else:
         return False
-    return bool(d < thr)
+    return bool(d < top)
 
 
 def exact_roots(env: Environment, q0: np.ndarray, goals: np.ndarray, floor: float) -> np.ndarray:
@@ -373,5 +378,5 @@ def exact_roots(env: Environment, q0: np.ndarray, goals: np.ndarray, floor: floa
     return np.asarray(keep, int)
 
 
-__all__ = ["MESH_CHUNK", "exact_check", "exact_roots", "interior_check", "interior_window", "mesh_geometry",
-           "self_check", "timed_out"]
+__all__ = ["MESH_CHUNK", "TOUCH_MARGIN", "exact_check", "exact_roots", "interior_check", "interior_window",
+           "mesh_geometry", "self_check", "timed_out"]
