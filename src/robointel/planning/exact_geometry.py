@@ -199,8 +199,9 @@ class MeshGeometry:
                 self.obstacles.append((o.label(k), g[0], g[1], np.asarray(lo), np.asarray(hi)))
                 kept.append(o)
         # each obstacle as a primitive of the compiled distance (part_spheres.part_bounds)
-        self._types = np.array([o._code for o in kept], np.int64)  # type: ignore[attr-defined]
-        self._params = np.array([o._packed for o in kept], float).reshape(-1, GK.NPARAM)  # type: ignore[attr-defined]
+        self._types = np.array([o._code for o in kept], dtype=np.int64)
+        packed = [np.asarray(o._packed, dtype=np.float64) for o in kept]  # type: ignore[attr-defined]
+        self._params = np.array(packed, dtype=np.float64).reshape(-1, GK.NPARAM)
         self.part_lever = side.part_lever
         #: (P * O, n): the distance of (part p, obstacle o), pair p * O + o, changes at most
         #: sum_k pair_lever[., k] |dq_k| (m)
