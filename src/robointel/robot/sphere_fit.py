@@ -162,7 +162,7 @@ def _key(robot: KinematicRobot, links: list[str], prims: dict[str, list[dict]], 
     return hsh.hexdigest()[:32]
 
 
-def fit_spheres(robot: KinematicRobot, *, spacing: float = 0.004, slack: float = 0.02, seed: int = 0,
+def fit_spheres(robot: KinematicRobot, *, spacing: float = 0.004, slack: float = 0.025, seed: int = 0,
                 cache: bool = True) -> tuple[list[str], np.ndarray, np.ndarray]:
     """Spheres fitted to every link's collision geometry (see the module docstring).
 
