@@ -20,7 +20,7 @@ def _every_pair(mg: MeshGeometry, q: np.ndarray, cap: float) -> float:
     for part in mg.parts:
         T = robot.data.oMf[part.frame].homogeneous @ part.placement
         Tp = coal.Transform3s(T[:3, :3], T[:3, 3])
-        for _, g, To, _, _ in mg.obstacles:
+        for _, g, To in mg.obstacles:
             best = min(best, contact_distance(part.mesh, Tp, g, To, req))
     return best
 
@@ -102,7 +102,7 @@ def test_pair_clear_is_a_proof_and_refutes_only_below_its_margin(shared_data):
             Tl = mg.link_placements(q)
             pin.framesForwardKinematics(robot.model, robot.data, q)
             for i in range(len(mg.pair_lever)):
-                part, (_, g, To, _, _) = mg.parts[i // nobs], mg.obstacles[i % nobs]
+                part, (_, g, To) = mg.parts[i // nobs], mg.obstacles[i % nobs]
                 T = robot.data.oMf[part.frame].homogeneous @ part.placement
                 exact = contact_distance(part.mesh, coal.Transform3s(T[:3, :3], T[:3, 3]), g, To, req)
                 if exact > 0.05:
@@ -153,7 +153,7 @@ def test_part_bounds_never_exceed_the_mesh_distance(shared_data):
         mg._bounds(Tl, pp, oo, bound)
         pin.framesForwardKinematics(robot.model, robot.data, q)
         for n, (p, o) in enumerate(zip(pp, oo)):
-            part, (_, g, To, _, _) = mg.parts[p], mg.obstacles[o]
+            part, (_, g, To) = mg.parts[p], mg.obstacles[o]
             T = robot.data.oMf[part.frame].homogeneous @ part.placement
             exact = contact_distance(part.mesh, coal.Transform3s(T[:3, :3], T[:3, 3]), g, To, req)
             assert bound[n] <= exact + 1e-7, (p, o, bound[n], exact)

@@ -190,13 +190,13 @@ class MeshGeometry:
             _PARTS[key] = _RobotMeshes(robot, _parts(robot))
         side = _PARTS[key]
         self.parts = side.parts
-        self.obstacles: list[tuple[str, Any, Any, np.ndarray, np.ndarray]] = []
+        #: (label, coal geometry, its placement) of each obstacle coal can place
+        self.obstacles: list[tuple[str, Any, Any]] = []
         kept = []
         for k, o in enumerate(obstacles):
             g = _coal_obstacle(o)
             if g is not None:
-                lo, hi = o.bounds()
-                self.obstacles.append((o.label(k), g[0], g[1], np.asarray(lo), np.asarray(hi)))
+                self.obstacles.append((o.label(k), g[0], g[1]))
                 kept.append(o)
         # each obstacle as a primitive of the compiled distance (part_spheres.part_bounds)
         self._types = np.array([o._code for o in kept], dtype=np.int64)
@@ -266,7 +266,7 @@ class MeshGeometry:
             if Tp is None:
                 T = Tl[self._part_frame[p]] @ part.placement
                 Tp = placed[p] = coal.Transform3s(T[:3, :3], T[:3, 3])
-            label, g, To = self.obstacles[o][:3]
+            label, g, To = self.obstacles[o]
             d = bounded_distance(part.hull, part.mesh, Tp, g, g, To, min(thresh, best), req)
             if d < best:
                 best, bl, bo = float(d), part.link, label
@@ -294,7 +294,7 @@ class MeshGeometry:
             if T is None:
                 Mp = Tl[self._part_frame[p]] @ part.placement
                 T = placed[p] = coal.Transform3s(Mp[:3, :3], Mp[:3, 3])
-            g, To = self.obstacles[o][1:3]
+            _, g, To = self.obstacles[o]
             out[n] = bounded_distance(part.hull, part.mesh, T, g, g, To, thresh, self._req)
         return out
 
@@ -317,7 +317,7 @@ class MeshGeometry:
             return True
         part = self.parts[p]
         Mp = Tl[self._part_frame[p]] @ part.placement
-        g, To = self.obstacles[o][1:3]
+        _, g, To = self.obstacles[o]
         return placed_clear(part.hull, part.mesh, coal.Transform3s(Mp[:3, :3], Mp[:3, 3]), g, g, To, margin)
 
     def link_placements(self, q: np.ndarray) -> np.ndarray:
