@@ -73,18 +73,20 @@ def cage(shared_data, tmp_path_factory):
     return env, np.asarray(p.start, float), goals
 
 
-def _grow(env, q0, goals, seed, iters=1536):
+def _grow(env, q0, goals, seed, iters=1536, dom=None, rdom=4.0):
     W, s, n, cap = env.world_cover, env.scratch, len(q0), 4000
     X, parent = np.zeros((2, n, cap)), np.full((2, cap), -1, np.int64)  # the nodes joint by joint
     count = np.array([1, len(goals)], np.int64)
     nroot = count.copy()
     X[0, :, 0], X[1, :, :len(goals)] = q0, goals.T
     rng, win, link = np.ones(3), np.zeros((2, 2), np.int64), np.zeros(2, np.int64)
+    dom = np.full((2, cap), np.inf) if dom is None else dom
     R.seed(seed)
     status = 0
     for _ in range(iters // 32):
         status = R.rrt_connect(X, parent, count, env.robot.lower, env.robot.upper, 32, rng, win, W, W, nroot,
-                               np.inf, s.T, s.C, s.G, s.out, 0.001, env.lever, 0.02, link, batch_state(env))
+                               np.inf, s.T, s.C, s.G, s.out, 0.001, env.lever, 0.02, link, batch_state(env), dom,
+                               rdom)
         if status != 0:
             break
     return X.transpose(0, 2, 1), parent, count, rng, status
@@ -104,6 +106,21 @@ def test_goal_tree_steps_shorter_in_a_pocket_and_search_is_deterministic(cage):
     assert again[4] == status and np.array_equal(again[2], count) and np.array_equal(again[3], rng)
     assert all(np.array_equal(again[0][t, :count[t]], nodes[t, :count[t]]) for t in range(2))
     assert all(np.array_equal(again[1][t, :count[t]], parent[t, :count[t]]) for t in range(2))
+
+
+def test_a_node_is_extended_only_toward_samples_within_its_dynamic_domain(cage):
+    """Every node's domain empty: no sample is tried, no node added. Grown with domains of 0.3 rad: a node whose
+    extension failed holds 0.3, every other node inf, and the goal tree in the cage pocket has such nodes."""
+    env, q0, goals = cage
+    shut = np.zeros((2, 4000))
+    nodes, parent, count, rng, status = _grow(env, q0, goals, seed=11, iters=512, dom=shut)
+    assert status == 0 and list(count) == [1, len(goals)] and np.all(shut == 0.0)
+    dom = np.full((2, 4000), np.inf)
+    nodes, parent, count, rng, status = _grow(env, q0, goals, seed=11, dom=dom, rdom=0.3)
+    for t in range(2):
+        d = dom[t, :count[t]]
+        assert np.all((d == 0.3) | (d == np.inf))
+    assert np.any(dom[1, :count[1]] == 0.3)
 
 
 def test_node_check_gives_config_valids_verdict(cage):

@@ -156,13 +156,15 @@ def test_revalidate_drops_a_failing_node_with_its_subtree(cage):
                 dropped += 1
         want.append(kept)
     assert dropped > 0, "no node of the fitted trees collides in the covering spheres"
-    got = R.revalidate(X, parent, count, nroot, Wc, Wc, np.inf, s.T, s.C, s.G, s.out, 0.001, 0.02, BS)
+    got = R.revalidate(X, parent, count, nroot, Wc, Wc, np.inf, s.T, s.C, s.G, s.out, 0.001, 0.02, BS,
+                       trees.dom.copy())
     assert got == dropped
     for t in range(2):
         assert count[t] == nroot[t] + len(want[t])
         for m, (q, p) in enumerate(want[t], start=int(nroot[t])):
             assert np.array_equal(X[t, :, m], q) and parent[t, m] == p
-    _assert_valid(env, SearchTrees(X, parent, count, trees.rng, trees.win, Wc, (), 0.001, 0.02), Wc, 0.001, 0.02)
+    kept = SearchTrees(X, parent, count, trees.rng, trees.win, trees.dom, Wc, (), 0.001, 0.02)
+    _assert_valid(env, kept, Wc, 0.001, 0.02)
 
 
 def test_the_search_does_not_depend_on_how_its_iterations_are_cut_into_calls(cage, monkeypatch):

@@ -4,7 +4,10 @@ Trees live in caller-owned arrays so that the search runs in chunks of iteration
 the caller watches the clock: ``X`` (2, n, cap), the nodes joint by joint (the nearest-neighbour
 scan reads them so, one joint of many nodes at a time, which the compiler vectorizes), ``parent``
 (2, cap) and ``count`` (2,). Tree 0 grows from the start, tree 1 from every goal of the goal set
-(each a root with parent -1).
+(each a root with parent -1). ``dom`` (2, cap) holds each node's dynamic domain (Yershova et al.,
+ICRA 2005): inf until an extension from the node fails, then the radius asked for; a node is
+extended only toward samples within its domain, so the samples that would fail next to an obstacle
+that stopped a node before cost a nearest-neighbour scan, not a collision check.
 """
 from __future__ import annotations
 
@@ -139,7 +142,7 @@ def _steer(a, b, dist, rng, out):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def rrt_connect(X, parent, count, lower, upper, iters, rng, win, W, Wr, nroot, rcap, T, C, G, out, thresh,
-                lever, res, link, BS):  # pragma: no cover - compiled
+                lever, res, link, BS, dom, rdom):  # pragma: no cover - compiled
     """Run up to ``iters`` RRT-Connect iterations.
 
     Returns 1 when the trees met (``link`` = (tree-0 node,
@@ -147,7 +150,9 @@ def rrt_connect(X, parent, count, lower, upper, iters, rng, win, W, Wr, nroot, r
     leaving one of the ``nroot[t]`` roots of tree t are checked in world ``Wr`` (the roots may be
     valid only there) for their first ``rcap`` rad (max |dq|) and in ``W`` beyond
     (:func:`~robointel.planning._batch_edges.root_edge_batch`, ``BS`` the batch state), all other
-    edges in ``W``.
+    edges in ``W``. A sample farther from its nearest node than the node's domain ``dom`` is passed
+    over (the iteration counts); a node whose extension fails gets the domain ``rdom`` (rad; inf:
+    none), a node added the domain inf (module doc).
 
     ``X`` (2, n, cap): the nodes of each tree joint by joint, node i of tree t ``X[t, :, i]``
     (the caller writes the roots, the kernel every node it adds); ``parent`` (2, cap) int64.
@@ -177,6 +182,8 @@ def rrt_connect(X, parent, count, lower, upper, iters, rng, win, W, Wr, nroot, r
         for k in range(n):
             qr[k] = np.random.uniform(lower[k], upper[k])
         i, d = _nearest_soa(X[a], count[a], qr, buf)
+        if d > dom[a, i]:  # outside the node's dynamic domain
+            continue
         for k in range(n):
             qa[k] = X[a, k, i]
         _steer(qa, qr, d, rng[a], qn)
@@ -184,10 +191,12 @@ def rrt_connect(X, parent, count, lower, upper, iters, rng, win, W, Wr, nroot, r
             qa, qn, Wr, W, i < nroot[a], np.bool_(False), rcap, BS, thresh, res, out)
         _adapt(rng, win, a, ok)
         if not ok:
+            dom[a, i] = min(dom[a, i], rdom)
             continue
         ia = count[a]
         X[a, :, ia] = qn
         parent[a, ia] = i
+        dom[a, ia] = np.inf
         count[a] += 1
         # connect tree b greedily toward the new node
         j, d = _nearest_soa(X[b], count[b], qn, buf)
@@ -210,6 +219,7 @@ def rrt_connect(X, parent, count, lower, upper, iters, rng, win, W, Wr, nroot, r
             jb = count[b]
             X[b, :, jb] = qr
             parent[b, jb] = j
+            dom[b, jb] = np.inf
             count[b] += 1
             j = jb
             d = 0.0
@@ -222,14 +232,15 @@ def rrt_connect(X, parent, count, lower, upper, iters, rng, win, W, Wr, nroot, r
 
 
 @njit(cache=True)
-def revalidate(X, parent, count, nroot, W, Wr, rcap, T, C, G, out, thresh, res, BS):  # pragma: no cover - compiled
+def revalidate(X, parent, count, nroot, W, Wr, rcap, T, C, G, out, thresh, res, BS, dom):  # pragma: no cover - compiled
     """Keep of each tree the nodes still free, reached by edges still valid, in world ``W``: nodes dropped.
 
     Node i of tree t is kept when its parent is kept, it passes the node check (``thresh``) and the
     edge from its parent passes the edge check (``res``; leaving a root: ``Wr`` for its first ``rcap``
     rad) as in :func:`rrt_connect`; the rest of its subtree goes with a dropped node. The roots are
     kept (the caller checked them). The trees are compacted in place (a node's parent comes before
-    it, so the order of the kept nodes and their parents hold); ``count`` is updated.
+    it, so the order of the kept nodes and their parents hold), their domains ``dom`` with them;
+    ``count`` is updated.
     """
     n = X.shape[1]
     obox = BS[0][3]
@@ -256,6 +267,7 @@ def revalidate(X, parent, count, nroot, W, Wr, rcap, T, C, G, out, thresh, res, 
                 continue
             X[t, :, m] = qn
             parent[t, m] = p
+            dom[t, m] = dom[t, i]
             new[i] = m
             m += 1
         for i in range(m, count[t]):

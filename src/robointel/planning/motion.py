@@ -154,13 +154,13 @@ def plan_motion(robot: Robot, environment: Environment, start: npt.ArrayLike,
     if not isinstance(settings, MotionSettings):
         raise InvalidInput("settings must be a MotionSettings", value=settings)
     st = settings
-    if not (st.d_min >= 0 and st.time_budget_s > 0 and st.resolution > 0 and st.rrt_range > 0
+    if not (st.d_min >= 0 and st.time_budget_s > 0 and st.resolution > 0 and st.rrt_range > 0 and st.rrt_domain > 0
             and 0 < st.velocity_scale <= 1 and st.knot_step > 0 and st.spline_step > 0 and st.check_dt > 0
             and st.root_relaxed_rad > 0 and st.timing in ("topp", "temporal") and 0 < st.fitted_fallback <= 1
             and st.budget_clock in ("wall", "cpu")):
-        raise InvalidInput("settings need d_min >= 0, time_budget_s, resolution, rrt_range, knot_step, spline_step, "
-                           "check_dt, root_relaxed_rad > 0, 0 < velocity_scale, fitted_fallback <= 1, timing "
-                           "'topp' or 'temporal' and budget_clock 'wall' or 'cpu'",
+        raise InvalidInput("settings need d_min >= 0, time_budget_s, resolution, rrt_range, rrt_domain, knot_step, "
+                           "spline_step, check_dt, root_relaxed_rad > 0, 0 < velocity_scale, fitted_fallback <= 1, "
+                           "timing 'topp' or 'temporal' and budget_clock 'wall' or 'cpu'",
                            value=st)
     q0 = robot.check_q(robot.snap_to_limits(robot.check_q(start, "start")), "start", limits=True)  # a writable copy
     goals = _goal_set(robot, goal, st.seed)

@@ -19,6 +19,9 @@ class MotionSettings:
             temporal optimization.
         rrt_range: longest RRT edge, rad (Euclidean in joint space); each tree steps shorter while its
             extensions mostly fail (down to 1/2 rad), longer again (up to this) when they succeed.
+        rrt_domain: dynamic-domain radius of the RRT (Yershova et al., ICRA 2005), rad: a node whose
+            extension has failed is extended afterwards only toward samples within this distance of
+            it (samples beyond cost a nearest-neighbour scan, no collision check); inf: every sample.
         resolution: largest sphere-centre travel between two checks of a path edge, m (so the
             edge keeps clearance >= d_min - resolution / 2 between the checked points).
         search_resolution: the same during the tree search (coarser, faster); the found path's
@@ -62,6 +65,7 @@ class MotionSettings:
     seed: int = 0
     jerk_limited: bool = False
     rrt_range: float = 1.0
+    rrt_domain: float = 4.0
     resolution: float = 0.002
     search_resolution: float = 0.02
     max_nodes: int = 20000

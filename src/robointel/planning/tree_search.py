@@ -40,7 +40,8 @@ def warm_search(env: Environment) -> None:
     parent = np.full((2, 4), -1, np.int64)
     count = np.array([1, 1], np.int64)
     R.rrt_connect(X, parent, count, env.robot.lower, env.robot.upper, 0, np.ones(3), np.zeros((2, 2), np.int64),
-                  W, W, count, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, np.zeros(2, np.int64), batch_state(env))
+                  W, W, count, 0.2, s.T, s.C, s.G, s.out, 0.0, env.lever, 0.01, np.zeros(2, np.int64), batch_state(env),
+                  np.full((2, 4), np.inf), np.inf)
 
 
 def path_valid(env: Environment, path: np.ndarray, d_min: float, resolution: float, W: tuple,
@@ -86,6 +87,7 @@ class SearchTrees:
         count: (2,) nodes in each tree.
         rng: (3,) the trees' adapted ranges and the range asked for, rad.
         win: (2, 2) each tree's range-adaptation window.
+        dom: (2, cap) each node's dynamic domain, rad (:mod:`robointel.planning._rrt_kernels`).
         W: the world the nodes were checked in.
         radii: per radius entry of the packed world, the smaller of its values in ``W`` and in the
             relaxed world of the root edges (each node and edge was checked in one of them), m.
@@ -98,6 +100,7 @@ class SearchTrees:
     count: np.ndarray
     rng: np.ndarray
     win: np.ndarray
+    dom: np.ndarray
     W: tuple
     radii: tuple
     thr: float
@@ -115,10 +118,10 @@ class SearchTrees:
         return all(np.all(np.maximum(W[k], Wr[k]) <= r) for k, r in zip(_RADII, self.radii))
 
     @classmethod
-    def of(cls, X: np.ndarray, parent: np.ndarray, count: np.ndarray, rng: np.ndarray, win: np.ndarray, W: tuple,
-           Wr: tuple, thr: float, res: float) -> SearchTrees:
+    def of(cls, X: np.ndarray, parent: np.ndarray, count: np.ndarray, rng: np.ndarray, win: np.ndarray,
+           dom: np.ndarray, W: tuple, Wr: tuple, thr: float, res: float) -> SearchTrees:
         """The trees grown with nodes checked in ``W`` and root edges in ``Wr`` (their radii the smaller)."""
-        return cls(X, parent, count, rng, win, W, tuple(np.minimum(W[k], Wr[k]) for k in _RADII), thr, res)
+        return cls(X, parent, count, rng, win, dom, W, tuple(np.minimum(W[k], Wr[k]) for k in _RADII), thr, res)
 
 
 class TreeCarry:
@@ -165,31 +168,34 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
     old = None if carry is None else carry.trees
     if old is not None and old.placed_alike(W, n, cap) and np.array_equal(old.X[0, :, 0], q0) and \
             np.array_equal(old.X[1, :, :len(goals)], goals.T) and float(old.rng[2]) == float(st.rrt_range):
-        X, parent, count, rng, win = old.X, old.parent, old.count, old.rng, old.win
+        X, parent, count, rng, win, dom = old.X, old.parent, old.count, old.rng, old.win, old.dom
         if not old.fits(W, Wr, thr, res, n, cap):  # a stricter world: the nodes and edges still valid in it
-            R.revalidate(X, parent, count, nroot, W, Wr, rcap, s.T, s.C, s.G, s.out, thr, res, BS)
+            R.revalidate(X, parent, count, nroot, W, Wr, rcap, s.T, s.C, s.G, s.out, thr, res, BS, dom)
     else:
         X = np.empty((2, n, cap))  # the trees' nodes joint by joint (the kernel's nearest-neighbour scan)
         parent = np.full((2, cap), -1, np.int64)
         count = nroot.copy()
         X[0, :, 0], X[1, :, :len(goals)] = q0, goals.T
         rng, win = np.full(3, float(st.rrt_range)), np.zeros((2, 2), np.int64)  # each tree's range adapts
+        dom = np.full((2, cap), np.inf)  # each node's dynamic domain
     if carry is not None:
         carry.trees = None
     link = np.zeros(2, np.int64)
     R.seed(int(st.seed) + 7 * attempt)
     robot = env.robot
     status, grown, idle, size, why = 0, 0, 0, int(count.sum()), ""
+    rdom = float(st.rrt_domain)
     chunk = CHUNK  # (the search does not depend on how its iterations are cut into calls)
     while status != 1 and clock_now() < deadline:
         if status < 0:  # the trees are full: start over from the roots (the random stream goes on)
             grown += int(count.sum())
             count[:] = nroot
             parent[:] = -1
+            dom[:] = np.inf
         iters = min(chunk, stall - idle) if 0 < stall and idle < stall else chunk  # (a stall: after ``stall``)
         t0 = time.perf_counter()
         status = R.rrt_connect(X, parent, count, robot.lower, robot.upper, iters, rng, win, W, Wr, nroot, rcap,
-                               s.T, s.C, s.G, s.out, thr, lever, res, link, BS)
+                               s.T, s.C, s.G, s.out, thr, lever, res, link, BS, dom, rdom)
         took = time.perf_counter() - t0
         grew, size = int(count.sum()) != size, int(count.sum())
         idle = 0 if grew or status != 0 else idle + iters
@@ -201,7 +207,7 @@ def search(env: Environment, q0: np.ndarray, goals: np.ndarray, st: MotionSettin
             why = f"stalled: no node added in {idle} iterations ({grown + size} nodes)"
             break
     if carry is not None:
-        carry.trees = SearchTrees.of(X, parent, count, rng, win, W, Wr, thr, res)
+        carry.trees = SearchTrees.of(X, parent, count, rng, win, dom, W, Wr, thr, res)
     if status != 1:
         return None, -1, why or f"the time budget of {st.time_budget_s:g} s ran out ({grown + int(count.sum())} nodes)"
     a, b = [], []
