@@ -183,7 +183,7 @@ def test_dense_check_window_in_the_covering_spheres(thin70):
         new = check_dense(env, tr, d_min=0.001, vmax=vmax, amax=amax, window=win)
         # the same verdict (the clearances either reports above d_min are proven bounds, not minima: the
         # samples they skip differ, so their values do not compare)
-        assert old.ok and new.ok and min(old.min_clearance_m, new.min_clearance_m) >= 0.001 - 1e-3
+        assert old.ok and new.ok
         # resting at the goal (free in the fitted spheres, not in the covering ones), all of it interior
         g = np.asarray(p.goals[0], float)
         z = np.zeros((11, robot.nq))
